@@ -1,0 +1,104 @@
+// The unbounded cave layout: rooms (spheres), portals (discs where two spheres overlap) and the
+// portal graph, as pure functions of (seed, parameters, room id).
+//
+// Space is cut into cubic sectors. Each face between two sectors carries a few gate rooms placed
+// by a hash of (seed, face), centred on the face and kept away from its edges. A sector links its
+// gates with chains of overlapping spheres, then grows the rest with the thesis's growing tree
+// (§3.1.2). Its own rooms stay inside its box, so a sector depends only on its seed and the gates
+// of its six faces: any room is computed from at most two sectors, in any order, in any process.
+// docs/ARCHITECTURE.md explains the scheme and why it is connected.
+#pragma once
+
+#include <cstdint>
+#include <optional>
+#include <vector>
+
+#include "cave/params.hpp"
+#include "cave/room_id.hpp"
+#include "core/result.hpp"
+#include "core/vec3.hpp"
+
+namespace grotto::cave {
+
+struct Sphere {
+  Vec3 centre;
+  double radius = 0;
+};
+
+// The disc where two rooms' spheres overlap (thesis Figure 3-2), seen from one of them.
+struct Portal {
+  Vec3 centre;
+  Vec3 normal;  // unit, pointing out of this room into the neighbour
+  double radius = 0;
+  RoomId neighbour = RoomId::interior({}, 0);
+};
+
+struct Room {
+  RoomId id = RoomId::interior({}, 0);
+  Sphere sphere;
+  std::vector<Portal> portals;  // sorted by neighbour id
+};
+
+// A validated world: a seed and parameters that passed validate().
+class World {
+ public:
+  static Result<World> create(uint64_t seed, const LayoutParams& params);
+  uint64_t seed() const { return seed_; }
+  const LayoutParams& params() const { return params_; }
+
+ private:
+  World(uint64_t seed, const LayoutParams& params) : seed_(seed), params_(params) {}
+  uint64_t seed_;
+  LayoutParams params_;
+};
+
+// Everything one sector decides: its interior rooms with all their portals, and the gates of its
+// six faces with the portals they have on this sector's side.
+struct SectorLayout {
+  SectorCoord sector;
+  SectorCharacter character;
+  std::vector<Room> rooms;  // interior rooms, index i has id RoomId::interior(sector, i)
+  int link_rooms = 0;       // rooms[0, link_rooms) are the hub and gate links; the rest grew
+  std::vector<Room> gates;  // sorted by id; portals on this side only
+  int attempts = 0;         // generation attempts used (1 unless linking the gates failed)
+  bool connected = false;   // every room and gate in one component (true in all tested worlds)
+};
+
+// The gates on the face between `lower` and its +axis neighbour (no portals).
+std::vector<Room> face_gates(const World& world, SectorCoord lower, int axis);
+
+// Precondition: in_range(sector). Bounded work: the sector's own rooms and its faces' gates.
+SectorLayout generate_sector(const World& world, SectorCoord sector);
+
+// Any room with all its portals. Interior rooms need their sector; gates need both sectors of
+// their face. Errors: kNotFound for a well-formed id that names no room.
+Result<Room> room(const World& world, RoomId id);
+
+// The room whose space (its sphere minus the caps beyond its portals) contains `point`; a point
+// on a portal plane belongs to the room with the smaller id. None outside every room or outside
+// the sector range.
+std::optional<RoomId> locate(const World& world, Vec3 point);
+
+// The deterministic place a new player starts: the interior room of sector (0,0,0) closest to
+// the sector's centre.
+RoomId spawn_room(const World& world);
+
+// The sector that contains a point (floor division by the sector size).
+SectorCoord sector_of(const World& world, Vec3 point);
+
+// A block of sectors [lo, hi] (inclusive): their interior rooms and the gates of their faces,
+// each with all its portals (portals of boundary gates may lead out of the block), sorted by id.
+struct Region {
+  SectorCoord lo, hi;
+  std::vector<Room> rooms;
+  std::vector<SectorLayout> sectors;  // the block's sectors in x-major order
+  const Room* find(RoomId id) const;  // nullptr when the room is not in the region
+};
+Region generate_region(const World& world, SectorCoord lo, SectorCoord hi);
+
+// Canonical little-endian bytes of a room (ids packed, doubles as IEEE bits): the basis of
+// determinism tests and digests.
+void append_bytes(const Room& room, std::vector<unsigned char>& out);
+uint64_t digest(const std::vector<Room>& rooms);
+
+}  // namespace grotto::cave

@@ -1,0 +1,179 @@
+// grotto-layout: look at what the layout parameters do. Generates a block of sectors, prints its
+// rooms and portals as JSON and writes an SVG picture (top and side views).
+#include <spdlog/sinks/stdout_color_sinks.h>
+#include <spdlog/spdlog.h>
+#include <CLI/CLI.hpp>
+#include <charconv>
+#include <cstdio>
+#include <fstream>
+
+#include "cave/layout.hpp"
+#include "cave/svg.hpp"
+#include "proto/layout_json.hpp"
+
+namespace {
+
+using grotto::Result;
+using grotto::cave::SectorCoord;
+
+constexpr long kMaxSectors = 512;
+
+Result<SectorCoord> parse_sector(const std::string& flag, const std::string& text) {
+  SectorCoord s;
+  const char* p = text.data();
+  const char* end = text.data() + text.size();
+  for (int a = 0; a < 3; ++a) {
+    auto [next, ec] = std::from_chars(p, end, s[a]);
+    bool last = a == 2;
+    if (ec != std::errc() || (last ? next != end : (next == end || *next != ','))) {
+      return grotto::invalid_argument(flag + " must be three integers like 0,-1,2 (got '" + text +
+                                      "')");
+    }
+    p = next + 1;
+  }
+  if (!grotto::cave::in_range(s)) {
+    return grotto::invalid_argument(flag + " is outside the sector range ±" +
+                                    std::to_string(grotto::cave::kSectorCoordLimit));
+  }
+  return s;
+}
+
+bool write_file(const std::string& path, const std::string& text) {
+  if (path == "-") {
+    std::fwrite(text.data(), 1, text.size(), stdout);
+    std::fputc('\n', stdout);
+    return true;
+  }
+  std::ofstream f(path, std::ios::binary);
+  f << text;
+  f.close();
+  if (!f) {
+    spdlog::error("cannot write {}", path);
+    return false;
+  }
+  return true;
+}
+
+int fail(const std::string& message) {
+  std::fprintf(stderr, "grotto-layout: %s\n", message.c_str());
+  return 2;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{
+      "grotto-layout: generate a block of sectors of an unbounded Grotto cave, print its rooms "
+      "and portals as JSON and draw it as SVG (top and side views, coloured by region).\n"
+      "Example: grotto-layout --seed 7 --sectors 2 --svg cave.svg --json cave.json"};
+  std::string seed_text = "1";
+  std::string from_text = "0,0,0", to_text;
+  int sectors = 2;
+  std::string svg_path, json_path, room_text, character;
+  grotto::cave::LayoutParams params;
+  std::optional<double> tunnel_chance, big_probability;
+  std::optional<int> room_count;
+  std::vector<double> bias;
+  app.add_option("--seed", seed_text, "World seed, an unsigned 64-bit integer")
+      ->capture_default_str();
+  app.add_option("--from", from_text, "First sector of the block, as x,y,z")->capture_default_str();
+  app.add_option("--to", to_text, "Last sector of the block, as x,y,z (default: from + sectors-1)");
+  app.add_option("--sectors", sectors, "Edge of the block in sectors when --to is not given")
+      ->check(CLI::Range(1, 8))
+      ->capture_default_str();
+  app.add_option("--svg", svg_path, "Write the SVG picture to this file");
+  app.add_option("--json", json_path, "Write the region as JSON to this file ('-' for stdout)");
+  app.add_option("--room", room_text, "Print one room as JSON instead, e.g. 0.0.0.r3 or 0.0.0.x1");
+  app.add_option("--character", character,
+                 "Use one character everywhere instead of the region mix: maze, shafts or caverns")
+      ->check(CLI::IsMember({"maze", "shafts", "caverns"}));
+  app.add_option("--sector-size", params.sector_size, "Sector edge in metres")
+      ->capture_default_str();
+  app.add_option("--region-scale", params.region_scale,
+                 "Regions change over about this many "
+                 "sectors")
+      ->capture_default_str();
+  app.add_option("--tunnel-chance", tunnel_chance,
+                 "Chance to grow from the most recent room, for every character (thesis 3.1.2)");
+  app.add_option("--big-probability", big_probability, "Chance of a big room, for every character");
+  app.add_option("--room-count", room_count, "Rooms grown per sector, for every character");
+  app.add_option("--bias", bias, "Displacement bias x,y,z for every character, e.g. 1,0.1,1")
+      ->delimiter(',')
+      ->expected(3);
+  CLI11_PARSE(app, argc, argv);
+  // stdout carries JSON; logs go to stderr.
+  spdlog::set_default_logger(spdlog::stderr_color_mt("grotto-layout"));
+
+  if (!character.empty()) {
+    for (const auto& c : grotto::cave::LayoutParams::default_characters()) {
+      if (c.name == character) {
+        double size = params.sector_size, scale = params.region_scale;
+        params = grotto::cave::LayoutParams::uniform(c);
+        params.sector_size = size;
+        params.region_scale = scale;
+      }
+    }
+  }
+  for (auto& c : params.characters) {
+    if (tunnel_chance) c.tunnel_chance = *tunnel_chance;
+    if (big_probability) c.big_probability = *big_probability;
+    if (room_count) c.room_count = *room_count;
+    if (!bias.empty()) c.bias = {bias[0], bias[1], bias[2]};
+  }
+  uint64_t seed = 0;
+  auto [seed_end, seed_ec] =
+      std::from_chars(seed_text.data(), seed_text.data() + seed_text.size(), seed);
+  if (seed_ec != std::errc() || seed_end != seed_text.data() + seed_text.size()) {
+    return fail("--seed must be an unsigned 64-bit integer (got '" + seed_text + "')");
+  }
+  auto world = grotto::cave::World::create(seed, params);
+  if (!world) return fail(world.error().message);
+
+  if (!room_text.empty()) {
+    auto id = grotto::cave::RoomId::parse(room_text);
+    if (!id) return fail(id.error().message);
+    auto r = grotto::cave::room(*world, *id);
+    if (!r) return fail(r.error().message);
+    std::printf("%s\n", grotto::proto::room_json(*r, 2).c_str());
+    return 0;
+  }
+
+  auto lo = parse_sector("--from", from_text);
+  if (!lo) return fail(lo.error().message);
+  SectorCoord hi{lo->x + sectors - 1, lo->y + sectors - 1, lo->z + sectors - 1};
+  if (!to_text.empty()) {
+    auto parsed = parse_sector("--to", to_text);
+    if (!parsed) return fail(parsed.error().message);
+    hi = *parsed;
+  }
+  long count = 1;
+  for (int a = 0; a < 3; ++a) {
+    if (hi[a] < (*lo)[a]) return fail("--to must not be below --from on any axis");
+    count *= hi[a] - (*lo)[a] + 1;
+  }
+  if (!grotto::cave::in_range(hi)) return fail("--to is outside the sector range");
+  if (count > kMaxSectors) {
+    return fail("the block has " + std::to_string(count) + " sectors; at most " +
+                std::to_string(kMaxSectors) + " at once");
+  }
+
+  grotto::cave::Region region = grotto::cave::generate_region(*world, *lo, hi);
+  size_t portals = 0;
+  for (const auto& r : region.rooms)
+    portals += r.portals.size();
+  spdlog::info("event=region seed={} from={} to={} sectors={} rooms={} portals={}", seed,
+               grotto::cave::to_string(*lo), grotto::cave::to_string(hi), count,
+               region.rooms.size(), portals / 2);
+  if (!svg_path.empty()) {
+    if (!write_file(svg_path, grotto::cave::region_svg(*world, region))) return 1;
+    spdlog::info("event=svg_written path={}", svg_path);
+  }
+  if (!json_path.empty()) {
+    if (!write_file(json_path, grotto::proto::region_json(*world, region, 1))) return 1;
+    if (json_path != "-") spdlog::info("event=json_written path={}", json_path);
+  }
+  if (svg_path.empty() && json_path.empty()) {
+    std::printf("%s\n", grotto::proto::region_json(*world, region, 1).c_str());
+  }
+  return 0;
+}

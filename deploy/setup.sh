@@ -1,0 +1,48 @@
+#!/usr/bin/env bash
+# Installs the Debian 12 packages Grotto needs to build, test and run, and nothing else.
+# Idempotent and quiet when nothing is missing; works as root or through sudo.
+#   deploy/setup.sh           the build, run and test dependencies
+#   deploy/setup.sh --list    print the package list and exit
+set -euo pipefail
+
+packages=(
+  cmake g++ make pkg-config
+  libboost-dev libdraco-dev libglfw3-dev libglm-dev nlohmann-json3-dev
+  pocl-opencl-icd ocl-icd-opencl-dev opencl-headers opencl-clhpp-headers
+  libepoxy-dev libgtest-dev libgmock-dev libbenchmark-dev libspdlog-dev libcli11-dev
+  xvfb libgl1-mesa-dri
+)
+
+if [[ "${1:-}" == "--list" ]]; then
+  printf '%s\n' "${packages[@]}"
+  exit 0
+fi
+
+if ! command -v dpkg-query >/dev/null 2>&1 || ! command -v apt-get >/dev/null 2>&1; then
+  echo "setup: this script needs Debian's dpkg and apt-get (Debian 12 'bookworm')." >&2
+  echo "setup: install these packages with your system's package manager instead:" >&2
+  printf '  %s\n' "${packages[@]}" >&2
+  exit 1
+fi
+
+missing=()
+for p in "${packages[@]}"; do
+  status=$(dpkg-query -W -f='${Status}' "$p" 2>/dev/null || true)
+  [[ "$status" == "install ok installed" ]] || missing+=("$p")
+done
+[[ ${#missing[@]} -eq 0 ]] && exit 0
+
+if [[ $(id -u) -eq 0 ]]; then
+  sudo=()
+elif command -v sudo >/dev/null 2>&1; then
+  sudo=(sudo)
+else
+  echo "setup: missing packages and neither root nor sudo: ${missing[*]}" >&2
+  exit 1
+fi
+
+echo "setup: installing ${missing[*]}"
+export DEBIAN_FRONTEND=noninteractive
+"${sudo[@]}" apt-get update -qq
+"${sudo[@]}" apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
+echo "setup: done"

@@ -1,0 +1,121 @@
+// Determinism is a feature: the same seed gives the same rooms in any order, in any process.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <string>
+
+#include "cave/layout.hpp"
+#include "core/random.hpp"
+
+namespace grotto::cave {
+namespace {
+
+World test_world(uint64_t seed = 42) {
+  return World::create(seed, LayoutParams{}).value();
+}
+
+std::vector<SectorCoord> block(int lo, int hi) {
+  std::vector<SectorCoord> out;
+  for (int x = lo; x <= hi; ++x)
+    for (int y = lo; y <= hi; ++y)
+      for (int z = lo; z <= hi; ++z)
+        out.push_back({x, y, z});
+  return out;
+}
+
+// Digest of every sector of the block, generated in the given order but hashed in x-major
+// order, so only the content can change the result.
+uint64_t block_digest(const World& world, std::vector<SectorCoord> order) {
+  std::vector<std::pair<SectorCoord, uint64_t>> parts;
+  for (SectorCoord s : order) {
+    SectorLayout layout = generate_sector(world, s);
+    std::vector<Room> rooms = layout.rooms;
+    rooms.insert(rooms.end(), layout.gates.begin(), layout.gates.end());
+    parts.push_back({s, digest(rooms)});
+  }
+  std::sort(parts.begin(), parts.end());
+  uint64_t h = 0;
+  for (auto& [s, d] : parts)
+    h = hash_combine(h, d);
+  return h;
+}
+
+void shuffle(std::vector<SectorCoord>& v, uint64_t seed) {
+  Rng rng(seed);
+  for (size_t i = v.size(); i > 1; --i)
+    std::swap(v[i - 1], v[rng.below(static_cast<uint32_t>(i))]);
+}
+
+TEST(LayoutDeterminism, sectors_are_identical_in_any_generation_order) {
+  World world = test_world();
+  std::vector<SectorCoord> order = block(-1, 1);
+  uint64_t forward = block_digest(world, order);
+  std::reverse(order.begin(), order.end());
+  EXPECT_EQ(block_digest(world, order), forward);
+  shuffle(order, 7);
+  EXPECT_EQ(block_digest(world, order), forward);
+}
+
+TEST(LayoutDeterminism, rooms_are_identical_however_they_are_reached) {
+  World world = test_world();
+  Region region = generate_region(world, {0, 0, 0}, {1, 1, 1});
+  std::vector<Room> sample;
+  for (size_t i = 0; i < region.rooms.size(); i += 17)
+    sample.push_back(region.rooms[i]);
+  std::reverse(sample.begin(), sample.end());
+  for (const Room& expected : sample) {
+    auto r = room(world, expected.id);
+    ASSERT_TRUE(r.ok()) << r.error().message;
+    std::vector<unsigned char> a, b;
+    append_bytes(expected, a);
+    append_bytes(*r, b);
+    EXPECT_EQ(a, b) << expected.id.to_string();
+  }
+}
+
+TEST(LayoutDeterminism, different_seeds_give_different_caves) {
+  EXPECT_NE(block_digest(test_world(1), block(0, 0)), block_digest(test_world(2), block(0, 0)));
+}
+
+// The child half of the two-process test: prints the digest of a shuffled block.
+TEST(LayoutDeterminism, DISABLED_child_prints_digest) {
+  const char* order_seed = std::getenv("GROTTO_DIGEST_CHILD");
+  if (!order_seed) GTEST_SKIP() << "runs only as the child of two_processes_agree";
+  std::vector<SectorCoord> order = block(-1, 1);
+  shuffle(order, std::strtoull(order_seed, nullptr, 10));
+  std::printf("digest=%llu\n", static_cast<unsigned long long>(block_digest(test_world(), order)));
+}
+
+TEST(LayoutDeterminism, two_processes_agree) {
+  std::string self = std::filesystem::read_symlink("/proc/self/exe");
+  std::string cmd = "GROTTO_DIGEST_CHILD=12345 '" + self +
+                    "' --gtest_also_run_disabled_tests"
+                    " --gtest_filter=LayoutDeterminism.DISABLED_child_prints_digest";
+  FILE* child = popen(cmd.c_str(), "r");
+  ASSERT_NE(child, nullptr);
+  char line[512];
+  unsigned long long child_digest = 0;
+  bool found = false;
+  while (std::fgets(line, sizeof line, child)) {
+    if (std::sscanf(line, "digest=%llu", &child_digest) == 1) found = true;
+  }
+  ASSERT_EQ(pclose(child), 0);
+  ASSERT_TRUE(found) << "the child printed no digest";
+  EXPECT_EQ(child_digest, block_digest(test_world(), block(-1, 1)));
+}
+
+// A checked-in digest: any change to the layout algorithm, its parameters' defaults or the
+// PRNG shows up here. When a change is intended, update the constant and say so in the commit.
+TEST(LayoutDeterminism, golden_digest_for_seed_42) {
+  World world = test_world(42);
+  Region region = generate_region(world, {0, 0, 0}, {1, 1, 1});
+  EXPECT_EQ(digest(region.rooms), 0x9a00101313a6cf54ull)
+      << std::hex << "0x" << digest(region.rooms);
+  EXPECT_EQ(spawn_room(world).to_string(), "0.0.0.r0");
+}
+
+}  // namespace
+}  // namespace grotto::cave

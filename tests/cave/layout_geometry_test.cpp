@@ -1,0 +1,190 @@
+// Geometry of rooms and portals (thesis §3.1.2, Figure 3-2), checked from first principles over a
+// 3x3x3 block of sectors, across sector faces included.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+
+#include "cave/layout.hpp"
+
+namespace grotto::cave {
+namespace {
+
+class LayoutGeometry : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    world_ = new World(World::create(2024, LayoutParams{}).value());
+    region_ = new Region(generate_region(*world_, {0, 0, 0}, {2, 2, 2}));
+  }
+  static void TearDownTestSuite() {
+    delete region_;
+    delete world_;
+  }
+
+  // Pairs of rooms whose spheres come within `reach` metres of each other.
+  template <typename F>
+  void for_each_close_pair(double reach, F&& f) const {
+    const double cell = 32.0;
+    std::map<std::tuple<int, int, int>, std::vector<const Room*>> grid;
+    auto key = [&](Vec3 p) {
+      return std::tuple<int, int, int>{static_cast<int>(std::floor(p.x / cell)),
+                                       static_cast<int>(std::floor(p.y / cell)),
+                                       static_cast<int>(std::floor(p.z / cell))};
+    };
+    for (const Room& r : region_->rooms)
+      grid[key(r.sphere.centre)].push_back(&r);
+    for (const Room& a : region_->rooms) {
+      auto [kx, ky, kz] = key(a.sphere.centre);
+      for (int dx = -1; dx <= 1; ++dx)
+        for (int dy = -1; dy <= 1; ++dy)
+          for (int dz = -1; dz <= 1; ++dz) {
+            auto it = grid.find({kx + dx, ky + dy, kz + dz});
+            if (it == grid.end()) continue;
+            for (const Room* b : it->second) {
+              if (!(a.id < b->id)) continue;
+              double d = distance(a.sphere.centre, b->sphere.centre);
+              if (d < a.sphere.radius + b->sphere.radius + reach) f(a, *b, d);
+            }
+          }
+    }
+  }
+
+  static const Portal* portal_to(const Room& r, RoomId id) {
+    for (const Portal& p : r.portals) {
+      if (p.neighbour == id) return &p;
+    }
+    return nullptr;
+  }
+
+  static World* world_;
+  static Region* region_;
+};
+
+World* LayoutGeometry::world_ = nullptr;
+Region* LayoutGeometry::region_ = nullptr;
+
+TEST_F(LayoutGeometry, region_is_substantial) {
+  EXPECT_GT(region_->rooms.size(), 1000u);
+  size_t gates = 0;
+  for (const Room& r : region_->rooms)
+    gates += r.id.is_gate();
+  EXPECT_GT(gates, 50u);
+}
+
+TEST_F(LayoutGeometry, portal_is_the_intersection_circle_of_the_two_spheres) {
+  size_t checked = 0;
+  for (const Room& r : region_->rooms) {
+    for (const Portal& p : r.portals) {
+      const Room* n = region_->find(p.neighbour);
+      if (!n) continue;  // leads out of the block
+      Vec3 v = n->sphere.centre - r.sphere.centre;
+      double d = length(v);
+      double r1 = r.sphere.radius, r2 = n->sphere.radius;
+      double pd = (d * d + r1 * r1 - r2 * r2) / (2 * d);  // cosine rule
+      Vec3 centre = r.sphere.centre + v * (pd / d);
+      double radius = std::sqrt(r1 * r1 - pd * pd);
+      EXPECT_NEAR(distance(p.centre, centre), 0.0, 1e-9);
+      EXPECT_NEAR(p.radius, radius, 1e-9);
+      EXPECT_NEAR(distance(p.normal, v / d), 0.0, 1e-12);
+      // Every point of the rim lies on both spheres.
+      EXPECT_NEAR(p.radius * p.radius + length_squared(p.centre - r.sphere.centre), r1 * r1, 1e-8);
+      EXPECT_NEAR(p.radius * p.radius + length_squared(p.centre - n->sphere.centre), r2 * r2, 1e-8);
+      // The neighbour sees the same disc, bit for bit, facing the other way.
+      const Portal* back = portal_to(*n, r.id);
+      ASSERT_NE(back, nullptr) << r.id.to_string() << " -> " << n->id.to_string();
+      EXPECT_EQ(back->centre, p.centre);
+      EXPECT_EQ(back->radius, p.radius);
+      EXPECT_EQ(back->normal, -p.normal);
+      ++checked;
+    }
+  }
+  EXPECT_GT(checked, 2000u);
+}
+
+TEST_F(LayoutGeometry, portals_respect_the_minimum_radius) {
+  for (const Room& r : region_->rooms) {
+    for (const Portal& p : r.portals) {
+      EXPECT_GE(p.radius, world_->params().min_portal_radius) << r.id.to_string();
+    }
+  }
+}
+
+TEST_F(LayoutGeometry, no_point_of_a_portal_lies_inside_a_third_sphere) {
+  size_t pairs = 0;
+  auto disc_distance = [](Vec3 q, const Portal& p) {
+    Vec3 rel = q - p.centre;
+    double h = dot(rel, p.normal);
+    double radial = std::max(0.0, length(rel - p.normal * h) - p.radius);
+    return std::sqrt(h * h + radial * radial);
+  };
+  for (const Room& r : region_->rooms) {
+    for (const Portal& p : r.portals) {
+      if (!(r.id < p.neighbour)) continue;
+      for (const Room& k : region_->rooms) {
+        if (k.id == r.id || k.id == p.neighbour) continue;
+        if (distance(k.sphere.centre, p.centre) > k.sphere.radius + p.radius + 1.0) continue;
+        ++pairs;
+        EXPECT_GT(disc_distance(k.sphere.centre, p), k.sphere.radius)
+            << "portal " << r.id.to_string() << "/" << p.neighbour.to_string() << " touches "
+            << k.id.to_string();
+      }
+    }
+  }
+  RecordProperty("third_sphere_candidates", static_cast<int>(pairs));
+}
+
+TEST_F(LayoutGeometry, portals_of_one_room_are_disjoint) {
+  size_t pairs = 0;
+  for (const Room& r : region_->rooms) {
+    const double R = r.sphere.radius;
+    for (size_t i = 0; i < r.portals.size(); ++i) {
+      for (size_t j = i + 1; j < r.portals.size(); ++j) {
+        const Portal& a = r.portals[i];
+        const Portal& b = r.portals[j];
+        Vec3 ua = normalize(a.centre - r.sphere.centre), ub = normalize(b.centre - r.sphere.centre);
+        double angle = std::acos(std::clamp(dot(ua, ub), -1.0, 1.0));
+        double half_a = std::asin(std::min(1.0, a.radius / R));
+        double half_b = std::asin(std::min(1.0, b.radius / R));
+        EXPECT_GT(angle, half_a + half_b) << r.id.to_string();
+        ++pairs;
+      }
+    }
+  }
+  EXPECT_GT(pairs, 100u);
+}
+
+TEST_F(LayoutGeometry, spheres_either_share_a_portal_or_keep_clear) {
+  const double clearance = world_->params().wall_clearance;
+  size_t overlapping = 0;
+  for_each_close_pair(clearance, [&](const Room& a, const Room& b, double d) {
+    bool overlap = d < a.sphere.radius + b.sphere.radius;
+    EXPECT_TRUE(overlap) << a.id.to_string() << " and " << b.id.to_string() << " nearly touch: gap "
+                         << d - a.sphere.radius - b.sphere.radius;
+    if (overlap) {
+      ++overlapping;
+      EXPECT_NE(portal_to(a, b.id), nullptr) << a.id.to_string() << " / " << b.id.to_string();
+      EXPECT_NE(portal_to(b, a.id), nullptr) << b.id.to_string() << " / " << a.id.to_string();
+    }
+  });
+  EXPECT_GT(overlapping, 1000u);
+}
+
+TEST_F(LayoutGeometry, rooms_stay_in_their_sector_and_gates_on_their_face) {
+  const double size = world_->params().sector_size;
+  for (const Room& r : region_->rooms) {
+    SectorCoord s = r.id.sector();
+    for (int a = 0; a < 3; ++a) {
+      double lo = s[a] * size, hi = lo + size;
+      if (r.id.is_gate() && a == r.id.gate_axis()) {
+        EXPECT_EQ(r.sphere.centre[a], hi) << r.id.to_string();
+      } else {
+        EXPECT_GE(r.sphere.centre[a] - r.sphere.radius, lo) << r.id.to_string();
+        EXPECT_LE(r.sphere.centre[a] + r.sphere.radius, hi) << r.id.to_string();
+      }
+    }
+  }
+}
+
+}  // namespace
+}  // namespace grotto::cave

@@ -1,0 +1,90 @@
+#include <gtest/gtest.h>
+
+#include <limits>
+
+#include "cave/layout.hpp"
+
+namespace grotto::cave {
+namespace {
+
+World test_world() {
+  return World::create(31, LayoutParams{}).value();
+}
+
+TEST(Locate, a_room_centre_locates_to_its_room) {
+  World world = test_world();
+  Region region = generate_region(world, {-1, 0, 0}, {0, 1, 0});
+  for (size_t i = 0; i < region.rooms.size(); i += 7) {
+    const Room& r = region.rooms[i];
+    auto found = locate(world, r.sphere.centre);
+    ASSERT_TRUE(found.has_value()) << r.id.to_string();
+    EXPECT_EQ(*found, r.id);
+  }
+}
+
+TEST(Locate, points_beside_a_portal_belong_to_the_rooms_it_joins) {
+  World world = test_world();
+  Region region = generate_region(world, {0, 0, 0}, {0, 0, 0});
+  int checked = 0;
+  for (const Room& r : region.rooms) {
+    for (const Portal& p : r.portals) {
+      EXPECT_EQ(locate(world, p.centre - p.normal * 0.01), r.id) << r.id.to_string();
+      EXPECT_EQ(locate(world, p.centre + p.normal * 0.01), p.neighbour) << r.id.to_string();
+      ++checked;
+    }
+  }
+  EXPECT_GT(checked, 100);
+}
+
+TEST(Locate, points_outside_every_room_find_nothing) {
+  World world = test_world();
+  double s = world.params().sector_size;
+  // Sector corners: rooms keep off the faces and gates keep off the edges.
+  EXPECT_FALSE(locate(world, {0, 0, 0}).has_value());
+  EXPECT_FALSE(locate(world, {s, -s, 2 * s}).has_value());
+  const double inf = std::numeric_limits<double>::infinity();
+  EXPECT_FALSE(locate(world, {std::numeric_limits<double>::quiet_NaN(), 0, 0}).has_value());
+  EXPECT_FALSE(locate(world, {inf, 0, 0}).has_value());
+  EXPECT_FALSE(locate(world, {1e15, 0, 0}).has_value()) << "beyond the sector range";
+}
+
+TEST(Locate, spawn_is_deterministic_and_inside_its_room) {
+  World world = test_world();
+  RoomId spawn = spawn_room(world);
+  EXPECT_EQ(spawn_room(test_world()), spawn);
+  EXPECT_EQ(spawn.sector(), (SectorCoord{0, 0, 0}));
+  EXPECT_FALSE(spawn.is_gate());
+  auto r = room(world, spawn);
+  ASSERT_TRUE(r.ok());
+  EXPECT_EQ(locate(world, r->sphere.centre), spawn);
+}
+
+TEST(Room, ids_that_name_no_room_are_not_found) {
+  World world = test_world();
+  auto missing = room(world, RoomId::interior({2, 2, 2}, kMaxInteriorRooms - 1));
+  ASSERT_FALSE(missing.ok());
+  EXPECT_EQ(missing.error().code, ErrorCode::kNotFound);
+  EXPECT_NE(missing.error().message.find("2.2.2.r4095"), std::string::npos)
+      << missing.error().message;
+  auto gate = room(world, RoomId::gate({0, 0, 0}, 1, kMaxGatesPerFace - 1));
+  ASSERT_FALSE(gate.ok());
+  EXPECT_EQ(gate.error().code, ErrorCode::kNotFound);
+  // The face beyond the last sector has no gates: the world ends there.
+  auto edge = room(world, RoomId::gate({kSectorCoordLimit, 0, 0}, 0, 0));
+  EXPECT_FALSE(edge.ok());
+}
+
+TEST(Room, gates_join_rooms_of_both_sectors) {
+  World world = test_world();
+  auto gate = room(world, RoomId::gate({0, 0, 0}, 0, 0));
+  ASSERT_TRUE(gate.ok()) << gate.error().message;
+  bool lower = false, upper = false;
+  for (const Portal& p : gate->portals) {
+    lower |= p.neighbour.sector() == SectorCoord{0, 0, 0};
+    upper |= p.neighbour.sector() == SectorCoord{1, 0, 0};
+  }
+  EXPECT_TRUE(lower && upper) << "a gate is reachable from both of its sectors";
+}
+
+}  // namespace
+}  // namespace grotto::cave

@@ -1,0 +1,95 @@
+// grotto-layout as a user runs it: a real process, real files, real exit codes.
+#include <gtest/gtest.h>
+
+#include <sys/wait.h>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+
+namespace {
+
+struct ProcessResult {
+  int exit_code;
+  std::string output;  // stdout and stderr together
+};
+
+ProcessResult run(const std::string& args) {
+  std::string cmd = std::string("'") + GROTTO_LAYOUT_BIN + "' " + args + " 2>&1";
+  FILE* p = popen(cmd.c_str(), "r");
+  ProcessResult r{-1, {}};
+  char buf[4096];
+  size_t n;
+  while ((n = std::fread(buf, 1, sizeof buf, p)) > 0)
+    r.output.append(buf, n);
+  int status = pclose(p);
+  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return r;
+}
+
+std::string read(const std::filesystem::path& path) {
+  std::ifstream f(path);
+  std::stringstream ss;
+  ss << f.rdbuf();
+  return ss.str();
+}
+
+TEST(GrottoLayout, help_documents_the_options) {
+  ProcessResult r = run("--help");
+  EXPECT_EQ(r.exit_code, 0);
+  for (const char* flag : {"--seed", "--svg", "--json", "--room", "--tunnel-chance", "--bias"}) {
+    EXPECT_NE(r.output.find(flag), std::string::npos) << flag;
+  }
+}
+
+TEST(GrottoLayout, writes_a_picture_and_json) {
+  auto dir =
+      std::filesystem::temp_directory_path() / ("grotto-layout-test-" + std::to_string(getpid()));
+  std::filesystem::create_directories(dir);
+  ProcessResult r = run("--seed 3 --sectors 1 --svg '" + (dir / "c.svg").string() + "' --json '" +
+                        (dir / "c.json").string() + "'");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  std::string svg = read(dir / "c.svg");
+  EXPECT_EQ(svg.rfind("<svg", 0), 0u);
+  EXPECT_NE(svg.find("<circle"), std::string::npos);
+  EXPECT_NE(svg.find("</svg>"), std::string::npos);
+  std::string json = read(dir / "c.json");
+  EXPECT_NE(json.find("\"rooms\""), std::string::npos);
+  EXPECT_NE(json.find("\"portals\""), std::string::npos);
+  EXPECT_NE(json.find("\"spawn\""), std::string::npos);
+  std::filesystem::remove_all(dir);
+}
+
+TEST(GrottoLayout, prints_one_room) {
+  ProcessResult r = run("--seed 3 --room 0.0.0.x0");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("\"id\": \"0.0.0.x0\""), std::string::npos) << r.output;
+}
+
+TEST(GrottoLayout, bad_input_gets_a_clear_error) {
+  struct Case {
+    const char* args;
+    const char* says;
+  } cases[] = {
+      {"--room 1.2.banana", "malformed room id"},
+      {"--room 0.0.0.r4000", "does not exist"},
+      {"--from 1,2", "--from must be three integers"},
+      {"--from 0,0,0 --to -1,0,0", "--to must not be below --from"},
+      {"--from 99999,0,0", "outside the sector range"},
+      {"--tunnel-chance 2", "tunnel_chance must be in [0, 1]"},
+      {"--bias 0,0,0", "bias must have"},
+      {"--sector-size 10", "sector_size"},
+      {"--sectors 9", "--sectors"},
+      {"--character lava", "--character"},
+      {"--seed -5", "--seed"},
+      {"--from 0,0,0 --to 9,9,9", "at most 512"},
+  };
+  for (const Case& c : cases) {
+    ProcessResult r = run(c.args);
+    EXPECT_NE(r.exit_code, 0) << c.args;
+    EXPECT_NE(r.output.find(c.says), std::string::npos) << c.args << " said: " << r.output;
+  }
+}
+
+}  // namespace
