@@ -52,11 +52,14 @@ std::string region_svg(const World& world, const Region& region, const SvgOption
   Vec3 hi{(region.hi.x + 1) * size, (region.hi.y + 1) * size, (region.hi.z + 1) * size};
   double margin = 16, title = 56;
   double span = std::max({hi.x - lo.x, hi.y - lo.y, hi.z - lo.z});
-  double scale = options.panel_size / span;
+  double scale = options.panel_size / span;  // one scale for both views, so sizes compare
   View top{0, 2, false, {0, 1, 0}, margin, title, scale, lo.x, lo.z, hi.z};
-  View side{0, 1, true, {0, 0, 1}, 2 * margin + options.panel_size, title, scale, lo.x, lo.y, hi.y};
-  double width = 3 * margin + 2 * options.panel_size;
-  double height = title + options.panel_size + margin + 28;
+  double top_w = (hi.x - lo.x) * scale, top_h = (hi.z - lo.z) * scale;
+  View side{0, 1, true, {0, 0, 1}, 2 * margin + top_w, title, scale, lo.x, lo.y, hi.y};
+  double side_h = (hi.y - lo.y) * scale;
+  double width = std::max(3 * margin + 2 * top_w, 720.0);
+  double height = title + std::max(top_h, side_h) + margin + 28;
+  const double panel_w[2] = {top_w, top_w}, panel_h[2] = {top_h, side_h};
 
   std::map<SectorCoord, const SectorLayout*> sectors;
   for (const SectorLayout& s : region.sectors)
@@ -83,12 +86,12 @@ std::string region_svg(const World& world, const Region& region, const SvgOption
          "y up)</text>\n",
          top.ox, side.ox);
 
-  for (const View* view : {&top, &side}) {
-    const View& w = *view;
+  for (int v = 0; v < 2; ++v) {
+    const View& w = v == 0 ? top : side;
     append(out,
            "<g><rect x=\"%.1f\" y=\"%.1f\" width=\"%.1f\" height=\"%.1f\" fill=\"#161a21\" "
            "stroke=\"#374151\"/>\n",
-           w.ox, w.oy, options.panel_size, options.panel_size);
+           w.ox, w.oy, panel_w[v], panel_h[v]);
     // Sector boxes, tinted by character.
     for (const SectorLayout& s : region.sectors) {
       Vec3 a{s.sector.x * size, s.sector.y * size, s.sector.z * size};
@@ -96,9 +99,15 @@ std::string region_svg(const World& world, const Region& region, const SvgOption
       double x0 = w.px(a), x1 = w.px(b), y0 = w.py(a), y1 = w.py(b);
       append(out,
              "<rect x=\"%.1f\" y=\"%.1f\" width=\"%.1f\" height=\"%.1f\" fill=\"%s\" "
-             "fill-opacity=\"0.05\" stroke=\"#2d3340\" stroke-dasharray=\"4 4\"/>\n",
+             "fill-opacity=\"0.10\" stroke=\"#2d3340\" stroke-dasharray=\"4 4\"/>\n",
              std::min(x0, x1), std::min(y0, y1), std::abs(x1 - x0), std::abs(y1 - y0),
              colour(s.character).c_str());
+      if (v == 0 && s.sector.y == region.lo.y) {
+        // Name the region's character in the corner of each sector of the top view.
+        append(out, "<text x=\"%.1f\" y=\"%.1f\" fill=\"%s\" font-size=\"11\">%s %.0f%%</text>\n",
+               std::min(x0, x1) + 4, std::min(y0, y1) + 13, colour(s.character).c_str(),
+               s.character.blend.name.c_str(), 100 * s.character.weights[s.character.dominant()]);
+      }
     }
     // Rooms, largest first so small rooms stay visible.
     std::vector<const Room*> order;
@@ -135,7 +144,7 @@ std::string region_svg(const World& world, const Region& region, const SvgOption
           append(out,
                  "<ellipse cx=\"%.1f\" cy=\"%.1f\" rx=\"%.2f\" ry=\"%.2f\" "
                  "transform=\"rotate(%.1f %.1f %.1f)\" fill=\"none\" stroke=\"#facc15\" "
-                 "stroke-width=\"1.2\"/>\n",
+                 "stroke-opacity=\"0.8\" stroke-width=\"0.8\"/>\n",
                  w.px(p.centre), w.py(p.centre), std::max(minor, 0.6), p.radius * w.scale, angle,
                  w.px(p.centre), w.py(p.centre));
         }
@@ -144,7 +153,7 @@ std::string region_svg(const World& world, const Region& region, const SvgOption
     append(out, "</g>\n");
   }
   // Legend.
-  double lx = margin, ly = title + options.panel_size + 20;
+  double lx = margin, ly = title + std::max(top_h, side_h) + 20;
   for (int k = 0; k < kCharacterCount; ++k) {
     append(out,
            "<circle cx=\"%.1f\" cy=\"%.1f\" r=\"6\" fill=\"rgb(%.0f,%.0f,%.0f)\"/>"
