@@ -90,6 +90,7 @@ std::array<Character, kCharacterCount> LayoutParams::default_characters() {
   maze.big_radius_max = 7.0;
   maze.bias = {1.0, 0.12, 1.0};
   maze.tunnel_chance = 0.7;
+  maze.loops = 5;  // mazes are interconnected
 
   Character shafts;  // vertical shafts (Figure 3-3, lower right)
   shafts.name = "shafts";
@@ -101,6 +102,7 @@ std::array<Character, kCharacterCount> LayoutParams::default_characters() {
   shafts.big_radius_max = 8.0;
   shafts.bias = {0.25, 1.0, 0.25};
   shafts.tunnel_chance = 0.6;
+  shafts.loops = 3;
 
   Character caverns;  // large open spaces
   caverns.name = "caverns";
@@ -112,6 +114,7 @@ std::array<Character, kCharacterCount> LayoutParams::default_characters() {
   caverns.big_radius_max = 13.0;
   caverns.bias = {1.0, 0.4, 1.0};
   caverns.tunnel_chance = 0.2;
+  caverns.loops = 2;
   return {maze, shafts, caverns};
 }
 
@@ -150,6 +153,7 @@ Status validate(const LayoutParams& p) {
     const Character& c = p.characters[i];
     std::string f = "characters[" + std::to_string(i) + "].";
     check.int_range(f + "room_count", c.room_count, 1, kMaxInteriorRooms / 2);
+    check.int_range(f + "loops", c.loops, 0, kMaxInteriorRooms / 4);
     check.probability(f + "big_probability", c.big_probability);
     check.probability(f + "tunnel_chance", c.tunnel_chance);
     check.finite_positive(f + "small_radius_min", c.small_radius_min);
@@ -223,6 +227,7 @@ SectorCharacter sector_character(uint64_t seed, const LayoutParams& params, Sect
             mix([](const Character& c) { return c.bias.y; }),
             mix([](const Character& c) { return c.bias.z; })};
   b.tunnel_chance = mix([](const Character& c) { return c.tunnel_chance; });
+  b.loops = static_cast<int>(mix([](const Character& c) { return c.loops; }) + 0.5);
   return out;
 }
 

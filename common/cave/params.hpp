@@ -23,6 +23,7 @@ struct Character {
   double big_radius_max = 10.0;
   Vec3 bias{1.0, 0.3, 1.0};    // scales each axis of the random displacement direction
   double tunnel_chance = 0.5;  // chance to grow from the most recently added room
+  int loops = 4;               // extra bridges between rooms near in space, far in the graph
 };
 
 inline constexpr int kCharacterCount = 3;

@@ -23,6 +23,10 @@ constexpr int kTriesPerGate = 32;
 // ones the two portals of a straight chain leave no room for a join.
 constexpr double kLinkPortal = 0.6;
 constexpr double kGrowPortal = 0.8;
+// A loop bridge joins rooms at least this many portals apart, so every loop is worth walking.
+constexpr int kMinLoopLength = 6;
+constexpr int kLoopRooms = 8;   // rooms one loop chain may add
+constexpr int kLoopTries = 80;  // candidates one loop chain may try
 // Each centre stays at least this fraction of its radius behind a portal plane, so a portal never
 // cuts through the middle of a room and the mesh stage always has a wall to deform.
 constexpr double kMinPlaneDepth = 0.25;
@@ -119,7 +123,7 @@ class SectorBuilder {
       hi_[a] = lo_[a] + params.sector_size;
     }
     // Any two spheres that can interact are within one cell of each other.
-    cell_ = 2.0 * max_room_radius(params) + params.wall_clearance;
+    cell_ = 2.0 * max_room_radius(params) + std::max(params.wall_clearance, params.portal_gap);
     dim_ = static_cast<int>(std::ceil(params.sector_size / cell_)) + 2;
     grid_.resize(static_cast<size_t>(dim_) * dim_ * dim_);
     for (const Room& g : gates)
@@ -168,7 +172,7 @@ class SectorBuilder {
   // Links may shrink to keep clear of a sphere they would nearly touch, down to the smallest link
   // radius: chains then slip past other chains instead of failing.
   Sphere shrink_to_clear(Sphere s) const {
-    for (int j : nearby(s.centre)) {
+    for (int j : nearby(s, params_.wall_clearance)) {
       const Sphere& o = nodes_[j].sphere;
       double d = distance(s.centre, o.centre);
       bool near_miss = d >= s.radius + o.radius && d < s.radius + o.radius + params_.wall_clearance;
@@ -242,7 +246,7 @@ class SectorBuilder {
         s.centre[a] = lo_[a] + params_.sector_size * rng.uniform(0.3, 0.7);
       }
       bool clear = true;
-      for (int j : nearby(s.centre)) {
+      for (int j : nearby(s, params_.wall_clearance)) {
         const Sphere& o = nodes_[j].sphere;
         if (distance(s.centre, o.centre) < s.radius + o.radius + params_.wall_clearance) {
           clear = false;
@@ -282,6 +286,74 @@ class SectorBuilder {
     }
   }
 
+  // Extra passages between rooms that are near in space but far apart in the graph, so the cave
+  // offers alternative routes (thesis §3.1.1: a graph, not a tree). Each loop is a short chain
+  // of link rooms from a random room towards such a partner; a chain that cannot reach its
+  // partner stays as a dead-end side tunnel.
+  void close_loops(Rng& rng, int count) {
+    for (int tries = 0, made = 0; made < count && tries < 4 * count; ++tries) {
+      int a = static_cast<int>(rng.below(static_cast<uint32_t>(nodes_.size())));
+      const Sphere sa = nodes_[a].sphere;
+      std::vector<int> far;
+      for (int b : nearby(sa, 4.0 * params_.link_radius_max)) {
+        if (b != a && hops_apart(a, b, kMinLoopLength)) far.push_back(b);
+      }
+      if (far.empty()) continue;
+      int b = far[rng.below(static_cast<uint32_t>(far.size()))];
+      made += chain_to(rng, a, b);
+    }
+  }
+
+  // Walks a chain of link rooms from `from` until one overlaps `to`.
+  bool chain_to(Rng& rng, int from, int to) {
+    int head = from;
+    for (int tries = 0, rooms = 0; tries < kLoopTries && rooms < kLoopRooms; ++tries) {
+      const Sphere h = nodes_[head].sphere;
+      const Sphere t = nodes_[to].sphere;
+      Sphere s;
+      s.radius = rng.uniform(params_.link_radius_min, params_.link_radius_max);
+      if (!bridge(h, t, rng, s)) {
+        Vec3 dir = normalize(normalize(t.centre - h.centre) + random_direction(rng) * 0.4);
+        s.centre =
+            h.centre + dir * centre_distance(h.radius, s.radius,
+                                             portal_radius(rng, h.radius, s.radius, kLinkPortal));
+      }
+      s = shrink_to_clear(s);
+      auto edges = try_place(s);
+      if (!edges) continue;
+      bool reached =
+          std::any_of(edges->begin(), edges->end(), [to](const Edge& e) { return e.b == to; });
+      head = add_interior(s, std::move(*edges));
+      if (head < 0) return false;
+      ++rooms;
+      if (reached) return true;
+    }
+    return false;
+  }
+
+  // True when no path of fewer than `hops` portals joins a and b.
+  bool hops_apart(int a, int b, int hops) {
+    ++visit_stamp_;
+    visited_.resize(nodes_.size(), 0);
+    std::vector<int> frontier{a}, next;
+    visited_[a] = visit_stamp_;
+    for (int depth = 0; depth < hops - 1 && !frontier.empty(); ++depth) {
+      next.clear();
+      for (int n : frontier) {
+        for (int e : nodes_[n].edges) {
+          int m = edges_[e].a == n ? edges_[e].b : edges_[e].a;
+          if (m == b) return false;
+          if (visited_[m] != visit_stamp_) {
+            visited_[m] = visit_stamp_;
+            next.push_back(m);
+          }
+        }
+      }
+      std::swap(frontier, next);
+    }
+    return true;
+  }
+
   int interior_count() const { return static_cast<int>(nodes_.size()) - gate_count_; }
 
   SectorLayout finish(const SectorCharacter& character, int attempts, int link_rooms) const {
@@ -315,7 +387,8 @@ class SectorBuilder {
   // touching a third sphere, or two portals of one room too close.
   std::optional<std::vector<Edge>> try_place(const Sphere& s) const {
     if (!inside_box(s)) return std::nullopt;
-    std::vector<int> near = nearby(s.centre);
+    // Spheres farther than this cannot make or touch a portal of s (see the checks below).
+    std::vector<int> near = nearby(s, std::max(params_.wall_clearance, params_.portal_gap));
     std::vector<Edge> made;
     for (int j : near) {
       const Sphere& o = nodes_[j].sphere;
@@ -398,19 +471,24 @@ class SectorBuilder {
            cell_coord(p.z, 2);
   }
 
-  // Spatial index (thesis §3.1.2): spheres in the 27 cells around p, in ascending index order.
-  std::vector<int> nearby(Vec3 p) const {
+  // Spatial index (thesis §3.1.2): the spheres whose gap to s is below `margin`, found in the 27
+  // cells around s's centre (complete for margins up to the one the cell size was chosen for).
+  // The order is the grid's, which depends only on what was added: deterministic.
+  std::vector<int> nearby(const Sphere& s, double margin) const {
     std::vector<int> out;
-    int cx = cell_coord(p.x, 0), cy = cell_coord(p.y, 1), cz = cell_coord(p.z, 2);
+    int cx = cell_coord(s.centre.x, 0), cy = cell_coord(s.centre.y, 1),
+        cz = cell_coord(s.centre.z, 2);
     for (int x = std::max(cx - 1, 0); x <= std::min(cx + 1, dim_ - 1); ++x) {
       for (int y = std::max(cy - 1, 0); y <= std::min(cy + 1, dim_ - 1); ++y) {
         for (int z = std::max(cz - 1, 0); z <= std::min(cz + 1, dim_ - 1); ++z) {
-          const auto& cell = grid_[(static_cast<size_t>(x) * dim_ + y) * dim_ + z];
-          out.insert(out.end(), cell.begin(), cell.end());
+          for (int j : grid_[(static_cast<size_t>(x) * dim_ + y) * dim_ + z]) {
+            const Sphere& o = nodes_[j].sphere;
+            double reach = s.radius + o.radius + margin;
+            if (length_squared(o.centre - s.centre) < reach * reach) out.push_back(j);
+          }
         }
       }
     }
-    std::sort(out.begin(), out.end());
     return out;
   }
 
@@ -448,6 +526,8 @@ class SectorBuilder {
   std::vector<Edge> edges_;
   std::vector<int> parent_;
   std::vector<std::vector<int>> grid_;
+  std::vector<uint32_t> visited_;  // scratch for hops_apart
+  uint32_t visit_stamp_ = 0;
 };
 
 }  // namespace
@@ -499,6 +579,7 @@ SectorLayout generate_sector(const World& world, SectorCoord sector) {
     bool linked = builder.link_gates(rng, character.blend);
     int link_rooms = builder.interior_count();
     builder.grow(rng, character.blend);
+    builder.close_loops(rng, character.blend.loops);
     last = builder.finish(character, attempt + 1, link_rooms);
     if (linked && last.connected) break;
   }

@@ -72,7 +72,7 @@ int main(int argc, char** argv) {
   std::string svg_path, json_path, room_text, character;
   grotto::cave::LayoutParams params;
   std::optional<double> tunnel_chance, big_probability;
-  std::optional<int> room_count;
+  std::optional<int> room_count, loops;
   std::vector<double> bias;
   app.add_option("--seed", seed_text, "World seed, an unsigned 64-bit integer")
       ->capture_default_str();
@@ -97,6 +97,9 @@ int main(int argc, char** argv) {
                  "Chance to grow from the most recent room, for every character (thesis 3.1.2)");
   app.add_option("--big-probability", big_probability, "Chance of a big room, for every character");
   app.add_option("--room-count", room_count, "Rooms grown per sector, for every character");
+  app.add_option("--loops", loops,
+                 "Extra passages per sector between rooms near in space but far apart in the "
+                 "graph, for every character");
   app.add_option("--bias", bias, "Displacement bias x,y,z for every character, e.g. 1,0.1,1")
       ->delimiter(',')
       ->expected(3);
@@ -118,6 +121,7 @@ int main(int argc, char** argv) {
     if (tunnel_chance) c.tunnel_chance = *tunnel_chance;
     if (big_probability) c.big_probability = *big_probability;
     if (room_count) c.room_count = *room_count;
+    if (loops) c.loops = *loops;
     if (!bias.empty()) c.bias = {bias[0], bias[1], bias[2]};
   }
   uint64_t seed = 0;

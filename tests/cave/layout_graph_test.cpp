@@ -134,6 +134,35 @@ TEST(LayoutGraph, displacement_bias_sets_the_direction_of_growth) {
   EXPECT_GT(flat_x, vertical_x * 1.2) << "bias along x gives a larger extent in x";
 }
 
+// Independent loops among the interior rooms of a sector and its gates: E - V + components.
+int sector_cycle_rank(const SectorLayout& layout) {
+  std::vector<Room> rooms = layout.rooms;
+  rooms.insert(rooms.end(), layout.gates.begin(), layout.gates.end());
+  int edges = 0;
+  for (const Room& r : rooms) {
+    for (const Portal& p : r.portals)
+      edges += r.id < p.neighbour;
+  }
+  return edges - static_cast<int>(rooms.size()) + 1;
+}
+
+TEST(LayoutGraph, loops_add_alternative_routes) {
+  auto total_rank = [](int loops) {
+    LayoutParams p;
+    for (Character& c : p.characters)
+      c.loops = loops;
+    World world = World::create(12, p).value();
+    int rank = 0;
+    for (int i = 0; i < 8; ++i)
+      rank += sector_cycle_rank(generate_sector(world, {i, 0, 0}));
+    return rank;
+  };
+  int without = total_rank(0), with = total_rank(10);
+  RecordProperty("cycle_rank_loops_0", without);
+  RecordProperty("cycle_rank_loops_10", with);
+  EXPECT_GT(with, without + 8 * 5);
+}
+
 TEST(LayoutGraph, big_probability_makes_bigger_rooms) {
   auto mean_radius = [](double p) {
     Character c = LayoutParams::default_characters()[2];
