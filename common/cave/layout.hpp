@@ -20,6 +20,9 @@
 
 namespace grotto::cave {
 
+// No room has more portals than this (the mesh kernel keeps per-portal state in registers).
+inline constexpr int kMaxPortalsPerRoom = 16;
+
 struct Sphere {
   Vec3 centre;
   double radius = 0;

@@ -38,14 +38,14 @@ struct LayoutParams {
   double gate_radius_min = 3.5;
   double gate_radius_max = 5.0;
   // Radius of the spheres that link gates into one connected sector.
-  double link_radius_min = 2.5;
-  double link_radius_max = 4.0;
+  double link_radius_min = 3.0;
+  double link_radius_max = 4.5;
   // A player must fit through every portal.
   double min_portal_radius = 1.2;
   // Spheres that do not overlap keep at least this gap, so room walls never cross.
   double wall_clearance = 1.0;
   // Portals of one room keep at least this gap along the sphere, room for wall between them.
-  double portal_gap = 1.0;
+  double portal_gap = 2.0;
   // Region field: characters change over about this many sectors.
   double region_scale = 4.0;
   // How sharply one character dominates a region: weights go as field^sharpness, so 0 makes

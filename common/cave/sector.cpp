@@ -21,7 +21,7 @@ constexpr int kTriesPerGate = 32;
 // Portal radius as a fraction of the smaller sphere's radius, at most. Links keep their portals
 // small (half-angle <= ~37 degrees) so a link room has wall left for a third portal: with larger
 // ones the two portals of a straight chain leave no room for a join.
-constexpr double kLinkPortal = 0.6;
+constexpr double kLinkPortal = 0.45;
 constexpr double kGrowPortal = 0.8;
 // A loop bridge joins rooms at least this many portals apart, so every loop is worth walking.
 constexpr int kMinLoopLength = 6;
@@ -399,7 +399,12 @@ class SectorBuilder {
       if (!disc) return std::nullopt;
       made.push_back({-1, j, *disc});
     }
-    if (made.empty()) return std::nullopt;
+    if (made.empty() || made.size() > static_cast<size_t>(kMaxPortalsPerRoom)) {
+      return std::nullopt;
+    }
+    for (const Edge& m : made) {
+      if (nodes_[m.b].edges.size() >= static_cast<size_t>(kMaxPortalsPerRoom)) return std::nullopt;
+    }
     double gap = params_.portal_gap;
     // Never three spheres at one portal: the new sphere stays clear of existing discs ...
     for (int j : near) {

@@ -102,8 +102,9 @@ TEST_F(LayoutGeometry, portal_is_the_intersection_circle_of_the_two_spheres) {
   EXPECT_GT(checked, 2000u);
 }
 
-TEST_F(LayoutGeometry, portals_respect_the_minimum_radius) {
+TEST_F(LayoutGeometry, portals_respect_the_minimum_radius_and_count) {
   for (const Room& r : region_->rooms) {
+    EXPECT_LE(r.portals.size(), static_cast<size_t>(kMaxPortalsPerRoom)) << r.id.to_string();
     for (const Portal& p : r.portals) {
       EXPECT_GE(p.radius, world_->params().min_portal_radius) << r.id.to_string();
     }

@@ -1,0 +1,39 @@
+// What every room mesh of a world shares: the validated parameters, the noise permutation drawn
+// from the world seed, and the device-facing shape of each level of detail.
+#pragma once
+
+#include <array>
+#include <cstdint>
+
+#include "cave/layout.hpp"
+#include "core/result.hpp"
+#include "mesh/params.hpp"
+
+namespace grotto::mesh {
+
+// Noise is evaluated at world positions reduced modulo this period (metres), so float32 keeps
+// millimetre precision anywhere in the unbounded world.
+inline constexpr double kNoisePeriod = 16384.0;
+
+class MeshContext {
+ public:
+  static Result<MeshContext> create(const cave::World& world, const MeshParams& params);
+
+  const cave::World& world() const { return world_; }
+  const MeshParams& params() const { return params_; }
+  const unsigned char* perm() const { return perm_.data(); }  // 512 entries
+  const core::GrottoShape& shape(Lod lod) const { return shapes_[static_cast<int>(lod)]; }
+  double edge_length(Lod lod) const { return params_.lods[static_cast<int>(lod)].edge_length; }
+
+  // A world position in noise space, as the float the core samples.
+  core::float3 noise_position(Vec3 world) const;
+
+ private:
+  MeshContext(const cave::World& world, const MeshParams& params);
+  cave::World world_;
+  MeshParams params_;
+  std::array<unsigned char, 512> perm_{};
+  std::array<core::GrottoShape, kLodCount> shapes_{};
+};
+
+}  // namespace grotto::mesh

@@ -1,0 +1,25 @@
+// Donor spheres (thesis §3.1.3): geodesic spheres whose resolution follows the room's radius, so
+// that edges are about the same length in big and small rooms.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include "mesh/deform.hpp"
+
+namespace grotto::mesh {
+
+struct DonorSphere {
+  int frequency = 0;                  // icosahedron edges split into this many segments
+  std::vector<core::float3> directions;  // unit vectors
+  std::vector<uint32_t> indices;      // triangles, counter-clockwise seen from outside
+};
+
+// The frequency that gives edges of about `edge_length` on a sphere of `radius`.
+int donor_frequency(double radius, double edge_length);
+
+// Cached and shared: donors depend only on the frequency. Thread-safe.
+std::shared_ptr<const DonorSphere> donor_sphere(int frequency);
+
+}  // namespace grotto::mesh

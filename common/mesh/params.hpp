@@ -1,0 +1,49 @@
+// Mesh parameters per level of detail (thesis §3.1.3-3.1.6 and §5.5).
+#pragma once
+
+#include <array>
+#include <cstdint>
+
+#include "core/result.hpp"
+#include "mesh/deform.hpp"
+
+namespace grotto::mesh {
+
+// detail: the thesis's density and 4 noise octaves. patch: about 20% of the vertices and 3
+// octaves, the mesh that is streamed and tessellated on the GPU (§5.5).
+enum class Lod : uint8_t { kDetail = 0, kPatch = 1 };
+inline constexpr int kLodCount = 2;
+const char* lod_name(Lod lod);
+
+struct LodParams {
+  double edge_length;  // target edge of the donor sphere and of rim loops, metres
+  int octaves;         // surface noise octaves used (of MeshParams::octave_*)
+};
+
+struct MeshParams {
+  std::array<LodParams, kLodCount> lods{{{0.25, 4}, {0.56, 3}}};
+  // Surface noise octaves (thesis §3.1.6): cycles per metre and metres of displacement.
+  std::array<double, GROTTO_MAX_OCTAVES> octave_frequency{0.15, 0.3, 0.6, 1.2, 2.4, 4.8};
+  std::array<double, GROTTO_MAX_OCTAVES> octave_amplitude{0.45, 0.22, 0.11, 0.06, 0.03, 0.015};
+  double rim_frequency = 0.35;   // irregular rims: noise on the portal radius ...
+  double rim_amplitude = 0.12;   // ... as a fraction of the radius
+  double fade_distance = 1.2;    // surface noise fades in over this distance from portal planes
+  // The low-frequency octave of large rooms, faded out near portals (thesis §3.1.6).
+  double big_room_radius = 6.0;  // rooms at least this big get it
+  double big_frequency = 0.06;
+  double big_amplitude = 0.12;   // fraction of the room radius
+  double big_fade_distance = 5.0;
+  double roundness = 0.35;       // 0: the thesis's tubes; 1: rooms keep their sphere
+  double tension = 1.0;          // Hermite tangent length, fraction of the span between rims
+  // Roughness and mineral fields (per-vertex channels that steer GPU detail).
+  double roughness_frequency = 0.08;
+  double mineral_frequency = 0.11;
+};
+
+// Checks ranges; names the field in the message.
+Status validate(const MeshParams& params);
+
+// The device-facing shape for one level of detail.
+core::GrottoShape shape_for(const MeshParams& params, Lod lod);
+
+}  // namespace grotto::mesh

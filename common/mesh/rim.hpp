@@ -1,0 +1,28 @@
+// Canonical portal rims (DESIGN decision 2): the loop of vertices where two rooms meet, computed
+// only from the portal, the seed and the level of detail, so that both rooms, built anywhere,
+// stitch to the same vertices in the same cyclic order, bit for bit.
+#pragma once
+
+#include <vector>
+
+#include "cave/layout.hpp"
+#include "mesh/context.hpp"
+
+namespace grotto::mesh {
+
+struct RimLoop {
+  Vec3 centre;                        // the portal disc's centre (world)
+  Vec3 normal;                        // canonical: from the lower room id towards the higher
+  Vec3 e1, e2;                        // canonical in-plane basis, e2 = normal x e1
+  std::vector<Vec3> positions;        // world, on the grid, counter-clockwise about `normal`
+  std::vector<core::float3> normals;  // unit, towards the portal's axis (into the cave)
+};
+
+// Vertices on a rim of this radius: about one per edge length, at least 8.
+int rim_vertex_count(double radius, double edge_length);
+
+// The loop of `portal`, a portal of `room`. Identical for the two rooms of a portal.
+RimLoop canonical_rim(const MeshContext& ctx, const cave::Room& room, const cave::Portal& portal,
+                      Lod lod);
+
+}  // namespace grotto::mesh

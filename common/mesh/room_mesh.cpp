@@ -1,0 +1,354 @@
+#include "mesh/room_mesh.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <numeric>
+
+#include "core/detmath.hpp"
+#include "core/grid.hpp"
+
+namespace grotto::mesh {
+namespace {
+
+using core::float3;
+
+constexpr int kMaxCutRounds = 16;
+
+Vec3 to_vec(float3 f) { return {f.x, f.y, f.z}; }
+float3 to_f3(Vec3 v) {
+  return {static_cast<float>(v.x), static_cast<float>(v.y), static_cast<float>(v.z)};
+}
+Vec3 cross(Vec3 a, Vec3 b) {
+  return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
+}
+
+// Height of a room-frame point above a portal plane, on the room's side positive.
+double height(const core::GrottoPortal& p, Vec3 v) {
+  return -((v.x - p.cx) * p.nx + (v.y - p.cy) * p.ny + (v.z - p.cz) * p.nz);
+}
+
+struct UnionFind {
+  std::vector<uint32_t> parent;
+  explicit UnionFind(size_t n) : parent(n) { std::iota(parent.begin(), parent.end(), 0u); }
+  uint32_t find(uint32_t i) {
+    while (parent[i] != i) i = parent[i] = parent[parent[i]];
+    return i;
+  }
+  void unite(uint32_t a, uint32_t b) { parent[find(a)] = find(b); }
+};
+
+// The kept part of the donor: triangles with no removed vertex, facing the inside (the donor
+// faces outwards, so each triangle is flipped), restricted to the largest connected piece.
+std::vector<uint32_t> kept_triangles(const DonorSphere& donor, const std::vector<char>& removed,
+                                     AssembleStats& stats) {
+  std::vector<uint32_t> tris;
+  const auto& in = donor.indices;
+  for (size_t t = 0; t < in.size(); t += 3) {
+    if (removed[in[t]] || removed[in[t + 1]] || removed[in[t + 2]]) continue;
+    tris.insert(tris.end(), {in[t], in[t + 2], in[t + 1]});
+  }
+  UnionFind uf(donor.directions.size());
+  for (size_t t = 0; t < tris.size(); t += 3) {
+    uf.unite(tris[t], tris[t + 1]);
+    uf.unite(tris[t], tris[t + 2]);
+  }
+  std::map<uint32_t, size_t> size;
+  for (size_t t = 0; t < tris.size(); t += 3) ++size[uf.find(tris[t])];
+  uint32_t best = 0;
+  size_t best_size = 0;
+  for (auto [root, n] : size) {
+    if (n > best_size) best = root, best_size = n;
+  }
+  std::vector<uint32_t> out;
+  for (size_t t = 0; t < tris.size(); t += 3) {
+    if (uf.find(tris[t]) == best) {
+      out.insert(out.end(), {tris[t], tris[t + 1], tris[t + 2]});
+    } else {
+      ++stats.fragments_dropped;
+    }
+  }
+  return out;
+}
+
+// Boundary loops of a triangle set, each following the triangles' own edge direction. Vertices
+// where loops touch (pinches) are returned instead, for the caller to cut away.
+bool boundary_loops(const std::vector<uint32_t>& tris, std::vector<std::vector<uint32_t>>& loops,
+                    std::vector<uint32_t>& pinches) {
+  std::map<std::pair<uint32_t, uint32_t>, int> directed;
+  for (size_t t = 0; t < tris.size(); t += 3) {
+    for (int e = 0; e < 3; ++e) directed[{tris[t + e], tris[t + (e + 1) % 3]}]++;
+  }
+  std::map<uint32_t, std::vector<uint32_t>> next;
+  for (auto& [edge, count] : directed) {
+    if (!directed.count({edge.second, edge.first})) next[edge.first].push_back(edge.second);
+  }
+  for (auto& [v, outs] : next) {
+    if (outs.size() > 1) pinches.push_back(v);
+  }
+  if (!pinches.empty()) return false;
+  std::map<uint32_t, bool> used;
+  for (auto& [start, outs] : next) {
+    if (used[start]) continue;
+    std::vector<uint32_t> loop;
+    uint32_t v = start;
+    while (!used[v]) {
+      used[v] = true;
+      loop.push_back(v);
+      auto it = next.find(v);
+      if (it == next.end()) return false;  // an open chain: not a closed boundary
+      v = it->second.front();
+    }
+    if (v != start) return false;
+    loops.push_back(std::move(loop));
+  }
+  return true;
+}
+
+}  // namespace
+
+DeformInput prepare_room(const MeshContext& ctx, const cave::Room& room, Lod lod) {
+  DeformInput in;
+  in.room = room;
+  in.lod = lod;
+  in.origin = grid::snap(room.sphere.centre);
+  in.donor = donor_sphere(donor_frequency(room.sphere.radius, ctx.edge_length(lod)));
+  Vec3 o = room.sphere.centre - in.origin;
+  core::float3 w = ctx.noise_position(in.origin);
+  const MeshParams& p = ctx.params();
+  bool big = room.sphere.radius >= p.big_room_radius;
+  in.record = {};
+  in.record.ox = static_cast<float>(o.x);
+  in.record.oy = static_cast<float>(o.y);
+  in.record.oz = static_cast<float>(o.z);
+  in.record.radius = static_cast<float>(room.sphere.radius);
+  in.record.wx = w.x;
+  in.record.wy = w.y;
+  in.record.wz = w.z;
+  in.record.big_amplitude = big ? static_cast<float>(p.big_amplitude * room.sphere.radius) : 0.0f;
+  in.record.first_portal = 0;
+  in.record.portal_count = static_cast<core::uint>(room.portals.size());
+  in.record.first_vertex = 0;
+  in.record.vertex_count = static_cast<core::uint>(in.donor->directions.size());
+  for (const cave::Portal& portal : room.portals) {
+    RimLoop basis = canonical_rim(ctx, room, portal, lod);
+    core::GrottoPortal g{};
+    Vec3 c = portal.centre - in.origin;
+    g.cx = static_cast<float>(c.x);
+    g.cy = static_cast<float>(c.y);
+    g.cz = static_cast<float>(c.z);
+    g.nx = static_cast<float>(portal.normal.x);
+    g.ny = static_cast<float>(portal.normal.y);
+    g.nz = static_cast<float>(portal.normal.z);
+    g.e1x = static_cast<float>(basis.e1.x);
+    g.e1y = static_cast<float>(basis.e1.y);
+    g.e1z = static_cast<float>(basis.e1.z);
+    g.e2x = static_cast<float>(basis.e2.x);
+    g.e2y = static_cast<float>(basis.e2.y);
+    g.e2z = static_cast<float>(basis.e2.z);
+    g.radius = static_cast<float>(portal.radius);
+    in.portals.push_back(g);
+  }
+  return in;
+}
+
+void deform_cpu(const MeshContext& ctx, const DeformInput& input, std::span<float3> positions,
+                std::span<float> clearance) {
+  const auto& dirs = input.donor->directions;
+  for (size_t i = 0; i < dirs.size(); ++i) {
+    positions[i] = core::grotto_deform_vertex(ctx.perm(), &ctx.shape(input.lod), &input.record,
+                                              input.portals.data(), dirs[i], &clearance[i]);
+  }
+}
+
+Result<RoomMesh> assemble_room(const MeshContext& ctx, const DeformInput& input,
+                               std::span<const float3> positions, std::span<const float> clearance,
+                               AssembleStats* stats_out) {
+  AssembleStats stats;
+  const DonorSphere& donor = *input.donor;
+  const size_t nv = donor.directions.size();
+  const size_t np = input.portals.size();
+  const double band = ctx.shape(input.lod).remove_band;
+  const std::string name = input.room.id.to_string();
+
+  // Thesis §3.1.7: vertices on the wrong side of a portal go, and so does a band before it to
+  // leave room for the stitch; so does every donor vertex that started beyond a portal, so each
+  // portal gets a hole even where the deformation pulled vertices back.
+  std::vector<char> removed(nv, 0);
+  Vec3 o{input.record.ox, input.record.oy, input.record.oz};
+  for (size_t v = 0; v < nv; ++v) {
+    removed[v] = clearance[v] < band;
+    Vec3 donor_point = o + to_vec(donor.directions[v]) * input.record.radius;
+    for (const auto& p : input.portals) {
+      if (height(p, donor_point) < 0) removed[v] = 1;
+    }
+  }
+
+  std::vector<uint32_t> tris;
+  std::vector<std::vector<uint32_t>> loops;
+  for (int round = 0;; ++round) {
+    tris = kept_triangles(donor, removed, stats);
+    loops.clear();
+    std::vector<uint32_t> pinches;
+    if (boundary_loops(tris, loops, pinches)) break;
+    if (pinches.empty() || round == kMaxCutRounds) {
+      return Error{ErrorCode::kInternal, "room " + name + ": the cut left an open boundary"};
+    }
+    for (uint32_t v : pinches) removed[v] = 1;
+    stats.pinches_removed += static_cast<int>(pinches.size());
+  }
+
+  // Each boundary loop belongs to the portal whose plane its vertices are nearest.
+  std::vector<int> loop_of_portal(np, -1);
+  for (size_t l = 0; l < loops.size(); ++l) {
+    std::vector<int> votes(np, 0);
+    for (uint32_t v : loops[l]) {
+      size_t best = 0;
+      double best_h = 1e300;
+      for (size_t i = 0; i < np; ++i) {
+        double h = std::abs(height(input.portals[i], to_vec(positions[v])));
+        if (h < best_h) best = i, best_h = h;
+      }
+      ++votes[best];
+    }
+    size_t portal = std::max_element(votes.begin(), votes.end()) - votes.begin();
+    if (np == 0 || loop_of_portal[portal] >= 0) {
+      return Error{ErrorCode::kInternal,
+                   "room " + name + ": " + std::to_string(loops.size()) + " holes for " +
+                       std::to_string(np) + " portals"};
+    }
+    loop_of_portal[portal] = static_cast<int>(l);
+  }
+
+  // Stitch every hole to its portal's canonical rim (thesis §3.1.7: the polar-angle weld, made
+  // against the shared loop instead of the neighbour's mesh).
+  std::vector<float3> pos(positions.begin(), positions.end());
+  std::vector<float3> rim_normals;
+  std::vector<int8_t> rim_portal(nv, -1);
+  std::vector<uint16_t> rim_index(nv, 0);
+  for (size_t i = 0; i < np; ++i) {
+    if (loop_of_portal[i] < 0) {
+      return Error{ErrorCode::kInternal, "room " + name + ": no hole at portal to " +
+                                             input.room.portals[i].neighbour.to_string()};
+    }
+    const std::vector<uint32_t>& b = loops[loop_of_portal[i]];
+    RimLoop rim = canonical_rim(ctx, input.room, input.room.portals[i], input.lod);
+    const uint32_t base = static_cast<uint32_t>(pos.size());
+    const int k_count = static_cast<int>(rim.positions.size());
+    for (int k = 0; k < k_count; ++k) {
+      pos.push_back(to_f3(rim.positions[k] - input.origin));  // exact: both on the grid
+      rim_portal.push_back(static_cast<int8_t>(i));
+      rim_index.push_back(static_cast<uint16_t>(k));
+    }
+    rim_normals.insert(rim_normals.end(), rim.normals.begin(), rim.normals.end());
+
+    // Orientation of the hole about the canonical normal (shoelace in the portal plane).
+    Vec3 c = rim.centre - input.origin;
+    auto plane = [&](uint32_t v) {
+      Vec3 d = to_vec(pos[v]) - c;
+      return std::pair<double, double>{dot(d, rim.e1), dot(d, rim.e2)};
+    };
+    double area = 0;
+    for (size_t k = 0; k < b.size(); ++k) {
+      auto [x0, y0] = plane(b[k]);
+      auto [x1, y1] = plane(b[(k + 1) % b.size()]);
+      area += x0 * y1 - x1 * y0;
+    }
+    const bool ccw = area > 0;
+    // The rim in the hole's sense, starting at the rim vertex nearest the hole's first vertex.
+    int start = 0;
+    double best = 1e300;
+    for (int k = 0; k < k_count; ++k) {
+      double d = length_squared(to_vec(pos[base + k]) - to_vec(pos[b[0]]));
+      if (d < best) best = d, start = k;
+    }
+    auto rim_at = [&](size_t j) {
+      int k = ccw ? (start + static_cast<int>(j)) % k_count
+                  : ((start - static_cast<int>(j)) % k_count + k_count) % k_count;
+      return base + static_cast<uint32_t>(k);
+    };
+    auto dist = [&](uint32_t a, uint32_t bb) {
+      return length_squared(to_vec(pos[a]) - to_vec(pos[bb]));
+    };
+    size_t m = b.size(), ib = 0, ic = 0;
+    while (ib < m || ic < static_cast<size_t>(k_count)) {
+      uint32_t b_cur = b[ib % m], b_next = b[(ib + 1) % m];
+      uint32_t c_cur = rim_at(ic), c_next = rim_at(ic + 1);
+      bool advance_hole = ic == static_cast<size_t>(k_count) ||
+                          (ib < m && dist(b_next, c_cur) <= dist(b_cur, c_next));
+      if (advance_hole) {
+        tris.insert(tris.end(), {b_next, b_cur, c_cur});
+        ++ib;
+      } else {
+        tris.insert(tris.end(), {c_cur, b_cur, c_next});
+        ++ic;
+      }
+    }
+    ++stats.loops_stitched;
+  }
+
+  // Compact: used donor vertices in order, then the rim loops.
+  std::vector<uint32_t> remap(pos.size(), UINT32_MAX);
+  RoomMesh mesh;
+  mesh.id = input.room.id;
+  mesh.lod = input.lod;
+  mesh.origin = input.origin;
+  for (uint32_t v : tris) remap[v] = 0;
+  for (size_t v = 0; v < pos.size(); ++v) {
+    if (remap[v] == UINT32_MAX) continue;
+    remap[v] = static_cast<uint32_t>(mesh.positions.size());
+    mesh.positions.push_back(pos[v]);
+    mesh.rim_portal.push_back(rim_portal[v]);
+    mesh.rim_index.push_back(rim_index[v]);
+  }
+  mesh.indices.reserve(tris.size());
+  for (uint32_t v : tris) mesh.indices.push_back(remap[v]);
+
+  // Normals (thesis §3.1.7): area-weighted face normals, summed per vertex; rim vertices take
+  // the canonical rim normal, which the neighbour uses too, so shading is smooth across portals.
+  std::vector<Vec3> acc(mesh.positions.size());
+  for (size_t t = 0; t < mesh.indices.size(); t += 3) {
+    Vec3 a = to_vec(mesh.positions[mesh.indices[t]]);
+    Vec3 n = cross(to_vec(mesh.positions[mesh.indices[t + 1]]) - a,
+                   to_vec(mesh.positions[mesh.indices[t + 2]]) - a);
+    for (int k = 0; k < 3; ++k) acc[mesh.indices[t + k]] = acc[mesh.indices[t + k]] + n;
+  }
+  mesh.normals.resize(mesh.positions.size());
+  size_t rim_seen = 0;
+  for (size_t v = 0; v < pos.size(); ++v) {
+    if (v >= nv) ++rim_seen;
+    if (remap[v] == UINT32_MAX) continue;
+    uint32_t out = remap[v];
+    if (v >= nv) {
+      mesh.normals[out] = rim_normals[rim_seen - 1];
+    } else {
+      double len = length(acc[out]);
+      mesh.normals[out] = len > 0 ? to_f3(acc[out] / len) : float3{0, 1, 0};
+    }
+  }
+
+  // Detail channels from world-space fields, so rim vertices agree across rooms.
+  const MeshParams& p = ctx.params();
+  mesh.roughness.resize(mesh.positions.size());
+  mesh.mineral.resize(mesh.positions.size());
+  for (size_t v = 0; v < mesh.positions.size(); ++v) {
+    float3 w = ctx.noise_position(mesh.world_position(v));
+    float r = core::grotto_noise3(ctx.perm(), w, static_cast<float>(p.roughness_frequency));
+    float r2 = core::grotto_noise3(ctx.perm(), w, static_cast<float>(2.7 * p.roughness_frequency));
+    mesh.roughness[v] = core::grotto_clamp01(0.5f + 0.7f * r + 0.3f * r2);
+    float m = core::grotto_noise3(ctx.perm(), w, static_cast<float>(p.mineral_frequency));
+    mesh.mineral[v] = core::grotto_smooth((m - 0.2f) * 4.0f);
+  }
+  if (stats_out) *stats_out = stats;
+  return mesh;
+}
+
+Result<RoomMesh> build_room_mesh(const MeshContext& ctx, const cave::Room& room, Lod lod) {
+  DeformInput input = prepare_room(ctx, room, lod);
+  std::vector<float3> positions(input.donor->directions.size());
+  std::vector<float> clearance(positions.size());
+  deform_cpu(ctx, input, positions, clearance);
+  return assemble_room(ctx, input, positions, clearance);
+}
+
+}  // namespace grotto::mesh

@@ -1,0 +1,72 @@
+// Room meshes (thesis §3.1.3-3.1.7): a donor sphere per room, deformed onto Hermite splines
+// between its portal rims with world-space noise, cut at each portal and stitched to the
+// portal's canonical rim loop, with smoothed normals and per-vertex detail channels.
+//
+// The work is split so that the deformation can run on an OpenCL device between two CPU steps:
+//   prepare_room  -> DeformInput  (the room and portal records, the donor sphere)
+//   deform        -> positions and clearances per donor vertex   (CPU: deform_cpu; kernels/)
+//   assemble_room -> RoomMesh     (cut, stitch, compact, normals, channels)
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <span>
+#include <vector>
+
+#include "cave/layout.hpp"
+#include "mesh/context.hpp"
+#include "mesh/donor.hpp"
+#include "mesh/rim.hpp"
+
+namespace grotto::mesh {
+
+struct RoomMesh {
+  cave::RoomId id = cave::RoomId::interior({}, 0);
+  Lod lod = Lod::kDetail;
+  Vec3 origin;                          // on the grid; positions are offsets from it
+  std::vector<core::float3> positions;  // metres from origin (exact for rim vertices)
+  std::vector<core::float3> normals;    // unit, facing the inside of the cave
+  std::vector<float> roughness;         // 0-1, steers GPU displacement
+  std::vector<float> mineral;           // 0-1, mineral/glow mask
+  std::vector<int8_t> rim_portal;       // index into the room's portals, or -1
+  std::vector<uint16_t> rim_index;      // position on that portal's canonical loop
+  std::vector<uint32_t> indices;        // triangles, counter-clockwise seen from inside the cave
+
+  size_t vertex_count() const { return positions.size(); }
+  size_t triangle_count() const { return indices.size() / 3; }
+  Vec3 world_position(size_t i) const {
+    return origin + Vec3{positions[i].x, positions[i].y, positions[i].z};
+  }
+};
+
+// Everything the deformation of one room needs, in the layout the device uses.
+struct DeformInput {
+  cave::Room room;
+  Lod lod = Lod::kDetail;
+  Vec3 origin;
+  core::GrottoRoom record{};
+  std::vector<core::GrottoPortal> portals;
+  std::shared_ptr<const DonorSphere> donor;
+};
+
+DeformInput prepare_room(const MeshContext& ctx, const cave::Room& room, Lod lod);
+
+// The CPU reference of the deformation: one position and clearance per donor vertex.
+void deform_cpu(const MeshContext& ctx, const DeformInput& input,
+                std::span<core::float3> positions, std::span<float> clearance);
+
+// Why a room could not be assembled; counted, never silent.
+struct AssembleStats {
+  int loops_stitched = 0;
+  int pinches_removed = 0;   // boundary vertices shared by two loops, cut away
+  int fragments_dropped = 0; // triangles outside the main component
+};
+
+Result<RoomMesh> assemble_room(const MeshContext& ctx, const DeformInput& input,
+                               std::span<const core::float3> positions,
+                               std::span<const float> clearance, AssembleStats* stats = nullptr);
+
+// prepare + deform_cpu + assemble.
+Result<RoomMesh> build_room_mesh(const MeshContext& ctx, const cave::Room& room, Lod lod);
+
+}  // namespace grotto::mesh
