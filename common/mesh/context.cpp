@@ -28,9 +28,12 @@ MeshContext::MeshContext(const cave::World& world, const MeshParams& params)
   std::array<unsigned char, 256> p;
   std::iota(p.begin(), p.end(), 0);
   Rng rng(hash_words(world.seed(), kNoiseStream));
-  for (uint32_t i = 255; i > 0; --i) std::swap(p[i], p[rng.below(i + 1)]);
-  for (int i = 0; i < 512; ++i) perm_[i] = p[i & 255];
-  for (int l = 0; l < kLodCount; ++l) shapes_[l] = shape_for(params, static_cast<Lod>(l));
+  for (uint32_t i = 255; i > 0; --i)
+    std::swap(p[i], p[rng.below(i + 1)]);
+  for (int i = 0; i < 512; ++i)
+    perm_[i] = p[i & 255];
+  for (int l = 0; l < kLodCount; ++l)
+    shapes_[l] = shape_for(params, static_cast<Lod>(l));
 }
 
 core::float3 MeshContext::noise_position(Vec3 w) const {

@@ -13,17 +13,34 @@ typedef unsigned int uint;
 struct float3 {
   float x, y, z;
 };
-inline float3 operator+(float3 a, float3 b) { return {a.x + b.x, a.y + b.y, a.z + b.z}; }
-inline float3 operator-(float3 a, float3 b) { return {a.x - b.x, a.y - b.y, a.z - b.z}; }
-inline float3 operator-(float3 a) { return {-a.x, -a.y, -a.z}; }
-inline float3 operator*(float3 a, float s) { return {a.x * s, a.y * s, a.z * s}; }
-inline float3 operator/(float3 a, float s) { return {a.x / s, a.y / s, a.z / s}; }
-inline float grotto_sqrt(float x) { return std::sqrt(x); }
-inline float grotto_floor(float x) { return std::floor(x); }
+inline float3 operator+(float3 a, float3 b) {
+  return {a.x + b.x, a.y + b.y, a.z + b.z};
+}
+inline float3 operator-(float3 a, float3 b) {
+  return {a.x - b.x, a.y - b.y, a.z - b.z};
+}
+inline float3 operator-(float3 a) {
+  return {-a.x, -a.y, -a.z};
+}
+inline float3 operator*(float3 a, float s) {
+  return {a.x * s, a.y * s, a.z * s};
+}
+inline float3 operator/(float3 a, float s) {
+  return {a.x / s, a.y / s, a.z / s};
+}
+inline float grotto_sqrt(float x) {
+  return std::sqrt(x);
+}
+inline float grotto_floor(float x) {
+  return std::floor(x);
+}
 
 #define GROTTO_FN inline
 #define GROTTO_CONSTANT
-#define GROTTO_F3(x, y, z) float3{x, y, z}
+#define GROTTO_F3(x, y, z) \
+  float3 {                 \
+    x, y, z                \
+  }
 #include "mesh/deform_core.h"
 #undef GROTTO_F3
 #undef GROTTO_CONSTANT

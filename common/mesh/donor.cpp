@@ -41,7 +41,8 @@ std::shared_ptr<const DonorSphere> build(int n) {
     if (fresh) {
       double p[3] = {0, 0, 0};
       for (int k = 0; k < 3; ++k) {
-        for (int a = 0; a < 3; ++a) p[a] += kCorners[c[k]][a] * w[k];
+        for (int a = 0; a < 3; ++a)
+          p[a] += kCorners[c[k]][a] * w[k];
       }
       double len = std::sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2]);
       d->directions.push_back({static_cast<float>(p[0] / len), static_cast<float>(p[1] / len),

@@ -11,9 +11,9 @@
 namespace grotto::mesh {
 
 struct DonorSphere {
-  int frequency = 0;                  // icosahedron edges split into this many segments
+  int frequency = 0;                     // icosahedron edges split into this many segments
   std::vector<core::float3> directions;  // unit vectors
-  std::vector<uint32_t> indices;      // triangles, counter-clockwise seen from outside
+  std::vector<uint32_t> indices;         // triangles, counter-clockwise seen from outside
 };
 
 // The frequency that gives edges of about `edge_length` on a sphere of `radius`.

@@ -6,12 +6,18 @@
 namespace grotto::mesh {
 namespace {
 
-bool positive(double v) { return std::isfinite(v) && v > 0; }
-bool non_negative(double v) { return std::isfinite(v) && v >= 0; }
+bool positive(double v) {
+  return std::isfinite(v) && v > 0;
+}
+bool non_negative(double v) {
+  return std::isfinite(v) && v >= 0;
+}
 
 }  // namespace
 
-const char* lod_name(Lod lod) { return lod == Lod::kDetail ? "detail" : "patch"; }
+const char* lod_name(Lod lod) {
+  return lod == Lod::kDetail ? "detail" : "patch";
+}
 
 Status validate(const MeshParams& p) {
   auto bad = [](const std::string& field, double v, const char* rule) {

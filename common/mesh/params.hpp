@@ -25,16 +25,16 @@ struct MeshParams {
   // Surface noise octaves (thesis §3.1.6): cycles per metre and metres of displacement.
   std::array<double, GROTTO_MAX_OCTAVES> octave_frequency{0.15, 0.3, 0.6, 1.2, 2.4, 4.8};
   std::array<double, GROTTO_MAX_OCTAVES> octave_amplitude{0.45, 0.22, 0.11, 0.06, 0.03, 0.015};
-  double rim_frequency = 0.35;   // irregular rims: noise on the portal radius ...
-  double rim_amplitude = 0.12;   // ... as a fraction of the radius
-  double fade_distance = 1.2;    // surface noise fades in over this distance from portal planes
+  double rim_frequency = 0.35;  // irregular rims: noise on the portal radius ...
+  double rim_amplitude = 0.12;  // ... as a fraction of the radius
+  double fade_distance = 1.2;   // surface noise fades in over this distance from portal planes
   // The low-frequency octave of large rooms, faded out near portals (thesis §3.1.6).
   double big_room_radius = 6.0;  // rooms at least this big get it
   double big_frequency = 0.06;
-  double big_amplitude = 0.12;   // fraction of the room radius
+  double big_amplitude = 0.12;  // fraction of the room radius
   double big_fade_distance = 5.0;
-  double roundness = 0.35;       // 0: the thesis's tubes; 1: rooms keep their sphere
-  double tension = 1.0;          // Hermite tangent length, fraction of the span between rims
+  double roundness = 0.35;  // 0: the thesis's tubes; 1: rooms keep their sphere
+  double tension = 1.0;     // Hermite tangent length, fraction of the span between rims
   // Roughness and mineral fields (per-vertex channels that steer GPU detail).
   double roughness_frequency = 0.08;
   double mineral_frequency = 0.11;

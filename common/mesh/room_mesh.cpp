@@ -15,7 +15,9 @@ using core::float3;
 
 constexpr int kMaxCutRounds = 16;
 
-Vec3 to_vec(float3 f) { return {f.x, f.y, f.z}; }
+Vec3 to_vec(float3 f) {
+  return {f.x, f.y, f.z};
+}
 float3 to_f3(Vec3 v) {
   return {static_cast<float>(v.x), static_cast<float>(v.y), static_cast<float>(v.z)};
 }
@@ -32,7 +34,8 @@ struct UnionFind {
   std::vector<uint32_t> parent;
   explicit UnionFind(size_t n) : parent(n) { std::iota(parent.begin(), parent.end(), 0u); }
   uint32_t find(uint32_t i) {
-    while (parent[i] != i) i = parent[i] = parent[parent[i]];
+    while (parent[i] != i)
+      i = parent[i] = parent[parent[i]];
     return i;
   }
   void unite(uint32_t a, uint32_t b) { parent[find(a)] = find(b); }
@@ -54,7 +57,8 @@ std::vector<uint32_t> kept_triangles(const DonorSphere& donor, const std::vector
     uf.unite(tris[t], tris[t + 2]);
   }
   std::map<uint32_t, size_t> size;
-  for (size_t t = 0; t < tris.size(); t += 3) ++size[uf.find(tris[t])];
+  for (size_t t = 0; t < tris.size(); t += 3)
+    ++size[uf.find(tris[t])];
   uint32_t best = 0;
   size_t best_size = 0;
   for (auto [root, n] : size) {
@@ -77,7 +81,8 @@ bool boundary_loops(const std::vector<uint32_t>& tris, std::vector<std::vector<u
                     std::vector<uint32_t>& pinches) {
   std::map<std::pair<uint32_t, uint32_t>, int> directed;
   for (size_t t = 0; t < tris.size(); t += 3) {
-    for (int e = 0; e < 3; ++e) directed[{tris[t + e], tris[t + (e + 1) % 3]}]++;
+    for (int e = 0; e < 3; ++e)
+      directed[{tris[t + e], tris[t + (e + 1) % 3]}]++;
   }
   std::map<uint32_t, std::vector<uint32_t>> next;
   for (auto& [edge, count] : directed) {
@@ -194,7 +199,8 @@ Result<RoomMesh> assemble_room(const MeshContext& ctx, const DeformInput& input,
     if (pinches.empty() || round == kMaxCutRounds) {
       return Error{ErrorCode::kInternal, "room " + name + ": the cut left an open boundary"};
     }
-    for (uint32_t v : pinches) removed[v] = 1;
+    for (uint32_t v : pinches)
+      removed[v] = 1;
     stats.pinches_removed += static_cast<int>(pinches.size());
   }
 
@@ -213,9 +219,8 @@ Result<RoomMesh> assemble_room(const MeshContext& ctx, const DeformInput& input,
     }
     size_t portal = std::max_element(votes.begin(), votes.end()) - votes.begin();
     if (np == 0 || loop_of_portal[portal] >= 0) {
-      return Error{ErrorCode::kInternal,
-                   "room " + name + ": " + std::to_string(loops.size()) + " holes for " +
-                       std::to_string(np) + " portals"};
+      return Error{ErrorCode::kInternal, "room " + name + ": " + std::to_string(loops.size()) +
+                                             " holes for " + std::to_string(np) + " portals"};
     }
     loop_of_portal[portal] = static_cast<int>(l);
   }
@@ -280,7 +285,7 @@ Result<RoomMesh> assemble_room(const MeshContext& ctx, const DeformInput& input,
         tris.insert(tris.end(), {b_next, b_cur, c_cur});
         ++ib;
       } else {
-        tris.insert(tris.end(), {c_cur, b_cur, c_next});
+        tris.insert(tris.end(), {b_cur, c_cur, c_next});
         ++ic;
       }
     }
@@ -293,7 +298,8 @@ Result<RoomMesh> assemble_room(const MeshContext& ctx, const DeformInput& input,
   mesh.id = input.room.id;
   mesh.lod = input.lod;
   mesh.origin = input.origin;
-  for (uint32_t v : tris) remap[v] = 0;
+  for (uint32_t v : tris)
+    remap[v] = 0;
   for (size_t v = 0; v < pos.size(); ++v) {
     if (remap[v] == UINT32_MAX) continue;
     remap[v] = static_cast<uint32_t>(mesh.positions.size());
@@ -302,7 +308,8 @@ Result<RoomMesh> assemble_room(const MeshContext& ctx, const DeformInput& input,
     mesh.rim_index.push_back(rim_index[v]);
   }
   mesh.indices.reserve(tris.size());
-  for (uint32_t v : tris) mesh.indices.push_back(remap[v]);
+  for (uint32_t v : tris)
+    mesh.indices.push_back(remap[v]);
 
   // Normals (thesis §3.1.7): area-weighted face normals, summed per vertex; rim vertices take
   // the canonical rim normal, which the neighbour uses too, so shading is smooth across portals.
@@ -311,7 +318,8 @@ Result<RoomMesh> assemble_room(const MeshContext& ctx, const DeformInput& input,
     Vec3 a = to_vec(mesh.positions[mesh.indices[t]]);
     Vec3 n = cross(to_vec(mesh.positions[mesh.indices[t + 1]]) - a,
                    to_vec(mesh.positions[mesh.indices[t + 2]]) - a);
-    for (int k = 0; k < 3; ++k) acc[mesh.indices[t + k]] = acc[mesh.indices[t + k]] + n;
+    for (int k = 0; k < 3; ++k)
+      acc[mesh.indices[t + k]] = acc[mesh.indices[t + k]] + n;
   }
   mesh.normals.resize(mesh.positions.size());
   size_t rim_seen = 0;

@@ -52,14 +52,14 @@ struct DeformInput {
 DeformInput prepare_room(const MeshContext& ctx, const cave::Room& room, Lod lod);
 
 // The CPU reference of the deformation: one position and clearance per donor vertex.
-void deform_cpu(const MeshContext& ctx, const DeformInput& input,
-                std::span<core::float3> positions, std::span<float> clearance);
+void deform_cpu(const MeshContext& ctx, const DeformInput& input, std::span<core::float3> positions,
+                std::span<float> clearance);
 
 // Why a room could not be assembled; counted, never silent.
 struct AssembleStats {
   int loops_stitched = 0;
-  int pinches_removed = 0;   // boundary vertices shared by two loops, cut away
-  int fragments_dropped = 0; // triangles outside the main component
+  int pinches_removed = 0;    // boundary vertices shared by two loops, cut away
+  int fragments_dropped = 0;  // triangles outside the main component
 };
 
 Result<RoomMesh> assemble_room(const MeshContext& ctx, const DeformInput& input,

@@ -1,0 +1,70 @@
+#include "mesh/rim.hpp"
+
+#include <gtest/gtest.h>
+
+#include "core/grid.hpp"
+
+namespace grotto::mesh {
+namespace {
+
+class RimTest : public ::testing::Test {
+ protected:
+  cave::World world = cave::World::create(77, cave::LayoutParams{}).value();
+  MeshContext ctx = MeshContext::create(world, MeshParams{}).value();
+};
+
+TEST_F(RimTest, both_rooms_compute_the_same_loop_bit_for_bit) {
+  cave::Region region = cave::generate_region(world, {0, 0, 0}, {0, 0, 0});
+  int checked = 0;
+  for (const cave::Room& r : region.rooms) {
+    for (const cave::Portal& p : r.portals) {
+      const cave::Room* n = region.find(p.neighbour);
+      if (!n || !(r.id < n->id)) continue;
+      const cave::Portal* back = nullptr;
+      for (const cave::Portal& q : n->portals) {
+        if (q.neighbour == r.id) back = &q;
+      }
+      ASSERT_NE(back, nullptr);
+      for (Lod lod : {Lod::kDetail, Lod::kPatch}) {
+        RimLoop a = canonical_rim(ctx, r, p, lod);
+        RimLoop b = canonical_rim(ctx, *n, *back, lod);
+        ASSERT_EQ(a.positions.size(), b.positions.size());
+        for (size_t k = 0; k < a.positions.size(); ++k) {
+          EXPECT_EQ(a.positions[k], b.positions[k]);
+          EXPECT_EQ(a.normals[k].x, b.normals[k].x);
+          EXPECT_EQ(a.normals[k].y, b.normals[k].y);
+          EXPECT_EQ(a.normals[k].z, b.normals[k].z);
+        }
+      }
+      ++checked;
+    }
+  }
+  EXPECT_GT(checked, 50);
+}
+
+TEST_F(RimTest, loops_lie_on_the_grid_around_their_portal) {
+  cave::Room room = cave::room(world, cave::spawn_room(world)).value();
+  for (const cave::Portal& p : room.portals) {
+    RimLoop loop = canonical_rim(ctx, room, p, Lod::kPatch);
+    EXPECT_GE(loop.positions.size(), 8u);
+    EXPECT_EQ(static_cast<int>(loop.positions.size()), rim_vertex_count(p.radius, 0.56));
+    double area = 0;
+    for (size_t k = 0; k < loop.positions.size(); ++k) {
+      Vec3 v = loop.positions[k];
+      EXPECT_TRUE(grid::on_grid(v.x) && grid::on_grid(v.y) && grid::on_grid(v.z));
+      // In the portal plane (to the grid's precision), near the disc's rim.
+      EXPECT_LT(std::abs(dot(v - p.centre, p.normal)), grid::kStep);
+      double r = length(v - p.centre);
+      EXPECT_GT(r, p.radius * 0.8);
+      EXPECT_LT(r, p.radius * 1.2);
+      Vec3 w = loop.positions[(k + 1) % loop.positions.size()];
+      Vec3 a = v - p.centre, b = w - p.centre;
+      area += dot(Vec3{a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x},
+                  loop.normal);
+    }
+    EXPECT_GT(area, 0) << "counter-clockwise about the canonical normal";
+  }
+}
+
+}  // namespace
+}  // namespace grotto::mesh

@@ -1,0 +1,161 @@
+// One room at a time: the thesis's rules for a room mesh (§3.1.3-3.1.7).
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "core/grid.hpp"
+#include "mesh_fixture.hpp"
+
+namespace grotto::mesh {
+namespace {
+
+class RoomMeshTest : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    world_ = new cave::World(cave::World::create(42, cave::LayoutParams{}).value());
+    ctx_ = new MeshContext(MeshContext::create(*world_, MeshParams{}).value());
+    patch_ =
+        new testing::BuiltBlock(testing::build_block(*ctx_, {0, 0, 0}, {0, 0, 0}, Lod::kPatch, 1));
+    detail_ =
+        new testing::BuiltBlock(testing::build_block(*ctx_, {0, 0, 0}, {0, 0, 0}, Lod::kDetail, 2));
+  }
+  static void TearDownTestSuite() {
+    delete detail_;
+    delete patch_;
+    delete ctx_;
+    delete world_;
+  }
+  static cave::World* world_;
+  static MeshContext* ctx_;
+  static testing::BuiltBlock* patch_;
+  static testing::BuiltBlock* detail_;
+};
+cave::World* RoomMeshTest::world_ = nullptr;
+MeshContext* RoomMeshTest::ctx_ = nullptr;
+testing::BuiltBlock* RoomMeshTest::patch_ = nullptr;
+testing::BuiltBlock* RoomMeshTest::detail_ = nullptr;
+
+TEST_F(RoomMeshTest, every_room_of_a_sector_builds_at_both_levels) {
+  EXPECT_EQ(patch_->meshes.size(), patch_->region.rooms.size());
+  EXPECT_EQ(detail_->meshes.size(), detail_->region.rooms.size());
+  for (const cave::Room& r : patch_->region.rooms) {
+    auto m = build_room_mesh(*ctx_, r, Lod::kPatch);
+    EXPECT_TRUE(m.ok()) << (m.ok() ? "" : m.error().message);
+  }
+}
+
+TEST_F(RoomMeshTest, patch_mesh_has_about_a_fifth_of_the_detail_vertices) {
+  size_t patch = 0, detail = 0;
+  for (auto& [id, m] : patch_->meshes)
+    patch += m.vertex_count();
+  for (auto& [id, m] : detail_->meshes)
+    detail += m.vertex_count();
+  double ratio = static_cast<double>(patch) / static_cast<double>(detail);
+  RecordProperty("patch_to_detail_vertex_ratio_percent", static_cast<int>(100 * ratio));
+  EXPECT_GE(ratio, 0.15);
+  EXPECT_LE(ratio, 0.25);
+  // The thesis's density: about 3,000 vertices per detail room (300k for 100 rooms).
+  double per_room = static_cast<double>(detail) / detail_->meshes.size();
+  EXPECT_GT(per_room, 1500);
+  EXPECT_LT(per_room, 6000);
+}
+
+TEST_F(RoomMeshTest, no_geometry_beyond_a_portal_plane) {
+  for (auto* block : {patch_, detail_}) {
+    for (auto& [id, m] : block->meshes) {
+      const cave::Room* r = block->region.find(id);
+      for (size_t v = 0; v < m.vertex_count(); ++v) {
+        Vec3 p = m.world_position(v);
+        for (const cave::Portal& portal : r->portals) {
+          // Rim vertices sit on the plane to the grid's precision; the rest stay inside.
+          EXPECT_LT(dot(p - portal.centre, portal.normal), grid::kStep)
+              << id.to_string() << " vertex " << v;
+        }
+      }
+    }
+  }
+}
+
+// Coefficient of variation of edge lengths: even density, per level of detail.
+double edge_cv(const RoomMesh& m, double& mean_out) {
+  double sum = 0, sq = 0;
+  size_t n = 0;
+  for (size_t t = 0; t < m.indices.size(); t += 3) {
+    for (int e = 0; e < 3; ++e) {
+      Vec3 a = m.world_position(m.indices[t + e]), b = m.world_position(m.indices[t + (e + 1) % 3]);
+      double len = length(a - b);
+      sum += len;
+      sq += len * len;
+      ++n;
+    }
+  }
+  mean_out = sum / n;
+  return std::sqrt(sq / n - mean_out * mean_out) / mean_out;
+}
+
+TEST_F(RoomMeshTest, triangles_have_area_and_edges_are_even) {
+  for (auto* block : {patch_, detail_}) {
+    double worst_cv = 0, mean_cv = 0, min_area = 1e9, mean_edge = 0;
+    for (auto& [id, m] : block->meshes) {
+      for (size_t t = 0; t < m.indices.size(); t += 3) {
+        Vec3 a = m.world_position(m.indices[t]), b = m.world_position(m.indices[t + 1]),
+             c = m.world_position(m.indices[t + 2]);
+        Vec3 u = b - a, w = c - a;
+        double area =
+            0.5 * length(Vec3{u.y * w.z - u.z * w.y, u.z * w.x - u.x * w.z, u.x * w.y - u.y * w.x});
+        min_area = std::min(min_area, area);
+      }
+      double mean = 0, cv = edge_cv(m, mean);
+      worst_cv = std::max(worst_cv, cv);
+      mean_cv += cv / block->meshes.size();
+      mean_edge += mean / block->meshes.size();
+    }
+    std::string lod = lod_name(block == patch_ ? Lod::kPatch : Lod::kDetail);
+    RecordProperty(lod + "_mean_edge_mm", static_cast<int>(1000 * mean_edge));
+    RecordProperty(lod + "_edge_cv_mean_percent", static_cast<int>(100 * mean_cv));
+    RecordProperty(lod + "_edge_cv_worst_percent", static_cast<int>(100 * worst_cv));
+    RecordProperty(lod + "_min_triangle_area_mm2", static_cast<int>(1e6 * min_area));
+    EXPECT_GT(min_area, 1e-7) << lod;
+    EXPECT_LT(mean_cv, 0.45) << lod;
+    EXPECT_LT(worst_cv, 0.9) << lod;
+  }
+}
+
+TEST_F(RoomMeshTest, channels_and_normals_are_sane) {
+  for (auto& [id, m] : patch_->meshes) {
+    ASSERT_EQ(m.normals.size(), m.vertex_count());
+    ASSERT_EQ(m.roughness.size(), m.vertex_count());
+    for (size_t v = 0; v < m.vertex_count(); ++v) {
+      auto n = m.normals[v];
+      EXPECT_NEAR(n.x * n.x + n.y * n.y + n.z * n.z, 1.0, 1e-4);
+      EXPECT_GE(m.roughness[v], 0.0f);
+      EXPECT_LE(m.roughness[v], 1.0f);
+      EXPECT_GE(m.mineral[v], 0.0f);
+      EXPECT_LE(m.mineral[v], 1.0f);
+    }
+  }
+  // The fields vary across the cave.
+  float lo = 1, hi = 0;
+  for (auto& [id, m] : patch_->meshes) {
+    for (float r : m.roughness)
+      lo = std::min(lo, r), hi = std::max(hi, r);
+  }
+  EXPECT_LT(lo, 0.3f);
+  EXPECT_GT(hi, 0.7f);
+}
+
+TEST_F(RoomMeshTest, building_twice_gives_identical_meshes) {
+  const cave::Room& r = patch_->region.rooms[patch_->region.rooms.size() / 2];
+  RoomMesh a = build_room_mesh(*ctx_, r, Lod::kDetail).value();
+  RoomMesh b = build_room_mesh(*ctx_, r, Lod::kDetail).value();
+  ASSERT_EQ(a.vertex_count(), b.vertex_count());
+  EXPECT_EQ(a.indices, b.indices);
+  for (size_t v = 0; v < a.vertex_count(); ++v) {
+    EXPECT_EQ(a.positions[v].x, b.positions[v].x);
+    EXPECT_EQ(a.positions[v].y, b.positions[v].y);
+    EXPECT_EQ(a.positions[v].z, b.positions[v].z);
+  }
+}
+
+}  // namespace
+}  // namespace grotto::mesh
