@@ -67,6 +67,27 @@ std::shared_ptr<const DonorSphere> build(int n) {
       }
     }
   }
+  // Triangle adjacency: the cut finds hole boundaries from it in linear time. Directed edges
+  // sorted by (from, to); each edge's twin is found by binary search.
+  const uint32_t nt = static_cast<uint32_t>(d->indices.size() / 3);
+  std::vector<std::pair<uint64_t, uint32_t>> edges;
+  edges.reserve(d->indices.size());
+  auto key = [](uint32_t a, uint32_t b) { return (static_cast<uint64_t>(a) << 32) | b; };
+  for (uint32_t t = 0; t < nt; ++t) {
+    for (int k = 0; k < 3; ++k) {
+      edges.push_back({key(d->indices[3 * t + k], d->indices[3 * t + (k + 1) % 3]), t});
+    }
+  }
+  std::sort(edges.begin(), edges.end());
+  d->neighbours.resize(d->indices.size());
+  for (uint32_t t = 0; t < nt; ++t) {
+    for (int k = 0; k < 3; ++k) {
+      uint64_t twin = key(d->indices[3 * t + (k + 1) % 3], d->indices[3 * t + k]);
+      auto it =
+          std::lower_bound(edges.begin(), edges.end(), std::pair<uint64_t, uint32_t>{twin, 0});
+      d->neighbours[3 * t + k] = it->second;
+    }
+  }
   return d;
 }
 

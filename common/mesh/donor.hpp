@@ -14,6 +14,8 @@ struct DonorSphere {
   int frequency = 0;                     // icosahedron edges split into this many segments
   std::vector<core::float3> directions;  // unit vectors
   std::vector<uint32_t> indices;         // triangles, counter-clockwise seen from outside
+  // neighbours[3t + k]: the triangle across edge (indices[3t + k], indices[3t + (k + 1) % 3]).
+  std::vector<uint32_t> neighbours;
 };
 
 // The frequency that gives edges of about `edge_length` on a sphere of `radius`.

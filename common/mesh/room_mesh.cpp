@@ -30,79 +30,83 @@ double height(const core::GrottoPortal& p, Vec3 v) {
   return -((v.x - p.cx) * p.nx + (v.y - p.cy) * p.ny + (v.z - p.cz) * p.nz);
 }
 
-struct UnionFind {
-  std::vector<uint32_t> parent;
-  explicit UnionFind(size_t n) : parent(n) { std::iota(parent.begin(), parent.end(), 0u); }
-  uint32_t find(uint32_t i) {
-    while (parent[i] != i)
-      i = parent[i] = parent[parent[i]];
-    return i;
-  }
-  void unite(uint32_t a, uint32_t b) { parent[find(a)] = find(b); }
-};
-
-// The kept part of the donor: triangles with no removed vertex, facing the inside (the donor
-// faces outwards, so each triangle is flipped), restricted to the largest connected piece.
-std::vector<uint32_t> kept_triangles(const DonorSphere& donor, const std::vector<char>& removed,
-                                     AssembleStats& stats) {
-  std::vector<uint32_t> tris;
+// The kept part of the donor: triangles with no removed vertex, restricted to the largest
+// edge-connected piece. Returns one flag per donor triangle.
+std::vector<char> kept_triangles(const DonorSphere& donor, const std::vector<char>& removed,
+                                 AssembleStats& stats) {
   const auto& in = donor.indices;
-  for (size_t t = 0; t < in.size(); t += 3) {
-    if (removed[in[t]] || removed[in[t + 1]] || removed[in[t + 2]]) continue;
-    tris.insert(tris.end(), {in[t], in[t + 2], in[t + 1]});
+  const size_t nt = in.size() / 3;
+  std::vector<char> kept(nt, 0);
+  for (size_t t = 0; t < nt; ++t) {
+    kept[t] = !removed[in[3 * t]] && !removed[in[3 * t + 1]] && !removed[in[3 * t + 2]];
   }
-  UnionFind uf(donor.directions.size());
-  for (size_t t = 0; t < tris.size(); t += 3) {
-    uf.unite(tris[t], tris[t + 1]);
-    uf.unite(tris[t], tris[t + 2]);
+  // Flood fill over shared edges; keep the largest piece.
+  std::vector<uint32_t> piece(nt, UINT32_MAX), stack;
+  std::vector<size_t> sizes;
+  for (size_t seed = 0; seed < nt; ++seed) {
+    if (!kept[seed] || piece[seed] != UINT32_MAX) continue;
+    uint32_t id = static_cast<uint32_t>(sizes.size());
+    sizes.push_back(0);
+    stack.push_back(static_cast<uint32_t>(seed));
+    piece[seed] = id;
+    while (!stack.empty()) {
+      uint32_t t = stack.back();
+      stack.pop_back();
+      ++sizes[id];
+      for (int k = 0; k < 3; ++k) {
+        uint32_t n = donor.neighbours[3 * t + k];
+        if (kept[n] && piece[n] == UINT32_MAX) {
+          piece[n] = id;
+          stack.push_back(n);
+        }
+      }
+    }
   }
-  std::map<uint32_t, size_t> size;
-  for (size_t t = 0; t < tris.size(); t += 3)
-    ++size[uf.find(tris[t])];
-  uint32_t best = 0;
-  size_t best_size = 0;
-  for (auto [root, n] : size) {
-    if (n > best_size) best = root, best_size = n;
-  }
-  std::vector<uint32_t> out;
-  for (size_t t = 0; t < tris.size(); t += 3) {
-    if (uf.find(tris[t]) == best) {
-      out.insert(out.end(), {tris[t], tris[t + 1], tris[t + 2]});
-    } else {
+  if (sizes.empty()) return kept;
+  uint32_t best =
+      static_cast<uint32_t>(std::max_element(sizes.begin(), sizes.end()) - sizes.begin());
+  for (size_t t = 0; t < nt; ++t) {
+    if (kept[t] && piece[t] != best) {
+      kept[t] = 0;
       ++stats.fragments_dropped;
     }
   }
-  return out;
+  return kept;
 }
 
-// Boundary loops of a triangle set, each following the triangles' own edge direction. Vertices
-// where loops touch (pinches) are returned instead, for the caller to cut away.
-bool boundary_loops(const std::vector<uint32_t>& tris, std::vector<std::vector<uint32_t>>& loops,
-                    std::vector<uint32_t>& pinches) {
-  std::map<std::pair<uint32_t, uint32_t>, int> directed;
-  for (size_t t = 0; t < tris.size(); t += 3) {
-    for (int e = 0; e < 3; ++e)
-      directed[{tris[t + e], tris[t + (e + 1) % 3]}]++;
-  }
-  std::map<uint32_t, std::vector<uint32_t>> next;
-  for (auto& [edge, count] : directed) {
-    if (!directed.count({edge.second, edge.first})) next[edge.first].push_back(edge.second);
-  }
-  for (auto& [v, outs] : next) {
-    if (outs.size() > 1) pinches.push_back(v);
+// Boundary loops of the kept triangles, each following the direction of the inside-facing
+// (flipped) triangles. Vertices where loops touch (pinches) are returned instead, for the caller
+// to cut away.
+bool boundary_loops(const DonorSphere& donor, const std::vector<char>& kept,
+                    std::vector<std::vector<uint32_t>>& loops, std::vector<uint32_t>& pinches) {
+  const auto& in = donor.indices;
+  std::vector<uint32_t> next(donor.directions.size(), UINT32_MAX);
+  std::vector<uint32_t> starts;
+  for (size_t t = 0; t < kept.size(); ++t) {
+    if (!kept[t]) continue;
+    for (int k = 0; k < 3; ++k) {
+      if (kept[donor.neighbours[3 * t + k]]) continue;
+      // Donor edge a->b is b->a in the flipped triangle.
+      uint32_t a = in[3 * t + k], b = in[3 * t + (k + 1) % 3];
+      if (next[b] != UINT32_MAX) {
+        pinches.push_back(b);
+      } else {
+        next[b] = a;
+        starts.push_back(b);
+      }
+    }
   }
   if (!pinches.empty()) return false;
-  std::map<uint32_t, bool> used;
-  for (auto& [start, outs] : next) {
+  std::vector<char> used(next.size(), 0);
+  for (uint32_t start : starts) {
     if (used[start]) continue;
     std::vector<uint32_t> loop;
     uint32_t v = start;
     while (!used[v]) {
-      used[v] = true;
+      used[v] = 1;
       loop.push_back(v);
-      auto it = next.find(v);
-      if (it == next.end()) return false;  // an open chain: not a closed boundary
-      v = it->second.front();
+      v = next[v];
+      if (v == UINT32_MAX) return false;  // an open chain: not a closed boundary
     }
     if (v != start) return false;
     loops.push_back(std::move(loop));
@@ -189,19 +193,28 @@ Result<RoomMesh> assemble_room(const MeshContext& ctx, const DeformInput& input,
     }
   }
 
-  std::vector<uint32_t> tris;
+  std::vector<char> kept;
   std::vector<std::vector<uint32_t>> loops;
   for (int round = 0;; ++round) {
-    tris = kept_triangles(donor, removed, stats);
+    kept = kept_triangles(donor, removed, stats);
     loops.clear();
     std::vector<uint32_t> pinches;
-    if (boundary_loops(tris, loops, pinches)) break;
+    if (boundary_loops(donor, kept, loops, pinches)) break;
     if (pinches.empty() || round == kMaxCutRounds) {
       return Error{ErrorCode::kInternal, "room " + name + ": the cut left an open boundary"};
     }
     for (uint32_t v : pinches)
       removed[v] = 1;
     stats.pinches_removed += static_cast<int>(pinches.size());
+  }
+
+  // The kept triangles, flipped to face the inside (the donor faces outwards).
+  std::vector<uint32_t> tris;
+  for (size_t t = 0; t < kept.size(); ++t) {
+    if (kept[t]) {
+      tris.insert(tris.end(),
+                  {donor.indices[3 * t], donor.indices[3 * t + 2], donor.indices[3 * t + 1]});
+    }
   }
 
   // Each boundary loop belongs to the portal whose plane its vertices are nearest.
