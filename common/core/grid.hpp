@@ -13,14 +13,20 @@
 
 namespace grotto::grid {
 
-inline constexpr int kStepLog2 = 8;                       // 1/256 m, about 4 mm
+inline constexpr int kStepLog2 = 8;                      // 1/256 m, about 4 mm
 inline constexpr double kStep = 1.0 / (1 << kStepLog2);  // metres
 // Offsets from a room's origin stay below this (2^(24 - kStepLog2) m) to be exact in float32.
 inline constexpr double kFrameSize = static_cast<double>(1 << (24 - kStepLog2));
 
 // Nearest grid value (ties away from zero); exact for |v| < 2^44 m.
-inline double snap(double v) { return std::round(v * (1 << kStepLog2)) * kStep; }
-inline Vec3 snap(Vec3 v) { return {snap(v.x), snap(v.y), snap(v.z)}; }
-inline bool on_grid(double v) { return snap(v) == v; }
+inline double snap(double v) {
+  return std::round(v * (1 << kStepLog2)) * kStep;
+}
+inline Vec3 snap(Vec3 v) {
+  return {snap(v.x), snap(v.y), snap(v.z)};
+}
+inline bool on_grid(double v) {
+  return snap(v) == v;
+}
 
 }  // namespace grotto::grid

@@ -139,6 +139,7 @@ DeformInput prepare_room(const MeshContext& ctx, const cave::Room& room, Lod lod
   in.record.portal_count = static_cast<core::uint>(room.portals.size());
   in.record.first_vertex = 0;
   in.record.vertex_count = static_cast<core::uint>(in.donor->directions.size());
+  in.record.lod = static_cast<core::uint>(lod);
   for (const cave::Portal& portal : room.portals) {
     RimLoop basis = canonical_rim(ctx, room, portal, lod);
     core::GrottoPortal g{};

@@ -1,0 +1,57 @@
+// The room deformation on an OpenCL device (thesis §4.2): kernels/deform.cl compiled with the
+// shared core common/mesh/deform_core.h, many rooms per launch (§4.2.1). Its results are
+// bit-identical to mesh::deform_cpu.
+#pragma once
+
+#include <span>
+#include <vector>
+
+#include "core/result.hpp"
+#include "kernels/cl_context.hpp"
+#include "mesh/room_mesh.hpp"
+
+namespace grotto::kernels {
+
+// One room's deformation output: a position and a clearance per donor vertex.
+struct DeformOutput {
+  std::vector<mesh::core::float3> positions;
+  std::vector<float> clearance;
+};
+
+// What one run() did, for benchmarks and metrics.
+struct LaunchStats {
+  size_t launches = 0;
+  size_t rooms = 0;
+  size_t vertices = 0;
+};
+
+// The built kernel plus the world's constant tables on one device. Not thread-safe: use one per
+// thread (the ComputeContext may be shared).
+class DeformKernel {
+ public:
+  // Builds (or loads from the caches) the program. Errors carry the build log.
+  static Result<DeformKernel> create(ComputeContext& ctx, const mesh::MeshContext& mesh_ctx);
+
+  // Deforms every room of `batch`; outputs[i] receives room i's result. Rooms go to the device in
+  // as few launches as its constant memory allows (usually one).
+  Status run(std::span<const mesh::DeformInput> batch, std::vector<DeformOutput>& outputs,
+             LaunchStats* stats = nullptr);
+
+  BuildOrigin build_origin() const { return origin_; }
+
+ private:
+  DeformKernel(ComputeContext& ctx, cl::Kernel kernel, cl::Buffer perm, cl::Buffer shapes,
+               size_t max_constant_bytes, BuildOrigin origin);
+  Status launch(std::span<const mesh::DeformInput> rooms, std::span<DeformOutput> outputs);
+
+  ComputeContext* ctx_;
+  cl::Kernel kernel_;
+  cl::Buffer perm_, shapes_;
+  size_t max_constant_bytes_;
+  BuildOrigin origin_;
+};
+
+// The source the kernel is built from: prelude + shared core + kernel.
+std::string deform_source();
+
+}  // namespace grotto::kernels

@@ -1,0 +1,72 @@
+#include "kernels/room_builder.hpp"
+
+#include <spdlog/spdlog.h>
+
+namespace grotto::kernels {
+
+RoomBuilder::RoomBuilder(const mesh::MeshContext& mesh_ctx) : mesh_ctx_(&mesh_ctx) {}
+RoomBuilder::RoomBuilder(RoomBuilder&&) noexcept = default;
+RoomBuilder& RoomBuilder::operator=(RoomBuilder&&) noexcept = default;
+RoomBuilder::~RoomBuilder() = default;
+
+RoomBuilder RoomBuilder::create(const mesh::MeshContext& mesh_ctx, const Options& options) {
+  RoomBuilder b(mesh_ctx);
+  auto ctx = ComputeContext::create(options.device);
+  if (!ctx) {
+    b.path_ = "cpu: " + ctx.error().message;
+    spdlog::warn("event=compute_path path=cpu reason=\"{}\"", ctx.error().message);
+    return b;
+  }
+  b.device_ = std::make_unique<ComputeContext>(std::move(ctx).value());
+  auto kernel = DeformKernel::create(*b.device_, mesh_ctx);
+  if (!kernel) {
+    b.path_ = "cpu: deformation kernel failed to build: " + kernel.error().message;
+    spdlog::warn(
+        "event=compute_path path=cpu reason=kernel_build_failed device=\"{}\" error=\"{}\"",
+        b.device_->info().device_name, kernel.error().message);
+    b.device_.reset();
+    return b;
+  }
+  b.kernel_.emplace(std::move(kernel).value());
+  b.path_ = "opencl: " + b.device_->describe();
+  spdlog::info("event=compute_path path=opencl {} program={}", b.device_->describe(),
+               build_origin_name(b.kernel_->build_origin()));
+  return b;
+}
+
+std::vector<Result<mesh::RoomMesh>> RoomBuilder::build(std::span<const cave::Room> rooms,
+                                                       mesh::Lod lod) {
+  std::vector<mesh::DeformInput> inputs;
+  inputs.reserve(rooms.size());
+  for (const cave::Room& r : rooms)
+    inputs.push_back(mesh::prepare_room(*mesh_ctx_, r, lod));
+
+  std::vector<DeformOutput> outputs;
+  bool on_device = false;
+  if (kernel_) {
+    Status s = kernel_->run(inputs, outputs, &launches_);
+    on_device = s.ok();
+    if (!s) {
+      ++fallbacks_;
+      spdlog::warn("event=deform_fallback rooms={} error=\"{}\"", rooms.size(), s.error().message);
+    }
+  }
+  if (!on_device) {
+    outputs.assign(inputs.size(), {});
+    for (size_t i = 0; i < inputs.size(); ++i) {
+      size_t n = inputs[i].donor->directions.size();
+      outputs[i].positions.resize(n);
+      outputs[i].clearance.resize(n);
+      mesh::deform_cpu(*mesh_ctx_, inputs[i], outputs[i].positions, outputs[i].clearance);
+    }
+  }
+  std::vector<Result<mesh::RoomMesh>> meshes;
+  meshes.reserve(inputs.size());
+  for (size_t i = 0; i < inputs.size(); ++i) {
+    meshes.push_back(
+        mesh::assemble_room(*mesh_ctx_, inputs[i], outputs[i].positions, outputs[i].clearance));
+  }
+  return meshes;
+}
+
+}  // namespace grotto::kernels

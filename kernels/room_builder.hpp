@@ -1,0 +1,51 @@
+// Builds room meshes with the deformation batched on an OpenCL device when one is usable, and on
+// the CPU reference otherwise. Fail soft, never silently (DESIGN decision 6): no platform, no
+// device, a failed build or a failed launch is a logged warning and the CPU path, and path()
+// says which path is in use.
+#pragma once
+
+#include <memory>
+#include <optional>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "kernels/deform.hpp"
+
+namespace grotto::kernels {
+
+class RoomBuilder {
+ public:
+  struct Options {
+    DeviceConfig device{};  // device "none" forces the CPU reference
+  };
+
+  // Never fails: without a usable device the builder runs on the CPU.
+  static RoomBuilder create(const mesh::MeshContext& mesh_ctx, const Options& options);
+
+  RoomBuilder(RoomBuilder&&) noexcept;
+  RoomBuilder& operator=(RoomBuilder&&) noexcept;
+  ~RoomBuilder();
+
+  // One mesh per room, in order; all rooms share one kernel launch where the device allows.
+  std::vector<Result<mesh::RoomMesh>> build(std::span<const cave::Room> rooms, mesh::Lod lod);
+
+  bool uses_opencl() const { return kernel_.has_value(); }
+  // "opencl: <device description>" or "cpu: <why not OpenCL>".
+  const std::string& path() const { return path_; }
+  // Launches that failed and were redone on the CPU (each also logged).
+  size_t fallbacks() const { return fallbacks_; }
+  const LaunchStats& launch_stats() const { return launches_; }
+
+ private:
+  explicit RoomBuilder(const mesh::MeshContext& mesh_ctx);
+
+  const mesh::MeshContext* mesh_ctx_;
+  std::unique_ptr<ComputeContext> device_;
+  std::optional<DeformKernel> kernel_;
+  std::string path_;
+  size_t fallbacks_ = 0;
+  LaunchStats launches_;
+};
+
+}  // namespace grotto::kernels

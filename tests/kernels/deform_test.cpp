@@ -1,0 +1,183 @@
+// The deformation kernel against the CPU reference, on real PoCL: bit-identical, batched or not,
+// and the room builder's fail-soft path.
+#include "kernels/deform.hpp"
+
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cstring>
+
+#include "kernels/room_builder.hpp"
+#include "test_support.hpp"
+
+namespace grotto::kernels {
+namespace {
+
+class DeformKernelTest : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    world_ = new cave::World(cave::World::create(42, cave::LayoutParams{}).value());
+    mesh_ = new mesh::MeshContext(mesh::MeshContext::create(*world_, mesh::MeshParams{}).value());
+    region_ = new cave::Region(cave::generate_region(*world_, {0, 0, 0}, {0, 0, 0}));
+    auto ctx = ComputeContext::create(DeviceConfig{.device = "auto"});
+    ASSERT_TRUE(ctx.ok()) << ctx.error().message;
+    device_ = new ComputeContext(std::move(ctx).value());
+  }
+  static void TearDownTestSuite() {
+    delete device_;
+    delete region_;
+    delete mesh_;
+    delete world_;
+  }
+  static std::vector<mesh::DeformInput> inputs(mesh::Lod lod, size_t step = 1) {
+    std::vector<mesh::DeformInput> out;
+    for (size_t i = 0; i < region_->rooms.size(); i += step) {
+      out.push_back(mesh::prepare_room(*mesh_, region_->rooms[i], lod));
+    }
+    return out;
+  }
+  static cave::World* world_;
+  static mesh::MeshContext* mesh_;
+  static cave::Region* region_;
+  static ComputeContext* device_;
+};
+cave::World* DeformKernelTest::world_ = nullptr;
+mesh::MeshContext* DeformKernelTest::mesh_ = nullptr;
+cave::Region* DeformKernelTest::region_ = nullptr;
+ComputeContext* DeformKernelTest::device_ = nullptr;
+
+bool same_bits(float a, float b) {
+  return std::memcmp(&a, &b, sizeof a) == 0;
+}
+
+TEST_F(DeformKernelTest, kernel_matches_the_cpu_reference_bit_for_bit) {
+  auto created = DeformKernel::create(*device_, *mesh_);
+  ASSERT_TRUE(created.ok()) << created.error().message;
+  DeformKernel kernel = std::move(created).value();
+  for (mesh::Lod lod : {mesh::Lod::kPatch, mesh::Lod::kDetail}) {
+    std::vector<mesh::DeformInput> batch = inputs(lod);
+    std::vector<DeformOutput> out;
+    LaunchStats stats;
+    ASSERT_TRUE(kernel.run(batch, out, &stats).ok());
+    EXPECT_LE(stats.launches, 2u) << "a sector's rooms fit in one or two launches";
+    size_t vertices = 0, mismatches = 0;
+    for (size_t r = 0; r < batch.size(); ++r) {
+      size_t n = batch[r].donor->directions.size();
+      std::vector<mesh::core::float3> pos(n);
+      std::vector<float> clearance(n);
+      mesh::deform_cpu(*mesh_, batch[r], pos, clearance);
+      ASSERT_EQ(out[r].positions.size(), n);
+      for (size_t v = 0; v < n; ++v, ++vertices) {
+        bool same = same_bits(pos[v].x, out[r].positions[v].x) &&
+                    same_bits(pos[v].y, out[r].positions[v].y) &&
+                    same_bits(pos[v].z, out[r].positions[v].z) &&
+                    same_bits(clearance[v], out[r].clearance[v]);
+        if (!same && ++mismatches <= 5) {
+          ADD_FAILURE() << mesh::lod_name(lod) << " room " << batch[r].room.id.to_string()
+                        << " vertex " << v << ": cpu " << pos[v].x << "," << pos[v].y << ","
+                        << pos[v].z << " device " << out[r].positions[v].x << ","
+                        << out[r].positions[v].y << "," << out[r].positions[v].z;
+        }
+      }
+    }
+    EXPECT_EQ(mismatches, 0u);
+    EXPECT_GT(vertices, 50000u);
+  }
+}
+
+TEST_F(DeformKernelTest, batched_and_single_room_launches_agree) {
+  auto created = DeformKernel::create(*device_, *mesh_);
+  ASSERT_TRUE(created.ok()) << created.error().message;
+  DeformKernel kernel = std::move(created).value();
+  std::vector<mesh::DeformInput> batch = inputs(mesh::Lod::kPatch, 5);
+  std::vector<DeformOutput> together;
+  LaunchStats stats;
+  ASSERT_TRUE(kernel.run(batch, together, &stats).ok());
+  EXPECT_EQ(stats.launches, 1u);
+  // Alone, and in another batch mix (reversed), every room gives the same bits.
+  std::vector<mesh::DeformInput> reversed(batch.rbegin(), batch.rend());
+  std::vector<DeformOutput> mixed;
+  ASSERT_TRUE(kernel.run(reversed, mixed).ok());
+  for (size_t r = 0; r < batch.size(); ++r) {
+    std::vector<DeformOutput> alone;
+    ASSERT_TRUE(kernel.run(std::span(batch).subspan(r, 1), alone).ok());
+    const DeformOutput& m = mixed[batch.size() - 1 - r];
+    ASSERT_EQ(alone[0].positions.size(), together[r].positions.size());
+    for (size_t v = 0; v < alone[0].positions.size(); ++v) {
+      ASSERT_TRUE(same_bits(alone[0].positions[v].y, together[r].positions[v].y));
+      ASSERT_TRUE(same_bits(m.positions[v].x, together[r].positions[v].x));
+      ASSERT_TRUE(same_bits(alone[0].clearance[v], together[r].clearance[v]));
+    }
+  }
+}
+
+TEST_F(DeformKernelTest, room_builder_on_the_device_gives_the_cpu_meshes) {
+  RoomBuilder builder = RoomBuilder::create(*mesh_, {DeviceConfig{.device = "auto"}});
+  ASSERT_TRUE(builder.uses_opencl()) << builder.path();
+  EXPECT_EQ(builder.path().rfind("opencl: ", 0), 0u) << builder.path();
+  std::vector<cave::Room> rooms(region_->rooms.begin(), region_->rooms.begin() + 20);
+  auto meshes = builder.build(rooms, mesh::Lod::kPatch);
+  ASSERT_EQ(meshes.size(), rooms.size());
+  for (size_t i = 0; i < rooms.size(); ++i) {
+    ASSERT_TRUE(meshes[i].ok()) << meshes[i].error().message;
+    mesh::RoomMesh cpu = mesh::build_room_mesh(*mesh_, rooms[i], mesh::Lod::kPatch).value();
+    EXPECT_EQ(meshes[i]->indices, cpu.indices) << rooms[i].id.to_string();
+    ASSERT_EQ(meshes[i]->vertex_count(), cpu.vertex_count());
+    for (size_t v = 0; v < cpu.vertex_count(); ++v) {
+      ASSERT_TRUE(same_bits(meshes[i]->positions[v].z, cpu.positions[v].z));
+    }
+  }
+  EXPECT_EQ(builder.fallbacks(), 0u);
+}
+
+TEST_F(DeformKernelTest, room_builder_falls_back_to_the_cpu_when_told_to) {
+  RoomBuilder builder = RoomBuilder::create(*mesh_, {DeviceConfig{.device = "none"}});
+  EXPECT_FALSE(builder.uses_opencl());
+  EXPECT_NE(builder.path().find("cpu: "), std::string::npos);
+  EXPECT_NE(builder.path().find("disabled by configuration"), std::string::npos) << builder.path();
+  auto meshes = builder.build(std::span(region_->rooms).subspan(0, 3), mesh::Lod::kPatch);
+  for (auto& m : meshes)
+    EXPECT_TRUE(m.ok());
+}
+
+// The child half of builds_rooms_on_the_cpu_without_any_opencl_platform (and meaningful on its
+// own): whatever OpenCL offers, the builder builds every room and says which path it took.
+TEST(RoomBuilderPath, builds_rooms_and_reports_its_path) {
+  cave::World world = cave::World::create(42, cave::LayoutParams{}).value();
+  mesh::MeshContext ctx = mesh::MeshContext::create(world, mesh::MeshParams{}).value();
+  cave::Region region = cave::generate_region(world, {0, 0, 0}, {0, 0, 0});
+  RoomBuilder builder = RoomBuilder::create(ctx, {});
+  auto meshes = builder.build(std::span(region.rooms).subspan(0, 3), mesh::Lod::kPatch);
+  size_t built = 0;
+  for (auto& m : meshes)
+    built += m.ok();
+  std::printf("builder_path=%s\nbuilder_built=%zu\n", builder.path().c_str(), built);
+  EXPECT_EQ(built, 3u);
+  EXPECT_TRUE(builder.path().rfind("opencl: ", 0) == 0 || builder.path().rfind("cpu: ", 0) == 0);
+}
+
+TEST(RoomBuilderFallback, builds_rooms_on_the_cpu_without_any_opencl_platform) {
+  testing::TempDir empty_vendors;
+  char exe[4096];
+  const ssize_t n = ::readlink("/proc/self/exe", exe, sizeof exe - 1);
+  ASSERT_GT(n, 0);
+  exe[n] = '\0';
+  const std::string command = "env -u OCL_ICD_FILENAMES OCL_ICD_VENDORS='" +
+                              empty_vendors.path().string() + "' GROTTO_OPENCL_DEVICE=auto '" +
+                              exe + "' --gtest_filter=RoomBuilderPath.* 2>&1";
+  FILE* pipe = ::popen(command.c_str(), "r");
+  ASSERT_NE(pipe, nullptr);
+  std::string output;
+  char buffer[4096];
+  while (size_t got = std::fread(buffer, 1, sizeof buffer, pipe))
+    output.append(buffer, got);
+  int status = ::pclose(pipe);
+  ASSERT_TRUE(WIFEXITED(status)) << output;
+  EXPECT_EQ(WEXITSTATUS(status), 0) << output;
+  EXPECT_NE(output.find("builder_path=cpu: no OpenCL platform"), std::string::npos) << output;
+  EXPECT_NE(output.find("builder_built=3"), std::string::npos) << output;
+}
+
+}  // namespace
+}  // namespace grotto::kernels
