@@ -42,6 +42,13 @@ Room merge_gate(const SectorLayout& lower, const SectorLayout& upper, RoomId id)
   return out;
 }
 
+// A sector whose gates could not be linked: never served as if it were whole. validate() keeps
+// parameters where this does not happen; reaching it is a bug worth a clear message.
+Error disconnected(SectorCoord s) {
+  return Error{ErrorCode::kInternal,
+               "sector " + to_string(s) + " could not link its gates; its rooms are unavailable"};
+}
+
 }  // namespace
 
 Result<World> World::create(uint64_t seed, const LayoutParams& params) {
@@ -53,6 +60,7 @@ Result<Room> room(const World& world, RoomId id) {
   SectorCoord s = id.sector();
   if (!id.is_gate()) {
     SectorLayout layout = generate_sector(world, s);
+    if (!layout.connected) return disconnected(s);
     if (id.index() >= static_cast<int>(layout.rooms.size())) {
       return not_found("room " + id.to_string() + " does not exist: sector " + to_string(s) +
                        " has " + std::to_string(layout.rooms.size()) + " interior rooms");
@@ -64,15 +72,19 @@ Result<Room> room(const World& world, RoomId id) {
     return not_found("room " + id.to_string() + " does not exist: that face has " +
                      std::to_string(gate_count) + " gates");
   }
-  return merge_gate(generate_sector(world, s),
-                    generate_sector(world, neighbour(s, id.gate_axis(), 1)), id);
+  SectorLayout lower = generate_sector(world, s);
+  SectorLayout upper = generate_sector(world, neighbour(s, id.gate_axis(), 1));
+  if (!lower.connected) return disconnected(lower.sector);
+  if (!upper.connected) return disconnected(upper.sector);
+  return merge_gate(lower, upper, id);
 }
 
 SectorCoord sector_of(const World& world, Vec3 point) {
   SectorCoord s;
   for (int a = 0; a < 3; ++a) {
     double c = std::floor(point[a] / world.params().sector_size);
-    c = std::clamp(c, -2.0 * kSectorCoordLimit, 2.0 * kSectorCoordLimit);
+    // Out of range (NaN included) maps to a sector beyond the limit, which in_range rejects.
+    if (!(c >= -kSectorCoordLimit && c <= kSectorCoordLimit)) c = 2.0 * kSectorCoordLimit;
     s[a] = static_cast<int32_t>(c);
   }
   return s;

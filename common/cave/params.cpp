@@ -132,6 +132,14 @@ double max_room_radius(const LayoutParams& params) {
   return r;
 }
 
+double gate_edge_margin(const LayoutParams& p) {
+  return (2.0 * p.gate_radius_max + p.wall_clearance) / std::sqrt(2.0);
+}
+
+double face_margin(const LayoutParams& p) {
+  return 0.5 * std::max(p.wall_clearance, p.portal_gap) + 0.25;
+}
+
 Status validate(const LayoutParams& p) {
   Checker check;
   check.finite_positive("sector_size", p.sector_size);
@@ -148,6 +156,24 @@ Status validate(const LayoutParams& p) {
   check.finite_positive("wall_clearance", p.wall_clearance);
   check.finite_positive("portal_gap", p.portal_gap);
   check.finite_positive("region_scale", p.region_scale);
+  if (p.sector_size > kMaxSectorSize) {
+    check.fail("sector_size must be at most " + number(kMaxSectorSize) + " metres (got " +
+               number(p.sector_size) + ")");
+  }
+  if (!(p.region_scale >= 0.01 && p.region_scale <= 1e6)) {
+    check.fail("region_scale must be in [0.01, 1e6] sectors (got " + number(p.region_scale) + ")");
+  }
+  if (p.portal_gap > 0.6 * p.link_radius_max) {
+    check.fail("portal_gap (" + number(p.portal_gap) + ") must be at most 0.6 x link_radius_max (" +
+               number(0.6 * p.link_radius_max) + "), or link rooms cannot join chains");
+  }
+  // Link portals are at most 0.45 of the smaller radius (sector.cpp), and must still fit a player.
+  double link_portal = 0.45 * std::min(p.link_radius_min, p.gate_radius_min);
+  if (p.min_portal_radius > link_portal) {
+    check.fail("min_portal_radius (" + number(p.min_portal_radius) +
+               ") must be at most 0.45 x min(link_radius_min, gate_radius_min) (" +
+               number(link_portal) + "), or gates cannot be linked");
+  }
   check.int_range("region_sharpness", p.region_sharpness, 0, 16);
   for (int i = 0; i < kCharacterCount; ++i) {
     const Character& c = p.characters[i];
@@ -179,11 +205,10 @@ Status validate(const LayoutParams& p) {
   }
   // Gates keep away from face edges by their radius plus the clearance, and a sector must leave
   // room in the middle for rooms of every size between its gates.
-  double needed = 2.0 * (p.gate_radius_max + p.wall_clearance) + 4.0 * max_room_radius(p);
+  double needed = 2.0 * gate_edge_margin(p) + 4.0 * max_room_radius(p);
   if (std::isfinite(p.sector_size) && std::isfinite(needed) && p.sector_size < needed) {
-    check.fail(
-        "sector_size (" + number(p.sector_size) + ") must be at least " + number(needed) +
-        " for these radii (2 x (gate_radius_max + wall_clearance) + 4 x the largest radius)");
+    check.fail("sector_size (" + number(p.sector_size) + ") must be at least " + number(needed) +
+               " for these radii (2 x the gates' edge margin + 4 x the largest radius)");
   }
   return check.status();
 }

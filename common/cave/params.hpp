@@ -68,6 +68,17 @@ Status validate(const LayoutParams& params);
 // The largest sphere radius any room can have under these parameters.
 double max_room_radius(const LayoutParams& params);
 
+// How far gate centres keep from the edges of their face: gates on two faces that meet at an
+// edge are then at least 2 x gate_radius_max + wall_clearance apart (the margin times sqrt 2).
+double gate_edge_margin(const LayoutParams& params);
+
+// How far interior rooms keep from their sector's faces: half of the larger of the wall
+// clearance and the portal gap (plus a little for the angle test), so both rules hold across
+// sector faces too.
+double face_margin(const LayoutParams& params);
+
+inline constexpr double kMaxSectorSize = 256.0;  // metres; bounds the work per sector
+
 // The parameters in force in one sector: the characters blended by the region field.
 struct SectorCharacter {
   std::array<double, kCharacterCount> weights{};  // sum to 1

@@ -13,8 +13,10 @@ namespace {
 constexpr uint64_t kFaceStream = 0x6761746573000001ull;    // "gates"
 constexpr uint64_t kSectorStream = 0x736563746f720001ull;  // "sector"
 constexpr int kMaxAttempts = 8;
-constexpr int kMaxChainRooms = 40;   // rooms one chain may add
-constexpr int kMaxChainTries = 600;  // candidate spheres one chain may try
+// A chain may add rooms enough to cross its sector a few times over, and try 15 per room.
+int max_chain_rooms(const LayoutParams& p) {
+  return std::max(40, static_cast<int>(3.0 * p.sector_size / p.link_radius_min));
+}
 constexpr int kFailsBeforeBacktrack = 10;
 constexpr int kFailsBeforeDeadEnd = 8;
 constexpr int kTriesPerGate = 32;
@@ -141,7 +143,9 @@ class SectorBuilder {
     for (int g = 0; g < gate_count_; ++g) {
       int head = g, fails = 0, rooms = 0, tries = 0;
       while (find(g) != find(root)) {
-        if (rooms > kMaxChainRooms || ++tries > kMaxChainTries) return false;
+        if (rooms > max_chain_rooms(params_) || ++tries > 15 * max_chain_rooms(params_)) {
+          return false;
+        }
         const Sphere h = nodes_[head].sphere;
         // Aim at the hub from afar; near linked rooms, at one of the three nearest.
         int target = nearest_linked(h, find(root), rng.below(3));
@@ -272,7 +276,7 @@ class SectorBuilder {
       Vec3 biased = hadamard(random_direction(rng), c.bias);
       double pr = nodes_[parent].sphere.radius;
       double d = centre_distance(pr, r, portal_radius(rng, pr, r, kGrowPortal));
-      if (length_squared(biased) < 1e-12) continue;
+      if (length_squared(biased) <= 1e-12 * length_squared(c.bias)) continue;
       Sphere s{nodes_[parent].sphere.centre + normalize(biased) * d, r};
       if (auto edges = try_place(s)) {
         int added_index = add_interior(s, std::move(*edges));
@@ -403,7 +407,9 @@ class SectorBuilder {
       return std::nullopt;
     }
     for (const Edge& m : made) {
-      if (nodes_[m.b].edges.size() >= static_cast<size_t>(kMaxPortalsPerRoom)) return std::nullopt;
+      // A gate gets portals from both its sectors: each side may fill half of the limit.
+      size_t limit = kMaxPortalsPerRoom / (m.b < gate_count_ ? 2 : 1);
+      if (nodes_[m.b].edges.size() >= limit) return std::nullopt;
     }
     double gap = params_.portal_gap;
     // Never three spheres at one portal: the new sphere stays clear of existing discs ...
@@ -438,7 +444,7 @@ class SectorBuilder {
   // Interior rooms keep half the wall clearance from the sector's faces, so rooms of
   // neighbouring sectors never come closer than the clearance.
   bool inside_box(const Sphere& s) const {
-    double h = 0.5 * params_.wall_clearance;
+    double h = face_margin(params_);
     for (int a = 0; a < 3; ++a) {
       if (s.centre[a] < lo_[a] + s.radius + h || s.centre[a] > hi_[a] - s.radius - h) return false;
     }
@@ -545,7 +551,7 @@ std::vector<Room> face_gates(const World& world, SectorCoord lower, int axis) {
   Rng rng(hash_words(world.seed(), kFaceStream, lower.x, lower.y, lower.z, axis));
   int count = p.gates_min + static_cast<int>(rng.below(p.gates_max - p.gates_min + 1));
   // Gates keep away from the face's edges, so gates of different faces never come near.
-  double margin = p.gate_radius_max + p.wall_clearance;
+  double margin = gate_edge_margin(p);
   for (int tries = 0; static_cast<int>(gates.size()) < count && tries < kTriesPerGate; ++tries) {
     Sphere s;
     s.radius = rng.uniform(p.gate_radius_min, p.gate_radius_max);

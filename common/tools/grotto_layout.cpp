@@ -155,7 +155,10 @@ int main(int argc, char** argv) {
     if (hi[a] < (*lo)[a]) return fail("--to must not be below --from on any axis");
     count *= hi[a] - (*lo)[a] + 1;
   }
-  if (!grotto::cave::in_range(hi)) return fail("--to is outside the sector range");
+  if (!grotto::cave::in_range(hi)) {
+    return fail("the block's last sector " + grotto::cave::to_string(hi) +
+                " is outside the sector range ±" + std::to_string(grotto::cave::kSectorCoordLimit));
+  }
   if (count > kMaxSectors) {
     return fail("the block has " + std::to_string(count) + " sectors; at most " +
                 std::to_string(kMaxSectors) + " at once");

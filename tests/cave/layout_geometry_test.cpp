@@ -1,5 +1,6 @@
-// Geometry of rooms and portals (thesis §3.1.2, Figure 3-2), checked from first principles over a
-// 3x3x3 block of sectors, across sector faces included.
+// Geometry of rooms and portals (thesis §3.1.2, Figure 3-2), checked from first principles over
+// 2x2x2 blocks of sectors for several seeds (two of them once broke gate and face rules), across
+// sector faces included.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -11,15 +12,18 @@
 namespace grotto::cave {
 namespace {
 
-class LayoutGeometry : public ::testing::Test {
+class LayoutGeometry : public ::testing::TestWithParam<uint64_t> {
  protected:
-  static void SetUpTestSuite() {
-    world_ = new World(World::create(2024, LayoutParams{}).value());
-    region_ = new Region(generate_region(*world_, {0, 0, 0}, {2, 2, 2}));
-  }
-  static void TearDownTestSuite() {
-    delete region_;
-    delete world_;
+  void SetUp() override {
+    static std::map<uint64_t, std::pair<World, Region>> cache;
+    auto it = cache.find(GetParam());
+    if (it == cache.end()) {
+      World w = World::create(GetParam(), LayoutParams{}).value();
+      Region r = generate_region(w, {0, 0, 0}, {1, 1, 1});
+      it = cache.emplace(GetParam(), std::pair{w, std::move(r)}).first;
+    }
+    world_ = &it->second.first;
+    region_ = &it->second.second;
   }
 
   // Pairs of rooms whose spheres come within `reach` metres of each other.
@@ -57,22 +61,21 @@ class LayoutGeometry : public ::testing::Test {
     return nullptr;
   }
 
-  static World* world_;
-  static Region* region_;
+  const World* world_ = nullptr;
+  const Region* region_ = nullptr;
 };
 
-World* LayoutGeometry::world_ = nullptr;
-Region* LayoutGeometry::region_ = nullptr;
+INSTANTIATE_TEST_SUITE_P(Seeds, LayoutGeometry, ::testing::Values(2024u, 40u, 154u));
 
-TEST_F(LayoutGeometry, region_is_substantial) {
-  EXPECT_GT(region_->rooms.size(), 1000u);
+TEST_P(LayoutGeometry, region_is_substantial) {
+  EXPECT_GT(region_->rooms.size(), 500u);
   size_t gates = 0;
   for (const Room& r : region_->rooms)
     gates += r.id.is_gate();
-  EXPECT_GT(gates, 50u);
+  EXPECT_GT(gates, 30u);
 }
 
-TEST_F(LayoutGeometry, portal_is_the_intersection_circle_of_the_two_spheres) {
+TEST_P(LayoutGeometry, portal_is_the_intersection_circle_of_the_two_spheres) {
   size_t checked = 0;
   for (const Room& r : region_->rooms) {
     for (const Portal& p : r.portals) {
@@ -99,10 +102,10 @@ TEST_F(LayoutGeometry, portal_is_the_intersection_circle_of_the_two_spheres) {
       ++checked;
     }
   }
-  EXPECT_GT(checked, 2000u);
+  EXPECT_GT(checked, 500u);
 }
 
-TEST_F(LayoutGeometry, portals_respect_the_minimum_radius_and_count) {
+TEST_P(LayoutGeometry, portals_respect_the_minimum_radius_and_count) {
   for (const Room& r : region_->rooms) {
     EXPECT_LE(r.portals.size(), static_cast<size_t>(kMaxPortalsPerRoom)) << r.id.to_string();
     for (const Portal& p : r.portals) {
@@ -111,7 +114,8 @@ TEST_F(LayoutGeometry, portals_respect_the_minimum_radius_and_count) {
   }
 }
 
-TEST_F(LayoutGeometry, no_point_of_a_portal_lies_inside_a_third_sphere) {
+TEST_P(LayoutGeometry, no_point_of_a_portal_comes_within_the_gap_of_a_third_sphere) {
+  const double gap = world_->params().portal_gap;
   size_t pairs = 0;
   auto disc_distance = [](Vec3 q, const Portal& p) {
     Vec3 rel = q - p.centre;
@@ -126,7 +130,7 @@ TEST_F(LayoutGeometry, no_point_of_a_portal_lies_inside_a_third_sphere) {
         if (k.id == r.id || k.id == p.neighbour) continue;
         if (distance(k.sphere.centre, p.centre) > k.sphere.radius + p.radius + 1.0) continue;
         ++pairs;
-        EXPECT_GT(disc_distance(k.sphere.centre, p), k.sphere.radius)
+        EXPECT_GT(disc_distance(k.sphere.centre, p), k.sphere.radius + gap - 1e-9)
             << "portal " << r.id.to_string() << "/" << p.neighbour.to_string() << " touches "
             << k.id.to_string();
       }
@@ -135,7 +139,8 @@ TEST_F(LayoutGeometry, no_point_of_a_portal_lies_inside_a_third_sphere) {
   RecordProperty("third_sphere_candidates", static_cast<int>(pairs));
 }
 
-TEST_F(LayoutGeometry, portals_of_one_room_are_disjoint) {
+TEST_P(LayoutGeometry, portals_of_one_room_are_disjoint_with_wall_between) {
+  const double gap = world_->params().portal_gap;
   size_t pairs = 0;
   for (const Room& r : region_->rooms) {
     const double R = r.sphere.radius;
@@ -147,15 +152,17 @@ TEST_F(LayoutGeometry, portals_of_one_room_are_disjoint) {
         double angle = std::acos(std::clamp(dot(ua, ub), -1.0, 1.0));
         double half_a = std::asin(std::min(1.0, a.radius / R));
         double half_b = std::asin(std::min(1.0, b.radius / R));
-        EXPECT_GT(angle, half_a + half_b) << r.id.to_string();
+        EXPECT_GT(angle, half_a + half_b + std::asin(std::min(1.0, gap / R)) - 1e-9)
+            << r.id.to_string() << " portals to " << a.neighbour.to_string() << " and "
+            << b.neighbour.to_string();
         ++pairs;
       }
     }
   }
-  EXPECT_GT(pairs, 100u);
+  EXPECT_GT(pairs, 50u);
 }
 
-TEST_F(LayoutGeometry, spheres_either_share_a_portal_or_keep_clear) {
+TEST_P(LayoutGeometry, spheres_either_share_a_portal_or_keep_clear) {
   const double clearance = world_->params().wall_clearance;
   size_t overlapping = 0;
   for_each_close_pair(clearance, [&](const Room& a, const Room& b, double d) {
@@ -168,10 +175,10 @@ TEST_F(LayoutGeometry, spheres_either_share_a_portal_or_keep_clear) {
       EXPECT_NE(portal_to(b, a.id), nullptr) << b.id.to_string() << " / " << a.id.to_string();
     }
   });
-  EXPECT_GT(overlapping, 1000u);
+  EXPECT_GT(overlapping, 400u);
 }
 
-TEST_F(LayoutGeometry, rooms_stay_in_their_sector_and_gates_on_their_face) {
+TEST_P(LayoutGeometry, rooms_stay_in_their_sector_and_gates_on_their_face) {
   const double size = world_->params().sector_size;
   for (const Room& r : region_->rooms) {
     SectorCoord s = r.id.sector();

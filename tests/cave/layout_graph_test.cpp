@@ -70,6 +70,20 @@ TEST(LayoutGraph, every_sector_links_its_gates_for_many_seeds) {
   EXPECT_LT(retried, sectors / 4) << "linking should rarely need a second attempt";
 }
 
+TEST(LayoutGraph, the_extremes_validate_accepts_still_connect) {
+  LayoutParams p;
+  p.sector_size = kMaxSectorSize;
+  p.portal_gap = 0.6 * p.link_radius_max;
+  p.min_portal_radius = 0.45 * std::min(p.link_radius_min, p.gate_radius_min);
+  p.gates_max = 4;
+  ASSERT_TRUE(validate(p).ok()) << validate(p).error().message;
+  World world = World::create(6, p).value();
+  for (int i = 0; i < 4; ++i) {
+    SectorLayout layout = generate_sector(world, {i, -i, 1});
+    EXPECT_TRUE(layout.connected) << "sector " << i << " after " << layout.attempts << " attempts";
+  }
+}
+
 // The longest shortest path among a sector's interior rooms, from every room.
 int interior_diameter(const SectorLayout& layout) {
   int diameter = 0;
@@ -86,6 +100,16 @@ LayoutParams one_character(double tunnel_chance, Vec3 bias) {
   c.tunnel_chance = tunnel_chance;
   c.bias = bias;
   return LayoutParams::uniform(c);
+}
+
+TEST(LayoutGraph, a_tiny_bias_grows_like_its_normalized_self) {
+  auto rooms = [](double scale) {
+    LayoutParams p = one_character(0.5, Vec3{1, 1, 1} * scale);
+    return generate_sector(World::create(3, p).value(), {}).rooms.size();
+  };
+  size_t unit = rooms(1.0), tiny = rooms(1e-7);
+  EXPECT_GT(tiny, unit * 9 / 10);
+  EXPECT_LT(tiny, unit * 11 / 10);
 }
 
 TEST(LayoutGraph, tunnel_chance_makes_longer_passages) {

@@ -46,6 +46,8 @@ TEST(Locate, points_outside_every_room_find_nothing) {
   EXPECT_FALSE(locate(world, {std::numeric_limits<double>::quiet_NaN(), 0, 0}).has_value());
   EXPECT_FALSE(locate(world, {inf, 0, 0}).has_value());
   EXPECT_FALSE(locate(world, {1e15, 0, 0}).has_value()) << "beyond the sector range";
+  EXPECT_FALSE(in_range(sector_of(world, {std::numeric_limits<double>::quiet_NaN(), 0, 0})));
+  EXPECT_FALSE(in_range(sector_of(world, {-1e300, 0, 0})));
 }
 
 TEST(Locate, spawn_is_deterministic_and_inside_its_room) {

@@ -59,6 +59,10 @@ TEST(LayoutParams, bad_values_name_the_field) {
   expect_rejected([](LayoutParams& p) { p.region_scale = 0; }, "region_scale");
   expect_rejected([](LayoutParams& p) { p.region_sharpness = -1; }, "region_sharpness");
   expect_rejected([](LayoutParams& p) { p.link_radius_min = 0.5; }, "min_portal_radius");
+  expect_rejected([](LayoutParams& p) { p.sector_size = 1e6; }, "sector_size must be at most");
+  expect_rejected([](LayoutParams& p) { p.region_scale = 1e-20; }, "region_scale");
+  expect_rejected([](LayoutParams& p) { p.portal_gap = 3; }, "portal_gap");
+  expect_rejected([](LayoutParams& p) { p.min_portal_radius = 1.8; }, "min_portal_radius");
 }
 
 TEST(SectorCharacter, weights_sum_to_one_and_vary_smoothly_over_space) {
