@@ -1,6 +1,7 @@
 #include "mesh/room_mesh.hpp"
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <map>
 #include <numeric>
@@ -175,6 +176,12 @@ Result<RoomMesh> assemble_room(const MeshContext& ctx, const DeformInput& input,
                                std::span<const float3> positions, std::span<const float> clearance,
                                AssembleStats* stats_out) {
   AssembleStats stats;
+  using clock = std::chrono::steady_clock;
+  auto lap = [last = clock::now()](double& into) mutable {
+    auto now = clock::now();
+    into += std::chrono::duration<double>(now - last).count();
+    last = now;
+  };
   const DonorSphere& donor = *input.donor;
   const size_t nv = donor.directions.size();
   const size_t np = input.portals.size();
@@ -238,6 +245,8 @@ Result<RoomMesh> assemble_room(const MeshContext& ctx, const DeformInput& input,
     }
     loop_of_portal[portal] = static_cast<int>(l);
   }
+
+  lap(stats.cut_seconds);
 
   // Stitch every hole to its portal's canonical rim (thesis §3.1.7: the polar-angle weld, made
   // against the shared loop instead of the neighbour's mesh).
@@ -306,6 +315,8 @@ Result<RoomMesh> assemble_room(const MeshContext& ctx, const DeformInput& input,
     ++stats.loops_stitched;
   }
 
+  lap(stats.stitch_seconds);
+
   // Compact: used donor vertices in order, then the rim loops.
   std::vector<uint32_t> remap(pos.size(), UINT32_MAX);
   RoomMesh mesh;
@@ -349,6 +360,8 @@ Result<RoomMesh> assemble_room(const MeshContext& ctx, const DeformInput& input,
     }
   }
 
+  lap(stats.normals_seconds);
+
   // Detail channels from world-space fields, so rim vertices agree across rooms.
   const MeshParams& p = ctx.params();
   mesh.roughness.resize(mesh.positions.size());
@@ -361,6 +374,7 @@ Result<RoomMesh> assemble_room(const MeshContext& ctx, const DeformInput& input,
     float m = core::grotto_noise3(ctx.perm(), w, static_cast<float>(p.mineral_frequency));
     mesh.mineral[v] = core::grotto_smooth((m - 0.2f) * 4.0f);
   }
+  lap(stats.channels_seconds);
   if (stats_out) *stats_out = stats;
   return mesh;
 }

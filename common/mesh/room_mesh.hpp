@@ -60,6 +60,11 @@ struct AssembleStats {
   int loops_stitched = 0;
   int pinches_removed = 0;    // boundary vertices shared by two loops, cut away
   int fragments_dropped = 0;  // triangles outside the main component
+  // Seconds per stage, for the thesis's stage table (Figure 3-10).
+  double cut_seconds = 0;       // wrong-side removal and hole boundaries ("fix triangles")
+  double stitch_seconds = 0;    // rim loops and the zipper ("weld verts")
+  double normals_seconds = 0;   // compaction and normals ("create normals")
+  double channels_seconds = 0;  // roughness and mineral fields
 };
 
 Result<RoomMesh> assemble_room(const MeshContext& ctx, const DeformInput& input,

@@ -1,0 +1,228 @@
+// The thesis's own experiment (Figures 3-10 to 3-12), side by side: a 100-room cave at the
+// thesis's density, time per stage for the CPU reference on one thread and for OpenCL, vertices/s
+// against buffer size, and one launch per room against one batched launch. Writes a JSON report.
+// Command and results: docs/BENCHMARKS.md.
+#include <spdlog/spdlog.h>
+#include <CLI/CLI.hpp>
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <fstream>
+#include <functional>
+#include <nlohmann/json.hpp>
+
+#include "kernels/deform.hpp"
+#include "mesh/room_mesh.hpp"
+
+namespace {
+
+using namespace grotto;
+using clock_type = std::chrono::steady_clock;
+
+double seconds_since(clock_type::time_point t) {
+  return std::chrono::duration<double>(clock_type::now() - t).count();
+}
+
+// Median of `reps` timed runs of f, in milliseconds.
+double median_ms(int reps, const std::function<void()>& f) {
+  std::vector<double> t;
+  for (int i = 0; i < reps; ++i) {
+    auto start = clock_type::now();
+    f();
+    t.push_back(1000.0 * seconds_since(start));
+  }
+  std::sort(t.begin(), t.end());
+  return t[t.size() / 2];
+}
+
+struct Deformed {
+  std::vector<std::vector<mesh::core::float3>> positions;
+  std::vector<std::vector<float>> clearance;
+};
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{
+      "mesh_bench: the thesis's cave-building experiment on this machine (CPU reference "
+      "on one thread vs OpenCL), with a JSON report"};
+  std::string json_path = "mesh_bench.json";
+  int reps = 5, room_count = 100;
+  uint64_t seed = 42;
+  app.add_option("--json", json_path, "Write the report here")->capture_default_str();
+  app.add_option("--repetitions", reps, "Runs per measurement (the median is reported)")
+      ->check(CLI::Range(1, 100))
+      ->capture_default_str();
+  app.add_option("--rooms", room_count, "Rooms in the cave")
+      ->check(CLI::Range(1, 1000))
+      ->capture_default_str();
+  app.add_option("--seed", seed, "World seed")->capture_default_str();
+  CLI11_PARSE(app, argc, argv);
+
+  cave::World world = cave::World::create(seed, cave::LayoutParams{}).value();
+  mesh::MeshContext ctx = mesh::MeshContext::create(world, mesh::MeshParams{}).value();
+  const mesh::Lod lod = mesh::Lod::kDetail;
+
+  // Layout: enough sectors for the cave, timed as one stage.
+  cave::Region region;
+  double layout_ms = median_ms(reps, [&] {
+    region = cave::generate_region(world, {0, 0, 0}, {0, 0, 0});
+  });
+  std::vector<cave::Room> rooms(
+      region.rooms.begin(),
+      region.rooms.begin() + std::min<size_t>(room_count, region.rooms.size()));
+
+  std::vector<mesh::DeformInput> inputs;
+  double prepare_ms = median_ms(reps, [&] {
+    inputs.clear();
+    for (const cave::Room& r : rooms)
+      inputs.push_back(mesh::prepare_room(ctx, r, lod));
+  });
+  size_t donor_vertices = 0;
+  for (auto& in : inputs)
+    donor_vertices += in.donor->directions.size();
+
+  Deformed cpu;
+  double deform_cpu_ms = median_ms(reps, [&] {
+    cpu.positions.assign(inputs.size(), {});
+    cpu.clearance.assign(inputs.size(), {});
+    for (size_t i = 0; i < inputs.size(); ++i) {
+      size_t n = inputs[i].donor->directions.size();
+      cpu.positions[i].resize(n);
+      cpu.clearance[i].resize(n);
+      mesh::deform_cpu(ctx, inputs[i], cpu.positions[i], cpu.clearance[i]);
+    }
+  });
+
+  mesh::AssembleStats stage{};
+  size_t out_vertices = 0;
+  double assemble_ms = median_ms(reps, [&] {
+    stage = {};
+    out_vertices = 0;
+    for (size_t i = 0; i < inputs.size(); ++i) {
+      mesh::AssembleStats s;
+      auto m = mesh::assemble_room(ctx, inputs[i], cpu.positions[i], cpu.clearance[i], &s);
+      out_vertices += m.ok() ? m->vertex_count() : 0;
+      stage.cut_seconds += s.cut_seconds;
+      stage.stitch_seconds += s.stitch_seconds;
+      stage.normals_seconds += s.normals_seconds;
+      stage.channels_seconds += s.channels_seconds;
+    }
+  });
+
+  nlohmann::json report;
+  report["rooms"] = rooms.size();
+  report["donor_vertices"] = donor_vertices;
+  report["mesh_vertices"] = out_vertices;
+  report["repetitions"] = reps;
+  report["stages_ms"] = {{"layout", layout_ms},
+                         {"prepare", prepare_ms},
+                         {"deform_cpu", deform_cpu_ms},
+                         {"fix_triangles", 1000 * stage.cut_seconds},
+                         {"stitch", 1000 * stage.stitch_seconds},
+                         {"normals", 1000 * stage.normals_seconds},
+                         {"channels", 1000 * stage.channels_seconds},
+                         {"assemble_total", assemble_ms}};
+  double total_cpu = layout_ms + prepare_ms + deform_cpu_ms + assemble_ms;
+  report["total_cpu_ms"] = total_cpu;
+
+  auto device = kernels::ComputeContext::create();
+  if (!device) {
+    spdlog::warn("no OpenCL device: {}", device.error().message);
+    report["opencl"] = {{"available", false}, {"reason", device.error().message}};
+  } else {
+    kernels::ComputeContext& dev = device.value();
+    auto kernel_result = kernels::DeformKernel::create(dev, ctx);
+    if (!kernel_result) {
+      std::fprintf(stderr, "kernel build failed: %s\n", kernel_result.error().message.c_str());
+      return 1;
+    }
+    kernels::DeformKernel kernel = std::move(kernel_result).value();
+    std::vector<kernels::DeformOutput> out;
+    (void)kernel.run(inputs, out);  // warm-up: PoCL compiles for the work-group size here
+    kernels::LaunchStats stats;
+    double deform_cl_ms = median_ms(reps, [&] { (void)kernel.run(inputs, out, &stats); });
+
+    // Figure 3-11: time per launch against buffer size.
+    nlohmann::json sizes = nlohmann::json::array();
+    for (size_t k : {1, 2, 5, 10, 25, 50, 100, 200}) {
+      if (k > inputs.size()) break;
+      std::span<const mesh::DeformInput> part(inputs.data(), k);
+      size_t verts = 0;
+      for (auto& in : part)
+        verts += in.donor->directions.size();
+      double ms = median_ms(reps, [&] { (void)kernel.run(part, out); });
+      double cpu_ms = median_ms(reps, [&] {
+        for (auto& in : part) {
+          std::vector<mesh::core::float3> p(in.donor->directions.size());
+          std::vector<float> c(p.size());
+          mesh::deform_cpu(ctx, in, p, c);
+        }
+      });
+      sizes.push_back({{"rooms", k},
+                       {"vertices", verts},
+                       {"opencl_ms", ms},
+                       {"cpu_ms", cpu_ms},
+                       {"opencl_vertices_per_s", verts / (ms / 1000)},
+                       {"cpu_vertices_per_s", verts / (cpu_ms / 1000)}});
+    }
+    // §4.2.1: one launch per room against one launch for all.
+    double single_ms = median_ms(reps, [&] {
+      for (size_t i = 0; i < inputs.size(); ++i) {
+        (void)kernel.run(std::span<const mesh::DeformInput>(inputs.data() + i, 1), out);
+      }
+    });
+    // The fixed cost: a launch of the smallest room.
+    size_t smallest = 0;
+    for (size_t i = 0; i < inputs.size(); ++i) {
+      if (inputs[i].donor->directions.size() < inputs[smallest].donor->directions.size()) {
+        smallest = i;
+      }
+    }
+    double tiny_ms = median_ms(std::max(reps, 20), [&] {
+      (void)kernel.run(std::span<const mesh::DeformInput>(inputs.data() + smallest, 1), out);
+    });
+    double total_cl = layout_ms + prepare_ms + deform_cl_ms + assemble_ms;
+    report["opencl"] = {{"available", true},
+                        {"device", dev.describe()},
+                        {"deform_ms", deform_cl_ms},
+                        {"launches_per_run", stats.launches / reps},
+                        {"deform_speedup_vs_cpu", deform_cpu_ms / deform_cl_ms},
+                        {"total_ms", total_cl},
+                        {"total_vs_thesis_cpp_9s", 9000.0 / total_cl},
+                        {"buffer_sizes", sizes},
+                        {"one_launch_per_room_ms", single_ms},
+                        {"one_batched_launch_ms", deform_cl_ms},
+                        {"smallest_room_launch_ms", tiny_ms},
+                        {"smallest_room_vertices", inputs[smallest].donor->directions.size()}};
+  }
+
+  std::printf("100-room cave (%zu rooms, %zu donor vertices, %zu mesh vertices), median of %d\n",
+              rooms.size(), donor_vertices, out_vertices, reps);
+  std::printf("%-26s %10s\n", "stage", "ms");
+  for (auto& [k, v] : report["stages_ms"].items())
+    std::printf("%-26s %10.1f\n", k.c_str(), v.get<double>());
+  std::printf("%-26s %10.1f\n", "total (CPU, 1 thread)", total_cpu);
+  if (report["opencl"]["available"]) {
+    auto& cl = report["opencl"];
+    std::printf("%-26s %10.1f  (%.1fx the CPU)\n", "deform (OpenCL)", cl["deform_ms"].get<double>(),
+                cl["deform_speedup_vs_cpu"].get<double>());
+    std::printf("%-26s %10.1f  (thesis C++: 9000 ms, %.0fx faster)\n", "total (OpenCL)",
+                cl["total_ms"].get<double>(), cl["total_vs_thesis_cpp_9s"].get<double>());
+    std::printf("%-26s %10.1f\n", "100 single-room launches",
+                cl["one_launch_per_room_ms"].get<double>());
+    std::printf("%-26s %10.2f  (%zu vertices)\n", "smallest-room launch",
+                cl["smallest_room_launch_ms"].get<double>(),
+                cl["smallest_room_vertices"].get<size_t>());
+    std::printf("%8s %10s %12s %12s %14s %14s\n", "rooms", "vertices", "opencl ms", "cpu ms",
+                "opencl vert/s", "cpu vert/s");
+    for (auto& s : cl["buffer_sizes"]) {
+      std::printf("%8zu %10zu %12.2f %12.2f %14.3g %14.3g\n", s["rooms"].get<size_t>(),
+                  s["vertices"].get<size_t>(), s["opencl_ms"].get<double>(),
+                  s["cpu_ms"].get<double>(), s["opencl_vertices_per_s"].get<double>(),
+                  s["cpu_vertices_per_s"].get<double>());
+    }
+  }
+  std::ofstream(json_path) << report.dump(2) << "\n";
+  return 0;
+}
