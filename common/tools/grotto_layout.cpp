@@ -9,6 +9,7 @@
 
 #include "cave/layout.hpp"
 #include "cave/svg.hpp"
+#include "kernels/room_builder.hpp"
 #include "proto/layout_json.hpp"
 
 namespace {
@@ -54,6 +55,58 @@ bool write_file(const std::string& path, const std::string& text) {
   return true;
 }
 
+// Wavefront OBJ of the region's room meshes: one object per room, positions in metres relative to
+// the block's first corner (written in a comment) so readers that use float keep precision.
+bool write_obj(const std::string& path, const grotto::cave::World& world,
+               const grotto::cave::Region& region, grotto::mesh::Lod lod) {
+  auto ctx = grotto::mesh::MeshContext::create(world, grotto::mesh::MeshParams{});
+  if (!ctx) {
+    spdlog::error("{}", ctx.error().message);
+    return false;
+  }
+  auto builder = grotto::kernels::RoomBuilder::create(*ctx, {});
+  auto meshes = builder.build(region.rooms, lod);
+  grotto::Vec3 base{region.lo.x * world.params().sector_size,
+                    region.lo.y * world.params().sector_size,
+                    region.lo.z * world.params().sector_size};
+  std::ofstream f(path, std::ios::binary);
+  f << "# Grotto cave, seed " << world.seed() << ", sectors " << grotto::cave::to_string(region.lo)
+    << " to " << grotto::cave::to_string(region.hi) << ", " << grotto::mesh::lod_name(lod)
+    << " meshes\n# positions are world coordinates minus (" << base.x << ", " << base.y << ", "
+    << base.z << "); y is up; triangles face the inside of the cave\n";
+  size_t next = 1, built = 0;
+  char line[160];
+  for (size_t i = 0; i < meshes.size(); ++i) {
+    if (!meshes[i]) {
+      spdlog::warn("event=room_mesh_failed room={} error=\"{}\"", region.rooms[i].id.to_string(),
+                   meshes[i].error().message);
+      continue;
+    }
+    const grotto::mesh::RoomMesh& m = *meshes[i];
+    f << "o room_" << m.id.to_string() << "\n";
+    for (size_t v = 0; v < m.vertex_count(); ++v) {
+      grotto::Vec3 p = m.world_position(v) - base;
+      std::snprintf(line, sizeof line, "v %.4f %.4f %.4f\nvn %.4f %.4f %.4f\n", p.x, p.y, p.z,
+                    m.normals[v].x, m.normals[v].y, m.normals[v].z);
+      f << line;
+    }
+    for (size_t t = 0; t < m.indices.size(); t += 3) {
+      size_t a = next + m.indices[t], b = next + m.indices[t + 1], c = next + m.indices[t + 2];
+      f << "f " << a << "//" << a << " " << b << "//" << b << " " << c << "//" << c << "\n";
+    }
+    next += m.vertex_count();
+    ++built;
+  }
+  f.close();
+  if (!f) {
+    spdlog::error("cannot write {}", path);
+    return false;
+  }
+  spdlog::info("event=obj_written path={} rooms={} vertices={} compute_path=\"{}\"", path, built,
+               next - 1, builder.path());
+  return built == meshes.size();
+}
+
 int fail(const std::string& message) {
   std::fprintf(stderr, "grotto-layout: %s\n", message.c_str());
   return 2;
@@ -69,7 +122,8 @@ int main(int argc, char** argv) {
   std::string seed_text = "1";
   std::string from_text = "0,0,0", to_text;
   int sectors = 2;
-  std::string svg_path, json_path, room_text, character;
+  std::string svg_path, json_path, obj_path, room_text, character;
+  std::string lod_text = "patch";
   grotto::cave::LayoutParams params;
   std::optional<double> tunnel_chance, big_probability;
   std::optional<int> room_count, loops;
@@ -83,6 +137,11 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--svg", svg_path, "Write the SVG picture to this file");
   app.add_option("--json", json_path, "Write the region as JSON to this file ('-' for stdout)");
+  app.add_option("--obj", obj_path,
+                 "Write the rooms' meshes as Wavefront OBJ (opens in Blender and most 3D tools)");
+  app.add_option("--lod", lod_text, "Level of detail of --obj: patch (streamed) or detail")
+      ->check(CLI::IsMember({"patch", "detail"}))
+      ->capture_default_str();
   app.add_option("--room", room_text, "Print one room as JSON instead, e.g. 0.0.0.r3 or 0.0.0.x1");
   app.add_option("--character", character,
                  "Use one character everywhere instead of the region mix: maze, shafts or caverns")
@@ -179,7 +238,11 @@ int main(int argc, char** argv) {
     if (!write_file(json_path, grotto::proto::region_json(*world, region, 1))) return 1;
     if (json_path != "-") spdlog::info("event=json_written path={}", json_path);
   }
-  if (svg_path.empty() && json_path.empty()) {
+  if (!obj_path.empty()) {
+    auto lod = lod_text == "detail" ? grotto::mesh::Lod::kDetail : grotto::mesh::Lod::kPatch;
+    if (!write_obj(obj_path, *world, region, lod)) return 1;
+  }
+  if (svg_path.empty() && json_path.empty() && obj_path.empty()) {
     std::printf("%s\n", grotto::proto::region_json(*world, region, 1).c_str());
   }
   return 0;

@@ -15,8 +15,9 @@ struct ProcessResult {
   std::string output;  // stdout and stderr together
 };
 
-ProcessResult run(const std::string& args) {
-  std::string cmd = std::string("'") + GROTTO_LAYOUT_BIN + "' " + args + " 2>&1";
+ProcessResult run(const std::string& args, const char* device = "auto") {
+  std::string cmd = std::string("GROTTO_OPENCL_DEVICE=") + device + " '" + GROTTO_LAYOUT_BIN +
+                    "' " + args + " 2>&1";
   FILE* p = popen(cmd.c_str(), "r");
   ProcessResult r{-1, {}};
   char buf[4096];
@@ -58,6 +59,33 @@ TEST(GrottoLayout, writes_a_picture_and_json) {
   EXPECT_NE(json.find("\"rooms\""), std::string::npos);
   EXPECT_NE(json.find("\"portals\""), std::string::npos);
   EXPECT_NE(json.find("\"spawn\""), std::string::npos);
+  std::filesystem::remove_all(dir);
+}
+
+TEST(GrottoLayout, exports_room_meshes_as_obj_on_either_compute_path) {
+  auto dir =
+      std::filesystem::temp_directory_path() / ("grotto-obj-test-" + std::to_string(getpid()));
+  std::filesystem::create_directories(dir);
+  for (const char* device : {"auto", "none"}) {
+    std::string obj = (dir / (std::string(device) + ".obj")).string();
+    ProcessResult r = run(std::string("--seed 3 --sectors 1 --obj '") + obj + "'", device);
+    ASSERT_EQ(r.exit_code, 0) << r.output;
+    std::ifstream f(obj);
+    std::string line;
+    size_t objects = 0, vertices = 0, faces = 0;
+    while (std::getline(f, line)) {
+      objects += line.rfind("o room_", 0) == 0;
+      vertices += line.rfind("v ", 0) == 0;
+      faces += line.rfind("f ", 0) == 0;
+    }
+    EXPECT_GT(objects, 50u) << device;
+    EXPECT_GT(vertices, 20000u) << device;
+    EXPECT_GT(faces, vertices) << device;
+    EXPECT_NE(r.output.find(std::string("compute_path=\"") +
+                            (device == std::string("none") ? "cpu" : "opencl")),
+              std::string::npos)
+        << r.output;
+  }
   std::filesystem::remove_all(dir);
 }
 
