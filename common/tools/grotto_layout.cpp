@@ -10,6 +10,7 @@
 #include "cave/layout.hpp"
 #include "cave/svg.hpp"
 #include "kernels/room_builder.hpp"
+#include "preview.hpp"
 #include "proto/layout_json.hpp"
 
 namespace {
@@ -55,34 +56,50 @@ bool write_file(const std::string& path, const std::string& text) {
   return true;
 }
 
-// Wavefront OBJ of the region's room meshes: one object per room, positions in metres relative to
-// the block's first corner (written in a comment) so readers that use float keep precision.
-bool write_obj(const std::string& path, const grotto::cave::World& world,
-               const grotto::cave::Region& region, grotto::mesh::Lod lod) {
+// The region's room meshes, built on OpenCL or the CPU reference; failures are logged and left out.
+std::vector<grotto::mesh::RoomMesh> build_meshes(const grotto::cave::World& world,
+                                                 const grotto::cave::Region& region,
+                                                 grotto::mesh::Lod lod, bool& all_built) {
+  std::vector<grotto::mesh::RoomMesh> out;
   auto ctx = grotto::mesh::MeshContext::create(world, grotto::mesh::MeshParams{});
   if (!ctx) {
     spdlog::error("{}", ctx.error().message);
-    return false;
+    all_built = false;
+    return out;
   }
   auto builder = grotto::kernels::RoomBuilder::create(*ctx, {});
   auto meshes = builder.build(region.rooms, lod);
+  all_built = true;
+  for (size_t i = 0; i < meshes.size(); ++i) {
+    if (!meshes[i]) {
+      spdlog::warn("event=room_mesh_failed room={} error=\"{}\"", region.rooms[i].id.to_string(),
+                   meshes[i].error().message);
+      all_built = false;
+      continue;
+    }
+    out.push_back(std::move(meshes[i]).value());
+  }
+  spdlog::info("event=meshes_built rooms={} lod={} compute_path=\"{}\"", out.size(),
+               grotto::mesh::lod_name(lod), builder.path());
+  return out;
+}
+
+// Wavefront OBJ: one object per room, positions in metres relative to the block's first corner
+// (written in a comment) so readers that use float keep precision.
+bool write_obj(const std::string& path, const grotto::cave::World& world,
+               const grotto::cave::Region& region,
+               const std::vector<grotto::mesh::RoomMesh>& meshes) {
   grotto::Vec3 base{region.lo.x * world.params().sector_size,
                     region.lo.y * world.params().sector_size,
                     region.lo.z * world.params().sector_size};
   std::ofstream f(path, std::ios::binary);
   f << "# Grotto cave, seed " << world.seed() << ", sectors " << grotto::cave::to_string(region.lo)
-    << " to " << grotto::cave::to_string(region.hi) << ", " << grotto::mesh::lod_name(lod)
-    << " meshes\n# positions are world coordinates minus (" << base.x << ", " << base.y << ", "
-    << base.z << "); y is up; triangles face the inside of the cave\n";
-  size_t next = 1, built = 0;
+    << " to " << grotto::cave::to_string(region.hi) << "\n# positions are world coordinates minus ("
+    << base.x << ", " << base.y << ", " << base.z
+    << "); y is up; triangles face the inside of the cave\n";
+  size_t next = 1;
   char line[160];
-  for (size_t i = 0; i < meshes.size(); ++i) {
-    if (!meshes[i]) {
-      spdlog::warn("event=room_mesh_failed room={} error=\"{}\"", region.rooms[i].id.to_string(),
-                   meshes[i].error().message);
-      continue;
-    }
-    const grotto::mesh::RoomMesh& m = *meshes[i];
+  for (const grotto::mesh::RoomMesh& m : meshes) {
     f << "o room_" << m.id.to_string() << "\n";
     for (size_t v = 0; v < m.vertex_count(); ++v) {
       grotto::Vec3 p = m.world_position(v) - base;
@@ -95,16 +112,14 @@ bool write_obj(const std::string& path, const grotto::cave::World& world,
       f << "f " << a << "//" << a << " " << b << "//" << b << " " << c << "//" << c << "\n";
     }
     next += m.vertex_count();
-    ++built;
   }
   f.close();
   if (!f) {
     spdlog::error("cannot write {}", path);
     return false;
   }
-  spdlog::info("event=obj_written path={} rooms={} vertices={} compute_path=\"{}\"", path, built,
-               next - 1, builder.path());
-  return built == meshes.size();
+  spdlog::info("event=obj_written path={} rooms={} vertices={}", path, meshes.size(), next - 1);
+  return true;
 }
 
 int fail(const std::string& message) {
@@ -122,7 +137,7 @@ int main(int argc, char** argv) {
   std::string seed_text = "1";
   std::string from_text = "0,0,0", to_text;
   int sectors = 2;
-  std::string svg_path, json_path, obj_path, room_text, character;
+  std::string svg_path, json_path, obj_path, png_path, room_text, character;
   std::string lod_text = "patch";
   grotto::cave::LayoutParams params;
   std::optional<double> tunnel_chance, big_probability;
@@ -139,7 +154,10 @@ int main(int argc, char** argv) {
   app.add_option("--json", json_path, "Write the region as JSON to this file ('-' for stdout)");
   app.add_option("--obj", obj_path,
                  "Write the rooms' meshes as Wavefront OBJ (opens in Blender and most 3D tools)");
-  app.add_option("--lod", lod_text, "Level of detail of --obj: patch (streamed) or detail")
+  app.add_option("--png", png_path,
+                 "Render the rooms' meshes to a PNG picture (software, no GPU or display needed)");
+  app.add_option("--lod", lod_text,
+                 "Level of detail of --obj and --png: patch (streamed) or detail")
       ->check(CLI::IsMember({"patch", "detail"}))
       ->capture_default_str();
   app.add_option("--room", room_text, "Print one room as JSON instead, e.g. 0.0.0.r3 or 0.0.0.x1");
@@ -238,11 +256,22 @@ int main(int argc, char** argv) {
     if (!write_file(json_path, grotto::proto::region_json(*world, region, 1))) return 1;
     if (json_path != "-") spdlog::info("event=json_written path={}", json_path);
   }
-  if (!obj_path.empty()) {
+  if (!obj_path.empty() || !png_path.empty()) {
     auto lod = lod_text == "detail" ? grotto::mesh::Lod::kDetail : grotto::mesh::Lod::kPatch;
-    if (!write_obj(obj_path, *world, region, lod)) return 1;
+    bool all_built = true;
+    auto meshes = build_meshes(*world, region, lod, all_built);
+    if (!obj_path.empty() && !write_obj(obj_path, *world, region, meshes)) return 1;
+    if (!png_path.empty()) {
+      grotto::tools::PreviewOptions preview;
+      auto image = grotto::tools::render_preview(meshes, preview);
+      if (auto s = grotto::tools::write_png(png_path, image, preview.width, preview.height); !s) {
+        return fail(s.error().message);
+      }
+      spdlog::info("event=png_written path={}", png_path);
+    }
+    if (!all_built) return 1;
   }
-  if (svg_path.empty() && json_path.empty() && obj_path.empty()) {
+  if (svg_path.empty() && json_path.empty() && obj_path.empty() && png_path.empty()) {
     std::printf("%s\n", grotto::proto::region_json(*world, region, 1).c_str());
   }
   return 0;

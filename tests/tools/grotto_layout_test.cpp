@@ -89,6 +89,48 @@ TEST(GrottoLayout, exports_room_meshes_as_obj_on_either_compute_path) {
   std::filesystem::remove_all(dir);
 }
 
+// Reassembles the scanlines of a PNG written with stored (uncompressed) deflate blocks.
+std::vector<unsigned char> png_scanlines(const std::string& png) {
+  std::vector<unsigned char> raw;
+  size_t at = png.find("IDAT");
+  if (at == std::string::npos || at < 4) return raw;
+  size_t len = (static_cast<unsigned char>(png[at - 4]) << 24) |
+               (static_cast<unsigned char>(png[at - 3]) << 16) |
+               (static_cast<unsigned char>(png[at - 2]) << 8) |
+               static_cast<unsigned char>(png[at - 1]);
+  size_t p = at + 4 + 2, end = at + 4 + len - 4;  // skip the zlib header, stop at Adler-32
+  while (p + 5 <= end) {
+    size_t n =
+        static_cast<unsigned char>(png[p + 1]) | (static_cast<unsigned char>(png[p + 2]) << 8);
+    raw.insert(raw.end(), png.begin() + p + 5, png.begin() + p + 5 + n);
+    p += 5 + n;
+  }
+  return raw;
+}
+
+TEST(GrottoLayout, renders_a_lit_picture_without_a_gpu) {
+  auto path = std::filesystem::temp_directory_path() /
+              ("grotto-png-test-" + std::to_string(getpid()) + ".png");
+  ProcessResult r = run("--seed 3 --sectors 1 --png '" + path.string() + "'", "none");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  std::string png = read(path);
+  std::filesystem::remove(path);
+  ASSERT_GT(png.size(), 8u);
+  EXPECT_EQ(png.substr(1, 3), "PNG");
+  std::vector<unsigned char> raw = png_scanlines(png);
+  const size_t w = 1200, h = 800;
+  ASSERT_EQ(raw.size(), h * (1 + 3 * w));
+  size_t lit = 0;
+  for (size_t y = 0; y < h; ++y) {
+    for (size_t x = 0; x < w; ++x) {
+      const unsigned char* px = &raw[y * (1 + 3 * w) + 1 + 3 * x];
+      lit += px[0] > 40 || px[1] > 40 || px[2] > 40;  // brighter than the background
+    }
+  }
+  EXPECT_GT(lit, w * h / 20) << "the cave covers part of the picture";
+  EXPECT_LT(lit, w * h * 9 / 10) << "and leaves background around it";
+}
+
 TEST(GrottoLayout, prints_one_room) {
   ProcessResult r = run("--seed 3 --room 0.0.0.x0");
   ASSERT_EQ(r.exit_code, 0) << r.output;
@@ -111,6 +153,7 @@ TEST(GrottoLayout, bad_input_gets_a_clear_error) {
       {"--sectors 9", "--sectors"},
       {"--character lava", "--character"},
       {"--seed -5", "--seed"},
+      {"--lod medium --obj x.obj", "--lod"},
       {"--from 0,0,0 --to 9,9,9", "at most 512"},
   };
   for (const Case& c : cases) {

@@ -1,0 +1,29 @@
+// A software preview of room meshes: an orthographic, z-buffered, lit picture written as PNG, so a
+// world can be looked at on a machine with no GPU or display (grotto-layout --png).
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "core/result.hpp"
+#include "mesh/room_mesh.hpp"
+
+namespace grotto::tools {
+
+struct PreviewOptions {
+  int width = 1200;
+  int height = 800;
+  Vec3 view_direction{0.55, -0.75, 0.40};  // from the camera into the scene
+};
+
+// Renders every mesh seen from outside along view_direction, fitted to the image. Surfaces are
+// lit from both sides (the meshes face the inside of the cave) and tinted by height and by the
+// mineral channel.
+std::vector<unsigned char> render_preview(const std::vector<mesh::RoomMesh>& meshes,
+                                          const PreviewOptions& options);
+
+// An RGB image (width * height * 3 bytes) as an uncompressed-deflate PNG file.
+Status write_png(const std::string& path, const std::vector<unsigned char>& rgb, int width,
+                 int height);
+
+}  // namespace grotto::tools
