@@ -22,31 +22,31 @@ typedef struct {
   float nx, ny, nz;    /* unit normal, out of the room */
   float e1x, e1y, e1z; /* canonical in-plane basis (shared by both rooms of the portal) */
   float e2x, e2y, e2z;
-  float radius;        /* disc radius */
+  float radius; /* disc radius */
   float pad0, pad1, pad2;
 } GrottoPortal;
 
 /* One room of a batch. 16 floats/uints. */
 typedef struct {
-  float ox, oy, oz;      /* sphere centre in the room frame (|o| < one grid step) */
-  float radius;          /* sphere radius */
-  float wx, wy, wz;      /* room origin in noise space: world origin modulo the noise period */
-  float big_amplitude;   /* amplitude of the large-room octave (0 for small rooms) */
-  uint first_portal;     /* index into the batch's portal table */
+  float ox, oy, oz;    /* sphere centre in the room frame (|o| < one grid step) */
+  float radius;        /* sphere radius */
+  float wx, wy, wz;    /* room origin in noise space: world origin modulo the noise period */
+  float big_amplitude; /* amplitude of the large-room octave (0 for small rooms) */
+  uint first_portal;   /* index into the batch's portal table */
   uint portal_count;
-  uint first_vertex;     /* index of the room's first vertex in the batch */
+  uint first_vertex; /* index of the room's first vertex in the batch */
   uint vertex_count;
-  uint lod;              /* which GrottoShape of the batch's table (0 detail, 1 patch) */
+  uint lod; /* which GrottoShape of the batch's table (0 detail, 1 patch) */
   float pad1, pad2, pad3;
 } GrottoRoom;
 
 /* Noise and shape parameters of one level of detail. 32 floats/uints. */
 typedef struct {
-  uint octaves;                           /* surface octaves (thesis §3.1.6) */
-  float frequency[GROTTO_MAX_OCTAVES];    /* cycles per metre */
-  float amplitude[GROTTO_MAX_OCTAVES];    /* metres */
-  float rim_frequency, rim_amplitude;     /* irregular portal rims, as a fraction of the radius */
-  float fade_distance;                    /* surface noise fades in over this distance from portals */
+  uint octaves;                        /* surface octaves (thesis §3.1.6) */
+  float frequency[GROTTO_MAX_OCTAVES]; /* cycles per metre */
+  float amplitude[GROTTO_MAX_OCTAVES]; /* metres */
+  float rim_frequency, rim_amplitude;  /* irregular portal rims, as a fraction of the radius */
+  float fade_distance;                 /* surface noise fades in over this distance from portals */
   float big_frequency, big_fade_distance; /* the large-room octave, faded out near portals */
   float roundness;                        /* 0: thesis tubes; 1: keep the sphere far from portals */
   float tension;                          /* Hermite tangent length as a fraction of the span */
@@ -54,9 +54,15 @@ typedef struct {
   float pad[11];
 } GrottoShape;
 
-GROTTO_FN float grotto_dot(float3 a, float3 b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
-GROTTO_FN float grotto_length(float3 a) { return grotto_sqrt(grotto_dot(a, a)); }
-GROTTO_FN float grotto_clamp01(float x) { return x < 0.0f ? 0.0f : (x > 1.0f ? 1.0f : x); }
+GROTTO_FN float grotto_dot(float3 a, float3 b) {
+  return a.x * b.x + a.y * b.y + a.z * b.z;
+}
+GROTTO_FN float grotto_length(float3 a) {
+  return grotto_sqrt(grotto_dot(a, a));
+}
+GROTTO_FN float grotto_clamp01(float x) {
+  return x < 0.0f ? 0.0f : (x > 1.0f ? 1.0f : x);
+}
 GROTTO_FN float grotto_smooth(float x) {
   x = grotto_clamp01(x);
   return x * x * (3.0f - 2.0f * x);
@@ -69,11 +75,14 @@ GROTTO_FN float grotto_grad(uint h, float x, float y, float z) {
   float v = k < 4u ? y : (k == 12u || k == 14u ? x : z);
   return ((k & 1u) ? -u : u) + ((k & 2u) ? -v : v);
 }
-GROTTO_FN float grotto_fade(float t) { return t * t * t * (t * (t * 6.0f - 15.0f) + 10.0f); }
-GROTTO_FN float grotto_lerp(float t, float a, float b) { return a + t * (b - a); }
+GROTTO_FN float grotto_fade(float t) {
+  return t * t * t * (t * (t * 6.0f - 15.0f) + 10.0f);
+}
+GROTTO_FN float grotto_lerp(float t, float a, float b) {
+  return a + t * (b - a);
+}
 
-GROTTO_FN float grotto_noise(GROTTO_CONSTANT const unsigned char* perm, float x, float y,
-                             float z) {
+GROTTO_FN float grotto_noise(GROTTO_CONSTANT const unsigned char* perm, float x, float y, float z) {
   float fx = grotto_floor(x), fy = grotto_floor(y), fz = grotto_floor(z);
   /* Wrap to the 256-cell period; floats keep integers exact well beyond that. */
   uint X = (uint)((int)fx & 255), Y = (uint)((int)fy & 255), Z = (uint)((int)fz & 255);
@@ -85,12 +94,13 @@ GROTTO_FN float grotto_noise(GROTTO_CONSTANT const unsigned char* perm, float x,
   uint B = perm[X + 1u] + Y, BA = perm[B] + Z, BB = perm[B + 1u] + Z;
   return grotto_lerp(
       w,
-      grotto_lerp(v, grotto_lerp(u, grotto_grad(perm[AA], x, y, z),
-                                 grotto_grad(perm[BA], x - 1.0f, y, z)),
-                  grotto_lerp(u, grotto_grad(perm[AB], x, y - 1.0f, z),
-                              grotto_grad(perm[BB], x - 1.0f, y - 1.0f, z))),
-      grotto_lerp(v, grotto_lerp(u, grotto_grad(perm[AA + 1u], x, y, z - 1.0f),
-                                 grotto_grad(perm[BA + 1u], x - 1.0f, y, z - 1.0f)),
+      grotto_lerp(
+          v, grotto_lerp(u, grotto_grad(perm[AA], x, y, z), grotto_grad(perm[BA], x - 1.0f, y, z)),
+          grotto_lerp(u, grotto_grad(perm[AB], x, y - 1.0f, z),
+                      grotto_grad(perm[BB], x - 1.0f, y - 1.0f, z))),
+      grotto_lerp(v,
+                  grotto_lerp(u, grotto_grad(perm[AA + 1u], x, y, z - 1.0f),
+                              grotto_grad(perm[BA + 1u], x - 1.0f, y, z - 1.0f)),
                   grotto_lerp(u, grotto_grad(perm[AB + 1u], x, y - 1.0f, z - 1.0f),
                               grotto_grad(perm[BB + 1u], x - 1.0f, y - 1.0f, z - 1.0f))));
 }
@@ -118,6 +128,17 @@ GROTTO_FN float3 grotto_rim_direction(GROTTO_CONSTANT const GrottoPortal* p, flo
   float len = grotto_length(in_plane);
   if (len < 1e-6f) return GROTTO_F3(p->e1x, p->e1y, p->e1z);
   return in_plane / len;
+}
+
+/* The smallest height of p above the room's portal planes (negative: beyond a portal). */
+GROTTO_FN float grotto_least_height(GROTTO_CONSTANT const GrottoPortal* portals, uint n, float3 p) {
+  float least = 3.4e38f;
+  for (uint i = 0; i < n; ++i) {
+    GROTTO_CONSTANT const GrottoPortal* q = portals + i;
+    float h = -grotto_dot(p - GROTTO_F3(q->cx, q->cy, q->cz), GROTTO_F3(q->nx, q->ny, q->nz));
+    least = h < least ? h : least;
+  }
+  return least;
 }
 
 /* Cubic Hermite basis (thesis §3.1.4: the spline between two portal rims). */
@@ -201,14 +222,7 @@ GROTTO_FN float3 grotto_deform_vertex(GROTTO_CONSTANT const unsigned char* perm,
   }
 
   /* Far from portals a room may keep some of its sphere (caverns stay round). */
-  float nearest = 3.4e38f;
-  for (uint i = 0; i < n; ++i) {
-    GROTTO_CONSTANT const GrottoPortal* p = portals + i;
-    float3 c = GROTTO_F3(p->cx, p->cy, p->cz);
-    float3 nn = GROTTO_F3(p->nx, p->ny, p->nz);
-    float h = -grotto_dot(smooth_pos - c, nn);
-    nearest = h < nearest ? h : nearest;
-  }
+  float nearest = grotto_least_height(portals, n, smooth_pos);
   float keep = s->roundness * grotto_smooth(nearest / room->radius);
   smooth_pos = smooth_pos + (v - smooth_pos) * keep;
   axis = axis + (o - axis) * keep;
@@ -228,14 +242,6 @@ GROTTO_FN float3 grotto_deform_vertex(GROTTO_CONSTANT const unsigned char* perm,
                                     grotto_smooth(nearest / s->big_fade_distance);
   float3 pos = smooth_pos + out * displacement;
 
-  float least = 3.4e38f;
-  for (uint i = 0; i < n; ++i) {
-    GROTTO_CONSTANT const GrottoPortal* p = portals + i;
-    float3 c = GROTTO_F3(p->cx, p->cy, p->cz);
-    float3 nn = GROTTO_F3(p->nx, p->ny, p->nz);
-    float h = -grotto_dot(pos - c, nn);
-    least = h < least ? h : least;
-  }
-  *clearance = least;
+  *clearance = grotto_least_height(portals, n, pos);
   return pos;
 }

@@ -113,27 +113,10 @@ TEST(ComputeContext, create_reports_its_outcome) {
 // The ICD loader reads its vendor list once per process, hence the child process: this test
 // binary itself, pointed at an empty vendors folder.
 TEST(ComputeContext, no_opencl_platform_fails_soft_in_a_child_process) {
-  TempDir empty_vendors;
-  ASSERT_FALSE(empty_vendors.path().empty());
-  char exe[4096];
-  const ssize_t n = ::readlink("/proc/self/exe", exe, sizeof exe - 1);
-  ASSERT_GT(n, 0);
-  exe[n] = '\0';
-  // Resolved here: inside the shell, /proc/self/exe would name the shell.
-  const std::string command = "env -u OCL_ICD_FILENAMES OCL_ICD_VENDORS='" +
-                              empty_vendors.path().string() + "' GROTTO_OPENCL_DEVICE=auto '" +
-                              exe +
-                              "' --gtest_filter=ComputeContext.create_reports_its_outcome 2>&1";
-  FILE* pipe = ::popen(command.c_str(), "r");
-  ASSERT_NE(pipe, nullptr);
-  std::string output;
-  char buffer[4096];
-  while (size_t got = std::fread(buffer, 1, sizeof buffer, pipe)) {
-    output.append(buffer, got);
-  }
-  const int status = ::pclose(pipe);
-  ASSERT_TRUE(WIFEXITED(status)) << output;
-  EXPECT_EQ(WEXITSTATUS(status), 0) << output;
+  testing::ChildRun child = testing::run_self_without_opencl("ComputeContext.create_reports_its_outcome");
+  const std::string& output = child.output;
+  ASSERT_TRUE(child.exited) << output;
+  EXPECT_EQ(child.exit_code, 0) << output;
   EXPECT_TRUE(contains(output, "create_outcome=error code=unavailable")) << output;
   EXPECT_TRUE(contains(output, "no OpenCL platform")) << output;
 }

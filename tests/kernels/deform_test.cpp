@@ -158,23 +158,10 @@ TEST(RoomBuilderPath, builds_rooms_and_reports_its_path) {
 }
 
 TEST(RoomBuilderFallback, builds_rooms_on_the_cpu_without_any_opencl_platform) {
-  testing::TempDir empty_vendors;
-  char exe[4096];
-  const ssize_t n = ::readlink("/proc/self/exe", exe, sizeof exe - 1);
-  ASSERT_GT(n, 0);
-  exe[n] = '\0';
-  const std::string command = "env -u OCL_ICD_FILENAMES OCL_ICD_VENDORS='" +
-                              empty_vendors.path().string() + "' GROTTO_OPENCL_DEVICE=auto '" +
-                              exe + "' --gtest_filter=RoomBuilderPath.* 2>&1";
-  FILE* pipe = ::popen(command.c_str(), "r");
-  ASSERT_NE(pipe, nullptr);
-  std::string output;
-  char buffer[4096];
-  while (size_t got = std::fread(buffer, 1, sizeof buffer, pipe))
-    output.append(buffer, got);
-  int status = ::pclose(pipe);
-  ASSERT_TRUE(WIFEXITED(status)) << output;
-  EXPECT_EQ(WEXITSTATUS(status), 0) << output;
+  testing::ChildRun child = testing::run_self_without_opencl("RoomBuilderPath.*");
+  const std::string& output = child.output;
+  ASSERT_TRUE(child.exited) << output;
+  EXPECT_EQ(child.exit_code, 0) << output;
   EXPECT_NE(output.find("builder_path=cpu: no OpenCL platform"), std::string::npos) << output;
   EXPECT_NE(output.find("builder_built=3"), std::string::npos) << output;
 }

@@ -2,6 +2,10 @@
 // device choice and the disk cache through the environment the way a deployment does.
 #pragma once
 
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -78,6 +82,37 @@ inline size_t count_files(const std::filesystem::path& dir) {
     ++n;
   }
   return n;
+}
+
+// What a child run of this test binary printed, and how it ended.
+struct ChildRun {
+  bool exited = false;
+  int exit_code = -1;
+  std::string output;  // stdout and stderr together
+};
+
+// Runs this test binary again with the OpenCL loader pointed at an empty vendors folder (it reads
+// its vendor list once per process, hence a child) and only the tests matching `gtest_filter`.
+inline ChildRun run_self_without_opencl(const std::string& gtest_filter) {
+  ChildRun run;
+  TempDir empty_vendors;
+  char exe[4096];
+  const ssize_t n = ::readlink("/proc/self/exe", exe, sizeof exe - 1);
+  if (n <= 0 || empty_vendors.path().empty()) return run;
+  exe[n] = '\0';
+  // Resolved here: inside the shell, /proc/self/exe would name the shell.
+  const std::string command = "env -u OCL_ICD_FILENAMES OCL_ICD_VENDORS='" +
+                              empty_vendors.path().string() + "' GROTTO_OPENCL_DEVICE=auto '" +
+                              exe + "' --gtest_filter=" + gtest_filter + " 2>&1";
+  FILE* pipe = ::popen(command.c_str(), "r");
+  if (pipe == nullptr) return run;
+  char buffer[4096];
+  while (size_t got = std::fread(buffer, 1, sizeof buffer, pipe))
+    run.output.append(buffer, got);
+  const int status = ::pclose(pipe);
+  run.exited = WIFEXITED(status);
+  run.exit_code = run.exited ? WEXITSTATUS(status) : -1;
+  return run;
 }
 
 }  // namespace grotto::kernels::testing
