@@ -113,7 +113,8 @@ TEST(ComputeContext, create_reports_its_outcome) {
 // The ICD loader reads its vendor list once per process, hence the child process: this test
 // binary itself, pointed at an empty vendors folder.
 TEST(ComputeContext, no_opencl_platform_fails_soft_in_a_child_process) {
-  testing::ChildRun child = testing::run_self_without_opencl("ComputeContext.create_reports_its_outcome");
+  testing::ChildRun child =
+      testing::run_self_without_opencl("ComputeContext.create_reports_its_outcome");
   const std::string& output = child.output;
   ASSERT_TRUE(child.exited) << output;
   EXPECT_EQ(child.exit_code, 0) << output;
