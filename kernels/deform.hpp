@@ -44,8 +44,11 @@ class DeformKernel {
                size_t max_constant_bytes, BuildOrigin origin);
   Status launch(std::span<const mesh::DeformInput> rooms, std::span<DeformOutput> outputs);
 
+  static constexpr size_t kPreferredGroupSize = 128;
+
   ComputeContext* ctx_;
   cl::Kernel kernel_;
+  size_t local_size_ = 1;
   cl::Buffer perm_, shapes_;
   size_t max_constant_bytes_;
   BuildOrigin origin_;
