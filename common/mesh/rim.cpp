@@ -19,8 +19,7 @@ int rim_vertex_count(double radius, double edge_length) {
   return std::max(8, static_cast<int>(std::ceil(2.0 * detmath::kPi * radius / edge_length)));
 }
 
-RimLoop canonical_rim(const MeshContext& ctx, const cave::Room& room, const cave::Portal& portal,
-                      Lod lod) {
+RimLoop rim_frame(const cave::Room& room, const cave::Portal& portal) {
   RimLoop loop;
   loop.centre = portal.centre;
   // Both rooms see the same disc, with opposite normals: orient it from the lower id.
@@ -31,7 +30,12 @@ RimLoop canonical_rim(const MeshContext& ctx, const cave::Room& room, const cave
   Vec3 helper = ax <= ay && ax <= az ? Vec3{1, 0, 0} : (ay <= az ? Vec3{0, 1, 0} : Vec3{0, 0, 1});
   loop.e1 = normalize(cross(helper, n));
   loop.e2 = cross(n, loop.e1);
+  return loop;
+}
 
+RimLoop canonical_rim(const MeshContext& ctx, const cave::Room& room, const cave::Portal& portal,
+                      Lod lod) {
+  RimLoop loop = rim_frame(room, portal);
   const core::GrottoShape& shape = ctx.shape(lod);
   int k_count = rim_vertex_count(portal.radius, ctx.edge_length(lod));
   loop.positions.reserve(k_count);

@@ -18,6 +18,10 @@ struct RimLoop {
   std::vector<core::float3> normals;  // unit, towards the portal's axis (into the cave)
 };
 
+// The canonical frame of a portal: its centre, its normal from the lower room id towards the
+// higher, and an in-plane basis. The same for both rooms of the portal; no noise, no vertices.
+RimLoop rim_frame(const cave::Room& room, const cave::Portal& portal);
+
 // Vertices on a rim of this radius: about one per edge length, at least 8.
 int rim_vertex_count(double radius, double edge_length);
 

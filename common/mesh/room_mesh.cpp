@@ -142,7 +142,7 @@ DeformInput prepare_room(const MeshContext& ctx, const cave::Room& room, Lod lod
   in.record.vertex_count = static_cast<core::uint>(in.donor->directions.size());
   in.record.lod = static_cast<core::uint>(lod);
   for (const cave::Portal& portal : room.portals) {
-    RimLoop basis = canonical_rim(ctx, room, portal, lod);
+    RimLoop basis = rim_frame(room, portal);
     core::GrottoPortal g{};
     Vec3 c = portal.centre - in.origin;
     g.cx = static_cast<float>(c.x);
