@@ -16,6 +16,21 @@ enum class ErrorCode {
   kNotFound,         // a well-formed reference to something that does not exist
   kUnavailable,      // a resource (device, file, peer) cannot be used right now
   kInternal,         // a broken invariant that was caught instead of crashing
+  // Codes that only the wire protocol produces (proto/PROTOCOL.md, "Error codes").
+  kBadJson,             // a text frame that is not one JSON object
+  kBadMessage,          // a field of the wrong type, out of range, missing, or a duplicate id
+  kUnknownType,         // a message type this version does not know
+  kUnsupportedVersion,  // no protocol version in common, or a frame of another version
+  kTooLarge,            // a frame, string or list over its limit
+  kInvalidRoomId,       // a room id that is malformed or out of range (not merely absent)
+  kLimitExceeded,       // a per-client limit (rooms in flight, request rate) would be exceeded
+  kWorldMismatch,       // the client asked for a world (seed, parameters) this server does not serve
+  kOutOfOrder,          // a message that is not valid now (before hello, or hello twice)
+  kBadFrame,            // a binary frame that fails validation
+  kUnauthorized,        // the deployment requires credentials the client did not give
+  kServiceRestart,      // the server is shutting down; reconnect later
+  kOverloaded,          // the server cannot take more work now; retry later
+  kTimeout,             // no complete message within the handshake or idle timeout
 };
 
 const char* error_code_name(ErrorCode code);
@@ -92,6 +107,34 @@ inline const char* error_code_name(ErrorCode code) {
       return "unavailable";
     case ErrorCode::kInternal:
       return "internal";
+    case ErrorCode::kBadJson:
+      return "bad_json";
+    case ErrorCode::kBadMessage:
+      return "bad_message";
+    case ErrorCode::kUnknownType:
+      return "unknown_type";
+    case ErrorCode::kUnsupportedVersion:
+      return "unsupported_version";
+    case ErrorCode::kTooLarge:
+      return "too_large";
+    case ErrorCode::kInvalidRoomId:
+      return "invalid_room_id";
+    case ErrorCode::kLimitExceeded:
+      return "limit_exceeded";
+    case ErrorCode::kWorldMismatch:
+      return "world_mismatch";
+    case ErrorCode::kOutOfOrder:
+      return "out_of_order";
+    case ErrorCode::kBadFrame:
+      return "bad_frame";
+    case ErrorCode::kUnauthorized:
+      return "unauthorized";
+    case ErrorCode::kServiceRestart:
+      return "service_restart";
+    case ErrorCode::kOverloaded:
+      return "overloaded";
+    case ErrorCode::kTimeout:
+      return "timeout";
   }
   return "internal";
 }
