@@ -1,0 +1,201 @@
+// The wire protocol's control messages (JSON text frames), as plain structs with strict parsers
+// and serializers for both directions: the server parses ClientMessage and serializes
+// ServerMessage; the client library does the reverse. proto/PROTOCOL.md is the contract; this
+// header is its C++ face. Binary room frames live in proto/room_frame.hpp.
+//
+// Every parse function is safe for hostile input: the size limit is checked before any parsing,
+// nesting deeper than kMaxJsonDepth is refused before nlohmann::json sees the text, no exception
+// escapes, every field is type- and range-checked, and error messages quote at most
+// kMaxEchoBytes of what they received. Parsing and serializing are pure functions; call them
+// from any thread.
+#pragma once
+
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <variant>
+#include <vector>
+
+#include "cave/room_id.hpp"
+#include "core/result.hpp"
+#include "core/vec3.hpp"
+
+namespace grotto::proto {
+
+// The protocol version this library speaks (negotiated in hello/welcome; the room frame's version).
+inline constexpr uint32_t kProtocolVersion = 1;
+// The WebSocket endpoint's HTTP path.
+inline constexpr std::string_view kWebSocketPath = "/ws";
+
+// Fixed parse limits (not negotiated; the same for every server speaking version 1).
+inline constexpr int kMaxJsonDepth = 16;             // arrays/objects nested; messages need 3
+inline constexpr std::size_t kMaxNameBytes = 64;     // hello.name, welcome.server
+inline constexpr std::size_t kMaxVersions = 16;      // hello.versions, error.versions
+inline constexpr std::size_t kMaxTypeBytes = 32;     // the "type" string
+inline constexpr std::size_t kMaxErrorBytes = 1024;  // error.message
+inline constexpr std::size_t kMaxEchoBytes = 32;  // how much of bad input an error message quotes
+// Integers travel as JSON numbers only up to 2^53 - 1 (exact in a JavaScript double); larger
+// 64-bit values (seeds, digests) travel as strings.
+inline constexpr uint64_t kMaxJsonInteger = (uint64_t{1} << 53) - 1;
+// No coordinate a client may send or a server may report exceeds this (metres): the sector range
+// (±65,535 sectors of at most 256 m) with room to spare.
+inline constexpr double kMaxCoordinate = 16777216.0;  // 2^24
+
+// The limits a server enforces, announced in welcome. Also what the parse functions check on
+// the side that receives (a server passes its own limits; a client passes the welcome's, or
+// defaults before it has one). Brace-init gives the defaults.
+struct Limits {
+  uint32_t max_message_bytes = 64 * 1024;      // a text frame, either direction
+  uint32_t max_frame_bytes = 4 * 1024 * 1024;  // a binary room frame (server to client)
+  uint32_t max_rooms_per_request = 256;        // entries in one request or cancel
+  uint32_t max_rooms_in_flight = 1024;         // requested, not yet delivered/failed/cancelled
+  uint32_t max_lod = 0;                        // the highest level of detail served (≤ 255)
+  uint32_t idle_timeout_ms = 60'000;           // no message from the client for this long: closed
+  uint32_t handshake_timeout_ms = 10'000;      // no hello this long after the upgrade: closed
+  friend bool operator==(const Limits&, const Limits&) = default;
+};
+
+// A client-chosen tag in [0, kMaxJsonInteger] that the server copies into its reply and into
+// errors about the message. Optional on every client message.
+using Ref = std::optional<uint64_t>;
+
+// ---- client to server ----
+
+struct Hello {
+  Ref ref;
+  std::vector<uint32_t> versions;  // 1..kMaxVersions entries, each in [1, 65535]
+  std::optional<uint64_t> seed;    // the world wanted; absent: the server's world
+  std::optional<uint64_t> params;  // its parameter digest; absent: whatever the server uses
+  std::string name;                // ≤ kMaxNameBytes, printable (no control characters)
+  friend bool operator==(const Hello&, const Hello&) = default;
+};
+
+struct Locate {
+  Ref ref;
+  Vec3 point;  // finite, each |coordinate| ≤ kMaxCoordinate
+  friend bool operator==(const Locate&, const Locate&) = default;
+};
+
+struct Spawn {
+  Ref ref;
+  friend bool operator==(const Spawn&, const Spawn&) = default;
+};
+
+struct RoomWant {
+  cave::RoomId id = cave::RoomId::interior({}, 0);
+  uint32_t lod = 0;       // ≤ Limits::max_lod
+  uint32_t priority = 0;  // smaller is sooner
+  friend bool operator==(const RoomWant&, const RoomWant&) = default;
+};
+
+struct Request {
+  Ref ref;
+  std::vector<RoomWant> rooms;  // 1..max_rooms_per_request, ids distinct
+  friend bool operator==(const Request&, const Request&) = default;
+};
+
+struct Cancel {
+  Ref ref;
+  std::vector<cave::RoomId> rooms;  // 1..max_rooms_per_request; repeats are harmless
+  friend bool operator==(const Cancel&, const Cancel&) = default;
+};
+
+struct Ping {
+  Ref ref;
+  double t = 0;  // the client's clock, any finite number; echoed in pong
+  friend bool operator==(const Ping&, const Ping&) = default;
+};
+
+struct StatsQuery {
+  Ref ref;
+  friend bool operator==(const StatsQuery&, const StatsQuery&) = default;
+};
+
+using ClientMessage = std::variant<Hello, Locate, Spawn, Request, Cancel, Ping, StatsQuery>;
+
+// ---- server to client ----
+
+struct Welcome {
+  Ref ref;
+  uint32_t version = kProtocolVersion;  // the version chosen from hello.versions
+  std::string server;                   // product and version, ≤ kMaxNameBytes
+  uint64_t seed = 0;
+  uint64_t params = 0;  // the world's parameter digest
+  Limits limits;
+  friend bool operator==(const Welcome&, const Welcome&) = default;
+};
+
+struct Located {
+  Ref ref;
+  Vec3 point;                        // as asked
+  std::optional<cave::RoomId> room;  // none: the point is in rock or outside the sector range
+  friend bool operator==(const Located&, const Located&) = default;
+};
+
+struct SpawnPoint {
+  Ref ref;
+  cave::RoomId room = cave::RoomId::interior({}, 0);
+  Vec3 position;  // where a player starts, inside `room`
+  friend bool operator==(const SpawnPoint&, const SpawnPoint&) = default;
+};
+
+struct ErrorMessage {
+  Ref ref;  // the ref of the message that caused it, when it had a valid one
+  ErrorCode code = ErrorCode::kInternal;
+  std::string message;               // for people; ≤ kMaxErrorBytes
+  std::optional<cave::RoomId> room;  // the room it concerns (request failures)
+  std::vector<uint32_t> versions;    // unsupported_version: the versions the server speaks
+  bool fatal = false;                // the server closes the connection after sending it
+  friend bool operator==(const ErrorMessage&, const ErrorMessage&) = default;
+};
+
+struct Pong {
+  Ref ref;
+  double t = 0;          // ping.t, unchanged
+  uint64_t time_ms = 0;  // the server's clock (Unix milliseconds) when it answered
+  friend bool operator==(const Pong&, const Pong&) = default;
+};
+
+struct Stats {
+  Ref ref;
+  uint64_t in_flight = 0;   // this client's rooms requested and not yet delivered or failed
+  uint64_t rooms_sent = 0;  // room frames sent to this client
+  uint64_t bytes_sent = 0;  // bytes of all frames sent to this client
+  uint64_t errors = 0;      // error messages sent to this client
+  friend bool operator==(const Stats&, const Stats&) = default;
+};
+
+using ServerMessage = std::variant<Welcome, Located, SpawnPoint, ErrorMessage, Pong, Stats>;
+
+// ---- parsing and serializing ----
+
+// A server's side: one text frame from a client. Errors carry a wire code (bad_json,
+// bad_message, unknown_type, too_large, invalid_room_id) and a message naming the field.
+// When `ref` is not null it receives the message's ref whenever the "ref" field itself was
+// valid, also when parsing fails later, so the error can name the message it concerns.
+Result<ClientMessage> parse_client_message(std::string_view text, const Limits& limits,
+                                           Ref* ref = nullptr);
+// A client's side: one text frame from a server, checked as strictly.
+Result<ServerMessage> parse_server_message(std::string_view text, const Limits& limits);
+
+// Compact JSON, keys in a fixed order. Preconditions (asserted): the message satisfies the
+// ranges above (finite numbers, refs and counters ≤ kMaxJsonInteger). Strings that are not
+// valid UTF-8 have the bad bytes replaced, so serializing never fails.
+std::string serialize(const ClientMessage& message);
+std::string serialize(const ServerMessage& message);
+
+// The code's name on the wire. The four general codes map onto wire codes: invalid_argument is
+// sent as bad_message and unavailable as overloaded; every other code is sent under its name.
+const char* wire_code_name(ErrorCode code);
+// The code for a wire name; nullopt for a name this version does not know.
+std::optional<ErrorCode> parse_wire_code(std::string_view name);
+
+// Whether the connection survives an error of this code sent by a server (PROTOCOL.md's table).
+bool is_fatal(ErrorCode code);
+
+// At most kMaxEchoBytes of untrusted text, control and non-ASCII bytes shown as '?', with "..."
+// when cut: safe to put in an error message or a log line.
+std::string echo(std::string_view untrusted);
+
+}  // namespace grotto::proto

@@ -1,0 +1,61 @@
+// The binary room frame: one room's descriptor (sphere and portals, so the portal graph reaches
+// the client with the rooms) and its mesh payload, which is opaque here (the Draco bytes of
+// common/codec). proto/PROTOCOL.md, "Binary room frame", gives the byte layout.
+//
+// decode_room_frame is safe for untrusted input: every length is checked against the buffer
+// before it is read, counts are capped before anything is allocated, numbers must be finite and
+// in range, normals unit, ids valid. It never throws and allocates at most the payload's size.
+#pragma once
+
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "cave/layout.hpp"
+#include "core/result.hpp"
+#include "core/vec3.hpp"
+#include "proto/messages.hpp"
+
+namespace grotto::proto {
+
+inline constexpr uint8_t kFrameMagic[4] = {'G', 'R', 'T', 'O'};
+inline constexpr uint8_t kFrameTypeRoom = 1;
+inline constexpr uint8_t kFlagGate = 1;                // header flags bit 0
+inline constexpr std::size_t kRoomHeaderBytes = 80;    // fixed part before the portals
+inline constexpr std::size_t kPortalRecordBytes = 64;  // one portal
+inline constexpr double kMaxRoomRadius = 256.0;        // metres (cave::kMaxSectorSize)
+inline constexpr double kNormalTolerance = 1e-6;       // | |normal| - 1 | allowed
+// The room's sphere must lie within this distance of the origin on every axis, so payload
+// offsets stay exact in float32 on the 1/256 m grid (core/grid.hpp: kFrameSize / 2).
+inline constexpr double kMaxOriginOffset = 32768.0;
+
+struct RoomFrame {
+  cave::Room room;               // id, sphere and portals, world coordinates
+  uint8_t lod = 0;               // level of detail of the payload
+  Vec3 origin;                   // on the 1/256 m grid; payload positions are offsets from it
+  std::vector<uint8_t> payload;  // the mesh (common/codec); at least one byte
+};
+
+// Bytes of a frame with this many portals and payload bytes.
+constexpr std::size_t room_frame_size(std::size_t portals, std::size_t payload_bytes) {
+  return kRoomHeaderBytes + kPortalRecordBytes * portals + payload_bytes;
+}
+
+// The checks decode applies, for senders that want to know before they send: kBadFrame naming
+// the field on failure.
+Status validate_room_frame(const RoomFrame& frame, const Limits& limits);
+
+// Precondition (asserted in debug builds): validate_room_frame(frame, Limits{...}) holds.
+// The payload is passed separately so a server can send cached bytes without copying them first.
+std::vector<uint8_t> encode_room_frame(const cave::Room& room, uint8_t lod, Vec3 origin,
+                                       std::span<const uint8_t> payload);
+std::vector<uint8_t> encode_room_frame(const RoomFrame& frame);
+
+// Errors: kBadFrame (truncated, wrong magic, bad flags, counts or lengths, non-finite or
+// out-of-range numbers, non-unit normals, repeated portals, a lod over limits.max_lod),
+// kTooLarge (over limits.max_frame_bytes), kUnsupportedVersion (another frame version),
+// kUnknownType (a frame type other than room), kInvalidRoomId (an id field that is no valid id).
+// Messages name the field ("portals[2].normal is not unit length").
+Result<RoomFrame> decode_room_frame(std::span<const uint8_t> bytes, const Limits& limits);
+
+}  // namespace grotto::proto
