@@ -1,21 +1,30 @@
 /* The room deformation of thesis §4.2, batched (§4.2.1: the fixed cost of a launch made small
- * rooms expensive, so one launch deforms many rooms). One work item per donor vertex; each
- * vertex knows its room. Room, portal and shape tables and Perlin's permutation live in
- * __constant memory, as in the thesis. Built after deform_prelude.cl and deform_core.h. */
-__kernel void grotto_deform_rooms(__constant const unsigned char* perm,
+ * rooms expensive, so one launch deforms many rooms). One work item per group of GROTTO_LANES
+ * donor vertices of one room (the host pads each room to whole groups); each group knows its
+ * room. Room, portal and shape tables and Perlin's permutation live in __constant memory, as in
+ * the thesis. Directions and results are stored per group as x[LANES] y[LANES] z[LANES].
+ * Built after deform_prelude.cl and deform_core.h. */
+__kernel void grotto_deform_rooms(__constant const grotto_perm_t* perm,
                                   __constant const GrottoShape* shapes,
                                   __constant const GrottoRoom* rooms,
                                   __constant const GrottoPortal* portals,
-                                  __global const uint* vertex_room,
-                                  __global const float* directions, __global float* positions,
-                                  __global float* clearance, uint vertex_count) {
-  uint i = get_global_id(0);
-  if (i >= vertex_count) return;
-  __constant const GrottoRoom* room = rooms + vertex_room[i];
-  float3 dir = vload3(i, directions);
-  float least;
-  float3 p = grotto_deform_vertex(perm, shapes + room->lod, room, portals + room->first_portal, dir,
-                                  &least);
-  vstore3(p, i, positions);
-  clearance[i] = least;
+                                  __global const uint* group_room, __global const float* directions,
+                                  __global float* positions, __global float* clearance,
+                                  uint group_count) {
+  uint g = get_global_id(0);
+  if (g >= group_count) return;
+  __constant const GrottoRoom* room = rooms + group_room[g];
+  __global const float* d = directions + 3 * GROTTO_LANES * g;
+  gfloat3 dir;
+  dir.x = GROTTO_LOAD(d);
+  dir.y = GROTTO_LOAD(d + GROTTO_LANES);
+  dir.z = GROTTO_LOAD(d + 2 * GROTTO_LANES);
+  gfloat least;
+  gfloat3 p = grotto_deform_vertex(perm, shapes + room->lod, room, portals + room->first_portal,
+                                   dir, &least);
+  __global float* out = positions + 3 * GROTTO_LANES * g;
+  GROTTO_STORE(p.x, out);
+  GROTTO_STORE(p.y, out + GROTTO_LANES);
+  GROTTO_STORE(p.z, out + 2 * GROTTO_LANES);
+  GROTTO_STORE(least, clearance + GROTTO_LANES * g);
 }

@@ -1,6 +1,7 @@
 #include "kernels/deform.hpp"
 
 #include <algorithm>
+#include <array>
 
 #include "embedded_cl/deform.hpp"
 #include "embedded_cl/deform_core.hpp"
@@ -19,12 +20,22 @@ std::string deform_source() {
   return s;
 }
 
-Result<DeformKernel> DeformKernel::create(ComputeContext& ctx, const mesh::MeshContext& mesh_ctx) {
-  auto program = build_program(ctx, deform_source(), kDeterministicOptions);
+Result<DeformKernel> DeformKernel::create(ComputeContext& ctx, const mesh::MeshContext& mesh_ctx,
+                                          int lanes) {
+  if (lanes == 0) lanes = ctx.info().device_type == "cpu" ? 8 : 1;
+  if (lanes != 1 && lanes != 8) {
+    return invalid_argument("deformation lanes must be 0 (auto), 1 or 8, not " +
+                            std::to_string(lanes));
+  }
+  auto program = build_program(
+      ctx, deform_source(),
+      std::string(kDeterministicOptions) + " -DGROTTO_LANES=" + std::to_string(lanes));
   if (!program) return program.error();
   auto kernel = program->kernel("grotto_deform_rooms");
   if (!kernel) return kernel.error();
-  auto perm = make_buffer(ctx, CL_MEM_READ_ONLY, mesh_ctx.perm(), 512);
+  std::array<uint32_t, 512> perm32;
+  std::copy_n(mesh_ctx.perm(), perm32.size(), perm32.begin());
+  auto perm = make_buffer(ctx, CL_MEM_READ_ONLY, perm32.data(), perm32.size());
   if (!perm) return perm.error();
   GrottoShape shapes[mesh::kLodCount] = {mesh_ctx.shape(mesh::Lod::kDetail),
                                          mesh_ctx.shape(mesh::Lod::kPatch)};
@@ -36,19 +47,21 @@ Result<DeformKernel> DeformKernel::create(ComputeContext& ctx, const mesh::MeshC
   GROTTO_CL_TRY(kernel->getWorkGroupInfo(ctx.device(), CL_KERNEL_WORK_GROUP_SIZE, &max_group));
   DeformKernel k(ctx, std::move(kernel).value(), std::move(perm).value(),
                  std::move(shape_buffer).value(), static_cast<size_t>(max_constant),
-                 program->origin());
+                 program->origin(), lanes);
   k.local_size_ = std::clamp<size_t>(max_group, 1, kPreferredGroupSize);
   return k;
 }
 
 DeformKernel::DeformKernel(ComputeContext& ctx, cl::Kernel kernel, cl::Buffer perm,
-                           cl::Buffer shapes, size_t max_constant_bytes, BuildOrigin origin)
+                           cl::Buffer shapes, size_t max_constant_bytes, BuildOrigin origin,
+                           int lanes)
     : ctx_(&ctx),
       kernel_(std::move(kernel)),
       perm_(std::move(perm)),
       shapes_(std::move(shapes)),
       max_constant_bytes_(max_constant_bytes),
-      origin_(origin) {}
+      origin_(origin),
+      lanes_(lanes) {}
 
 Status DeformKernel::run(std::span<const mesh::DeformInput> batch,
                          std::vector<DeformOutput>& outputs, LaunchStats* stats) {
@@ -85,56 +98,68 @@ Status DeformKernel::run(std::span<const mesh::DeformInput> batch,
 
 Status DeformKernel::launch(std::span<const mesh::DeformInput> rooms,
                             std::span<DeformOutput> outputs) {
-  // Flatten the batch: every vertex carries its room's index (thesis §4.2.1's obstacle: "each
-  // room must reference different portal data").
+  // Flatten the batch into groups of `lanes_` vertices of one room, each group carrying its room's
+  // index (thesis §4.2.1's obstacle: "each room must reference different portal data"). A room's
+  // last group is padded with copies of its last direction. Per group: x[lanes] y[lanes] z[lanes].
+  const size_t lanes = static_cast<size_t>(lanes_);
   std::vector<GrottoRoom> records;
   std::vector<GrottoPortal> portals;
-  std::vector<uint32_t> vertex_room;
+  std::vector<uint32_t> group_room;
   std::vector<float> directions;
   for (size_t r = 0; r < rooms.size(); ++r) {
+    const auto& dirs = rooms[r].donor->directions;
     GrottoRoom rec = rooms[r].record;
     rec.first_portal = static_cast<uint32_t>(portals.size());
-    rec.first_vertex = static_cast<uint32_t>(vertex_room.size());
+    rec.first_vertex = static_cast<uint32_t>(group_room.size() * lanes);
     records.push_back(rec);
     portals.insert(portals.end(), rooms[r].portals.begin(), rooms[r].portals.end());
-    for (const auto& d : rooms[r].donor->directions) {
-      vertex_room.push_back(static_cast<uint32_t>(r));
-      directions.insert(directions.end(), {d.x, d.y, d.z});
+    for (size_t first = 0; first < dirs.size(); first += lanes) {
+      group_room.push_back(static_cast<uint32_t>(r));
+      size_t base = directions.size();
+      directions.resize(base + 3 * lanes);
+      for (size_t l = 0; l < lanes; ++l) {
+        const auto& d = dirs[std::min(first + l, dirs.size() - 1)];
+        directions[base + l] = d.x;
+        directions[base + lanes + l] = d.y;
+        directions[base + 2 * lanes + l] = d.z;
+      }
     }
   }
-  const size_t n = vertex_room.size();
-  if (n == 0) return {};
+  const size_t groups = group_room.size();
+  if (groups == 0) return {};
+  const size_t slots = groups * lanes;
   if (portals.empty()) portals.push_back({});  // no zero-size buffers; never read
   auto room_buf = make_buffer(*ctx_, CL_MEM_READ_ONLY, records.data(), records.size());
   auto portal_buf = make_buffer(*ctx_, CL_MEM_READ_ONLY, portals.data(), portals.size());
-  auto index_buf = make_buffer(*ctx_, CL_MEM_READ_ONLY, vertex_room.data(), n);
+  auto index_buf = make_buffer(*ctx_, CL_MEM_READ_ONLY, group_room.data(), groups);
   auto dir_buf = make_buffer(*ctx_, CL_MEM_READ_ONLY, directions.data(), directions.size());
-  auto pos_buf = make_buffer<float>(*ctx_, CL_MEM_WRITE_ONLY, 3 * n);
-  auto clear_buf = make_buffer<float>(*ctx_, CL_MEM_WRITE_ONLY, n);
+  auto pos_buf = make_buffer<float>(*ctx_, CL_MEM_WRITE_ONLY, 3 * slots);
+  auto clear_buf = make_buffer<float>(*ctx_, CL_MEM_WRITE_ONLY, slots);
   for (auto* b : {&room_buf, &portal_buf, &index_buf, &dir_buf, &pos_buf, &clear_buf}) {
     if (!*b) return b->error();
   }
   if (Status s = set_kernel_args(kernel_, perm_, shapes_, *room_buf, *portal_buf, *index_buf,
-                                 *dir_buf, *pos_buf, *clear_buf, static_cast<cl_uint>(n));
+                                 *dir_buf, *pos_buf, *clear_buf, static_cast<cl_uint>(groups));
       !s) {
     return s;
   }
-  // Explicit work-groups of up to 128 items (the kernel ignores the padding): on PoCL's CPU device
-  // the driver's own choice ran 1.5-1.7x the CPU reference and 128 ran 2.0x (docs/BENCHMARKS.md).
-  size_t global = (n + local_size_ - 1) / local_size_ * local_size_;
+  // Explicit work-groups (the kernel ignores the padding): on PoCL's CPU device the driver's own
+  // choice was slower than fixed groups (docs/BENCHMARKS.md).
+  size_t global = (groups + local_size_ - 1) / local_size_ * local_size_;
   GROTTO_CL_TRY(ctx_->queue().enqueueNDRangeKernel(kernel_, cl::NullRange, cl::NDRange(global),
                                                    cl::NDRange(local_size_)));
-  std::vector<float> positions(3 * n), clearance(n);
+  std::vector<float> positions(3 * slots), clearance(slots);
   if (Status s = read_buffer(*ctx_, *pos_buf, positions.data(), positions.size()); !s) return s;
-  if (Status s = read_buffer(*ctx_, *clear_buf, clearance.data(), n); !s) return s;
+  if (Status s = read_buffer(*ctx_, *clear_buf, clearance.data(), slots); !s) return s;
   for (size_t r = 0; r < rooms.size(); ++r) {
     size_t first = records[r].first_vertex, count = rooms[r].donor->directions.size();
     DeformOutput& out = outputs[r];
     out.positions.resize(count);
     out.clearance.assign(clearance.begin() + first, clearance.begin() + first + count);
     for (size_t v = 0; v < count; ++v) {
-      out.positions[v] = {positions[3 * (first + v)], positions[3 * (first + v) + 1],
-                          positions[3 * (first + v) + 2]};
+      const float* group = &positions[3 * ((first + v) / lanes * lanes)];
+      size_t l = (first + v) % lanes;
+      out.positions[v] = {group[l], group[lanes + l], group[2 * lanes + l]};
     }
   }
   return {};

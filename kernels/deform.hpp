@@ -29,8 +29,11 @@ struct LaunchStats {
 // thread (the ComputeContext may be shared).
 class DeformKernel {
  public:
-  // Builds (or loads from the caches) the program. Errors carry the build log.
-  static Result<DeformKernel> create(ComputeContext& ctx, const mesh::MeshContext& mesh_ctx);
+  // Builds (or loads from the caches) the program. Errors carry the build log. `lanes` is how many
+  // vertices one work item deforms, 1 or 8; 0 picks by device: 8 on CPU devices (PoCL does not
+  // vectorize the kernel across work items, so it runs in float8 registers), 1 elsewhere.
+  static Result<DeformKernel> create(ComputeContext& ctx, const mesh::MeshContext& mesh_ctx,
+                                     int lanes = 0);
 
   // Deforms every room of `batch`; outputs[i] receives room i's result. Rooms go to the device in
   // as few launches as its constant memory allows (usually one).
@@ -38,10 +41,11 @@ class DeformKernel {
              LaunchStats* stats = nullptr);
 
   BuildOrigin build_origin() const { return origin_; }
+  int lanes() const { return lanes_; }
 
  private:
   DeformKernel(ComputeContext& ctx, cl::Kernel kernel, cl::Buffer perm, cl::Buffer shapes,
-               size_t max_constant_bytes, BuildOrigin origin);
+               size_t max_constant_bytes, BuildOrigin origin, int lanes);
   Status launch(std::span<const mesh::DeformInput> rooms, std::span<DeformOutput> outputs);
 
   static constexpr size_t kPreferredGroupSize = 128;
@@ -52,9 +56,11 @@ class DeformKernel {
   cl::Buffer perm_, shapes_;
   size_t max_constant_bytes_;
   BuildOrigin origin_;
+  int lanes_;
 };
 
-// The source the kernel is built from: prelude + shared core + kernel.
+// The source the kernel is built from: prelude + shared core + kernel (GROTTO_LANES comes with the
+// build options).
 std::string deform_source();
 
 }  // namespace grotto::kernels

@@ -9,25 +9,10 @@ namespace grotto::mesh::core {
 
 typedef unsigned int uint;
 
-// A float triple with exactly the operators the core uses, evaluated in the core's order.
+// A float triple; the core does its arithmetic with its own grotto_add, grotto_scale, ...
 struct float3 {
   float x, y, z;
 };
-inline float3 operator+(float3 a, float3 b) {
-  return {a.x + b.x, a.y + b.y, a.z + b.z};
-}
-inline float3 operator-(float3 a, float3 b) {
-  return {a.x - b.x, a.y - b.y, a.z - b.z};
-}
-inline float3 operator-(float3 a) {
-  return {-a.x, -a.y, -a.z};
-}
-inline float3 operator*(float3 a, float s) {
-  return {a.x * s, a.y * s, a.z * s};
-}
-inline float3 operator/(float3 a, float s) {
-  return {a.x / s, a.y / s, a.z / s};
-}
 inline float grotto_sqrt(float x) {
   return std::sqrt(x);
 }
@@ -35,14 +20,20 @@ inline float grotto_floor(float x) {
   return std::floor(x);
 }
 
+// One lane: the reference deforms one vertex per call.
+typedef float gfloat;
+typedef uint guint;
+typedef bool gmask;
+typedef float3 gfloat3;
+typedef unsigned char grotto_perm_t;
+
 #define GROTTO_FN inline
 #define GROTTO_CONSTANT
-#define GROTTO_F3(x, y, z) \
-  float3 {                 \
-    x, y, z                \
-  }
+#define GROTTO_GATHER(t, i) static_cast<guint>((t)[i])
+#define GROTTO_WRAP256(f) static_cast<guint>(static_cast<int>(f) & 255)
 #include "mesh/deform_core.h"
-#undef GROTTO_F3
+#undef GROTTO_WRAP256
+#undef GROTTO_GATHER
 #undef GROTTO_CONSTANT
 #undef GROTTO_FN
 

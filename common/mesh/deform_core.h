@@ -3,12 +3,24 @@
  * is compiled with it prepended. One text, two compilers, FP contraction off in both and
  * correctly rounded division and sqrt in OpenCL: the results are bit-identical.
  *
+ * Lanes. Per-vertex values have the type gfloat (and guint, and gmask for comparisons), which
+ * is float on the CPU and on GPUs and float8 on CPU OpenCL devices: there one work item deforms
+ * eight vertices of one room at once in SIMD registers, because PoCL does not vectorize this
+ * kernel across work items. Every lane performs exactly the scalar operations, so lanes stay
+ * bit-identical to the C++ reference. Room, portal and shape data are the same for all lanes
+ * (plain float); the portal loops therefore run the same number of times in every lane. The rules
+ * that make one text serve both: per-lane choices are written as `c ? a : b` with c a comparison
+ * (OpenCL selects per lane by the comparison's sign bit), never `if`; a branch may only depend on
+ * room data.
+ *
  * The including side defines, before including:
- *   GROTTO_FN         function qualifier             (C++: inline)
- *   GROTTO_CONSTANT   address space of shared tables (C++: nothing, OpenCL: __constant)
- *   GROTTO_F3(x,y,z)  a float3 value                 (C++: float3{x,y,z}, OpenCL: (float3)(x,y,z))
- *   grotto_sqrt, grotto_floor                        (C++: std::sqrt, std::floor on float)
- * and the types float3 (with + - * / by scalar, unary -) and uint.
+ *   GROTTO_FN            function qualifier              (C++: inline)
+ *   GROTTO_CONSTANT      address space of shared tables  (C++: nothing, OpenCL: __constant)
+ *   gfloat, guint        per-lane float and uint; gmask the type of a per-lane comparison
+ *   gfloat3              a struct of three gfloat named x, y, z
+ *   GROTTO_GATHER(t, i)  t[i] in every lane (guint)
+ *   GROTTO_WRAP256(f)    (uint)((int)f & 255) in every lane, f already floored
+ *   grotto_sqrt, grotto_floor, and the type uint.
  *
  * Only + - * / sqrt floor are used: no builtin dot/normalize/mix (they may fuse or use rsqrt). */
 
@@ -54,193 +66,226 @@ typedef struct {
   float pad[11];
 } GrottoShape;
 
-GROTTO_FN float grotto_dot(float3 a, float3 b) {
+/* Triples, component by component in a fixed order (a + b is a.x + b.x, ...). */
+GROTTO_FN gfloat3 grotto_v3(gfloat x, gfloat y, gfloat z) {
+  gfloat3 r;
+  r.x = x;
+  r.y = y;
+  r.z = z;
+  return r;
+}
+GROTTO_FN gfloat3 grotto_add(gfloat3 a, gfloat3 b) {
+  return grotto_v3(a.x + b.x, a.y + b.y, a.z + b.z);
+}
+GROTTO_FN gfloat3 grotto_sub(gfloat3 a, gfloat3 b) {
+  return grotto_v3(a.x - b.x, a.y - b.y, a.z - b.z);
+}
+GROTTO_FN gfloat3 grotto_neg(gfloat3 a) {
+  return grotto_v3(-a.x, -a.y, -a.z);
+}
+GROTTO_FN gfloat3 grotto_scale(gfloat3 a, gfloat s) {
+  return grotto_v3(a.x * s, a.y * s, a.z * s);
+}
+GROTTO_FN gfloat3 grotto_div(gfloat3 a, gfloat s) {
+  return grotto_v3(a.x / s, a.y / s, a.z / s);
+}
+GROTTO_FN gfloat3 grotto_select3(gmask c, gfloat3 a, gfloat3 b) {
+  return grotto_v3(c ? a.x : b.x, c ? a.y : b.y, c ? a.z : b.z);
+}
+GROTTO_FN gfloat grotto_dot(gfloat3 a, gfloat3 b) {
   return a.x * b.x + a.y * b.y + a.z * b.z;
 }
-GROTTO_FN float grotto_length(float3 a) {
+GROTTO_FN gfloat grotto_length(gfloat3 a) {
   return grotto_sqrt(grotto_dot(a, a));
 }
-GROTTO_FN float grotto_clamp01(float x) {
+GROTTO_FN gfloat grotto_clamp01(gfloat x) {
   return x < 0.0f ? 0.0f : (x > 1.0f ? 1.0f : x);
 }
-GROTTO_FN float grotto_smooth(float x) {
+GROTTO_FN gfloat grotto_smooth(gfloat x) {
   x = grotto_clamp01(x);
   return x * x * (3.0f - 2.0f * x);
 }
+GROTTO_FN gfloat3 grotto_portal_centre(GROTTO_CONSTANT const GrottoPortal* p) {
+  return grotto_v3(p->cx, p->cy, p->cz);
+}
+GROTTO_FN gfloat3 grotto_portal_normal(GROTTO_CONSTANT const GrottoPortal* p) {
+  return grotto_v3(p->nx, p->ny, p->nz);
+}
 
 /* Improved Perlin noise (Perlin 2002), in [-1, 1] roughly; perm has 512 entries (256 twice). */
-GROTTO_FN float grotto_grad(uint h, float x, float y, float z) {
-  uint k = h & 15u;
-  float u = k < 8u ? x : y;
-  float v = k < 4u ? y : (k == 12u || k == 14u ? x : z);
-  return ((k & 1u) ? -u : u) + ((k & 2u) ? -v : v);
+GROTTO_FN gfloat grotto_grad(guint h, gfloat x, gfloat y, gfloat z) {
+  guint k = h & 15u;
+  gfloat u = k < 8u ? x : y;
+  gfloat v = k < 4u ? y : (k == 12u || k == 14u ? x : z);
+  return ((k & 1u) != 0u ? -u : u) + ((k & 2u) != 0u ? -v : v);
 }
-GROTTO_FN float grotto_fade(float t) {
+GROTTO_FN gfloat grotto_fade(gfloat t) {
   return t * t * t * (t * (t * 6.0f - 15.0f) + 10.0f);
 }
-GROTTO_FN float grotto_lerp(float t, float a, float b) {
+GROTTO_FN gfloat grotto_lerp(gfloat t, gfloat a, gfloat b) {
   return a + t * (b - a);
 }
 
-GROTTO_FN float grotto_noise(GROTTO_CONSTANT const unsigned char* perm, float x, float y, float z) {
-  float fx = grotto_floor(x), fy = grotto_floor(y), fz = grotto_floor(z);
+GROTTO_FN gfloat grotto_noise(GROTTO_CONSTANT const grotto_perm_t* perm, gfloat x, gfloat y,
+                              gfloat z) {
+  gfloat fx = grotto_floor(x), fy = grotto_floor(y), fz = grotto_floor(z);
   /* Wrap to the 256-cell period; floats keep integers exact well beyond that. */
-  uint X = (uint)((int)fx & 255), Y = (uint)((int)fy & 255), Z = (uint)((int)fz & 255);
+  guint X = GROTTO_WRAP256(fx), Y = GROTTO_WRAP256(fy), Z = GROTTO_WRAP256(fz);
   x -= fx;
   y -= fy;
   z -= fz;
-  float u = grotto_fade(x), v = grotto_fade(y), w = grotto_fade(z);
-  uint A = perm[X] + Y, AA = perm[A] + Z, AB = perm[A + 1u] + Z;
-  uint B = perm[X + 1u] + Y, BA = perm[B] + Z, BB = perm[B + 1u] + Z;
+  gfloat u = grotto_fade(x), v = grotto_fade(y), w = grotto_fade(z);
+  guint A = GROTTO_GATHER(perm, X) + Y, AA = GROTTO_GATHER(perm, A) + Z;
+  guint AB = GROTTO_GATHER(perm, A + 1u) + Z;
+  guint B = GROTTO_GATHER(perm, X + 1u) + Y, BA = GROTTO_GATHER(perm, B) + Z;
+  guint BB = GROTTO_GATHER(perm, B + 1u) + Z;
+  gfloat x1 = x - 1.0f, y1 = y - 1.0f, z1 = z - 1.0f;
   return grotto_lerp(
       w,
-      grotto_lerp(
-          v, grotto_lerp(u, grotto_grad(perm[AA], x, y, z), grotto_grad(perm[BA], x - 1.0f, y, z)),
-          grotto_lerp(u, grotto_grad(perm[AB], x, y - 1.0f, z),
-                      grotto_grad(perm[BB], x - 1.0f, y - 1.0f, z))),
       grotto_lerp(v,
-                  grotto_lerp(u, grotto_grad(perm[AA + 1u], x, y, z - 1.0f),
-                              grotto_grad(perm[BA + 1u], x - 1.0f, y, z - 1.0f)),
-                  grotto_lerp(u, grotto_grad(perm[AB + 1u], x, y - 1.0f, z - 1.0f),
-                              grotto_grad(perm[BB + 1u], x - 1.0f, y - 1.0f, z - 1.0f))));
+                  grotto_lerp(u, grotto_grad(GROTTO_GATHER(perm, AA), x, y, z),
+                              grotto_grad(GROTTO_GATHER(perm, BA), x1, y, z)),
+                  grotto_lerp(u, grotto_grad(GROTTO_GATHER(perm, AB), x, y1, z),
+                              grotto_grad(GROTTO_GATHER(perm, BB), x1, y1, z))),
+      grotto_lerp(v,
+                  grotto_lerp(u, grotto_grad(GROTTO_GATHER(perm, AA + 1u), x, y, z1),
+                              grotto_grad(GROTTO_GATHER(perm, BA + 1u), x1, y, z1)),
+                  grotto_lerp(u, grotto_grad(GROTTO_GATHER(perm, AB + 1u), x, y1, z1),
+                              grotto_grad(GROTTO_GATHER(perm, BB + 1u), x1, y1, z1))));
 }
 
-GROTTO_FN float grotto_noise3(GROTTO_CONSTANT const unsigned char* perm, float3 p, float f) {
+GROTTO_FN gfloat grotto_noise3(GROTTO_CONSTANT const grotto_perm_t* perm, gfloat3 p, float f) {
   return grotto_noise(perm, p.x * f, p.y * f, p.z * f);
 }
 
 /* Thesis §3.1.6: the portal's radius varies with noise sampled on the rim, so rims are irregular.
  * u is the unit in-plane direction from the disc centre; w0 the room origin in noise space. */
-GROTTO_FN float grotto_rim_radius(GROTTO_CONSTANT const unsigned char* perm,
-                                  GROTTO_CONSTANT const GrottoPortal* p,
-                                  GROTTO_CONSTANT const GrottoShape* s, float3 w0, float3 u) {
-  float3 c = GROTTO_F3(p->cx, p->cy, p->cz);
-  float3 on_rim = w0 + c + u * p->radius;
+GROTTO_FN gfloat grotto_rim_radius(GROTTO_CONSTANT const grotto_perm_t* perm,
+                                   GROTTO_CONSTANT const GrottoPortal* p,
+                                   GROTTO_CONSTANT const GrottoShape* s, gfloat3 w0, gfloat3 u) {
+  gfloat3 on_rim = grotto_add(grotto_add(w0, grotto_portal_centre(p)), grotto_scale(u, p->radius));
   return p->radius * (1.0f + s->rim_amplitude * grotto_noise3(perm, on_rim, s->rim_frequency));
 }
 
 /* The unit in-plane direction from a portal's centre towards the point nearest to v. */
-GROTTO_FN float3 grotto_rim_direction(GROTTO_CONSTANT const GrottoPortal* p, float3 v) {
-  float3 c = GROTTO_F3(p->cx, p->cy, p->cz);
-  float3 n = GROTTO_F3(p->nx, p->ny, p->nz);
-  float3 rel = v - c;
-  float3 in_plane = rel - n * grotto_dot(rel, n);
-  float len = grotto_length(in_plane);
-  if (len < 1e-6f) return GROTTO_F3(p->e1x, p->e1y, p->e1z);
-  return in_plane / len;
+GROTTO_FN gfloat3 grotto_rim_direction(GROTTO_CONSTANT const GrottoPortal* p, gfloat3 v) {
+  gfloat3 n = grotto_portal_normal(p);
+  gfloat3 rel = grotto_sub(v, grotto_portal_centre(p));
+  gfloat3 in_plane = grotto_sub(rel, grotto_scale(n, grotto_dot(rel, n)));
+  gfloat len = grotto_length(in_plane);
+  return grotto_select3(len < 1e-6f, grotto_v3(p->e1x, p->e1y, p->e1z), grotto_div(in_plane, len));
 }
 
 /* The smallest height of p above the room's portal planes (negative: beyond a portal). */
-GROTTO_FN float grotto_least_height(GROTTO_CONSTANT const GrottoPortal* portals, uint n, float3 p) {
-  float least = 3.4e38f;
+GROTTO_FN gfloat grotto_least_height(GROTTO_CONSTANT const GrottoPortal* portals, uint n,
+                                     gfloat3 p) {
+  gfloat least = 3.4e38f;
   for (uint i = 0; i < n; ++i) {
     GROTTO_CONSTANT const GrottoPortal* q = portals + i;
-    float h = -grotto_dot(p - GROTTO_F3(q->cx, q->cy, q->cz), GROTTO_F3(q->nx, q->ny, q->nz));
+    gfloat h = -grotto_dot(grotto_sub(p, grotto_portal_centre(q)), grotto_portal_normal(q));
     least = h < least ? h : least;
   }
   return least;
 }
 
 /* Cubic Hermite basis (thesis §3.1.4: the spline between two portal rims). */
-GROTTO_FN float3 grotto_hermite(float3 p0, float3 t0, float3 p1, float3 t1, float t) {
-  float t2 = t * t, t3 = t2 * t;
-  float h00 = 2.0f * t3 - 3.0f * t2 + 1.0f;
-  float h10 = t3 - 2.0f * t2 + t;
-  float h01 = -2.0f * t3 + 3.0f * t2;
-  float h11 = t3 - t2;
-  return p0 * h00 + t0 * h10 + p1 * h01 + t1 * h11;
+GROTTO_FN gfloat3 grotto_hermite(gfloat3 p0, gfloat3 t0, gfloat3 p1, gfloat3 t1, gfloat t) {
+  gfloat t2 = t * t, t3 = t2 * t;
+  gfloat h00 = 2.0f * t3 - 3.0f * t2 + 1.0f;
+  gfloat h10 = t3 - 2.0f * t2 + t;
+  gfloat h01 = -2.0f * t3 + 3.0f * t2;
+  gfloat h11 = t3 - t2;
+  return grotto_add(
+      grotto_add(grotto_add(grotto_scale(p0, h00), grotto_scale(t0, h10)), grotto_scale(p1, h01)),
+      grotto_scale(t1, h11));
 }
 
-/* Deforms one donor-sphere vertex (unit direction dir) of a room. Returns the position in the room
- * frame; *clearance receives the smallest distance to a portal plane on the room's side
- * (negative when the vertex ended beyond a portal: it will be removed). */
-GROTTO_FN float3 grotto_deform_vertex(GROTTO_CONSTANT const unsigned char* perm,
-                                      GROTTO_CONSTANT const GrottoShape* s,
-                                      GROTTO_CONSTANT const GrottoRoom* room,
-                                      GROTTO_CONSTANT const GrottoPortal* portals, float3 dir,
-                                      float* clearance) {
-  float3 o = GROTTO_F3(room->ox, room->oy, room->oz);
-  float3 w0 = GROTTO_F3(room->wx, room->wy, room->wz);
-  float3 v = o + dir * room->radius;
+/* Deforms donor-sphere vertices (unit directions dir, one per lane) of a room. Returns the
+ * positions in the room frame; *clearance receives the smallest distance to a portal plane on the
+ * room's side (negative when the vertex ended beyond a portal: it will be removed). */
+GROTTO_FN gfloat3 grotto_deform_vertex(GROTTO_CONSTANT const grotto_perm_t* perm,
+                                       GROTTO_CONSTANT const GrottoShape* s,
+                                       GROTTO_CONSTANT const GrottoRoom* room,
+                                       GROTTO_CONSTANT const GrottoPortal* portals, gfloat3 dir,
+                                       gfloat* clearance) {
+  gfloat3 o = grotto_v3(room->ox, room->oy, room->oz);
+  gfloat3 w0 = grotto_v3(room->wx, room->wy, room->wz);
+  gfloat3 v = grotto_add(o, grotto_scale(dir, room->radius));
   uint n = room->portal_count;
 
   /* Per portal: the vertex's height above the plane (room side positive), its rim point with
    * irregular radius, and the plain rim point on the smooth disc. */
-  float height[GROTTO_MAX_PORTALS];
-  float3 rim[GROTTO_MAX_PORTALS];
-  float3 rim_dir[GROTTO_MAX_PORTALS];
+  gfloat height[GROTTO_MAX_PORTALS];
+  gfloat3 rim[GROTTO_MAX_PORTALS];
+  gfloat3 rim_dir[GROTTO_MAX_PORTALS];
   for (uint i = 0; i < n; ++i) {
     GROTTO_CONSTANT const GrottoPortal* p = portals + i;
-    float3 c = GROTTO_F3(p->cx, p->cy, p->cz);
-    float3 nn = GROTTO_F3(p->nx, p->ny, p->nz);
-    height[i] = -grotto_dot(v - c, nn);
+    gfloat3 c = grotto_portal_centre(p);
+    height[i] = -grotto_dot(grotto_sub(v, c), grotto_portal_normal(p));
     rim_dir[i] = grotto_rim_direction(p, v);
-    rim[i] = c + rim_dir[i] * grotto_rim_radius(perm, p, s, w0, rim_dir[i]);
+    rim[i] = grotto_add(c, grotto_scale(rim_dir[i], grotto_rim_radius(perm, p, s, w0, rim_dir[i])));
   }
 
   /* Thesis §3.1.4-3.1.5: project onto the Hermite spline between every pair of portal rims, the
    * parameter from the heights above the two planes, and blend the pairs weighted by how close
    * each projection is to the vertex. The axis (the same spline through the disc centres) gives
    * the outward direction for noise. */
-  float3 sum = GROTTO_F3(0.0f, 0.0f, 0.0f), axis_sum = GROTTO_F3(0.0f, 0.0f, 0.0f);
-  float weight_sum = 0.0f;
+  gfloat3 sum = grotto_v3(0.0f, 0.0f, 0.0f), axis_sum = grotto_v3(0.0f, 0.0f, 0.0f);
+  gfloat weight_sum = 0.0f;
   for (uint i = 0; i < n; ++i) {
     for (uint j = i + 1u; j < n; ++j) {
       GROTTO_CONSTANT const GrottoPortal* pi = portals + i;
       GROTTO_CONSTANT const GrottoPortal* pj = portals + j;
-      float hi = height[i] > 0.0f ? height[i] : 0.0f;
-      float hj = height[j] > 0.0f ? height[j] : 0.0f;
-      float t = hi + hj > 0.0f ? hi / (hi + hj) : 0.5f;
-      float3 ni = GROTTO_F3(pi->nx, pi->ny, pi->nz), nj = GROTTO_F3(pj->nx, pj->ny, pj->nz);
-      float span = grotto_length(rim[j] - rim[i]) * s->tension;
-      float3 h = grotto_hermite(rim[i], -ni * span, rim[j], nj * span, t);
-      float3 ci = GROTTO_F3(pi->cx, pi->cy, pi->cz), cj = GROTTO_F3(pj->cx, pj->cy, pj->cz);
-      float axis_span = grotto_length(cj - ci) * s->tension;
-      float3 a = grotto_hermite(ci, -ni * axis_span, cj, nj * axis_span, t);
-      float3 d = h - v;
-      float wgt = 1.0f / (grotto_dot(d, d) + 1e-4f);
-      sum = sum + h * wgt;
-      axis_sum = axis_sum + a * wgt;
+      gfloat hi = height[i] > 0.0f ? height[i] : 0.0f;
+      gfloat hj = height[j] > 0.0f ? height[j] : 0.0f;
+      gfloat t = hi + hj > 0.0f ? hi / (hi + hj) : 0.5f;
+      gfloat3 ni = grotto_portal_normal(pi), nj = grotto_portal_normal(pj);
+      gfloat span = grotto_length(grotto_sub(rim[j], rim[i])) * s->tension;
+      gfloat3 h = grotto_hermite(rim[i], grotto_scale(grotto_neg(ni), span), rim[j],
+                                 grotto_scale(nj, span), t);
+      gfloat3 ci = grotto_portal_centre(pi), cj = grotto_portal_centre(pj);
+      gfloat axis_span = grotto_length(grotto_sub(cj, ci)) * s->tension;
+      gfloat3 a = grotto_hermite(ci, grotto_scale(grotto_neg(ni), axis_span), cj,
+                                 grotto_scale(nj, axis_span), t);
+      gfloat3 d = grotto_sub(h, v);
+      gfloat wgt = 1.0f / (grotto_dot(d, d) + 1e-4f);
+      sum = grotto_add(sum, grotto_scale(h, wgt));
+      axis_sum = grotto_add(axis_sum, grotto_scale(a, wgt));
       weight_sum = weight_sum + wgt;
     }
   }
-  float3 smooth_pos, axis;
-  if (weight_sum > 0.0f) {
-    smooth_pos = sum / weight_sum;
-    axis = axis_sum / weight_sum;
-  } else {
-    /* A dead end (one portal): the sphere itself, bent onto the irregular rim near the portal. */
-    smooth_pos = v;
-    axis = o;
-    if (n == 1u) {
-      GROTTO_CONSTANT const GrottoPortal* p = portals;
-      float3 c = GROTTO_F3(p->cx, p->cy, p->cz);
-      float3 plain = c + rim_dir[0] * p->radius;
-      float pull = 1.0f - grotto_smooth(height[0] / (0.5f * room->radius));
-      smooth_pos = v + (rim[0] - plain) * pull;
-    }
+  /* A dead end (one portal): the sphere itself, bent onto the irregular rim near the portal. */
+  gfloat3 dead_end = v;
+  if (n == 1u) {
+    gfloat3 plain =
+        grotto_add(grotto_portal_centre(portals), grotto_scale(rim_dir[0], portals->radius));
+    gfloat pull = 1.0f - grotto_smooth(height[0] / (0.5f * room->radius));
+    dead_end = grotto_add(v, grotto_scale(grotto_sub(rim[0], plain), pull));
   }
+  gmask blended = weight_sum > 0.0f;
+  gfloat3 smooth_pos = grotto_select3(blended, grotto_div(sum, weight_sum), dead_end);
+  gfloat3 axis = grotto_select3(blended, grotto_div(axis_sum, weight_sum), o);
 
   /* Far from portals a room may keep some of its sphere (caverns stay round). */
-  float nearest = grotto_least_height(portals, n, smooth_pos);
-  float keep = s->roundness * grotto_smooth(nearest / room->radius);
-  smooth_pos = smooth_pos + (v - smooth_pos) * keep;
-  axis = axis + (o - axis) * keep;
+  gfloat nearest = grotto_least_height(portals, n, smooth_pos);
+  gfloat keep = s->roundness * grotto_smooth(nearest / room->radius);
+  smooth_pos = grotto_add(smooth_pos, grotto_scale(grotto_sub(v, smooth_pos), keep));
+  axis = grotto_add(axis, grotto_scale(grotto_sub(o, axis), keep));
 
   /* Thesis §3.1.6: world-space noise along the outward direction, faded to nothing at portal
    * planes so rims stay where the neighbour expects them; big rooms get a low octave too. */
-  float3 out = smooth_pos - axis;
-  float out_len = grotto_length(out);
-  out = out_len > 1e-6f ? out / out_len : dir;
-  float3 wp = w0 + smooth_pos;
-  float displacement = 0.0f;
+  gfloat3 out = grotto_sub(smooth_pos, axis);
+  gfloat out_len = grotto_length(out);
+  out = grotto_select3(out_len > 1e-6f, grotto_div(out, out_len), dir);
+  gfloat3 wp = grotto_add(w0, smooth_pos);
+  gfloat displacement = 0.0f;
   for (uint k = 0; k < s->octaves; ++k) {
     displacement = displacement + s->amplitude[k] * grotto_noise3(perm, wp, s->frequency[k]);
   }
   displacement = displacement * grotto_smooth(nearest / s->fade_distance);
   displacement = displacement + room->big_amplitude * grotto_noise3(perm, wp, s->big_frequency) *
                                     grotto_smooth(nearest / s->big_fade_distance);
-  float3 pos = smooth_pos + out * displacement;
+  gfloat3 pos = grotto_add(smooth_pos, grotto_scale(out, displacement));
 
   *clearance = grotto_least_height(portals, n, pos);
   return pos;

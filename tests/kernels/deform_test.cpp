@@ -37,6 +37,7 @@ class DeformKernelTest : public ::testing::Test {
     }
     return out;
   }
+  static void expect_matches_cpu(DeformKernel& kernel);
   static cave::World* world_;
   static mesh::MeshContext* mesh_;
   static cave::Region* region_;
@@ -51,10 +52,29 @@ bool same_bits(float a, float b) {
   return std::memcmp(&a, &b, sizeof a) == 0;
 }
 
+// Both kernel shapes on this device: one vertex per work item (as on GPUs) and eight per work item
+// in float8 lanes (the CPU-device default), each lane bit-identical to the scalar reference.
 TEST_F(DeformKernelTest, kernel_matches_the_cpu_reference_bit_for_bit) {
+  for (int lanes : {1, 8}) {
+    SCOPED_TRACE("lanes=" + std::to_string(lanes));
+    auto created = DeformKernel::create(*device_, *mesh_, lanes);
+    ASSERT_TRUE(created.ok()) << created.error().message;
+    DeformKernel kernel = std::move(created).value();
+    EXPECT_EQ(kernel.lanes(), lanes);
+    expect_matches_cpu(kernel);
+  }
+}
+
+TEST_F(DeformKernelTest, lanes_default_to_eight_on_cpu_devices_and_reject_other_counts) {
   auto created = DeformKernel::create(*device_, *mesh_);
   ASSERT_TRUE(created.ok()) << created.error().message;
-  DeformKernel kernel = std::move(created).value();
+  EXPECT_EQ(created->lanes(), device_->info().device_type == "cpu" ? 8 : 1);
+  auto bad = DeformKernel::create(*device_, *mesh_, 4);
+  ASSERT_FALSE(bad.ok());
+  EXPECT_NE(bad.error().message.find("lanes"), std::string::npos) << bad.error().message;
+}
+
+void DeformKernelTest::expect_matches_cpu(DeformKernel& kernel) {
   for (mesh::Lod lod : {mesh::Lod::kPatch, mesh::Lod::kDetail}) {
     std::vector<mesh::DeformInput> batch = inputs(lod);
     std::vector<DeformOutput> out;
