@@ -10,6 +10,7 @@ packages=(
   libboost-dev libdraco-dev libglfw3-dev libglm-dev nlohmann-json3-dev
   pocl-opencl-icd ocl-icd-opencl-dev opencl-headers opencl-clhpp-headers
   libepoxy-dev libgtest-dev libgmock-dev libbenchmark-dev libspdlog-dev libcli11-dev
+  libmeshoptimizer-dev
   xvfb libgl1-mesa-dri
 )
 

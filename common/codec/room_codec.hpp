@@ -1,0 +1,115 @@
+// The room codec: a room's mesh as a Draco payload, quantized on the world-aligned grid
+// (DESIGN decision 2, common/core/grid.hpp), and back.
+//
+// Positions are offsets from the room's grid-snapped origin (the origin itself travels in the room
+// frame, proto/PROTOCOL.md "Room payload (Draco)"). They are quantized with an explicit Draco
+// quantization whose step is exactly grid::kStep and whose origin is a grid multiple, so a vertex
+// that lies on the grid (every portal rim vertex) decodes to the very same float it was encoded
+// from: the two rooms of a portal, each encoded alone, decode bit-identical shared rims. Draco's
+// edgebreaker reorders vertices, so rim membership travels as an attribute, never as an index.
+//
+// Attribute layout (unique ids are part of the format):
+//   0  POSITION  float32 x3  explicit quantization: step grid::kStep, origin a grid multiple
+//   1  NORMAL    float32 x3  octahedral, EncodeOptions::normal_bits
+//   2  GENERIC   float32 x2  (roughness, mineral), explicit quantization of [0, 1]
+//   3  GENERIC   uint16  x2  (portal slot + 1 or 0 off rims, index on the portal's canonical loop)
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "core/result.hpp"
+#include "core/vec3.hpp"
+#include "mesh/room_mesh.hpp"
+
+namespace grotto::codec {
+
+// Attribute unique ids in the payload.
+inline constexpr uint32_t kPositionId = 0;
+inline constexpr uint32_t kNormalId = 1;
+inline constexpr uint32_t kChannelsId = 2;
+inline constexpr uint32_t kRimId = 3;
+
+// Limits a decoder enforces by default. A patch room has ~700 vertices and ~3 KB of payload, a
+// detail room ~3,300 vertices; the limits leave room for the largest caverns at detail density
+// and bound every allocation the decoder makes.
+inline constexpr size_t kMaxPayloadBytes = size_t{1} << 20;
+inline constexpr uint32_t kMaxVertices = uint32_t{1} << 17;
+inline constexpr uint32_t kMaxTriangles = uint32_t{1} << 18;
+inline constexpr int kMaxPortals = 127;  // rim slots are int8 in mesh::RoomMesh
+// Offsets from the room origin stay within this many metres on every axis (rooms are tens of
+// metres across; float32 holds grid values exactly to grid::kFrameSize).
+inline constexpr double kMaxOffset = 1024.0;
+// A decoded normal is accepted when its length is within this of 1.
+inline constexpr float kNormalTolerance = 1e-3f;
+
+// Draco settings. Brace-init means the defaults chosen by measurement (docs/BENCHMARKS.md, "Room
+// codec"): speed 7 edgebreaker, 10-bit octahedral normals, 8-bit channels.
+struct EncodeOptions {
+  int speed = 7;         // Draco encoding and decoding speed, 0 (smallest) to 9; 10 (sequential
+                         // connectivity) is refused: the decoder accepts only edgebreaker
+  int normal_bits = 10;  // octahedral normal quantization, 2-22
+  int channel_bits = 8;  // roughness and mineral quantization over [0, 1], 1-16
+};
+
+// A room's geometry as spans, the codec's input. Views a mesh::RoomMesh or a DecodedRoom.
+struct RoomView {
+  Vec3 origin;                                    // on the grid (grid::on_grid per axis)
+  std::span<const mesh::core::float3> positions;  // metres from origin
+  std::span<const mesh::core::float3> normals;    // unit
+  std::span<const float> roughness;               // 0-1
+  std::span<const float> mineral;                 // 0-1
+  std::span<const int8_t> rim_portal;             // portal slot 0..kMaxPortals-1, or -1
+  std::span<const uint16_t> rim_index;            // position on that portal's canonical loop
+  std::span<const uint32_t> indices;              // triangles
+};
+
+// A decoded room: the same per-vertex data as mesh::RoomMesh, in the payload's vertex order.
+struct DecodedRoom {
+  std::vector<mesh::core::float3> positions;  // metres from the room origin; exact for grid points
+  std::vector<mesh::core::float3> normals;    // unit within kNormalTolerance
+  std::vector<float> roughness;               // 0-1
+  std::vector<float> mineral;                 // 0-1
+  std::vector<int8_t> rim_portal;             // slot below DecodeLimits::portal_count, or -1
+  std::vector<uint16_t> rim_index;            // 0 where rim_portal is -1
+  std::vector<uint32_t> indices;              // triangles, every index < vertex_count()
+
+  size_t vertex_count() const { return positions.size(); }
+  size_t triangle_count() const { return indices.size() / 3; }
+};
+
+// What decode_room accepts. Brace-init gives the k* defaults above; a client passes the room's
+// portal count from the frame's descriptor so that rim slots are checked against it.
+struct DecodeLimits {
+  size_t max_bytes = kMaxPayloadBytes;
+  uint32_t max_vertices = kMaxVertices;
+  uint32_t max_triangles = kMaxTriangles;
+  int portal_count = kMaxPortals;  // rim slots must be below this
+};
+
+// Views of the codec's inputs; the spans point into `mesh` / `room`, which must outlive the view.
+RoomView view_of(const mesh::RoomMesh& mesh);
+RoomView view_of(const DecodedRoom& room, Vec3 origin = {});
+
+// Encodes a room as a Draco payload. Fails (invalid_argument) when the room breaks a contract of
+// RoomView: mismatched array sizes, an off-grid origin, non-finite or out-of-range values, an
+// index out of range, a degenerate triangle, an off-grid rim vertex, counts over the k* limits.
+// Deterministic: the same room and options give the same bytes. Thread-safe (no shared state).
+Result<std::vector<uint8_t>> encode_room(const RoomView& room, const EncodeOptions& options = {});
+inline Result<std::vector<uint8_t>> encode_room(const mesh::RoomMesh& mesh,
+                                                const EncodeOptions& options = {}) {
+  return encode_room(view_of(mesh), options);
+}
+
+// Decodes a payload made by encode_room. Safe for untrusted input: the size limit and the
+// counts that Draco's header declares are checked before Draco allocates anything for them; only
+// draco::Decoder parses the bytes; then the attribute layout above and every value are validated
+// (finite positions within kMaxOffset, rim vertices on the grid, unit normals, channels in [0, 1],
+// rim slots below limits.portal_count, indices in range, no degenerate triangle). Every failure
+// is an invalid_argument Error whose message names the problem; nothing throws or aborts.
+// Deterministic: the same bytes decode to the same room. Thread-safe.
+Result<DecodedRoom> decode_room(std::span<const uint8_t> payload, const DecodeLimits& limits = {});
+
+}  // namespace grotto::codec

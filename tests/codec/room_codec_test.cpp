@@ -1,0 +1,475 @@
+// The room codec (common/codec): round trips of real patch rooms on the world grid, bit-identical
+// rims across rooms encoded alone, and a decoder that turns every malformed payload into an error.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <map>
+#include <tuple>
+
+#include "codec/room_codec.hpp"
+#include "core/grid.hpp"
+#include "draco_payload.hpp"
+
+namespace grotto::codec {
+namespace {
+
+using mesh::RoomMesh;
+using mesh::core::float3;
+
+class RoomCodecTest : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    world_ = new cave::World(cave::World::create(42, cave::LayoutParams{}).value());
+    ctx_ = new mesh::MeshContext(mesh::MeshContext::create(*world_, mesh::MeshParams{}).value());
+    region_ = new cave::Region(cave::generate_region(*world_, {0, 0, 0}, {0, 0, 0}));
+    meshes_ = new std::map<cave::RoomId, RoomMesh>();
+    for (const cave::Room& r : region_->rooms) {
+      auto m = mesh::build_room_mesh(*ctx_, r, mesh::Lod::kPatch);
+      if (m.ok()) meshes_->emplace(r.id, std::move(m).value());
+    }
+  }
+  static void TearDownTestSuite() {
+    delete meshes_;
+    delete region_;
+    delete ctx_;
+    delete world_;
+  }
+  static const RoomMesh& any_room() { return meshes_->begin()->second; }
+  static std::vector<uint8_t> encoded(const RoomMesh& m) {
+    auto bytes = encode_room(m);
+    EXPECT_TRUE(bytes.ok()) << (bytes.ok() ? "" : bytes.error().message);
+    return bytes.ok() ? bytes.value() : std::vector<uint8_t>{};
+  }
+
+  static cave::World* world_;
+  static mesh::MeshContext* ctx_;
+  static cave::Region* region_;
+  static std::map<cave::RoomId, RoomMesh>* meshes_;
+};
+cave::World* RoomCodecTest::world_ = nullptr;
+mesh::MeshContext* RoomCodecTest::ctx_ = nullptr;
+cave::Region* RoomCodecTest::region_ = nullptr;
+std::map<cave::RoomId, RoomMesh>* RoomCodecTest::meshes_ = nullptr;
+
+// Grid units of a float offset, as a key: decoded vertices are found again by their snapped
+// positions (Draco reorders vertices; two vertices of a patch mesh never share a 4 mm cell).
+using GridKey = std::tuple<int64_t, int64_t, int64_t>;
+GridKey grid_key(float3 p) {
+  auto k = [](float v) { return static_cast<int64_t>(std::llround(v / grid::kStep)); };
+  return {k(p.x), k(p.y), k(p.z)};
+}
+
+// A triangle with its smallest index first (orientation kept).
+std::array<uint32_t, 3> rotated(uint32_t a, uint32_t b, uint32_t c) {
+  if (b < a && b < c) return {b, c, a};
+  if (c < a && c < b) return {c, a, b};
+  return {a, b, c};
+}
+
+std::string message(const Result<DecodedRoom>& r) {
+  return r.ok() ? std::string("(decoded)") : r.error().message;
+}
+
+// Every invariant decode_room promises, for rooms that decoded from altered bytes.
+void expect_valid(const DecodedRoom& r, int portal_count) {
+  const size_t n = r.vertex_count();
+  ASSERT_EQ(r.normals.size(), n);
+  ASSERT_EQ(r.rim_portal.size(), n);
+  for (size_t v = 0; v < n; ++v) {
+    ASSERT_TRUE(std::isfinite(r.positions[v].x));
+    ASSERT_LT(r.rim_portal[v], portal_count);
+    ASSERT_GE(r.roughness[v], 0.0f);
+    ASSERT_LE(r.mineral[v], 1.0f);
+  }
+  for (uint32_t i : r.indices)
+    ASSERT_LT(i, n);
+}
+
+TEST_F(RoomCodecTest, round_trip_keeps_positions_within_half_a_step_and_rims_exact) {
+  ASSERT_GT(meshes_->size(), 50u);
+  size_t rim_vertices = 0;
+  for (const auto& [id, m] : *meshes_) {
+    SCOPED_TRACE(id.to_string());
+    auto decoded = decode_room(encoded(m));
+    ASSERT_TRUE(decoded.ok()) << message(decoded);
+    const DecodedRoom& d = decoded.value();
+    ASSERT_EQ(d.vertex_count(), m.vertex_count());
+    ASSERT_EQ(d.triangle_count(), m.triangle_count());
+
+    std::map<GridKey, uint32_t> original;
+    for (uint32_t v = 0; v < m.vertex_count(); ++v)
+      original.emplace(grid_key(m.positions[v]), v);
+    ASSERT_EQ(original.size(), m.vertex_count()) << "two vertices in one grid cell";
+
+    std::vector<uint32_t> to_original(d.vertex_count());
+    for (uint32_t v = 0; v < d.vertex_count(); ++v) {
+      // Its own grid cell, or a neighbouring one where the original lay half a step between two.
+      const auto [kx, ky, kz] = grid_key(d.positions[v]);
+      uint32_t o = UINT32_MAX;
+      for (int64_t dx = -1; dx <= 1 && o == UINT32_MAX; ++dx)
+        for (int64_t dy = -1; dy <= 1 && o == UINT32_MAX; ++dy)
+          for (int64_t dz = -1; dz <= 1 && o == UINT32_MAX; ++dz)
+            if (auto it = original.find({kx + dx, ky + dy, kz + dz}); it != original.end())
+              o = it->second;
+      ASSERT_NE(o, UINT32_MAX) << "decoded vertex " << v << " matches no original vertex";
+      to_original[v] = o;
+      const float3 a = d.positions[v], b = m.positions[o];
+      for (float delta : {a.x - b.x, a.y - b.y, a.z - b.z})
+        EXPECT_LE(std::fabs(delta), 0.5 * grid::kStep + 1e-6);
+      EXPECT_TRUE(grid::on_grid(a.x) && grid::on_grid(a.y) && grid::on_grid(a.z));
+      EXPECT_EQ(d.rim_portal[v], m.rim_portal[o]);
+      if (m.rim_portal[o] >= 0) {
+        ++rim_vertices;
+        EXPECT_EQ(d.rim_index[v], m.rim_index[o]);
+        EXPECT_EQ(std::memcmp(&a, &b, sizeof a), 0) << "rim vertex moved";
+      }
+      const float3 p = d.normals[v], q = m.normals[o];
+      EXPECT_GT(p.x * q.x + p.y * q.y + p.z * q.z, 0.9995f);  // 10-bit octahedral: < 1.8 degrees
+      EXPECT_NEAR(d.roughness[v], m.roughness[o], 0.5 / 255 + 1e-6);
+      EXPECT_NEAR(d.mineral[v], m.mineral[o], 0.5 / 255 + 1e-6);
+    }
+    std::vector<std::array<uint32_t, 3>> want, got;
+    for (size_t i = 0; i < m.indices.size(); i += 3)
+      want.push_back(rotated(m.indices[i], m.indices[i + 1], m.indices[i + 2]));
+    for (size_t i = 0; i < d.indices.size(); i += 3) {
+      got.push_back(rotated(to_original[d.indices[i]], to_original[d.indices[i + 1]],
+                            to_original[d.indices[i + 2]]));
+    }
+    std::sort(want.begin(), want.end());
+    std::sort(got.begin(), got.end());
+    EXPECT_EQ(got, want) << "triangles or their orientation changed";
+  }
+  EXPECT_GT(rim_vertices, 1000u);
+}
+
+// The rim of portal `slot` in a decoded room: world position and normal by loop index.
+struct RimVertex {
+  Vec3 world;
+  float3 normal;
+};
+std::map<uint16_t, RimVertex> rim_of(const DecodedRoom& d, Vec3 origin, int slot) {
+  std::map<uint16_t, RimVertex> rim;
+  for (size_t v = 0; v < d.vertex_count(); ++v) {
+    if (d.rim_portal[v] != slot) continue;
+    const float3 p = d.positions[v];
+    rim[d.rim_index[v]] = {origin + Vec3{p.x, p.y, p.z}, d.normals[v]};
+  }
+  return rim;
+}
+
+TEST_F(RoomCodecTest, neighbouring_rooms_encoded_alone_decode_bit_identical_rims) {
+  std::map<cave::RoomId, DecodedRoom> decoded;
+  for (const auto& [id, m] : *meshes_) {
+    auto d = decode_room(encoded(m));
+    ASSERT_TRUE(d.ok()) << message(d);
+    decoded.emplace(id, std::move(d).value());
+  }
+  size_t portals = 0;
+  for (const cave::Room& a : region_->rooms) {
+    for (size_t sa = 0; sa < a.portals.size(); ++sa) {
+      const cave::RoomId b_id = a.portals[sa].neighbour;
+      if (!(a.id < b_id) || !decoded.count(a.id) || !decoded.count(b_id)) continue;
+      const cave::Room* b = region_->find(b_id);
+      ASSERT_NE(b, nullptr);
+      int sb = -1;
+      for (size_t k = 0; k < b->portals.size(); ++k)
+        if (b->portals[k].neighbour == a.id) sb = static_cast<int>(k);
+      ASSERT_GE(sb, 0);
+      SCOPED_TRACE(a.id.to_string() + " - " + b_id.to_string());
+      auto ra = rim_of(decoded.at(a.id), meshes_->at(a.id).origin, static_cast<int>(sa));
+      auto rb = rim_of(decoded.at(b_id), meshes_->at(b_id).origin, sb);
+      ASSERT_GE(ra.size(), 3u);
+      ASSERT_EQ(ra.size(), rb.size());
+      // Loop indices 0..K-1 in both: the same cyclic order.
+      EXPECT_EQ(ra.begin()->first, 0);
+      EXPECT_EQ(ra.rbegin()->first, ra.size() - 1);
+      for (const auto& [k, va] : ra) {
+        ASSERT_TRUE(rb.count(k)) << "loop index " << k << " missing in the neighbour";
+        const RimVertex& vb = rb.at(k);
+        EXPECT_EQ(std::memcmp(&va.world, &vb.world, sizeof(Vec3)), 0) << "position " << k;
+        EXPECT_EQ(std::memcmp(&va.normal, &vb.normal, sizeof(float3)), 0) << "normal " << k;
+      }
+      ++portals;
+    }
+  }
+  EXPECT_GT(portals, 50u);
+}
+
+TEST_F(RoomCodecTest, encoding_and_decoding_are_deterministic) {
+  const RoomMesh& m = any_room();
+  const std::vector<uint8_t> a = encoded(m), b = encoded(m);
+  EXPECT_EQ(a, b);
+  auto x = decode_room(a), y = decode_room(a);
+  ASSERT_TRUE(x.ok() && y.ok());
+  auto same = [](const auto& u, const auto& v) {
+    return u.size() == v.size() && std::memcmp(u.data(), v.data(), u.size() * sizeof(u[0])) == 0;
+  };
+  EXPECT_TRUE(same(x->positions, y->positions));
+  EXPECT_TRUE(same(x->normals, y->normals));
+  EXPECT_TRUE(same(x->roughness, y->roughness));
+  EXPECT_TRUE(same(x->mineral, y->mineral));
+  EXPECT_TRUE(same(x->rim_portal, y->rim_portal));
+  EXPECT_TRUE(same(x->rim_index, y->rim_index));
+  EXPECT_TRUE(same(x->indices, y->indices));
+}
+
+TEST_F(RoomCodecTest, decoded_rooms_encode_again) {
+  for (const auto& [id, m] : *meshes_) {
+    auto d = decode_room(encoded(m));
+    ASSERT_TRUE(d.ok()) << message(d);
+    auto again = encode_room(view_of(d.value(), m.origin));
+    ASSERT_TRUE(again.ok()) << again.error().message;
+    auto d2 = decode_room(again.value());
+    ASSERT_TRUE(d2.ok()) << message(d2);
+    EXPECT_EQ(d2->vertex_count(), d->vertex_count());
+  }
+}
+
+// --- Malformed payloads: each yields its error -------------------------------------------------
+
+void expect_error(const Result<DecodedRoom>& r, const std::string& needle) {
+  ASSERT_FALSE(r.ok()) << "decoded, expected an error containing '" << needle << "'";
+  EXPECT_EQ(r.error().code, ErrorCode::kInvalidArgument);
+  EXPECT_NE(r.error().message.find(needle), std::string::npos) << r.error().message;
+}
+
+TEST_F(RoomCodecTest, empty_oversized_and_foreign_payloads_are_errors) {
+  expect_error(decode_room({}), "empty");
+  std::vector<uint8_t> bytes = encoded(any_room());
+  DecodeLimits small;
+  small.max_bytes = bytes.size() - 1;
+  expect_error(decode_room(bytes, small), "bytes, limit");
+  std::vector<uint8_t> huge(kMaxPayloadBytes + 1, 0);
+  expect_error(decode_room(huge), "bytes, limit");
+  std::vector<uint8_t> text = {'h', 'e', 'l', 'l', 'o', ' ', 'w', 'o', 'r', 'l', 'd', '!'};
+  expect_error(decode_room(text), "bad magic");
+  std::vector<uint8_t> version = bytes;
+  version[6] = 1;
+  expect_error(decode_room(version), "bitstream version");
+  std::vector<uint8_t> flags = bytes;
+  flags[10] = 0x80;
+  expect_error(decode_room(flags), "flags");
+}
+
+TEST_F(RoomCodecTest, every_truncation_is_an_error) {
+  const std::vector<uint8_t> bytes = encoded(any_room());
+  ASSERT_TRUE(decode_room(bytes).ok());
+  for (size_t len = 0; len < bytes.size(); ++len) {
+    auto r = decode_room(std::span(bytes.data(), len));
+    EXPECT_FALSE(r.ok()) << "prefix of " << len << " of " << bytes.size() << " bytes decoded";
+  }
+}
+
+TEST_F(RoomCodecTest, flipped_bytes_are_errors_or_valid_rooms) {
+  const RoomMesh& m = any_room();
+  const std::vector<uint8_t> bytes = encoded(m);
+  const int portals = static_cast<int>(region_->find(m.id)->portals.size());
+  DecodeLimits limits;
+  limits.portal_count = portals;
+  size_t errors = 0;
+  for (size_t i = 0; i < bytes.size(); ++i) {
+    for (uint8_t mask : {uint8_t{0x01}, uint8_t{0x80}, uint8_t{0xff}}) {
+      std::vector<uint8_t> bad = bytes;
+      bad[i] ^= mask;
+      auto r = decode_room(bad, limits);
+      if (!r.ok()) {
+        ++errors;
+        EXPECT_FALSE(r.error().message.empty());
+      } else {
+        expect_valid(r.value(), portals);
+      }
+    }
+  }
+  EXPECT_GT(errors, bytes.size() / 4);
+}
+
+// Rewrites the counts in the connectivity header (after the 11-byte header and the traversal
+// type: varint vertices, varint faces) of a valid payload.
+std::vector<uint8_t> with_counts(const std::vector<uint8_t>& bytes, uint32_t vertices,
+                                 uint32_t faces) {
+  size_t at = 12;
+  auto skip_varint = [&] {
+    while (bytes[at] & 0x80)
+      ++at;
+    ++at;
+  };
+  skip_varint();
+  skip_varint();
+  std::vector<uint8_t> out(bytes.begin(), bytes.begin() + 12);
+  for (uint32_t v : {vertices, faces}) {
+    while (v >= 0x80) {
+      out.push_back(static_cast<uint8_t>(v | 0x80));
+      v >>= 7;
+    }
+    out.push_back(static_cast<uint8_t>(v));
+  }
+  out.insert(out.end(), bytes.begin() + static_cast<std::ptrdiff_t>(at), bytes.end());
+  return out;
+}
+
+TEST_F(RoomCodecTest, absurd_declared_counts_are_refused_before_draco_allocates) {
+  const RoomMesh& m = any_room();
+  const std::vector<uint8_t> bytes = encoded(m);
+  const auto nv = static_cast<uint32_t>(m.vertex_count());
+  const auto nt = static_cast<uint32_t>(m.triangle_count());
+  // The rewrite itself is faithful: the same counts still decode.
+  ASSERT_TRUE(decode_room(with_counts(bytes, nv, nt)).ok());
+  expect_error(decode_room(with_counts(bytes, nv, 0x7fffffff)), "triangles, limit");
+  expect_error(decode_room(with_counts(bytes, 0xffffffff, nt)), "vertices, limit");
+  expect_error(decode_room(with_counts(bytes, nv, kMaxTriangles + 1)), "triangles, limit");
+  // Counts within the limits but wrong are Draco's to refuse.
+  EXPECT_FALSE(decode_room(with_counts(bytes, nv, nt * 4)).ok());
+  EXPECT_FALSE(decode_room(with_counts(bytes, nv / 2, nt)).ok());
+  // A caller's tighter limits apply too.
+  DecodeLimits tight;
+  tight.max_vertices = nv - 1;
+  expect_error(decode_room(bytes, tight), "vertices");
+  tight = {};
+  tight.max_triangles = nt - 1;
+  expect_error(decode_room(bytes, tight), "triangles, limit");
+}
+
+TEST_F(RoomCodecTest, rim_slots_beyond_the_rooms_portals_are_errors) {
+  const RoomMesh& m = any_room();
+  int highest = -1;
+  for (int8_t s : m.rim_portal)
+    highest = std::max<int>(highest, s);
+  ASSERT_GE(highest, 0);
+  DecodeLimits limits;
+  limits.portal_count = highest + 1;
+  EXPECT_TRUE(decode_room(encoded(m), limits).ok());
+  limits.portal_count = highest;
+  expect_error(decode_room(encoded(m), limits), "rim slot");
+}
+
+using testing::AttributeSpec;
+using testing::draco_payload;
+using testing::valid_layout;
+
+TEST(RoomCodecLayout, a_hand_built_payload_with_the_right_layout_decodes) {
+  auto r = decode_room(draco_payload(valid_layout()));
+  ASSERT_TRUE(r.ok()) << r.error().message;
+  EXPECT_EQ(r->vertex_count(), 6u);
+  EXPECT_EQ(r->triangle_count(), 8u);
+}
+
+TEST(RoomCodecLayout, wrong_attribute_layouts_are_errors) {
+  using G = draco::GeometryAttribute;
+  auto without = [](uint32_t id) {
+    auto s = valid_layout();
+    s.erase(s.begin() + id);
+    return s;
+  };
+  expect_error(decode_room(draco_payload(without(kNormalId))), "3 attributes, expected 4");
+  auto extra = valid_layout();
+  extra.push_back({G::GENERIC, draco::DT_FLOAT32, 1, 4, 0, [](int, int) { return 0.0; }});
+  // Every non-position attribute brings a connectivity table: refused before Draco reads them.
+  expect_error(decode_room(draco_payload(extra)), "declares 4 attribute tables");
+  auto renumbered = valid_layout();
+  renumbered[1].unique_id = 7;
+  expect_error(decode_room(draco_payload(renumbered)), "missing attribute: normal");
+  auto flat = valid_layout();
+  flat[0].components = 2;
+  expect_error(decode_room(draco_payload(flat)), "attribute position has the wrong type");
+  auto wide = valid_layout();
+  wide[2].components = 3;
+  expect_error(decode_room(draco_payload(wide)), "attribute channels has the wrong type");
+  auto float_rim = valid_layout();
+  float_rim[3].data_type = draco::DT_FLOAT32;
+  expect_error(decode_room(draco_payload(float_rim)), "attribute rim has the wrong type");
+  auto int_positions = valid_layout();
+  int_positions[0].data_type = draco::DT_INT32;
+  expect_error(decode_room(draco_payload(int_positions)), "attribute position has the wrong type");
+  auto swapped = valid_layout();
+  std::swap(swapped[0].unique_id, swapped[1].unique_id);
+  expect_error(decode_room(draco_payload(swapped)), "has the wrong type");
+}
+
+TEST(RoomCodecLayout, bad_values_are_errors) {
+  auto nan = valid_layout();
+  nan[0].value = [](int v, int c) {
+    return v == 3 ? std::nan("") : testing::octahedron_vertex(v)[c];
+  };
+  expect_error(decode_room(draco_payload(nan)), "position not finite");
+  auto far = valid_layout();
+  far[0].value = [](int v, int c) { return testing::octahedron_vertex(v)[c] + 4096.0; };
+  expect_error(decode_room(draco_payload(far)), "beyond the room's frame");
+  auto long_normal = valid_layout();
+  long_normal[1].value = [](int v, int c) { return 1.5 * testing::octahedron_normal(v)[c]; };
+  expect_error(decode_room(draco_payload(long_normal)), "normal is not unit");
+  auto bright = valid_layout();
+  bright[2].value = [](int v, int) { return v == 4 ? 1.5 : 0.5; };
+  expect_error(decode_room(draco_payload(bright)), "channel outside [0, 1]");
+  auto negative = valid_layout();
+  negative[2].value = [](int, int c) { return c == 1 ? -0.25 : 0.5; };
+  expect_error(decode_room(draco_payload(negative)), "channel outside [0, 1]");
+  auto slot = valid_layout();
+  slot[3].value = [](int v, int c) { return v == 0 && c == 0 ? 200.0 : 0.0; };
+  expect_error(decode_room(draco_payload(slot)), "rim slot 199 out of range");
+  auto stray = valid_layout();
+  stray[3].value = [](int v, int c) { return v == 5 && c == 1 ? 9.0 : 0.0; };
+  expect_error(decode_room(draco_payload(stray)), "rim index off any rim");
+  auto off_grid = valid_layout();
+  off_grid[0].value = [](int v, int c) {
+    return testing::octahedron_vertex(v)[c] + (v == 0 ? 0.001 : 0.0);
+  };
+  expect_error(decode_room(draco_payload(off_grid)), "rim vertex is not on the world grid");
+}
+
+TEST(RoomCodecLayout, other_draco_geometry_is_an_error) {
+  auto sequential = draco_payload(valid_layout(), draco::MESH_SEQUENTIAL_ENCODING);
+  ASSERT_FALSE(sequential.empty());
+  expect_error(decode_room(sequential), "not edgebreaker");
+  auto point_cloud = draco_payload(valid_layout());
+  point_cloud[7] = draco::POINT_CLOUD;
+  expect_error(decode_room(point_cloud), "not a triangle mesh");
+}
+
+// --- The encoder's own contracts ------------------------------------------------------------
+
+TEST_F(RoomCodecTest, encoder_refuses_rooms_that_break_the_contract) {
+  auto expect_refused = [](const RoomMesh& m, const std::string& needle) {
+    auto r = encode_room(m);
+    ASSERT_FALSE(r.ok()) << "encoded, expected '" << needle << "'";
+    EXPECT_NE(r.error().message.find(needle), std::string::npos) << r.error().message;
+  };
+  RoomMesh m = any_room();
+  ASSERT_TRUE(encode_room(m).ok());
+  RoomMesh bad = m;
+  bad.indices[4] = static_cast<uint32_t>(m.vertex_count());
+  expect_refused(bad, "index out of range");
+  bad = m;
+  bad.indices[1] = bad.indices[0];
+  expect_refused(bad, "degenerate");
+  bad = m;
+  bad.origin.x += 0.001;
+  expect_refused(bad, "origin is not on the world grid");
+  bad = m;
+  bad.positions[2].y = std::nanf("");
+  expect_refused(bad, "position not finite");
+  bad = m;
+  bad.normals[1] = {0, 0, 0};
+  expect_refused(bad, "normal is not unit");
+  bad = m;
+  bad.roughness[0] = 2.0f;
+  expect_refused(bad, "channel outside");
+  bad = m;
+  bad.mineral.pop_back();
+  expect_refused(bad, "differ in length");
+  bad = m;
+  for (size_t v = 0; v < bad.vertex_count(); ++v) {
+    if (bad.rim_portal[v] >= 0) {
+      bad.positions[v].x += 0.001f;
+      break;
+    }
+  }
+  expect_refused(bad, "rim vertex is not on the world grid");
+  EncodeOptions sequential;
+  sequential.speed = 10;
+  EXPECT_FALSE(encode_room(m, sequential).ok());
+}
+
+}  // namespace
+}  // namespace grotto::codec
