@@ -39,10 +39,22 @@ class ErrorFinder : public nlohmann::json_sax<json> {
 // literal". The "last read" part would echo untrusted bytes, so it goes.
 std::string short_reason(std::string reason) {
   if (std::size_t cut = reason.find("; last read"); cut != std::string::npos) reason.resize(cut);
-  if (std::size_t colon = reason.find(": "); colon != std::string::npos) {
-    reason = reason.substr(colon + 2);
+  if (reason.starts_with("[json.exception.")) {
+    if (std::size_t close = reason.find("] "); close != std::string::npos) {
+      reason = reason.substr(close + 2);
+    }
   }
-  return reason.substr(0, 160);
+  if (reason.starts_with("parse error")) {
+    if (std::size_t colon = reason.find(": "); colon != std::string::npos) {
+      reason = reason.substr(colon + 2);
+    }
+  }
+  // What is left may still quote a token (a number): bounded and printable.
+  if (reason.size() > 120) reason = reason.substr(0, 120) + "...";
+  for (char& c : reason) {
+    if (static_cast<unsigned char>(c) < 0x20 || static_cast<unsigned char>(c) >= 0x7f) c = '?';
+  }
+  return reason;
 }
 
 // Brackets outside strings, counted before the parser runs: deep nesting is refused in linear

@@ -224,7 +224,11 @@ Result<Limits> parse_limits(const json& object) {
   Limits l;
   auto read = [&](std::string_view key, uint64_t min, uint64_t max, uint32_t& out) -> Status {
     Result<uint64_t> r = f.uint(key, max);
-    if (!r) return r.error();
+    if (!r) {
+      Error e = r.error();
+      if (e.message.starts_with("field '")) e.message.insert(7, "limits.");
+      return e;
+    }
     if (*r < min) {
       return field_error("limits." + std::string(key), "must be at least " + std::to_string(min) +
                                                            " (got " + std::to_string(*r) + ")");

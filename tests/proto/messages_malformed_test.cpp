@@ -1,0 +1,313 @@
+// The malformed-input corpus for control messages: each case yields the error code documented in
+// proto/PROTOCOL.md and a message that names the problem.
+#include <gtest/gtest.h>
+
+#include <string>
+#include <vector>
+
+#include "proto/messages.hpp"
+
+namespace grotto::proto {
+namespace {
+
+struct Case {
+  const char* what;
+  std::string text;
+  ErrorCode code;
+  std::string names;  // a piece of the message that says what was wrong
+};
+
+std::string hello_with(const std::string& fields) {
+  return R"({"type":"hello","versions":[1])" + fields + "}";
+}
+std::string request_with(const std::string& entry) {
+  return R"({"type":"request","rooms":[)" + entry + "]}";
+}
+
+std::vector<Case> client_corpus() {
+  std::string many_versions = "[1";
+  for (int i = 0; i < 16; ++i)
+    many_versions += ",1";
+  many_versions += "]";
+  std::string many_rooms;
+  for (int i = 0; i < 257; ++i) {
+    many_rooms += (i ? "," : "") + std::string(R"({"id":"0.0.0.r)") + std::to_string(i) +
+                  R"(","lod":0,"priority":0})";
+  }
+  return {
+      // Not JSON at all.
+      {"empty text", "", ErrorCode::kBadJson, "unexpected end of input"},
+      {"unterminated object", "{", ErrorCode::kBadJson, "not valid JSON"},
+      {"trailing garbage", R"({"type":"spawn"} x)", ErrorCode::kBadJson, "not valid JSON"},
+      {"NaN literal", R"({"type":"locate","point":[NaN,0,0]})", ErrorCode::kBadJson,
+       "not valid JSON"},
+      {"Infinity literal", R"({"type":"locate","point":[Infinity,0,0]})", ErrorCode::kBadJson,
+       "not valid JSON"},
+      {"single quotes", "{'type':'spawn'}", ErrorCode::kBadJson, "not valid JSON"},
+      {"invalid UTF-8", hello_with(R"(,"name":")" + std::string("\xff\xfe") + "\"}"),
+       ErrorCode::kBadJson, "UTF-8"},
+      {"overlong UTF-8 slash", hello_with(R"(,"name":")" + std::string("\xc0\xaf") + "\"}"),
+       ErrorCode::kBadJson, "UTF-8"},
+      {"60k open brackets", std::string(60000, '['), ErrorCode::kBadJson, "nested deeper than 16"},
+      {"10k nested objects",
+       [] {
+         std::string s;
+         for (int i = 0; i < 10000; ++i)
+           s += R"({"a":)";
+         return s;
+       }(),
+       ErrorCode::kBadJson, "nested deeper than 16"},
+      {"17 levels inside an ignored field",
+       R"({"type":"spawn","x":)" + std::string(16, '[') + std::string(16, ']') + "}",
+       ErrorCode::kBadJson, "nested deeper than 16"},
+      // JSON, but not a message.
+      {"array", "[1,2]", ErrorCode::kBadMessage, "must be a JSON object (got array)"},
+      {"number", "42", ErrorCode::kBadMessage, "must be a JSON object (got integer)"},
+      {"string", R"("hello")", ErrorCode::kBadMessage, "must be a JSON object (got string)"},
+      {"no type", "{}", ErrorCode::kBadMessage, "field 'type' is missing"},
+      {"type not a string", R"({"type":7})", ErrorCode::kBadMessage,
+       "field 'type' must be a string (got integer)"},
+      {"unknown type", R"({"type":"explode"})", ErrorCode::kUnknownType,
+       "unknown message type 'explode'"},
+      {"huge unknown type", R"({"type":")" + std::string(60000, 'z') + "\"}",
+       ErrorCode::kUnknownType, "'zzzzzzzzzzzzzzzzzzzzzzzzzzzzzzzz...'"},
+      {"ref negative", R"({"type":"spawn","ref":-1})", ErrorCode::kBadMessage,
+       "field 'ref' must be in [0, 9007199254740991] (got -1)"},
+      {"ref beyond 2^53", R"({"type":"spawn","ref":9007199254740992})", ErrorCode::kBadMessage,
+       "field 'ref'"},
+      {"ref a string", R"({"type":"spawn","ref":"7"})", ErrorCode::kBadMessage,
+       "field 'ref' must be an integer (got string)"},
+      // hello
+      {"hello without versions", R"({"type":"hello"})", ErrorCode::kBadMessage,
+       "field 'versions' is missing"},
+      {"versions a string", R"({"type":"hello","versions":"1"})", ErrorCode::kBadMessage,
+       "field 'versions' must be an array (got string)"},
+      {"versions empty", R"({"type":"hello","versions":[]})", ErrorCode::kBadMessage,
+       "field 'versions' must not be empty"},
+      {"version 0", R"({"type":"hello","versions":[0]})", ErrorCode::kBadMessage,
+       "field 'versions[0]'"},
+      {"version a float", R"({"type":"hello","versions":[1.5]})", ErrorCode::kBadMessage,
+       "field 'versions[0]' must be an integer (got float)"},
+      {"version too big", R"({"type":"hello","versions":[1,65536]})", ErrorCode::kBadMessage,
+       "field 'versions[1]' must be in [0, 65535]"},
+      {"17 versions", R"({"type":"hello","versions":)" + many_versions + "}", ErrorCode::kTooLarge,
+       "field 'versions' has 17 entries, over the limit of 16"},
+      {"seed a number", hello_with(R"(,"seed":42)"), ErrorCode::kBadMessage,
+       "field 'seed' must be a string (got integer)"},
+      {"seed with leading zero", hello_with(R"(,"seed":"042")"), ErrorCode::kBadMessage,
+       "field 'seed' must be an unsigned 64-bit integer in decimal"},
+      {"seed over 2^64", hello_with(R"(,"seed":"18446744073709551616")"), ErrorCode::kBadMessage,
+       "field 'seed'"},
+      {"seed negative", hello_with(R"(,"seed":"-1")"), ErrorCode::kBadMessage, "field 'seed'"},
+      {"seed empty", hello_with(R"(,"seed":"")"), ErrorCode::kBadMessage, "field 'seed'"},
+      {"params upper case", hello_with(R"(,"params":"0123456789ABCDEF")"), ErrorCode::kBadMessage,
+       "field 'params' must be 16 lowercase hexadecimal digits"},
+      {"params short", hello_with(R"(,"params":"abc")"), ErrorCode::kBadMessage, "field 'params'"},
+      {"name too long", hello_with(R"(,"name":")" + std::string(65, 'n') + "\""),
+       ErrorCode::kTooLarge, "field 'name' is 65 bytes, over the limit of 64"},
+      {"name with a control character", hello_with(R"(,"name":"a\u0001b")"), ErrorCode::kBadMessage,
+       "field 'name' must not contain control characters"},
+      {"name with a NUL", hello_with(R"(,"name":"a\u0000b")"), ErrorCode::kBadMessage,
+       "field 'name'"},
+      // locate
+      {"locate without point", R"({"type":"locate"})", ErrorCode::kBadMessage,
+       "field 'point' is missing"},
+      {"point of two", R"({"type":"locate","point":[1,2]})", ErrorCode::kBadMessage,
+       "field 'point' must be an array of 3 numbers"},
+      {"point an object", R"({"type":"locate","point":{"x":1}})", ErrorCode::kBadMessage,
+       "field 'point' must be an array of 3 numbers"},
+      {"number overflowing a double", R"({"type":"locate","point":[0,1e400,0]})",
+       ErrorCode::kBadJson, "number overflow parsing '1e400'"},
+      {"point far away", R"({"type":"locate","point":[0,0,-1e9]})", ErrorCode::kBadMessage,
+       "field 'point[2]' must be within"},
+      {"point a string", R"({"type":"locate","point":["1",0,0]})", ErrorCode::kBadMessage,
+       "field 'point[0]' must be a number (got string)"},
+      // request
+      {"request without rooms", R"({"type":"request"})", ErrorCode::kBadMessage,
+       "field 'rooms' is missing"},
+      {"empty request", R"({"type":"request","rooms":[]})", ErrorCode::kBadMessage,
+       "field 'rooms' must not be empty"},
+      {"too many rooms", request_with(many_rooms), ErrorCode::kTooLarge,
+       "field 'rooms' has 257 entries, over the limit of 256"},
+      {"entry a string", request_with(R"("0.0.0.r0")"), ErrorCode::kBadMessage,
+       "field 'rooms[0]' must be an object"},
+      {"id missing", request_with(R"({"lod":0,"priority":0})"), ErrorCode::kBadMessage,
+       "field 'rooms[0].id' is missing"},
+      {"id a number", request_with(R"({"id":5,"lod":0,"priority":0})"), ErrorCode::kBadMessage,
+       "field 'rooms[0].id' must be a room id string (got integer)"},
+      {"id index out of range", request_with(R"({"id":"0.0.0.r9999","lod":0,"priority":0})"),
+       ErrorCode::kInvalidRoomId, "rooms[0].id: malformed room id '0.0.0.r9999'"},
+      {"id with leading zero", request_with(R"({"id":"01.0.0.r0","lod":0,"priority":0})"),
+       ErrorCode::kInvalidRoomId, "rooms[0].id: malformed room id"},
+      {"id sector out of range", request_with(R"({"id":"65536.0.0.r0","lod":0,"priority":0})"),
+       ErrorCode::kInvalidRoomId, "sector coordinate outside"},
+      {"huge id",
+       request_with(R"({"id":")" + std::string(50000, '9') + R"(","lod":0,"priority":0})"),
+       ErrorCode::kInvalidRoomId, "longer than 64 characters"},
+      {"lod over max_lod", request_with(R"({"id":"0.0.0.r0","lod":1,"priority":0})"),
+       ErrorCode::kBadMessage, "field 'rooms[0].lod' must be in [0, 0] (got 1)"},
+      {"lod missing", request_with(R"({"id":"0.0.0.r0","priority":0})"), ErrorCode::kBadMessage,
+       "field 'rooms[0].lod' is missing"},
+      {"priority negative", request_with(R"({"id":"0.0.0.r0","lod":0,"priority":-1})"),
+       ErrorCode::kBadMessage, "field 'rooms[0].priority'"},
+      {"priority over 32 bits", request_with(R"({"id":"0.0.0.r0","lod":0,"priority":4294967296})"),
+       ErrorCode::kBadMessage, "field 'rooms[0].priority' must be in [0, 4294967295]"},
+      {"priority a float", request_with(R"({"id":"0.0.0.r0","lod":0,"priority":0.5})"),
+       ErrorCode::kBadMessage, "field 'rooms[0].priority' must be an integer (got float)"},
+      {"repeated id",
+       request_with(
+           R"({"id":"0.0.0.r1","lod":0,"priority":0},{"id":"0.0.0.r2","lod":0,"priority":0},)"
+           R"({"id":"0.0.0.r1","lod":0,"priority":5})"),
+       ErrorCode::kBadMessage, "field 'rooms[2].id' repeats room 0.0.0.r1"},
+      // cancel, ping
+      {"empty cancel", R"({"type":"cancel","rooms":[]})", ErrorCode::kBadMessage,
+       "field 'rooms' must not be empty"},
+      {"cancel a bad id", R"({"type":"cancel","rooms":["0.0.0.r0","nope"]})",
+       ErrorCode::kInvalidRoomId, "rooms[1]: malformed room id 'nope'"},
+      {"cancel an object", R"({"type":"cancel","rooms":[{"id":"0.0.0.r0"}]})",
+       ErrorCode::kBadMessage, "field 'rooms[0]' must be a room id string (got object)"},
+      {"ping without t", R"({"type":"ping"})", ErrorCode::kBadMessage, "field 't' is missing"},
+      {"ping t a string", R"({"type":"ping","t":"now"})", ErrorCode::kBadMessage,
+       "field 't' must be a number (got string)"},
+  };
+}
+
+TEST(ProtoMalformed, every_corpus_case_yields_its_documented_code_and_names_the_problem) {
+  for (const Case& c : client_corpus()) {
+    Result<ClientMessage> r = parse_client_message(c.text, Limits{});
+    ASSERT_FALSE(r.ok()) << c.what;
+    EXPECT_EQ(error_code_name(r.error().code), std::string(error_code_name(c.code))) << c.what;
+    EXPECT_NE(r.error().message.find(c.names), std::string::npos)
+        << c.what << ": message was \"" << r.error().message << "\", expected it to contain \""
+        << c.names << "\"";
+    // Error messages stay short whatever came in (they are sent back and logged).
+    EXPECT_LE(r.error().message.size(), 200u) << c.what;
+  }
+}
+
+TEST(ProtoMalformed, size_limit_is_checked_before_parsing) {
+  Limits limits;
+  limits.max_message_bytes = 100;
+  std::string text = R"({"type":"ping","t":1})";
+  text.resize(101, ' ');  // valid JSON, one byte over
+  Result<ClientMessage> r = parse_client_message(text, limits);
+  ASSERT_FALSE(r.ok());
+  EXPECT_EQ(r.error().code, ErrorCode::kTooLarge);
+  EXPECT_EQ(r.error().message, "message of 101 bytes exceeds max_message_bytes 100");
+  text.resize(100);
+  EXPECT_TRUE(parse_client_message(text, limits).ok());
+  // A multi-megabyte frame is refused without being parsed (or echoed).
+  std::string huge(8 << 20, '[');
+  r = parse_client_message(huge, Limits{});
+  ASSERT_FALSE(r.ok());
+  EXPECT_EQ(r.error().code, ErrorCode::kTooLarge);
+}
+
+TEST(ProtoMalformed, deep_nesting_is_refused_before_the_parser_recurses) {
+  // Under a limit large enough to let 100k brackets through the size check, the depth scan
+  // still refuses them (nlohmann would otherwise build and destroy a 100k-deep value).
+  Limits limits;
+  limits.max_message_bytes = 1 << 20;
+  for (std::string text : {std::string(100000, '['), std::string(100000, '{'),
+                           R"({"type":"spawn","x":)" + std::string(100000, '[')}) {
+    Result<ClientMessage> r = parse_client_message(text, limits);
+    ASSERT_FALSE(r.ok());
+    EXPECT_EQ(r.error().code, ErrorCode::kBadJson);
+    EXPECT_NE(r.error().message.find("nested deeper than 16 levels"), std::string::npos)
+        << r.error().message;
+  }
+}
+
+TEST(ProtoMalformed, rooms_per_request_follows_the_limits_given) {
+  Limits limits;
+  limits.max_rooms_per_request = 2;
+  std::string three = request_with(
+      R"({"id":"0.0.0.r1","lod":0,"priority":0},{"id":"0.0.0.r2","lod":0,"priority":0},)"
+      R"({"id":"0.0.0.r3","lod":0,"priority":0})");
+  Result<ClientMessage> r = parse_client_message(three, limits);
+  ASSERT_FALSE(r.ok());
+  EXPECT_EQ(r.error().code, ErrorCode::kTooLarge);
+  limits.max_rooms_per_request = 3;
+  EXPECT_TRUE(parse_client_message(three, limits).ok());
+}
+
+TEST(ProtoMalformed, the_ref_is_recovered_from_a_message_that_fails_later) {
+  Ref ref;
+  Result<ClientMessage> r =
+      parse_client_message(R"({"type":"request","ref":77,"rooms":[]})", Limits{}, &ref);
+  ASSERT_FALSE(r.ok());
+  EXPECT_EQ(ref, Ref(77));
+  ref.reset();
+  r = parse_client_message(R"({"type":"nope","ref":78})", Limits{}, &ref);
+  EXPECT_EQ(r.error().code, ErrorCode::kUnknownType);
+  EXPECT_EQ(ref, Ref(78));
+}
+
+TEST(ProtoMalformed, unknown_fields_are_ignored_and_brackets_in_strings_do_not_count) {
+  Result<ClientMessage> r = parse_client_message(
+      R"({"type":"spawn","future_field":{"a":[1,2,{"b":null}]},"x":"[[[[[[[[[[[[[[[[[[[[[["})",
+      Limits{});
+  ASSERT_TRUE(r.ok()) << r.error().message;
+  EXPECT_TRUE(std::holds_alternative<Spawn>(*r));
+  // Exactly the depth limit is fine.
+  std::string deep = R"({"type":"spawn","x":)" + std::string(15, '[') + std::string(15, ']') + "}";
+  EXPECT_TRUE(parse_client_message(deep, Limits{}).ok());
+  // An escaped quote does not end a string for the depth scan.
+  EXPECT_TRUE(
+      parse_client_message(R"({"type":"spawn","x":"\"[[[[[[[[[[[[[[[[[[[["})", Limits{}).ok());
+}
+
+TEST(ProtoMalformed, server_messages_are_checked_as_strictly) {
+  struct ServerCase {
+    const char* what;
+    std::string text;
+    ErrorCode code;
+    std::string names;
+  };
+  const std::string limits =
+      R"("limits":{"max_message_bytes":65536,"max_frame_bytes":4194304,"max_rooms_per_request":256,)"
+      R"("max_rooms_in_flight":1024,"max_lod":0,"idle_timeout_ms":60000,"handshake_timeout_ms":10000})";
+  const ServerCase cases[] = {
+      {"welcome without limits",
+       R"({"type":"welcome","version":1,"server":"s","seed":"1","params":"0000000000000000"})",
+       ErrorCode::kBadMessage, "field 'limits' is missing"},
+      {"welcome seed as number",
+       R"({"type":"welcome","version":1,"server":"s","seed":1,"params":"0000000000000000",)" +
+           limits + "}",
+       ErrorCode::kBadMessage, "field 'seed' must be a string"},
+      {"max_lod over 255",
+       R"({"type":"welcome","version":1,"server":"s","seed":"1","params":"0000000000000000",)" +
+           std::string(R"("limits":{"max_message_bytes":65536,"max_frame_bytes":4194304,)"
+                       R"("max_rooms_per_request":256,"max_rooms_in_flight":1024,"max_lod":256,)"
+                       R"("idle_timeout_ms":60000,"handshake_timeout_ms":10000}})"),
+       ErrorCode::kBadMessage, "field 'limits.max_lod' must be in [0, 255]"},
+      {"tiny message limit",
+       R"({"type":"welcome","version":1,"server":"s","seed":"1","params":"0000000000000000",)" +
+           std::string(R"("limits":{"max_message_bytes":10,"max_frame_bytes":4194304,)"
+                       R"("max_rooms_per_request":256,"max_rooms_in_flight":1024,"max_lod":0,)"
+                       R"("idle_timeout_ms":60000,"handshake_timeout_ms":10000}})"),
+       ErrorCode::kBadMessage, "field 'limits.max_message_bytes' must be at least 1024"},
+      {"located without room", R"({"type":"located","point":[0,0,0]})", ErrorCode::kBadMessage,
+       "field 'room' is missing"},
+      {"located with a bad room", R"({"type":"located","point":[0,0,0],"room":"0.0.0.q1"})",
+       ErrorCode::kInvalidRoomId, "room: malformed room id"},
+      {"error without fatal", R"({"type":"error","code":"internal","message":"x"})",
+       ErrorCode::kBadMessage, "field 'fatal' is missing"},
+      {"error code a number", R"({"type":"error","code":3,"message":"x","fatal":false})",
+       ErrorCode::kBadMessage, "field 'code' must be a string"},
+      {"pong time negative", R"({"type":"pong","t":1,"time":-5})", ErrorCode::kBadMessage,
+       "field 'time'"},
+      {"a client message type", R"({"type":"hello","versions":[1]})", ErrorCode::kUnknownType,
+       "unknown message type 'hello'"},
+  };
+  for (const ServerCase& c : cases) {
+    Result<ServerMessage> r = parse_server_message(c.text, Limits{});
+    ASSERT_FALSE(r.ok()) << c.what;
+    EXPECT_EQ(error_code_name(r.error().code), std::string(error_code_name(c.code))) << c.what;
+    EXPECT_NE(r.error().message.find(c.names), std::string::npos)
+        << c.what << ": message was \"" << r.error().message << "\"";
+  }
+}
+
+}  // namespace
+}  // namespace grotto::proto

@@ -1,0 +1,165 @@
+// Every control message survives serialize -> parse unchanged, in both directions, and the wire
+// codes map one to one.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+
+#include "proto/messages.hpp"
+
+namespace grotto::proto {
+namespace {
+
+cave::RoomId id(std::string_view text) {
+  Result<cave::RoomId> r = cave::RoomId::parse(text);
+  EXPECT_TRUE(r.ok()) << text;
+  return *r;
+}
+
+ClientMessage client_round_trip(const ClientMessage& m, const Limits& limits = {}) {
+  std::string text = serialize(m);
+  Result<ClientMessage> back = parse_client_message(text, limits);
+  EXPECT_TRUE(back.ok()) << text << ": " << (back.ok() ? "" : back.error().message);
+  return back.ok() ? *back : ClientMessage{};
+}
+
+ServerMessage server_round_trip(const ServerMessage& m) {
+  std::string text = serialize(m);
+  Result<ServerMessage> back = parse_server_message(text, Limits{});
+  EXPECT_TRUE(back.ok()) << text << ": " << (back.ok() ? "" : back.error().message);
+  return back.ok() ? *back : ServerMessage{};
+}
+
+TEST(ProtoRoundTrip, every_client_message_round_trips) {
+  Limits limits;
+  limits.max_lod = 3;
+  const ClientMessage messages[] = {
+      Hello{1, {1, 2, 65535}, 18446744073709551615ull, 0x0123456789abcdefull, "grotto-load 0.1"},
+      Hello{std::nullopt, {1}, std::nullopt, std::nullopt, ""},
+      Hello{0, {1}, 0, 0, "ünïcode ok"},
+      Locate{9007199254740991ull, {0.1, -0.0, -16777216.0}},
+      Locate{std::nullopt, {1e-300, 123.456789012345678, 5e-324}},
+      Spawn{3},
+      Spawn{},
+      Request{4,
+              {{id("0.0.0.r0"), 0, 0},
+               {id("-65535.65535.-3.x15"), 3, 4294967295u},
+               {id("3.-1.0.r12"), 1, 17}}},
+      Cancel{5, {id("0.0.0.r0"), id("0.0.0.r0"), id("2.0.0.z1")}},
+      Ping{6, 1732339200123.25},
+      Ping{std::nullopt, -1.5},
+      StatsQuery{7},
+  };
+  for (const ClientMessage& m : messages) {
+    EXPECT_EQ(client_round_trip(m, limits), m) << serialize(m);
+    // Serializing is deterministic: the text of the parsed message is the same text.
+    EXPECT_EQ(serialize(client_round_trip(m, limits)), serialize(m));
+  }
+}
+
+TEST(ProtoRoundTrip, every_server_message_round_trips) {
+  Limits limits{1 << 16, 1 << 22, 64, 512, 2, 30000, 5000};
+  const ServerMessage messages[] = {
+      Welcome{1, 1, "grotto-server 0.1.0", 42, 0xfedcba9876543210ull, limits},
+      Welcome{std::nullopt, 7, "", 0, 0, Limits{}},
+      Located{2, {1.5, 2.5, -3.5}, id("0.0.0.r4")},
+      Located{std::nullopt, {0, 0, 0}, std::nullopt},
+      SpawnPoint{3, id("0.0.0.r0"), {48.1, 47.9, 48.0}},
+      ErrorMessage{
+          4, ErrorCode::kNotFound, "room 0.0.0.r999 does not exist", id("0.0.0.r999"), {}, false},
+      ErrorMessage{std::nullopt,
+                   ErrorCode::kUnsupportedVersion,
+                   "no common version",
+                   std::nullopt,
+                   {1, 2},
+                   true},
+      Pong{5, 12.75, 1732339200123ull},
+      Stats{6, 10, 2000, 123456789, 3},
+  };
+  for (const ServerMessage& m : messages) {
+    EXPECT_EQ(server_round_trip(m), m) << serialize(m);
+  }
+}
+
+TEST(ProtoRoundTrip, text_matches_the_documented_shape) {
+  // PROTOCOL.md's sample session shows these exact lines.
+  Request r{12, {{id("0.0.0.r3"), 0, 250}}};
+  EXPECT_EQ(serialize(ClientMessage(r)),
+            R"({"type":"request","ref":12,"rooms":[{"id":"0.0.0.r3","lod":0,"priority":250}]})");
+  Hello h{1, {1}, 7, std::nullopt, "grotto-client"};
+  EXPECT_EQ(serialize(ClientMessage(h)),
+            R"({"type":"hello","ref":1,"versions":[1],"seed":"7","name":"grotto-client"})");
+  ErrorMessage e{12, ErrorCode::kInvalidRoomId, "bad", std::nullopt, {}, false};
+  EXPECT_EQ(serialize(ServerMessage(e)),
+            R"({"type":"error","ref":12,"code":"invalid_room_id","message":"bad","fatal":false})");
+}
+
+TEST(ProtoRoundTrip, doubles_keep_every_bit) {
+  const double values[] = {0.1, -0.0, 1e-300, 5e-324, 16777216.0, 1.0 / 3.0, -2.5e-7};
+  for (double v : values) {
+    auto back = client_round_trip(Locate{std::nullopt, {v, v, v}});
+    const Locate& l = std::get<Locate>(back);
+    EXPECT_EQ(std::signbit(l.point.x), std::signbit(v));
+    EXPECT_EQ(l.point.x, v);
+  }
+}
+
+TEST(ProtoRoundTrip, long_error_messages_are_cut_to_the_limit_and_still_parse) {
+  ErrorMessage e{std::nullopt, ErrorCode::kInternal, std::string(5000, 'x'), std::nullopt, {},
+                 false};
+  std::string text = serialize(ServerMessage(e));
+  Result<ServerMessage> back = parse_server_message(text, Limits{});
+  ASSERT_TRUE(back.ok()) << back.error().message;
+  EXPECT_LE(std::get<ErrorMessage>(*back).message.size(), kMaxErrorBytes);
+}
+
+TEST(ProtoRoundTrip, invalid_utf8_in_a_string_is_replaced_not_thrown) {
+  ErrorMessage e{std::nullopt, ErrorCode::kInternal, "bad \xff byte", std::nullopt, {}, false};
+  std::string text = serialize(ServerMessage(e));
+  EXPECT_TRUE(parse_server_message(text, Limits{}).ok()) << text;
+}
+
+TEST(ProtoWireCodes, every_wire_code_parses_back_to_itself) {
+  for (int c = 0; c <= static_cast<int>(ErrorCode::kTimeout); ++c) {
+    ErrorCode code = static_cast<ErrorCode>(c);
+    std::optional<ErrorCode> back = parse_wire_code(wire_code_name(code));
+    ASSERT_TRUE(back.has_value()) << wire_code_name(code);
+    if (code == ErrorCode::kInvalidArgument) {
+      EXPECT_EQ(*back, ErrorCode::kBadMessage);
+    } else if (code == ErrorCode::kUnavailable) {
+      EXPECT_EQ(*back, ErrorCode::kOverloaded);
+    } else {
+      EXPECT_EQ(*back, code) << wire_code_name(code);
+    }
+  }
+  EXPECT_FALSE(parse_wire_code("invalid_argument").has_value());
+  EXPECT_FALSE(parse_wire_code("").has_value());
+}
+
+TEST(ProtoWireCodes, unknown_codes_from_a_later_server_read_as_internal_and_keep_their_name) {
+  Result<ServerMessage> m = parse_server_message(
+      R"({"type":"error","code":"quota_spent","message":"try tomorrow","fatal":true})", Limits{});
+  ASSERT_TRUE(m.ok()) << m.error().message;
+  const ErrorMessage& e = std::get<ErrorMessage>(*m);
+  EXPECT_EQ(e.code, ErrorCode::kInternal);
+  EXPECT_EQ(e.message, "[quota_spent] try tomorrow");
+  EXPECT_TRUE(e.fatal);
+}
+
+TEST(ProtoWireCodes, fatal_codes_are_the_documented_ones) {
+  EXPECT_TRUE(is_fatal(ErrorCode::kUnsupportedVersion));
+  EXPECT_TRUE(is_fatal(ErrorCode::kServiceRestart));
+  EXPECT_TRUE(is_fatal(ErrorCode::kTimeout));
+  EXPECT_FALSE(is_fatal(ErrorCode::kBadJson));
+  EXPECT_FALSE(is_fatal(ErrorCode::kInvalidRoomId));
+  EXPECT_FALSE(is_fatal(ErrorCode::kNotFound));
+}
+
+TEST(ProtoEcho, cuts_and_masks_untrusted_text) {
+  EXPECT_EQ(echo("abc"), "abc");
+  EXPECT_EQ(echo(std::string(100, 'a')), std::string(kMaxEchoBytes, 'a') + "...");
+  EXPECT_EQ(echo("a\nb'\xff"), "a?b??");
+}
+
+}  // namespace
+}  // namespace grotto::proto
