@@ -12,6 +12,7 @@ packages=(
   libepoxy-dev libgtest-dev libgmock-dev libbenchmark-dev libspdlog-dev libcli11-dev
   libmeshoptimizer-dev
   xvfb libgl1-mesa-dri
+  clang libclang-rt-14-dev  # libFuzzer (tests/fuzz); its runtime is in libclang-rt-14-dev
 )
 
 if [[ "${1:-}" == "--list" ]]; then

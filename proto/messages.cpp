@@ -103,6 +103,15 @@ Status printable(const std::string& s, std::string_view field) {
   return {};
 }
 
+// Error messages are cut to kMaxErrorBytes ("..." at the end) without splitting a UTF-8
+// sequence.
+std::string cut_message(std::string message) {
+  if (message.size() <= kMaxErrorBytes) return message;
+  std::size_t cut = kMaxErrorBytes - 3;
+  while (cut > 0 && (static_cast<unsigned char>(message[cut]) & 0xc0) == 0x80) --cut;
+  return message.substr(0, cut) + "...";
+}
+
 // ---- client messages ----
 
 Result<ClientMessage> parse_hello(const Fields& f, Ref ref) {
@@ -287,7 +296,7 @@ Result<ServerMessage> parse_error_message(const Fields& f, Ref ref) {
   } else {
     // A code from a later revision: keep its name for people; the client treats it as internal.
     m.code = ErrorCode::kInternal;
-    m.message = "[" + echo(code) + "] " + m.message;
+    m.message = cut_message("[" + echo(code) + "] " + m.message);
   }
   PROTO_TRY(m.fatal, f.boolean("fatal"));
   PROTO_TRY(m.room, optional_room_id(f, "room"));
@@ -438,15 +447,7 @@ ojson to_json(const SpawnPoint& m) {
 ojson to_json(const ErrorMessage& m) {
   ojson out = head("error", m.ref);
   out["code"] = wire_code_name(m.code);
-  // Cut at a byte limit without splitting a UTF-8 sequence.
-  std::string message = m.message;
-  if (message.size() > kMaxErrorBytes) {
-    std::size_t cut = kMaxErrorBytes - 3;
-    while (cut > 0 && (static_cast<unsigned char>(message[cut]) & 0xc0) == 0x80)
-      --cut;
-    message = message.substr(0, cut) + "...";
-  }
-  out["message"] = std::move(message);
+  out["message"] = cut_message(m.message);
   out["fatal"] = m.fatal;
   if (m.room) out["room"] = m.room->to_string();
   if (!m.versions.empty()) out["versions"] = m.versions;
