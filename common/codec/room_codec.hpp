@@ -46,12 +46,15 @@ inline constexpr double kMaxOffset = 1024.0;
 inline constexpr float kNormalTolerance = 1e-3f;
 
 // Draco settings. Brace-init means the defaults chosen by measurement (docs/BENCHMARKS.md, "Room
-// codec"): speed 7 edgebreaker, 10-bit octahedral normals, 8-bit channels.
+// codec"): speed 3 (valence edgebreaker, constrained multi-parallelogram positions, geometric
+// normal prediction: 25% smaller than speed 7 for twice the decode time, still ~0.5 ms a room),
+// 8-bit octahedral normals (< 1 degree) and 7-bit channels, the least that keeps a patch room
+// under 1/50 of the raw float32 detail room.
 struct EncodeOptions {
-  int speed = 7;         // Draco encoding and decoding speed, 0 (smallest) to 9; 10 (sequential
+  int speed = 3;         // Draco encoding and decoding speed, 0 (smallest) to 9; 10 (sequential
                          // connectivity) is refused: the decoder accepts only edgebreaker
-  int normal_bits = 10;  // octahedral normal quantization, 2-22
-  int channel_bits = 8;  // roughness and mineral quantization over [0, 1], 1-16
+  int normal_bits = 8;   // octahedral normal quantization, 2-16
+  int channel_bits = 7;  // roughness and mineral quantization over [0, 1], 1-16
 };
 
 // A room's geometry as spans, the codec's input. Views a mesh::RoomMesh or a DecodedRoom.

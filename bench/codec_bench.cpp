@@ -1,0 +1,265 @@
+// The room codec against its budget and a peer, in one run: bytes per streamed patch room and
+// encode/decode time per room at several Draco settings, against the raw float32 detail room
+// (positions + normals + indices, what a client would otherwise need) and against meshoptimizer's
+// vertex/index codec on the same quantized data. One thread; medians over rooms of the median over
+// repetitions. Writes a JSON report and prints a Markdown table. Command and results:
+// docs/BENCHMARKS.md ("Room codec").
+#include <draco/compression/decode.h>
+#include <meshoptimizer.h>
+#include <spdlog/spdlog.h>
+
+#include <CLI/CLI.hpp>
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <fstream>
+#include <functional>
+#include <nlohmann/json.hpp>
+
+#include "codec/room_codec.hpp"
+#include "core/grid.hpp"
+#include "mesh/room_mesh.hpp"
+
+namespace {
+
+using namespace grotto;
+using clock_type = std::chrono::steady_clock;
+
+// Median over `reps` runs of f, in milliseconds.
+double median_ms(int reps, const std::function<void()>& f) {
+  std::vector<double> t;
+  for (int i = 0; i < reps; ++i) {
+    auto start = clock_type::now();
+    f();
+    t.push_back(1000.0 * std::chrono::duration<double>(clock_type::now() - start).count());
+  }
+  std::sort(t.begin(), t.end());
+  return t[t.size() / 2];
+}
+
+double median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  return v.empty() ? 0 : v[v.size() / 2];
+}
+double mean(const std::vector<double>& v) {
+  double s = 0;
+  for (double x : v)
+    s += x;
+  return v.empty() ? 0 : s / static_cast<double>(v.size());
+}
+
+// Per room: bytes, encode ms, decode ms.
+struct Row {
+  std::string name;
+  std::vector<double> bytes, encode_ms, decode_ms;
+};
+
+// The meshoptimizer peer's vertex, quantized like the Draco payload (positions on the same grid,
+// as 16-bit grid units from the room's lowest corner; 8-bit normals; 8-bit channels; the rim
+// attribute as two uint16), 16 bytes as meshopt's codec wants (a multiple of 4).
+struct PeerVertex {
+  uint16_t p[3];
+  int8_t n[3];
+  uint8_t pad;
+  uint8_t c[2];
+  uint16_t rim[2];
+};
+static_assert(sizeof(PeerVertex) == 16);
+
+struct PeerEncoded {
+  std::vector<unsigned char> vertices, indices;
+  size_t vertex_count = 0, index_count = 0;
+};
+
+PeerEncoded peer_encode(const mesh::RoomMesh& m) {
+  float lo[3] = {1e30f, 1e30f, 1e30f};
+  for (const auto& p : m.positions) {
+    lo[0] = std::min(lo[0], p.x);
+    lo[1] = std::min(lo[1], p.y);
+    lo[2] = std::min(lo[2], p.z);
+  }
+  auto q16 = [](float v, float origin) {
+    return static_cast<uint16_t>(std::lround((v - origin) / grid::kStep));
+  };
+  auto s8 = [](float v) { return static_cast<int8_t>(std::lround(v * 127.0f)); };
+  auto u8 = [](float v) { return static_cast<uint8_t>(std::lround(v * 255.0f)); };
+  std::vector<PeerVertex> verts(m.vertex_count());
+  for (size_t v = 0; v < verts.size(); ++v) {
+    const auto p = m.positions[v], n = m.normals[v];
+    verts[v] = {{q16(p.x, lo[0]), q16(p.y, lo[1]), q16(p.z, lo[2])},
+                {s8(n.x), s8(n.y), s8(n.z)},
+                0,
+                {u8(m.roughness[v]), u8(m.mineral[v])},
+                {static_cast<uint16_t>(m.rim_portal[v] + 1), m.rim_index[v]}};
+  }
+  std::vector<unsigned int> indices(m.indices.size());
+  meshopt_optimizeVertexCache(indices.data(), m.indices.data(), indices.size(), verts.size());
+  std::vector<PeerVertex> fetched(verts.size());
+  const size_t vc = meshopt_optimizeVertexFetch(fetched.data(), indices.data(), indices.size(),
+                                                verts.data(), verts.size(), sizeof(PeerVertex));
+  PeerEncoded out;
+  out.vertex_count = vc;
+  out.index_count = indices.size();
+  out.vertices.resize(meshopt_encodeVertexBufferBound(vc, sizeof(PeerVertex)));
+  out.vertices.resize(meshopt_encodeVertexBuffer(out.vertices.data(), out.vertices.size(),
+                                                 fetched.data(), vc, sizeof(PeerVertex)));
+  out.indices.resize(meshopt_encodeIndexBufferBound(indices.size(), vc));
+  out.indices.resize(meshopt_encodeIndexBuffer(out.indices.data(), out.indices.size(),
+                                               indices.data(), indices.size()));
+  return out;
+}
+
+size_t raw_bytes(const mesh::RoomMesh& m) {
+  return m.vertex_count() * (3 + 3) * sizeof(float) + m.indices.size() * sizeof(uint32_t);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{
+      "codec_bench: bytes and encode/decode time per streamed patch room at several Draco "
+      "settings, against the raw float32 detail room and meshoptimizer, with a JSON report"};
+  std::string json_path = "codec_bench.json";
+  int reps = 5, room_count = 100;
+  uint64_t seed = 42;
+  app.add_option("--json", json_path, "Write the report here")->capture_default_str();
+  app.add_option("--repetitions", reps, "Runs per room and setting (the median is kept)")
+      ->check(CLI::Range(1, 100))
+      ->capture_default_str();
+  app.add_option("--rooms", room_count, "Rooms measured")
+      ->check(CLI::Range(1, 1000))
+      ->capture_default_str();
+  app.add_option("--seed", seed, "World seed")->capture_default_str();
+  CLI11_PARSE(app, argc, argv);
+
+  cave::World world = cave::World::create(seed, cave::LayoutParams{}).value();
+  mesh::MeshContext ctx = mesh::MeshContext::create(world, mesh::MeshParams{}).value();
+  cave::Region region = cave::generate_region(world, {0, 0, 0}, {0, 0, 0});
+  std::vector<mesh::RoomMesh> patch, detail;
+  for (const cave::Room& r : region.rooms) {
+    if (static_cast<int>(patch.size()) == room_count) break;
+    auto p = mesh::build_room_mesh(ctx, r, mesh::Lod::kPatch);
+    auto d = mesh::build_room_mesh(ctx, r, mesh::Lod::kDetail);
+    if (!p || !d) continue;
+    patch.push_back(std::move(p).value());
+    detail.push_back(std::move(d).value());
+  }
+  spdlog::info("codec_bench rooms={} reps={}", patch.size(), reps);
+
+  std::vector<double> raw_detail, raw_patch, patch_vertices;
+  for (size_t i = 0; i < patch.size(); ++i) {
+    raw_detail.push_back(static_cast<double>(raw_bytes(detail[i])));
+    raw_patch.push_back(static_cast<double>(raw_bytes(patch[i])));
+    patch_vertices.push_back(static_cast<double>(patch[i].vertex_count()));
+  }
+
+  std::vector<Row> rows;
+  auto measure_draco = [&](const std::string& name, codec::EncodeOptions opt) {
+    Row row{name, {}, {}, {}};
+    for (const mesh::RoomMesh& m : patch) {
+      std::vector<uint8_t> bytes;
+      row.encode_ms.push_back(median_ms(reps, [&] { bytes = codec::encode_room(m, opt).value(); }));
+      row.bytes.push_back(static_cast<double>(bytes.size()));
+      row.decode_ms.push_back(median_ms(reps, [&] {
+        auto d = codec::decode_room(bytes);
+        if (!d) std::abort();
+      }));
+    }
+    rows.push_back(std::move(row));
+  };
+  auto label = [](const codec::EncodeOptions& o) {
+    return "draco speed " + std::to_string(o.speed) + ", normals " + std::to_string(o.normal_bits) +
+           ", channels " + std::to_string(o.channel_bits);
+  };
+  // Speed (edgebreaker traversal and prediction schemes) at 10-bit normals and 8-bit channels.
+  for (int speed : {0, 3, 5, 7, 9}) {
+    codec::EncodeOptions opt{speed, 10, 8};
+    measure_draco(label(opt), opt);
+  }
+  // Quantization of normals and channels at speed 3.
+  for (auto [normal_bits, channel_bits] :
+       {std::pair{12, 8}, {8, 8}, {8, 7}, {10, 6}, {8, 6}, {7, 6}}) {
+    codec::EncodeOptions opt{3, normal_bits, channel_bits};
+    measure_draco(label(opt), opt);
+  }
+  codec::EncodeOptions defaults;
+  measure_draco(label(defaults) + " (default)", defaults);
+
+  // Draco's decoder alone (no validation, no copy into DecodedRoom), default settings.
+  {
+    Row row{"draco::Decoder alone, default settings", {}, {}, {}};
+    for (const mesh::RoomMesh& m : patch) {
+      std::vector<uint8_t> bytes = codec::encode_room(m).value();
+      row.bytes.push_back(static_cast<double>(bytes.size()));
+      row.decode_ms.push_back(median_ms(reps, [&] {
+        draco::DecoderBuffer buffer;
+        buffer.Init(reinterpret_cast<const char*>(bytes.data()), bytes.size());
+        draco::Decoder decoder;
+        if (!decoder.DecodeMeshFromBuffer(&buffer).ok()) std::abort();
+      }));
+    }
+    rows.push_back(std::move(row));
+  }
+
+  // The peer: meshoptimizer's vertex and index codecs after its vertex cache and fetch passes.
+  {
+    Row row{"meshoptimizer vertex+index codec (16-bit grid positions, 8-bit normals)", {}, {}, {}};
+    for (const mesh::RoomMesh& m : patch) {
+      PeerEncoded enc;
+      row.encode_ms.push_back(median_ms(reps, [&] { enc = peer_encode(m); }));
+      row.bytes.push_back(static_cast<double>(enc.vertices.size() + enc.indices.size()));
+      std::vector<PeerVertex> verts(enc.vertex_count);
+      std::vector<unsigned int> indices(enc.index_count);
+      row.decode_ms.push_back(median_ms(reps, [&] {
+        if (meshopt_decodeVertexBuffer(verts.data(), enc.vertex_count, sizeof(PeerVertex),
+                                       enc.vertices.data(), enc.vertices.size()) != 0 ||
+            meshopt_decodeIndexBuffer(indices.data(), enc.index_count, sizeof(unsigned int),
+                                      enc.indices.data(), enc.indices.size()) != 0) {
+          std::abort();
+        }
+      }));
+    }
+    rows.push_back(std::move(row));
+  }
+
+  nlohmann::json report;
+  report["rooms"] = patch.size();
+  report["repetitions"] = reps;
+  report["seed"] = seed;
+  report["patch_vertices_per_room_median"] = median(patch_vertices);
+  report["raw_detail_bytes_per_room_median"] = median(raw_detail);
+  report["raw_detail_bytes_per_room_mean"] = mean(raw_detail);
+  report["raw_patch_bytes_per_room_median"] = median(raw_patch);
+  nlohmann::json settings = nlohmann::json::array();
+  std::printf(
+      "rooms %zu, patch vertices/room (median) %.0f, raw float32 detail room %.0f B, "
+      "raw float32 patch room %.0f B\n\n",
+      patch.size(), median(patch_vertices), median(raw_detail), median(raw_patch));
+  std::printf(
+      "| setting | bytes/room (median) | bytes/room (mean) | raw detail / bytes | encode "
+      "ms/room | decode ms/room |\n| --- | ---: | ---: | ---: | ---: | ---: |\n");
+  for (const Row& r : rows) {
+    std::vector<double> ratio;
+    for (size_t i = 0; i < r.bytes.size(); ++i)
+      ratio.push_back(raw_detail[i] / r.bytes[i]);
+    settings.push_back(
+        {{"name", r.name},
+         {"bytes_median", median(r.bytes)},
+         {"bytes_mean", mean(r.bytes)},
+         {"raw_detail_ratio_median", median(ratio)},
+         {"raw_detail_ratio_of_means", mean(raw_detail) / mean(r.bytes)},
+         {"encode_ms_median", median(r.encode_ms)},
+         {"decode_ms_median", median(r.decode_ms)},
+         {"decode_ms_max",
+          r.decode_ms.empty() ? 0 : *std::max_element(r.decode_ms.begin(), r.decode_ms.end())}});
+    char encode[32] = "–";
+    if (!r.encode_ms.empty()) std::snprintf(encode, sizeof encode, "%.3f", median(r.encode_ms));
+    std::printf("| %s | %.0f | %.0f | %.1f | %s | %.3f |\n", r.name.c_str(), median(r.bytes),
+                mean(r.bytes), median(ratio), encode, median(r.decode_ms));
+  }
+  report["settings"] = settings;
+  std::ofstream(json_path) << report.dump(2) << "\n";
+  return 0;
+}
