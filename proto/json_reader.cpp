@@ -126,11 +126,13 @@ Result<uint64_t> to_uint(const json& value, std::string_view field, uint64_t max
   if (!value.is_number_integer()) {
     return field_error(field, std::string("must be an integer (got ") + type_name(value) + ")");
   }
-  if (!value.is_number_unsigned()) {
+  // nlohmann stores "-0" as a signed integer; only a negative value is out of range.
+  if (!value.is_number_unsigned() && value.get<int64_t>() < 0) {
     return field_error(field, "must be in [0, " + std::to_string(max) + "] (got " +
                                   std::to_string(value.get<int64_t>()) + ")");
   }
-  uint64_t v = value.get<uint64_t>();
+  uint64_t v = value.is_number_unsigned() ? value.get<uint64_t>()
+                                          : static_cast<uint64_t>(value.get<int64_t>());
   if (v > max) {
     return field_error(
         field, "must be in [0, " + std::to_string(max) + "] (got " + std::to_string(v) + ")");

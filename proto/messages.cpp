@@ -108,7 +108,8 @@ Status printable(const std::string& s, std::string_view field) {
 std::string cut_message(std::string message) {
   if (message.size() <= kMaxErrorBytes) return message;
   std::size_t cut = kMaxErrorBytes - 3;
-  while (cut > 0 && (static_cast<unsigned char>(message[cut]) & 0xc0) == 0x80) --cut;
+  while (cut > 0 && (static_cast<unsigned char>(message[cut]) & 0xc0) == 0x80)
+    --cut;
   return message.substr(0, cut) + "...";
 }
 

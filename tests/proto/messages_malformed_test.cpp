@@ -311,3 +311,16 @@ TEST(ProtoMalformed, server_messages_are_checked_as_strictly) {
 
 }  // namespace
 }  // namespace grotto::proto
+
+namespace grotto::proto {
+namespace {
+
+TEST(ProtoMalformed, minus_zero_is_zero_but_other_negatives_are_refused) {
+  Result<ClientMessage> r = parse_client_message(R"({"type":"spawn","ref":-0})", Limits{});
+  ASSERT_TRUE(r.ok()) << r.error().message;
+  EXPECT_EQ(std::get<Spawn>(*r).ref, Ref(0));
+  EXPECT_FALSE(parse_client_message(R"({"type":"spawn","ref":-1})", Limits{}).ok());
+}
+
+}  // namespace
+}  // namespace grotto::proto

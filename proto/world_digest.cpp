@@ -1,0 +1,71 @@
+#include "proto/world_digest.hpp"
+
+#include <bit>
+#include <string_view>
+#include <vector>
+
+#include "core/random.hpp"
+
+namespace grotto::proto {
+namespace {
+
+class Canonical {
+ public:
+  void u64(uint64_t v) {
+    for (int i = 0; i < 8; ++i)
+      bytes_.push_back(static_cast<uint8_t>(v >> (8 * i)));
+  }
+  void i64(int64_t v) { u64(static_cast<uint64_t>(v)); }
+  void f64(double v) { u64(std::bit_cast<uint64_t>(v)); }
+  void vec(Vec3 v) {
+    f64(v.x);
+    f64(v.y);
+    f64(v.z);
+  }
+  void text(std::string_view s) {
+    u64(s.size());
+    bytes_.insert(bytes_.end(), s.begin(), s.end());
+  }
+  const std::vector<uint8_t>& bytes() const { return bytes_; }
+
+ private:
+  std::vector<uint8_t> bytes_;
+};
+
+}  // namespace
+
+uint64_t layout_params_digest(const cave::LayoutParams& p) {
+  Canonical c;
+  c.text("grotto.layout.v1");  // a new field or order is a new tag
+  c.f64(p.sector_size);
+  c.i64(p.gates_min);
+  c.i64(p.gates_max);
+  c.f64(p.gate_radius_min);
+  c.f64(p.gate_radius_max);
+  c.f64(p.link_radius_min);
+  c.f64(p.link_radius_max);
+  c.f64(p.min_portal_radius);
+  c.f64(p.wall_clearance);
+  c.f64(p.portal_gap);
+  c.f64(p.region_scale);
+  c.i64(p.region_sharpness);
+  for (const cave::Character& k : p.characters) {
+    c.text(k.name);
+    c.i64(k.room_count);
+    c.f64(k.big_probability);
+    c.f64(k.small_radius_min);
+    c.f64(k.small_radius_max);
+    c.f64(k.big_radius_min);
+    c.f64(k.big_radius_max);
+    c.vec(k.bias);
+    c.f64(k.tunnel_chance);
+    c.i64(k.loops);
+  }
+  return fold_digest(0xcbf29ce484222325ull, c.bytes());
+}
+
+uint64_t fold_digest(uint64_t digest, std::span<const uint8_t> bytes) {
+  return fnv1a64(bytes.data(), bytes.size(), digest);
+}
+
+}  // namespace grotto::proto

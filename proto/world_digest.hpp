@@ -1,0 +1,21 @@
+// The world parameter digest that hello and welcome carry (proto/PROTOCOL.md, "welcome.params"):
+// 64-bit FNV-1a over canonical little-endian bytes, so every build on every platform computes the
+// same digest for the same parameters. Two worlds with the same seed and digest have the same
+// rooms; clients compare digests for equality and may key caches on (seed, digest).
+#pragma once
+
+#include <cstdint>
+#include <span>
+
+#include "cave/params.hpp"
+
+namespace grotto::proto {
+
+// Every field of the layout parameters, in declaration order, character names included.
+uint64_t layout_params_digest(const cave::LayoutParams& params);
+
+// Folds more bytes into a digest: a server adds the mesh and codec settings that also shape the
+// rooms it sends, each serialized canonically (fixed order, little-endian, doubles as IEEE bits).
+uint64_t fold_digest(uint64_t digest, std::span<const uint8_t> bytes);
+
+}  // namespace grotto::proto

@@ -1,0 +1,43 @@
+// The parameter digest is canonical (pinned, so a change of encoding is a deliberate change of
+// every deployed world's digest) and sees every field.
+#include <gtest/gtest.h>
+
+#include <vector>
+
+#include "proto/world_digest.hpp"
+
+namespace grotto::proto {
+namespace {
+
+TEST(WorldDigest, default_parameters_have_a_pinned_digest) {
+  // Changing this value changes every world's digest: clients drop their caches. Do it only
+  // with a change to the layout parameters or their canonical form.
+  EXPECT_EQ(layout_params_digest(cave::LayoutParams{}), 0x4abd4d82000eec34ull);
+}
+
+TEST(WorldDigest, every_field_changes_the_digest) {
+  const cave::LayoutParams base;
+  std::vector<cave::LayoutParams> variants(8, base);
+  variants[0].sector_size += 1;
+  variants[1].gates_max += 1;
+  variants[2].min_portal_radius = std::nextafter(base.min_portal_radius, 2.0);
+  variants[3].region_sharpness += 1;
+  variants[4].characters[0].name = "mazes";
+  variants[5].characters[2].bias.y += 0.125;
+  variants[6].characters[1].loops += 1;
+  variants[7].characters[1].tunnel_chance = 0.25;
+  const uint64_t d = layout_params_digest(base);
+  for (std::size_t i = 0; i < variants.size(); ++i) {
+    EXPECT_NE(layout_params_digest(variants[i]), d) << "variant " << i;
+  }
+}
+
+TEST(WorldDigest, folding_more_settings_changes_it) {
+  const uint64_t d = layout_params_digest(cave::LayoutParams{});
+  const uint8_t mesh_settings[] = {1, 2, 3};
+  EXPECT_NE(fold_digest(d, mesh_settings), d);
+  EXPECT_EQ(fold_digest(d, mesh_settings), fold_digest(d, mesh_settings));
+}
+
+}  // namespace
+}  // namespace grotto::proto
