@@ -1,7 +1,7 @@
 // libFuzzer target for the room decoder (common/codec), in meshoptimizer's manner: any bytes
 // must decode to a valid room or to an error, never crash, hang or allocate without bound; and a
 // room that decodes must encode again and decode again (the decoder accepts nothing that the
-// encoder would refuse). Seeds: tests/fuzz/corpus/room_decoder (real patch rooms).
+// encoder would refuse). Seeds: tests/fuzz/seeds/room_decoder_fuzz (real patch rooms).
 #include <cstdint>
 #include <cstdio>
 #include <cstdlib>
