@@ -546,6 +546,16 @@ bool is_fatal(ErrorCode code) {
   }
 }
 
+ErrorMessage error_reply(const Error& error, Ref ref, std::optional<cave::RoomId> room) {
+  ErrorMessage m;
+  m.ref = ref;
+  m.code = error.code;
+  m.message = cut_message(error.message);
+  m.room = room;
+  m.fatal = is_fatal(error.code);
+  return m;
+}
+
 std::string echo(std::string_view untrusted) {
   std::string out;
   std::size_t n = std::min(untrusted.size(), kMaxEchoBytes);

@@ -194,6 +194,12 @@ std::optional<ErrorCode> parse_wire_code(std::string_view name);
 // Whether the connection survives an error of this code sent by a server (PROTOCOL.md's table).
 bool is_fatal(ErrorCode code);
 
+// The error a server sends for a refused message or room: the code, the message (cut to
+// kMaxErrorBytes when serialized) and is_fatal(code); set `fatal` afterwards where PROTOCOL.md
+// says otherwise (an error in answer to hello, a whole message over max_message_bytes).
+ErrorMessage error_reply(const Error& error, Ref ref = std::nullopt,
+                         std::optional<cave::RoomId> room = std::nullopt);
+
 // At most kMaxEchoBytes of untrusted text, control and non-ASCII bytes shown as '?', with "..."
 // when cut: safe to put in an error message or a log line.
 std::string echo(std::string_view untrusted);

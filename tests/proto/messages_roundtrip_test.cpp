@@ -163,3 +163,22 @@ TEST(ProtoEcho, cuts_and_masks_untrusted_text) {
 
 }  // namespace
 }  // namespace grotto::proto
+
+namespace grotto::proto {
+namespace {
+
+TEST(ProtoErrorReply, carries_code_ref_room_and_the_default_fatality) {
+  cave::RoomId room = *cave::RoomId::parse("0.0.0.r9");
+  ErrorMessage e = error_reply(Error{ErrorCode::kNotFound, "no such room"}, 5, room);
+  EXPECT_EQ(e.code, ErrorCode::kNotFound);
+  EXPECT_EQ(e.ref, Ref(5));
+  EXPECT_EQ(e.room, room);
+  EXPECT_FALSE(e.fatal);
+  EXPECT_TRUE(error_reply(Error{ErrorCode::kTimeout, "idle"}).fatal);
+  ErrorMessage general = error_reply(invalid_argument(std::string(3000, 'x')));
+  EXPECT_EQ(general.message.size(), kMaxErrorBytes);
+  EXPECT_NE(serialize(ServerMessage(general)).find(R"("code":"bad_message")"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace grotto::proto

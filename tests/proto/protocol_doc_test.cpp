@@ -42,8 +42,8 @@ TEST(ProtocolDoc, sample_session_matches_the_implementation) {
       // A refused message: the next line is the server's error, word for word.
       ASSERT_LT(i + 1, lines.size());
       ASSERT_TRUE(lines[i + 1].starts_with(to_client));
-      ErrorMessage e{ref, m.error().code, m.error().message, std::nullopt, {}, false};
-      EXPECT_EQ(serialize(ServerMessage(e)), lines[i + 1].substr(to_client.size()));
+      EXPECT_EQ(serialize(ServerMessage(error_reply(m.error(), ref))),
+                lines[i + 1].substr(to_client.size()));
     } else {
       std::string text = lines[i].substr(to_client.size());
       Result<ServerMessage> m = parse_server_message(text, Limits{});
