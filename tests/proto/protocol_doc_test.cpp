@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <fstream>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -11,18 +12,43 @@
 namespace grotto::proto {
 namespace {
 
-std::vector<std::string> session_lines() {
+// The lines of one "## " section of PROTOCOL.md that start with one of `prefixes`.
+std::vector<std::string> section_lines(std::string_view section,
+                                       std::initializer_list<std::string_view> prefixes) {
   std::ifstream in(GROTTO_PROTOCOL_MD);
   EXPECT_TRUE(in.good()) << GROTTO_PROTOCOL_MD;
   std::vector<std::string> lines;
-  bool in_session = false;
+  bool inside = false;
   for (std::string line; std::getline(in, line);) {
-    if (line.starts_with("## ")) in_session = line == "## Sample session";
-    if (in_session && (line.starts_with("→ {") || line.starts_with("← {"))) {
-      lines.push_back(line);
+    if (line.starts_with("## ")) inside = line.substr(3) == section;
+    for (std::string_view p : prefixes) {
+      if (inside && line.starts_with(p)) lines.push_back(line);
     }
   }
   return lines;
+}
+
+std::vector<std::string> session_lines() {
+  return section_lines("Sample session", {"→ {", "← {"});
+}
+
+TEST(ProtocolDoc, error_code_table_lists_every_wire_code_with_its_fatality) {
+  std::vector<std::string> rows = section_lines("Error codes", {"| `"});
+  std::set<std::string> documented;
+  for (const std::string& row : rows) {
+    std::size_t end = row.find('`', 3);
+    ASSERT_NE(end, std::string::npos) << row;
+    std::string name = row.substr(3, end - 3);
+    documented.insert(name);
+    std::optional<ErrorCode> code = parse_wire_code(name);
+    ASSERT_TRUE(code.has_value()) << "PROTOCOL.md documents an unknown code " << name;
+    std::string fatal = row.substr(row.find("| ", end) + 2, 3);
+    EXPECT_EQ(fatal == "yes", is_fatal(*code)) << name << ": table says " << fatal;
+  }
+  for (int c = 0; c <= static_cast<int>(ErrorCode::kTimeout); ++c) {
+    std::string name = wire_code_name(static_cast<ErrorCode>(c));
+    EXPECT_TRUE(documented.count(name)) << name << " is not in PROTOCOL.md's error table";
+  }
 }
 
 TEST(ProtocolDoc, sample_session_matches_the_implementation) {
