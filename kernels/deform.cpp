@@ -1,7 +1,6 @@
 #include "kernels/deform.hpp"
 
 #include <algorithm>
-#include <array>
 
 #include "embedded_cl/deform.hpp"
 #include "embedded_cl/deform_core.hpp"
@@ -33,10 +32,6 @@ Result<DeformKernel> DeformKernel::create(ComputeContext& ctx, const mesh::MeshC
   if (!program) return program.error();
   auto kernel = program->kernel("grotto_deform_rooms");
   if (!kernel) return kernel.error();
-  std::array<uint32_t, 512> perm32;
-  std::copy_n(mesh_ctx.perm(), perm32.size(), perm32.begin());
-  auto perm = make_buffer(ctx, CL_MEM_READ_ONLY, perm32.data(), perm32.size());
-  if (!perm) return perm.error();
   GrottoShape shapes[mesh::kLodCount] = {mesh_ctx.shape(mesh::Lod::kDetail),
                                          mesh_ctx.shape(mesh::Lod::kPatch)};
   auto shape_buffer = make_buffer(ctx, CL_MEM_READ_ONLY, shapes, mesh::kLodCount);
@@ -45,19 +40,19 @@ Result<DeformKernel> DeformKernel::create(ComputeContext& ctx, const mesh::MeshC
   GROTTO_CL_TRY(ctx.device().getInfo(CL_DEVICE_MAX_CONSTANT_BUFFER_SIZE, &max_constant));
   size_t max_group = 0;
   GROTTO_CL_TRY(kernel->getWorkGroupInfo(ctx.device(), CL_KERNEL_WORK_GROUP_SIZE, &max_group));
-  DeformKernel k(ctx, std::move(kernel).value(), std::move(perm).value(),
+  DeformKernel k(ctx, std::move(kernel).value(), mesh_ctx.noise_seed(),
                  std::move(shape_buffer).value(), static_cast<size_t>(max_constant),
                  program->origin(), lanes);
   k.local_size_ = std::clamp<size_t>(max_group, 1, kPreferredGroupSize);
   return k;
 }
 
-DeformKernel::DeformKernel(ComputeContext& ctx, cl::Kernel kernel, cl::Buffer perm,
+DeformKernel::DeformKernel(ComputeContext& ctx, cl::Kernel kernel, uint32_t noise_seed,
                            cl::Buffer shapes, size_t max_constant_bytes, BuildOrigin origin,
                            int lanes)
     : ctx_(&ctx),
       kernel_(std::move(kernel)),
-      perm_(std::move(perm)),
+      noise_seed_(noise_seed),
       shapes_(std::move(shapes)),
       max_constant_bytes_(max_constant_bytes),
       origin_(origin),
@@ -138,8 +133,9 @@ Status DeformKernel::launch(std::span<const mesh::DeformInput> rooms,
   for (auto* b : {&room_buf, &portal_buf, &index_buf, &dir_buf, &pos_buf, &clear_buf}) {
     if (!*b) return b->error();
   }
-  if (Status s = set_kernel_args(kernel_, perm_, shapes_, *room_buf, *portal_buf, *index_buf,
-                                 *dir_buf, *pos_buf, *clear_buf, static_cast<cl_uint>(groups));
+  if (Status s = set_kernel_args(kernel_, static_cast<cl_uint>(noise_seed_), shapes_, *room_buf,
+                                 *portal_buf, *index_buf, *dir_buf, *pos_buf, *clear_buf,
+                                 static_cast<cl_uint>(groups));
       !s) {
     return s;
   }

@@ -44,7 +44,7 @@ class DeformKernel {
   int lanes() const { return lanes_; }
 
  private:
-  DeformKernel(ComputeContext& ctx, cl::Kernel kernel, cl::Buffer perm, cl::Buffer shapes,
+  DeformKernel(ComputeContext& ctx, cl::Kernel kernel, uint32_t noise_seed, cl::Buffer shapes,
                size_t max_constant_bytes, BuildOrigin origin, int lanes);
   Status launch(std::span<const mesh::DeformInput> rooms, std::span<DeformOutput> outputs);
 
@@ -53,7 +53,8 @@ class DeformKernel {
   ComputeContext* ctx_;
   cl::Kernel kernel_;
   size_t local_size_ = 1;
-  cl::Buffer perm_, shapes_;
+  uint32_t noise_seed_;
+  cl::Buffer shapes_;
   size_t max_constant_bytes_;
   BuildOrigin origin_;
   int lanes_;

@@ -11,8 +11,6 @@
 #endif
 #define GROTTO_FN inline __attribute__((always_inline))
 #define GROTTO_CONSTANT __constant
-/* Perlin's permutation as 32-bit entries: one gather instruction fetches eight of them. */
-typedef uint grotto_perm_t; /* also when GROTTO_LANES is 1 */
 #define grotto_sqrt sqrt
 #define grotto_floor floor
 
@@ -20,7 +18,6 @@ typedef uint grotto_perm_t; /* also when GROTTO_LANES is 1 */
 typedef float gfloat;
 typedef uint guint;
 typedef int gmask;
-#define GROTTO_GATHER(t, i) ((uint)(t)[i])
 #define GROTTO_WRAP256(f) ((uint)((int)(f)&255))
 #define GROTTO_LOAD(p) (*(p))
 #define GROTTO_STORE(v, p) (*(p) = (v))
@@ -28,9 +25,6 @@ typedef int gmask;
 typedef float8 gfloat;
 typedef uint8 guint;
 typedef int8 gmask;
-#define GROTTO_GATHER(t, i)                                                            \
-  ((uint8)((uint)(t)[(i).s0], (uint)(t)[(i).s1], (uint)(t)[(i).s2], (uint)(t)[(i).s3], \
-           (uint)(t)[(i).s4], (uint)(t)[(i).s5], (uint)(t)[(i).s6], (uint)(t)[(i).s7]))
 #define GROTTO_WRAP256(f) as_uint8(convert_int8(f) & 255)
 #define GROTTO_LOAD(p) vload8(0, (p))
 #define GROTTO_STORE(v, p) vstore8((v), 0, (p))

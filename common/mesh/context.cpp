@@ -1,7 +1,6 @@
 #include "mesh/context.hpp"
 
 #include <cmath>
-#include <numeric>
 
 #include "core/random.hpp"
 
@@ -24,14 +23,7 @@ Result<MeshContext> MeshContext::create(const cave::World& world, const MeshPara
 
 MeshContext::MeshContext(const cave::World& world, const MeshParams& params)
     : world_(world), params_(params) {
-  // Perlin's permutation, shuffled from the world seed (Fisher-Yates with our own Rng).
-  std::array<unsigned char, 256> p;
-  std::iota(p.begin(), p.end(), 0);
-  Rng rng(hash_words(world.seed(), kNoiseStream));
-  for (uint32_t i = 255; i > 0; --i)
-    std::swap(p[i], p[rng.below(i + 1)]);
-  for (int i = 0; i < 512; ++i)
-    perm_[i] = p[i & 255];
+  noise_seed_ = static_cast<uint32_t>(hash_words(world.seed(), kNoiseStream) >> 32);
   for (int l = 0; l < kLodCount; ++l)
     shapes_[l] = shape_for(params, static_cast<Lod>(l));
 }

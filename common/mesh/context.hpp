@@ -1,4 +1,4 @@
-// What every room mesh of a world shares: the validated parameters, the noise permutation drawn
+// What every room mesh of a world shares: the validated parameters, the noise seed drawn
 // from the world seed, and the device-facing shape of each level of detail.
 #pragma once
 
@@ -21,7 +21,7 @@ class MeshContext {
 
   const cave::World& world() const { return world_; }
   const MeshParams& params() const { return params_; }
-  const unsigned char* perm() const { return perm_.data(); }  // 512 entries
+  uint32_t noise_seed() const { return noise_seed_; }  // the noise lattice hash's seed
   const core::GrottoShape& shape(Lod lod) const { return shapes_[static_cast<int>(lod)]; }
   double edge_length(Lod lod) const { return params_.lods[static_cast<int>(lod)].edge_length; }
 
@@ -32,7 +32,7 @@ class MeshContext {
   MeshContext(const cave::World& world, const MeshParams& params);
   cave::World world_;
   MeshParams params_;
-  std::array<unsigned char, 512> perm_{};
+  uint32_t noise_seed_ = 0;
   std::array<core::GrottoShape, kLodCount> shapes_{};
 };
 

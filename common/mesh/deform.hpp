@@ -25,15 +25,12 @@ typedef float gfloat;
 typedef uint guint;
 typedef bool gmask;
 typedef float3 gfloat3;
-typedef unsigned char grotto_perm_t;
 
 #define GROTTO_FN inline
 #define GROTTO_CONSTANT
-#define GROTTO_GATHER(t, i) static_cast<guint>((t)[i])
 #define GROTTO_WRAP256(f) static_cast<guint>(static_cast<int>(f) & 255)
 #include "mesh/deform_core.h"
 #undef GROTTO_WRAP256
-#undef GROTTO_GATHER
 #undef GROTTO_CONSTANT
 #undef GROTTO_FN
 

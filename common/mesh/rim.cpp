@@ -47,7 +47,7 @@ RimLoop canonical_rim(const MeshContext& ctx, const cave::Room& room, const cave
     // Thesis §3.1.6: noise on the radius makes the rim irregular; sampled where the kernel samples
     // it (on the plain rim), from the canonical world position.
     core::float3 at = ctx.noise_position(portal.centre + u * portal.radius);
-    float noise = core::grotto_noise3(ctx.perm(), at, shape.rim_frequency);
+    float noise = core::grotto_noise3(ctx.noise_seed(), at, shape.rim_frequency);
     double radius = portal.radius * (1.0 + shape.rim_amplitude * static_cast<double>(noise));
     loop.positions.push_back(grid::snap(portal.centre + u * radius));
     loop.normals.push_back(

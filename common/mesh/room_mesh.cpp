@@ -167,8 +167,9 @@ void deform_cpu(const MeshContext& ctx, const DeformInput& input, std::span<floa
                 std::span<float> clearance) {
   const auto& dirs = input.donor->directions;
   for (size_t i = 0; i < dirs.size(); ++i) {
-    positions[i] = core::grotto_deform_vertex(ctx.perm(), &ctx.shape(input.lod), &input.record,
-                                              input.portals.data(), dirs[i], &clearance[i]);
+    positions[i] =
+        core::grotto_deform_vertex(ctx.noise_seed(), &ctx.shape(input.lod), &input.record,
+                                   input.portals.data(), dirs[i], &clearance[i]);
   }
 }
 
@@ -368,10 +369,11 @@ Result<RoomMesh> assemble_room(const MeshContext& ctx, const DeformInput& input,
   mesh.mineral.resize(mesh.positions.size());
   for (size_t v = 0; v < mesh.positions.size(); ++v) {
     float3 w = ctx.noise_position(mesh.world_position(v));
-    float r = core::grotto_noise3(ctx.perm(), w, static_cast<float>(p.roughness_frequency));
-    float r2 = core::grotto_noise3(ctx.perm(), w, static_cast<float>(2.7 * p.roughness_frequency));
+    float r = core::grotto_noise3(ctx.noise_seed(), w, static_cast<float>(p.roughness_frequency));
+    float r2 =
+        core::grotto_noise3(ctx.noise_seed(), w, static_cast<float>(2.7 * p.roughness_frequency));
     mesh.roughness[v] = core::grotto_clamp01(0.5f + 0.7f * r + 0.3f * r2);
-    float m = core::grotto_noise3(ctx.perm(), w, static_cast<float>(p.mineral_frequency));
+    float m = core::grotto_noise3(ctx.noise_seed(), w, static_cast<float>(p.mineral_frequency));
     mesh.mineral[v] = core::grotto_smooth((m - 0.2f) * 4.0f);
   }
   lap(stats.channels_seconds);
