@@ -38,8 +38,8 @@ inline constexpr std::size_t kMaxEchoBytes = 32;  // how much of bad input an er
 // Integers travel as JSON numbers only up to 2^53 - 1 (exact in a JavaScript double); larger
 // 64-bit values (seeds, digests) travel as strings.
 inline constexpr uint64_t kMaxJsonInteger = (uint64_t{1} << 53) - 1;
-// No coordinate a client may send or a server may report exceeds this (metres): the sector range
-// (±65,535 sectors of at most 256 m) with room to spare.
+// No coordinate a client may send or a server may report exceeds this (metres): the far face of
+// the last sector, (65,535 + 1) sectors of at most 256 m.
 inline constexpr double kMaxCoordinate = 16777216.0;  // 2^24
 
 // The limits a server enforces, announced in welcome. Also what the parse functions check on
