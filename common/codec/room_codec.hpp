@@ -46,10 +46,10 @@ inline constexpr double kMaxOffset = 1024.0;
 inline constexpr float kNormalTolerance = 1e-3f;
 
 // Draco settings. Brace-init means the defaults chosen by measurement (docs/BENCHMARKS.md, "Room
-// codec"): speed 3 (valence edgebreaker, constrained multi-parallelogram positions, geometric
-// normal prediction: 25% smaller than speed 7 for twice the decode time, still ~0.5 ms a room),
-// 8-bit octahedral normals (< 1 degree) and 7-bit channels, the least that keeps a patch room
-// under 1/50 of the raw float32 detail room.
+// codec"): speed 3 (valence edgebreaker, parallelogram positions, geometric normal prediction:
+// 21% smaller than speed 7 for ~2x the decode time, ~0.5 ms a room), 8-bit octahedral normals
+// (< 1 degree) and 7-bit channels, the finest quantization that keeps a patch room under 1/50 of
+// the raw float32 detail room.
 struct EncodeOptions {
   int speed = 3;         // Draco encoding and decoding speed, 0 (smallest) to 9; 10 (sequential
                          // connectivity) is refused: the decoder accepts only edgebreaker
