@@ -219,7 +219,7 @@ Result<Vec3> Fields::point(std::string_view key) const {
     Result<double> r = to_number((*v)[i], name);
     if (!r) return r.error();
     if (std::fabs(*r) > kMaxCoordinate) {
-      return field_error(name, "must be within ±16777216 metres");
+      return field_error(name, "must be within [-16777216, 16777216] metres");
     }
     c[i] = *r;
   }

@@ -70,7 +70,15 @@ Result<cave::RoomId> room_id(const json& value, const std::string& field) {
         field, std::string("must be a room id string (got ") + detail::type_name(value) + ")");
   }
   Result<cave::RoomId> id = cave::RoomId::parse(value.get_ref<const std::string&>());
-  if (!id) return Error{ErrorCode::kInvalidRoomId, field + ": " + id.error().message};
+  if (!id) {
+    // RoomId::parse quotes up to 64 bytes of the id: keep them printable ASCII for logs.
+    std::string message = id.error().message;
+    for (char& c : message) {
+      unsigned char u = static_cast<unsigned char>(c);
+      if (u < 0x20 || u >= 0x7f) c = '?';
+    }
+    return Error{ErrorCode::kInvalidRoomId, field + ": " + message};
+  }
   return id;
 }
 

@@ -64,7 +64,7 @@ bool within(Vec3 v, double limit) {
 
 Status check_position(Vec3 v, const std::string& field) {
   if (!finite(v)) return bad_frame(field + " is not finite");
-  if (!within(v, kMaxCoordinate)) return bad_frame(field + " is outside ±16777216 m");
+  if (!within(v, kMaxCoordinate)) return bad_frame(field + " is outside [-16777216, 16777216] m");
   return {};
 }
 

@@ -164,6 +164,8 @@ std::vector<Case> client_corpus() {
        "field 'rooms' must not be empty"},
       {"cancel a bad id", R"({"type":"cancel","rooms":["0.0.0.r0","nope"]})",
        ErrorCode::kInvalidRoomId, "rooms[1]: malformed room id 'nope'"},
+      {"id with control bytes", R"({"type":"cancel","rooms":["0.0.0.r\u0007\u001b[2J"]})",
+       ErrorCode::kInvalidRoomId, "malformed room id '0.0.0.r??[2J'"},
       {"cancel an object", R"({"type":"cancel","rooms":[{"id":"0.0.0.r0"}]})",
        ErrorCode::kBadMessage, "field 'rooms[0]' must be a room id string (got object)"},
       {"ping without t", R"({"type":"ping"})", ErrorCode::kBadMessage, "field 't' is missing"},
@@ -180,8 +182,11 @@ TEST(ProtoMalformed, every_corpus_case_yields_its_documented_code_and_names_the_
     EXPECT_NE(r.error().message.find(c.names), std::string::npos)
         << c.what << ": message was \"" << r.error().message << "\", expected it to contain \""
         << c.names << "\"";
-    // Error messages stay short whatever came in (they are sent back and logged).
+    // Error messages stay short and printable whatever came in (they are sent back and logged).
     EXPECT_LE(r.error().message.size(), 200u) << c.what;
+    for (char ch : r.error().message) {
+      EXPECT_TRUE(ch >= 0x20 && ch < 0x7f) << c.what << ": byte " << int(ch) << " in message";
+    }
   }
 }
 
@@ -314,6 +319,12 @@ TEST(ProtoMalformed, server_messages_are_checked_as_strictly) {
 
 namespace grotto::proto {
 namespace {
+
+TEST(ProtoMalformed, a_repeated_key_counts_once_with_its_last_value) {
+  Result<ClientMessage> r = parse_client_message(R"({"type":"nope","type":"spawn"})", Limits{});
+  ASSERT_TRUE(r.ok()) << r.error().message;
+  EXPECT_TRUE(std::holds_alternative<Spawn>(*r));
+}
 
 TEST(ProtoMalformed, minus_zero_is_zero_but_other_negatives_are_refused) {
   Result<ClientMessage> r = parse_client_message(R"({"type":"spawn","ref":-0})", Limits{});
