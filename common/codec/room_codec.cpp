@@ -73,7 +73,10 @@ Status validate_view(const RoomView& r) {
     if (!in_unit_range(r.roughness[v]) || !in_unit_range(r.mineral[v])) {
       return fail("vertex " + str(v) + ": channel outside [0, 1]");
     }
-    if (r.rim_portal[v] < -1) return fail("vertex " + str(v) + ": rim slot below -1");
+    if (r.rim_portal[v] < -1 || r.rim_portal[v] >= kMaxPortals) {
+      return fail("vertex " + str(v) + ": rim slot " + std::to_string(r.rim_portal[v]) +
+                  " out of range");
+    }
     if (r.rim_portal[v] >= 0 && !on_grid(r.positions[v])) {
       return fail("vertex " + str(v) + ": rim vertex is not on the world grid");
     }

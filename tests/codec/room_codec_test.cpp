@@ -470,6 +470,9 @@ TEST_F(RoomCodecTest, encoder_refuses_rooms_that_break_the_contract) {
     }
   }
   expect_refused(bad, "rim vertex is not on the world grid");
+  bad = m;
+  bad.rim_portal[0] = kMaxPortals;  // would not decode: slots stay below kMaxPortals
+  expect_refused(bad, "rim slot 127 out of range");
   EncodeOptions sequential;
   sequential.speed = 10;
   EXPECT_FALSE(encode_room(m, sequential).ok());
