@@ -32,9 +32,10 @@ inline constexpr uint32_t kNormalId = 1;
 inline constexpr uint32_t kChannelsId = 2;
 inline constexpr uint32_t kRimId = 3;
 
-// Limits a decoder enforces by default. A patch room has ~700 vertices and ~3 KB of payload, a
-// detail room ~3,300 vertices; the limits leave room for the largest caverns at detail density
-// and bound every allocation the decoder makes.
+// Limits a decoder enforces by default. A patch room has ~450 vertices and ~2.2 KB of payload
+// (median; the largest caverns ~5,000 vertices), a detail room five times the vertices; the
+// limits leave room for the largest caverns at detail density and bound every allocation the
+// decoder makes.
 inline constexpr size_t kMaxPayloadBytes = size_t{1} << 20;
 inline constexpr uint32_t kMaxVertices = uint32_t{1} << 17;
 inline constexpr uint32_t kMaxTriangles = uint32_t{1} << 18;
