@@ -9,6 +9,12 @@ namespace {
 bool positive(double v) {
   return std::isfinite(v) && v > 0;
 }
+// A positive multiple of kNoiseFrequencyStep (exact: such values are binary fractions).
+bool noise_frequency(double v) {
+  return positive(v) && v <= 64.0 && std::floor(v / kNoiseFrequencyStep) * kNoiseFrequencyStep == v;
+}
+constexpr const char* kFrequencyRule =
+    "a multiple of 1/64 in (0, 64] cycles per metre (noise wraps seamlessly only then)";
 bool non_negative(double v) {
   return std::isfinite(v) && v >= 0;
 }
@@ -34,20 +40,25 @@ Status validate(const MeshParams& p) {
     }
   }
   for (int k = 0; k < GROTTO_MAX_OCTAVES; ++k) {
-    if (!positive(p.octave_frequency[k])) {
-      return bad("octave_frequency[" + std::to_string(k) + "]", p.octave_frequency[k], "> 0");
+    if (!noise_frequency(p.octave_frequency[k])) {
+      return bad("octave_frequency[" + std::to_string(k) + "]", p.octave_frequency[k],
+                 kFrequencyRule);
     }
     if (!non_negative(p.octave_amplitude[k])) {
       return bad("octave_amplitude[" + std::to_string(k) + "]", p.octave_amplitude[k], ">= 0");
     }
   }
-  if (!positive(p.rim_frequency)) return bad("rim_frequency", p.rim_frequency, "> 0");
+  if (!noise_frequency(p.rim_frequency)) {
+    return bad("rim_frequency", p.rim_frequency, kFrequencyRule);
+  }
   if (!(p.rim_amplitude >= 0 && p.rim_amplitude <= 0.3)) {
     return bad("rim_amplitude", p.rim_amplitude, "in [0, 0.3]");
   }
   if (!positive(p.fade_distance)) return bad("fade_distance", p.fade_distance, "> 0");
   if (!positive(p.big_room_radius)) return bad("big_room_radius", p.big_room_radius, "> 0");
-  if (!positive(p.big_frequency)) return bad("big_frequency", p.big_frequency, "> 0");
+  if (!noise_frequency(p.big_frequency)) {
+    return bad("big_frequency", p.big_frequency, kFrequencyRule);
+  }
   if (!(p.big_amplitude >= 0 && p.big_amplitude <= 0.5)) {
     return bad("big_amplitude", p.big_amplitude, "in [0, 0.5]");
   }
@@ -56,10 +67,12 @@ Status validate(const MeshParams& p) {
   }
   if (!(p.roundness >= 0 && p.roundness <= 1)) return bad("roundness", p.roundness, "in [0, 1]");
   if (!(p.tension > 0 && p.tension <= 3)) return bad("tension", p.tension, "in (0, 3]");
-  if (!positive(p.roughness_frequency)) {
-    return bad("roughness_frequency", p.roughness_frequency, "> 0");
+  if (!noise_frequency(p.roughness_frequency)) {
+    return bad("roughness_frequency", p.roughness_frequency, kFrequencyRule);
   }
-  if (!positive(p.mineral_frequency)) return bad("mineral_frequency", p.mineral_frequency, "> 0");
+  if (!noise_frequency(p.mineral_frequency)) {
+    return bad("mineral_frequency", p.mineral_frequency, kFrequencyRule);
+  }
   return {};
 }
 

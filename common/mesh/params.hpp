@@ -15,6 +15,11 @@ enum class Lod : uint8_t { kDetail = 0, kPatch = 1 };
 inline constexpr int kLodCount = 2;
 const char* lod_name(Lod lod);
 
+// The noise lattice repeats every 256 cells; world positions are sampled modulo kNoisePeriod
+// (mesh/context.hpp: 16,384 m). A frequency f gives a seamless wrap when kNoisePeriod * f is a
+// multiple of 256, i.e. when f is a multiple of this step (cycles per metre).
+inline constexpr double kNoiseFrequencyStep = 1.0 / 64.0;
+
 struct LodParams {
   double edge_length;  // target edge of the donor sphere and of rim loops, metres
   int octaves;         // surface noise octaves used (of MeshParams::octave_*)
@@ -22,22 +27,25 @@ struct LodParams {
 
 struct MeshParams {
   std::array<LodParams, kLodCount> lods{{{0.25, 4}, {0.56, 3}}};
+  // Every frequency (cycles per metre) is a multiple of kNoiseFrequencyStep, so that noise repeats
+  // exactly over the noise period and the wrap of world positions leaves no seam (validate()).
   // Surface noise octaves (thesis §3.1.6): cycles per metre and metres of displacement.
-  std::array<double, GROTTO_MAX_OCTAVES> octave_frequency{0.15, 0.3, 0.6, 1.2, 2.4, 4.8};
+  std::array<double, GROTTO_MAX_OCTAVES> octave_frequency{10 / 64.0, 19 / 64.0,  38 / 64.0,
+                                                          77 / 64.0, 154 / 64.0, 307 / 64.0};
   std::array<double, GROTTO_MAX_OCTAVES> octave_amplitude{0.45, 0.22, 0.11, 0.06, 0.03, 0.015};
-  double rim_frequency = 0.35;  // irregular rims: noise on the portal radius ...
-  double rim_amplitude = 0.12;  // ... as a fraction of the radius
-  double fade_distance = 1.2;   // surface noise fades in over this distance from portal planes
+  double rim_frequency = 22 / 64.0;  // irregular rims: noise on the portal radius ...
+  double rim_amplitude = 0.12;       // ... as a fraction of the radius
+  double fade_distance = 1.2;        // surface noise fades in over this distance from portal planes
   // The low-frequency octave of large rooms, faded out near portals (thesis §3.1.6).
   double big_room_radius = 6.0;  // rooms at least this big get it
-  double big_frequency = 0.06;
+  double big_frequency = 4 / 64.0;
   double big_amplitude = 0.12;  // fraction of the room radius
   double big_fade_distance = 5.0;
   double roundness = 0.35;  // 0: the thesis's tubes; 1: rooms keep their sphere
   double tension = 1.0;     // Hermite tangent length, fraction of the span between rims
   // Roughness and mineral fields (per-vertex channels that steer GPU detail).
-  double roughness_frequency = 0.08;
-  double mineral_frequency = 0.11;
+  double roughness_frequency = 5 / 64.0;  // a second octave at 3x
+  double mineral_frequency = 7 / 64.0;
 };
 
 // Checks ranges; names the field in the message.

@@ -371,7 +371,7 @@ Result<RoomMesh> assemble_room(const MeshContext& ctx, const DeformInput& input,
     float3 w = ctx.noise_position(mesh.world_position(v));
     float r = core::grotto_noise3(ctx.noise_seed(), w, static_cast<float>(p.roughness_frequency));
     float r2 =
-        core::grotto_noise3(ctx.noise_seed(), w, static_cast<float>(2.7 * p.roughness_frequency));
+        core::grotto_noise3(ctx.noise_seed(), w, static_cast<float>(3 * p.roughness_frequency));
     mesh.roughness[v] = core::grotto_clamp01(0.5f + 0.7f * r + 0.3f * r2);
     float m = core::grotto_noise3(ctx.noise_seed(), w, static_cast<float>(p.mineral_frequency));
     mesh.mineral[v] = core::grotto_smooth((m - 0.2f) * 4.0f);
