@@ -5,6 +5,8 @@
 #include <cmath>
 #include <cstdint>
 
+#include "cave/layout.hpp"
+
 namespace grotto::mesh::core {
 
 typedef unsigned int uint;
@@ -34,6 +36,9 @@ typedef float3 gfloat3;
 #undef GROTTO_CONSTANT
 #undef GROTTO_FN
 
+// The core keeps per-portal values in arrays of GROTTO_MAX_PORTALS.
+static_assert(cave::kMaxPortalsPerRoom <= GROTTO_MAX_PORTALS,
+              "the deformation core must hold every portal a room can have");
 static_assert(sizeof(GrottoPortal) == 64 && sizeof(GrottoRoom) == 64 && sizeof(GrottoShape) == 128,
               "host and device struct layouts must match");
 
