@@ -1,0 +1,397 @@
+#include "server/config.hpp"
+
+#include <CLI/CLI.hpp>
+#include <charconv>
+#include <functional>
+#include <limits>
+#include <map>
+#include <sstream>
+#include <variant>
+#include <vector>
+
+#include "cave/layout.hpp"
+#include "proto/config_json.hpp"
+
+#ifndef GROTTO_VERSION
+#define GROTTO_VERSION "0.0.0"
+#endif
+
+namespace grotto::server {
+namespace {
+
+using Value = std::variant<int64_t, uint64_t, double, std::string, bool>;
+
+// One setting: its name (the long flag without "--", and the config file's key), its type and
+// range, and how it reads and writes the config. Flags and file keys go through the same parser,
+// so both give the same messages.
+struct Setting {
+  enum class Type { kInt, kUint64, kDouble, kString, kBool };
+  std::string name;
+  std::string help;
+  Type type = Type::kInt;
+  int64_t min = 0;
+  int64_t max = 0;
+  std::vector<std::string> choices;  // kString: allowed values (empty: any)
+  std::function<Value(const ServerConfig&)> get;
+  std::function<void(ServerConfig&, const Value&)> set;
+};
+
+std::string show(const Value& v) {
+  struct {
+    std::string operator()(int64_t x) { return std::to_string(x); }
+    std::string operator()(uint64_t x) { return std::to_string(x); }
+    std::string operator()(double x) {
+      std::ostringstream s;
+      s << x;
+      return s.str();
+    }
+    std::string operator()(const std::string& x) { return x; }
+    std::string operator()(bool x) { return x ? "true" : "false"; }
+  } visitor;
+  return std::visit(visitor, v);
+}
+
+template <typename Get>
+Setting int_setting(std::string name, std::string help, int64_t min, int64_t max, Get field) {
+  Setting s{std::move(name), std::move(help), Setting::Type::kInt, min, max, {}, {}, {}};
+  s.get = [field](const ServerConfig& c) {
+    return Value{static_cast<int64_t>(field(const_cast<ServerConfig&>(c)))};
+  };
+  s.set = [field](ServerConfig& c, const Value& v) {
+    using T = std::remove_reference_t<decltype(field(c))>;
+    field(c) = static_cast<T>(std::get<int64_t>(v));
+  };
+  return s;
+}
+
+template <typename Get>
+Setting ms_setting(std::string name, std::string help, int64_t min, int64_t max, Get field) {
+  Setting s{std::move(name), std::move(help), Setting::Type::kInt, min, max, {}, {}, {}};
+  s.get = [field](const ServerConfig& c) {
+    return Value{static_cast<int64_t>(field(const_cast<ServerConfig&>(c)).count())};
+  };
+  s.set = [field](ServerConfig& c, const Value& v) {
+    field(c) = std::chrono::milliseconds{std::get<int64_t>(v)};
+  };
+  return s;
+}
+
+template <typename Get>
+Setting double_setting(std::string name, std::string help, Get field) {
+  Setting s{std::move(name), std::move(help), Setting::Type::kDouble, 0, 0, {}, {}, {}};
+  s.get = [field](const ServerConfig& c) { return Value{field(const_cast<ServerConfig&>(c))}; };
+  s.set = [field](ServerConfig& c, const Value& v) { field(c) = std::get<double>(v); };
+  return s;
+}
+
+template <typename Get>
+Setting string_setting(std::string name, std::string help, std::vector<std::string> choices,
+                       Get field) {
+  Setting s{
+      std::move(name), std::move(help), Setting::Type::kString, 0, 0, std::move(choices), {}, {}};
+  s.get = [field](const ServerConfig& c) { return Value{field(const_cast<ServerConfig&>(c))}; };
+  s.set = [field](ServerConfig& c, const Value& v) { field(c) = std::get<std::string>(v); };
+  return s;
+}
+
+constexpr int64_t kMaxInt = std::numeric_limits<int32_t>::max();
+constexpr int64_t kMaxBytes = int64_t{1} << 40;
+
+const std::vector<Setting>& settings() {
+  static const std::vector<Setting> table = [] {
+    std::vector<Setting> t;
+    t.push_back(string_setting(
+        "bind", "Address to listen on (0.0.0.0 or :: for every interface)", {},
+        [](ServerConfig & c) -> auto& { return c.bind; }));
+    t.push_back(int_setting(
+        "port", "TCP port for HTTP and WebSocket (0: an ephemeral port)", 0, 65535,
+        [](ServerConfig & c) -> auto& { return c.port; }));
+    t.push_back(int_setting(
+        "io-threads", "Asio I/O threads (0: one per hardware thread)", 0, 1024,
+        [](ServerConfig & c) -> auto& { return c.io_threads; }));
+    Setting seed{"seed", "World seed (unsigned 64-bit)", Setting::Type::kUint64, 0, 0, {}, {}, {}};
+    seed.get = [](const ServerConfig& c) { return Value{c.seed}; };
+    seed.set = [](ServerConfig& c, const Value& v) { c.seed = std::get<uint64_t>(v); };
+    t.push_back(seed);
+    t.push_back(double_setting(
+        "sector-size", "Layout: sector edge in metres",
+        [](ServerConfig & c) -> auto& { return c.layout.sector_size; }));
+    t.push_back(double_setting(
+        "region-scale", "Layout: sectors over which region characters change",
+        [](ServerConfig & c) -> auto& { return c.layout.region_scale; }));
+    t.push_back(int_setting(
+        "region-sharpness", "Layout: how crisply one character dominates", 0, 64,
+        [](ServerConfig & c) -> auto& { return c.layout.region_sharpness; }));
+    t.push_back(double_setting(
+        "min-portal-radius", "Layout: smallest portal radius in metres",
+        [](ServerConfig & c) -> auto& { return c.layout.min_portal_radius; }));
+    t.push_back(int_setting(
+        "max-message-bytes", "Limit: largest text frame (>= 1024)", 1024, kMaxInt,
+        [](ServerConfig & c) -> auto& { return c.limits.max_message_bytes; }));
+    t.push_back(int_setting(
+        "max-frame-bytes", "Limit: largest binary room frame (>= 1024)", 1024, kMaxInt,
+        [](ServerConfig & c) -> auto& { return c.limits.max_frame_bytes; }));
+    t.push_back(int_setting(
+        "max-rooms-per-request", "Limit: rooms in one request or cancel", 1, 65536,
+        [](ServerConfig & c) -> auto& { return c.limits.max_rooms_per_request; }));
+    t.push_back(int_setting(
+        "max-rooms-in-flight", "Limit: rooms in flight per client", 1, 1 << 20,
+        [](ServerConfig & c) -> auto& { return c.limits.max_rooms_in_flight; }));
+    t.push_back(int_setting(
+        "max-lod", "Limit: highest level of detail served", 0, kMaxServedLod,
+        [](ServerConfig & c) -> auto& { return c.limits.max_lod; }));
+    t.push_back(int_setting(
+        "idle-timeout-ms", "Limit: client silence before the server closes", 1, kMaxInt,
+        [](ServerConfig & c) -> auto& { return c.limits.idle_timeout_ms; }));
+    t.push_back(int_setting(
+        "handshake-timeout-ms", "Limit: from the upgrade to hello", 1, kMaxInt,
+        [](ServerConfig & c) -> auto& { return c.limits.handshake_timeout_ms; }));
+    t.push_back(int_setting(
+        "max-connections", "WebSocket sessions at once; more are refused", 1, 1 << 20,
+        [](ServerConfig & c) -> auto& { return c.max_connections; }));
+    t.push_back(int_setting(
+        "send-queue-bytes", "Unsent bytes per client before it is dropped as a slow reader", 1024,
+        kMaxBytes, [](ServerConfig & c) -> auto& { return c.send_queue_bytes; }));
+    t.push_back(ms_setting(
+        "http-timeout-ms", "Plain HTTP request or WebSocket upgrade timeout", 1, kMaxInt,
+        [](ServerConfig & c) -> auto& { return c.http_timeout; }));
+    t.push_back(ms_setting(
+        "drain-timeout-ms", "Graceful shutdown bound", 0, kMaxInt,
+        [](ServerConfig & c) -> auto& { return c.drain_timeout; }));
+    t.push_back(int_setting(
+        "workers", "Generation threads (0: one per hardware thread)", 0, 1024,
+        [](ServerConfig & c) -> auto& { return c.generator.workers; }));
+    t.push_back(int_setting(
+        "cache-bytes", "Encoded-room LRU cache size in bytes (0: off)", 0, kMaxBytes,
+        [](ServerConfig & c) -> auto& { return c.generator.cache_bytes; }));
+    t.push_back(int_setting(
+        "sector-cache-entries", "Sector layouts kept (LRU)", 1, 1 << 24,
+        [](ServerConfig & c) -> auto& { return c.generator.sector_cache_entries; }));
+    t.push_back(int_setting(
+        "batch-rooms", "Rooms per build call (one kernel launch)", 1, 4096,
+        [](ServerConfig & c) -> auto& { return c.generator.max_batch_rooms; }));
+    t.push_back(ms_setting(
+        "batch-wait-ms", "Longest wait for a fuller batch", 0, 10'000,
+        [](ServerConfig & c) -> auto& { return c.generator.max_batch_wait; }));
+    t.push_back(ms_setting(
+        "job-deadline-ms", "Queued longer than this: overloaded error", 1, kMaxInt,
+        [](ServerConfig & c) -> auto& { return c.generator.job_deadline; }));
+    t.push_back(string_setting(
+        "opencl-device",
+        "OpenCL device: auto, gpu, accelerator, cpu, none (CPU reference) or a name substring; "
+        "empty: $GROTTO_OPENCL_DEVICE, else auto",
+        {}, [](ServerConfig & c) -> auto& { return c.generator.builder.device.device; }));
+    t.push_back(string_setting(
+        "log-level", "trace, debug, info, warn, error or off",
+        {"trace", "debug", "info", "warn", "error", "off"},
+        [](ServerConfig & c) -> auto& { return c.log_level; }));
+    return t;
+  }();
+  return table;
+}
+
+Result<Value> check_range(const Setting& s, int64_t v) {
+  if (v < s.min || v > s.max) {
+    return invalid_argument("must be in [" + std::to_string(s.min) + ", " + std::to_string(s.max) +
+                            "] (got " + std::to_string(v) + ")");
+  }
+  return Value{v};
+}
+
+Result<Value> check_choice(const Setting& s, std::string v) {
+  if (!s.choices.empty() && std::find(s.choices.begin(), s.choices.end(), v) == s.choices.end()) {
+    std::string list;
+    for (const auto& c : s.choices)
+      list += (list.empty() ? "" : ", ") + c;
+    return invalid_argument("must be one of " + list + " (got '" + proto::echo(v) + "')");
+  }
+  return Value{std::move(v)};
+}
+
+// A flag's text.
+Result<Value> from_text(const Setting& s, const std::string& text) {
+  auto bad = [&](const char* what) {
+    return invalid_argument(std::string("must be ") + what + " (got '" + proto::echo(text) + "')");
+  };
+  const char* b = text.data();
+  const char* e = b + text.size();
+  switch (s.type) {
+    case Setting::Type::kInt: {
+      int64_t v = 0;
+      auto [p, ec] = std::from_chars(b, e, v);
+      if (ec != std::errc() || p != e || text.empty()) return bad("an integer");
+      return check_range(s, v);
+    }
+    case Setting::Type::kUint64: {
+      uint64_t v = 0;
+      auto [p, ec] = std::from_chars(b, e, v);
+      if (ec != std::errc() || p != e || text.empty()) return bad("an unsigned 64-bit integer");
+      return Value{v};
+    }
+    case Setting::Type::kDouble: {
+      double v = 0;
+      auto [p, ec] = std::from_chars(b, e, v);
+      if (ec != std::errc() || p != e || text.empty() || !std::isfinite(v)) return bad("a number");
+      return Value{v};
+    }
+    case Setting::Type::kString:
+      return check_choice(s, text);
+    case Setting::Type::kBool:
+      if (text == "true") return Value{true};
+      if (text == "false") return Value{false};
+      return bad("true or false");
+  }
+  return bad("valid");
+}
+
+// A config file's value.
+Result<Value> from_json(const Setting& s, const proto::ConfigValue& v) {
+  using K = proto::ConfigValue::Kind;
+  auto wrong = [&](const char* want) {
+    return invalid_argument(std::string("must be ") + want + " (got " + proto::describe(v.kind) +
+                            ")");
+  };
+  switch (s.type) {
+    case Setting::Type::kInt:
+      if (v.kind != K::kInteger) return wrong("an integer");
+      return check_range(s, v.integer);
+    case Setting::Type::kUint64:
+      // Seeds over 2^53 do not survive a JSON number in every reader: a string is accepted too.
+      if (v.kind == K::kString) return from_text(s, v.string);
+      if (v.kind == K::kInteger && v.integer >= 0) return Value{static_cast<uint64_t>(v.integer)};
+      return wrong("an unsigned 64-bit integer or a decimal string");
+    case Setting::Type::kDouble:
+      if (v.kind != K::kInteger && v.kind != K::kNumber) return wrong("a number");
+      return Value{v.number};
+    case Setting::Type::kString:
+      if (v.kind != K::kString) return wrong("a string");
+      return check_choice(s, v.string);
+    case Setting::Type::kBool:
+      if (v.kind != K::kBool) return wrong("a boolean");
+      return Value{v.boolean};
+  }
+  return wrong("valid");
+}
+
+const Setting* find_setting(const std::string& name) {
+  for (const auto& s : settings()) {
+    if (s.name == name) return &s;
+  }
+  return nullptr;
+}
+
+}  // namespace
+
+std::string product_version() {
+  return std::string("grotto-server ") + GROTTO_VERSION;
+}
+
+Status validate(const ServerConfig& config) {
+  if (auto st = cave::validate(config.layout); !st) {
+    return invalid_argument("layout: " + st.error().message);
+  }
+  if (auto st = mesh::validate(config.mesh); !st) {
+    return invalid_argument("mesh: " + st.error().message);
+  }
+  if (config.limits.max_message_bytes < 1024) {
+    return invalid_argument("max-message-bytes must be >= 1024");
+  }
+  if (config.limits.max_frame_bytes < 1024) {
+    return invalid_argument("max-frame-bytes must be >= 1024");
+  }
+  if (config.limits.max_rooms_per_request < 1 || config.limits.max_rooms_in_flight < 1 ||
+      config.limits.max_lod > 255 || config.limits.idle_timeout_ms < 1 ||
+      config.limits.handshake_timeout_ms < 1) {
+    return invalid_argument("limits out of range (see --help)");
+  }
+  if (config.max_connections < 1) return invalid_argument("max-connections must be >= 1");
+  if (config.send_queue_bytes < 1024) return invalid_argument("send-queue-bytes must be >= 1024");
+  if (config.bind.empty()) return invalid_argument("bind must not be empty");
+  return {};
+}
+
+Status apply_config_file(const std::string& path, ServerConfig& config) {
+  auto values = proto::read_config_file(path);
+  if (!values) return values.error();
+  for (const auto& [key, value] : *values) {
+    const Setting* s = find_setting(key);
+    if (s == nullptr) {
+      return invalid_argument("config file " + path + ": unknown setting '" + proto::echo(key) +
+                              "'");
+    }
+    auto v = from_json(*s, value);
+    if (!v) {
+      return invalid_argument("config file " + path + ": setting '" + key + "' " +
+                              v.error().message);
+    }
+    s->set(config, *v);
+  }
+  return {};
+}
+
+CommandLine parse_command_line(int argc, const char* const* argv) {
+  CommandLine out;
+  const ServerConfig defaults{};
+  CLI::App app{
+      product_version() +
+          ": streams procedurally generated cave rooms to game clients over WebSocket "
+          "(ws://HOST:PORT/ws) and serves /healthz, /readyz, /metrics and /version on the "
+          "same port.\nSettings: flags over a JSON config file (--config; keys are the long "
+          "flag names without --) over the defaults shown.",
+      "grotto-server"};
+  std::string config_path;
+  app.add_option("--config", config_path,
+                 "JSON config file: {\"port\": 7878, \"workers\": 4, ...}");
+  bool version = false;
+  app.add_flag("--version", version, "Print the product and protocol version and exit");
+  std::map<std::string, std::string> given;
+  for (const auto& s : settings()) {
+    std::string help = s.help + " [default: " + show(s.get(defaults)) + "]";
+    app.add_option("--" + s.name, given[s.name], help)
+        ->type_name(s.type == Setting::Type::kString   ? "TEXT"
+                    : s.type == Setting::Type::kDouble ? "NUMBER"
+                                                       : "INT");
+  }
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::CallForHelp&) {
+    out.text = app.help();
+    return out;
+  } catch (const CLI::ParseError& e) {
+    out.exit_code = 2;
+    out.text = std::string("grotto-server: ") + e.what() + " (see --help)";
+    return out;
+  }
+  if (version) {
+    out.text = product_version() + " (protocol " + std::to_string(proto::kProtocolVersion) + ")";
+    return out;
+  }
+  ServerConfig config;
+  if (!config_path.empty()) {
+    if (auto st = apply_config_file(config_path, config); !st) {
+      out.exit_code = 2;
+      out.text = "grotto-server: " + st.error().message;
+      return out;
+    }
+  }
+  for (const auto& s : settings()) {
+    if (app.get_option("--" + s.name)->count() == 0) continue;
+    auto v = from_text(s, given[s.name]);
+    if (!v) {
+      out.exit_code = 2;
+      out.text = "grotto-server: --" + s.name + " " + v.error().message;
+      return out;
+    }
+    s.set(config, *v);
+  }
+  if (auto st = validate(config); !st) {
+    out.exit_code = 2;
+    out.text = "grotto-server: invalid configuration: " + st.error().message;
+    return out;
+  }
+  out.config = std::move(config);
+  out.run = true;
+  return out;
+}
+
+}  // namespace grotto::server

@@ -1,0 +1,57 @@
+// grotto-server's settings: built-in defaults, overridden by an optional JSON config file
+// (--config FILE, keys named like the long flags without "--"), overridden by command-line flags.
+// A plain struct: brace-init gives defaults that work (loopback, a thread per core).
+#pragma once
+
+#include <chrono>
+#include <cstdint>
+#include <string>
+
+#include "cave/params.hpp"
+#include "core/result.hpp"
+#include "mesh/params.hpp"
+#include "proto/messages.hpp"
+#include "server/generator.hpp"
+
+namespace grotto::server {
+
+inline constexpr uint16_t kDefaultPort = 7878;
+
+struct ServerConfig {
+  std::string bind = "127.0.0.1";  // listen address; "0.0.0.0" or "::" to open it up
+  uint16_t port = kDefaultPort;    // 0: an ephemeral port (Server::port() tells which)
+  int io_threads = 0;              // Asio threads; 0: one per hardware thread
+  uint64_t seed = 7;               // the world served
+  cave::LayoutParams layout{};     // its layout parameters (a few are settings)
+  mesh::MeshParams mesh{};
+  proto::Limits limits{};                          // announced in welcome and enforced
+  int max_connections = 1024;                      // WebSocket sessions at once; more are refused
+  size_t send_queue_bytes = size_t{8} << 20;       // unsent bytes per client before it is dropped
+  std::chrono::milliseconds http_timeout{10'000};  // a plain HTTP request or a WebSocket upgrade
+  std::chrono::milliseconds drain_timeout{5'000};  // stop(): bound on the graceful close
+  GeneratorConfig generator{};
+  std::string log_level = "info";  // trace, debug, info, warn, error, off
+};
+
+// Range checks the settings cannot express alone (layout and mesh parameters, limit minimums).
+// The message names the setting.
+Status validate(const ServerConfig& config);
+
+// Applies a JSON config file over `config`. Errors name the file and the key: an unknown key, a
+// value of the wrong type or out of range, an unreadable or invalid file.
+Status apply_config_file(const std::string& path, ServerConfig& config);
+
+// What the command line asks for: run with `config`, or print `text` and exit with `exit_code`
+// (0 after --help or --version, 2 for an invalid flag, file or value; `text` names the setting).
+struct CommandLine {
+  ServerConfig config;
+  bool run = false;
+  int exit_code = 0;
+  std::string text;
+};
+CommandLine parse_command_line(int argc, const char* const* argv);
+
+// "grotto-server 0.1.0"
+std::string product_version();
+
+}  // namespace grotto::server

@@ -1,0 +1,50 @@
+// grotto-server: the generation server as a program. Settings from flags, a JSON config file and
+// defaults (server/config.hpp); runs until SIGINT or SIGTERM, then stops gracefully within the
+// drain timeout and exits 0. Exit codes: 0 after a clean stop (or --help), 1 when the server
+// cannot start (address in use, no generator), 2 for invalid settings.
+#include <spdlog/sinks/stdout_color_sinks.h>
+#include <spdlog/spdlog.h>
+
+#include <csignal>
+#include <cstdio>
+
+#include "server/config.hpp"
+#include "server/server.hpp"
+
+int main(int argc, char** argv) {
+  auto cli = grotto::server::parse_command_line(argc, argv);
+  if (!cli.run) {
+    std::fprintf(cli.exit_code == 0 ? stdout : stderr, "%s\n", cli.text.c_str());
+    return cli.exit_code;
+  }
+  const auto& config = cli.config;
+  // Logs go to stderr, one line per event; stdout carries only the listening address.
+  auto logger = spdlog::stderr_color_mt("grotto-server");
+  spdlog::set_default_logger(logger);
+  spdlog::set_level(spdlog::level::from_str(config.log_level));
+
+  // Block the signals before any thread starts, so every thread inherits the mask and sigwait
+  // below is the only place they arrive.
+  sigset_t signals;
+  sigemptyset(&signals);
+  sigaddset(&signals, SIGINT);
+  sigaddset(&signals, SIGTERM);
+  pthread_sigmask(SIG_BLOCK, &signals, nullptr);
+
+  auto server = grotto::server::Server::start(config);
+  if (!server) {
+    spdlog::error("event=start_failed error=\"{}\"", server.error().message);
+    std::fprintf(stderr, "grotto-server: %s\n", server.error().message.c_str());
+    return server.error().code == grotto::ErrorCode::kInvalidArgument ? 2 : 1;
+  }
+  std::printf("grotto-server listening on http://%s (WebSocket: ws://%s/ws)\n",
+              (*server)->address().c_str(), (*server)->address().c_str());
+  std::fflush(stdout);
+
+  int signal = 0;
+  sigwait(&signals, &signal);
+  spdlog::info("event=signal signal={}", signal == SIGINT ? "SIGINT" : "SIGTERM");
+  (*server)->stop(config.drain_timeout);
+  spdlog::info("event=exit code=0");
+  return 0;
+}

@@ -1,0 +1,941 @@
+// The listener, the HTTP sessions and the WebSocket sessions in one translation unit: Beast's
+// headers cost about 25 s and 0.8 GB per file to compile, so everything that includes them lives
+// here. Structure after Beast's examples (example/advanced/server, websocket/server/async): a
+// session is enable_shared_from_this, owns its stream and buffer, runs on its own strand and
+// reads as do_x/on_x pairs; sends go through a queue with one async_write in flight.
+#include "server/server.hpp"
+
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <atomic>
+#include <boost/asio/dispatch.hpp>
+#include <boost/asio/ip/tcp.hpp>
+#include <boost/asio/post.hpp>
+#include <boost/asio/steady_timer.hpp>
+#include <boost/asio/strand.hpp>
+#include <boost/beast/core.hpp>
+#include <boost/beast/http.hpp>
+#include <boost/beast/websocket.hpp>
+#include <condition_variable>
+#include <cstring>
+#include <deque>
+#include <future>
+#include <mutex>
+#include <optional>
+#include <thread>
+#include <unordered_map>
+#include <vector>
+
+#include "cave/layout.hpp"
+#include "proto/world_digest.hpp"
+
+namespace grotto::server {
+namespace {
+
+namespace beast = boost::beast;
+namespace http = beast::http;
+namespace websocket = beast::websocket;
+namespace net = boost::asio;
+using tcp = net::ip::tcp;
+using Clock = std::chrono::steady_clock;
+
+constexpr std::size_t kHttpHeaderLimit = 8 * 1024;  // request line and headers
+constexpr std::size_t kHttpBodyLimit = 8 * 1024;    // no endpoint takes a body
+// A dropped client gets this long to take its close frame before the socket is cut.
+constexpr auto kCloseGrace = std::chrono::milliseconds{1000};
+
+// The parameter digest announced in welcome: the layout's, folded with the mesh settings that
+// also shape the rooms (PROTOCOL.md, welcome.params). Doubles as IEEE bits, little-endian.
+uint64_t world_params_digest(const cave::LayoutParams& layout, const mesh::MeshParams& m) {
+  std::vector<uint8_t> bytes;
+  auto put = [&](double v) {
+    uint64_t bits = 0;
+    std::memcpy(&bits, &v, sizeof bits);
+    for (int i = 0; i < 8; ++i)
+      bytes.push_back(static_cast<uint8_t>(bits >> (8 * i)));
+  };
+  for (const auto& l : m.lods) {
+    put(l.edge_length);
+    put(static_cast<double>(l.octaves));
+  }
+  for (double f : m.octave_frequency)
+    put(f);
+  for (double a : m.octave_amplitude)
+    put(a);
+  for (double v : {m.rim_frequency, m.rim_amplitude, m.fade_distance, m.big_room_radius,
+                   m.big_frequency, m.big_amplitude, m.big_fade_distance, m.roundness, m.tension,
+                   m.roughness_frequency, m.mineral_frequency}) {
+    put(v);
+  }
+  return proto::fold_digest(proto::layout_params_digest(layout), bytes);
+}
+
+uint64_t unix_millis() {
+  return static_cast<uint64_t>(std::chrono::duration_cast<std::chrono::milliseconds>(
+                                   std::chrono::system_clock::now().time_since_epoch())
+                                   .count());
+}
+
+class WsSession;
+
+}  // namespace
+
+// Shared by every session: configuration, metrics, the generator, the session registry.
+struct Server::Impl {
+  ServerConfig config;
+  uint64_t params_digest = 0;
+  Metrics metrics;
+  // Declared before the io_context so it is destroyed after it: sessions destroyed with the
+  // io_context's pending handlers still call remove_client.
+  std::unique_ptr<Generator> generator;
+  net::io_context ioc;
+  std::optional<tcp::acceptor> acceptor;
+  std::optional<net::strand<net::io_context::executor_type>> accept_strand;
+  std::vector<std::thread> threads;
+  tcp::endpoint bound;
+  std::atomic<bool> stopping{false};
+  bool stopped = false;  // guarded by stop_mutex
+  std::mutex stop_mutex;
+
+  // Sessions on /ws that were admitted (count against max_connections).
+  mutable std::mutex sessions_mutex;
+  std::condition_variable sessions_cv;
+  std::unordered_map<uint64_t, std::weak_ptr<WsSession>> sessions;
+  uint64_t next_session = 1;
+
+  // Generator deliveries go through this gate: once stop() closes it, no worker posts into the
+  // io_context any more (a straggling worker may outlive the drain timeout).
+  struct Gate {
+    std::mutex mutex;
+    bool open = true;
+  };
+  std::shared_ptr<Gate> gate = std::make_shared<Gate>();
+
+  explicit Impl(int threads_hint) : ioc(threads_hint) {}
+
+  // Admission under max_connections: the session's registry id, or 0 when full or stopping.
+  uint64_t admit(const std::shared_ptr<WsSession>& s) {
+    std::lock_guard lock(sessions_mutex);
+    if (stopping.load() || sessions.size() >= static_cast<size_t>(config.max_connections)) return 0;
+    uint64_t id = next_session++;
+    sessions.emplace(id, s);
+    return id;
+  }
+  void leave(uint64_t id) {
+    {
+      std::lock_guard lock(sessions_mutex);
+      sessions.erase(id);
+    }
+    sessions_cv.notify_all();
+  }
+
+  void do_accept();
+  void on_accept(beast::error_code ec, tcp::socket socket);
+};
+
+namespace {
+
+// ---- WebSocket session ----
+
+class WsSession : public std::enable_shared_from_this<WsSession> {
+ public:
+  WsSession(Server::Impl& server, beast::tcp_stream&& stream)
+      : server_(server),
+        limits_(server.config.limits),
+        ws_(std::move(stream)),
+        timer_(ws_.get_executor()) {}
+
+  ~WsSession() {
+    if (client_ != 0) server_.generator->remove_client(client_);
+    if (registry_id_ != 0) {
+      server_.metrics.connections_open.add(-1);
+      server_.leave(registry_id_);
+    }
+  }
+
+  template <class Body, class Allocator>
+  void run(http::request<Body, http::basic_fields<Allocator>> req) {
+    beast::get_lowest_layer(ws_).expires_never();
+    websocket::stream_base::timeout t{};
+    // The close handshake is bounded by handshake_timeout too; the protocol's own handshake and
+    // idle timeouts are timers below, so the client hears `timeout` before the close.
+    t.handshake_timeout = server_.config.http_timeout;
+    t.idle_timeout = websocket::stream_base::none();
+    t.keep_alive_pings = false;
+    ws_.set_option(t);
+    ws_.set_option(websocket::stream_base::decorator(
+        [](websocket::response_type& res) { res.set(http::field::server, product_version()); }));
+    ws_.read_message_max(limits_.max_message_bytes);
+    peer_ = endpoint_text();
+    ws_.async_accept(req, beast::bind_front_handler(&WsSession::on_accept, shared_from_this()));
+  }
+
+  // From stop(), on any thread.
+  void shutdown() {
+    net::dispatch(ws_.get_executor(), [self = shared_from_this()] {
+      self->fail(Error{ErrorCode::kServiceRestart, "the server is shutting down"}, std::nullopt,
+                 websocket::close_code::going_away);
+    });
+  }
+
+  // Cuts the TCP connection (stop() after the drain timeout).
+  void cut() {
+    net::dispatch(ws_.get_executor(), [self = shared_from_this()] { self->cut_socket(); });
+  }
+
+ private:
+  struct Outgoing {
+    std::string text;  // a control message, or
+    RoomPtr room;      // a room frame (shared with the cache, not copied)
+    size_t size() const { return room ? room->frame.size() : text.size(); }
+  };
+  struct InFlight {
+    uint32_t lod = 0;
+    Clock::time_point since;  // when first requested
+  };
+
+  std::string endpoint_text() {
+    beast::error_code ec;
+    auto ep = beast::get_lowest_layer(ws_).socket().remote_endpoint(ec);
+    if (ec) return "?";
+    return ep.address().to_string() + ":" + std::to_string(ep.port());
+  }
+
+  void on_accept(beast::error_code ec) {
+    if (ec) {
+      spdlog::debug("event=ws_accept_failed peer={} error=\"{}\"", peer_, ec.message());
+      return;
+    }
+    registry_id_ = server_.admit(shared_from_this());
+    if (registry_id_ == 0) {
+      server_.metrics.connections_rejected.add();
+      spdlog::warn("event=connection_rejected peer={} reason={}", peer_,
+                   server_.stopping.load() ? "stopping" : "max_connections");
+      if (server_.stopping.load()) {
+        fail(Error{ErrorCode::kServiceRestart, "the server is shutting down"}, std::nullopt,
+             websocket::close_code::going_away);
+      } else {
+        fail(Error{ErrorCode::kOverloaded, "too many connections (max_connections " +
+                                               std::to_string(server_.config.max_connections) +
+                                               "); retry later"},
+             std::nullopt, websocket::close_code::policy_error);
+      }
+      return;
+    }
+    server_.metrics.connections_total.add();
+    server_.metrics.connections_open.add(1);
+    spdlog::info("event=connected session={} peer={}", registry_id_, peer_);
+    arm_timer(std::chrono::milliseconds{limits_.handshake_timeout_ms});
+    do_read();
+  }
+
+  // ---- timers: the handshake deadline until hello, then the idle deadline ----
+
+  void arm_timer(std::chrono::milliseconds after) {
+    timer_.expires_after(after);
+    timer_.async_wait(beast::bind_front_handler(&WsSession::on_timer, shared_from_this()));
+  }
+
+  void on_timer(beast::error_code ec) {
+    if (ec || closing_) return;  // cancelled or re-armed
+    if (timer_.expiry() > Clock::now()) return;
+    if (!hello_done_) {
+      fail(Error{ErrorCode::kTimeout, "no hello within handshake_timeout_ms (" +
+                                          std::to_string(limits_.handshake_timeout_ms) + " ms)"},
+           std::nullopt, websocket::close_code::policy_error);
+    } else {
+      fail(Error{ErrorCode::kTimeout, "no message within idle_timeout_ms (" +
+                                          std::to_string(limits_.idle_timeout_ms) + " ms)"},
+           std::nullopt, websocket::close_code::policy_error);
+    }
+  }
+
+  // ---- reading ----
+
+  void do_read() {
+    if (closing_) return;
+    ws_.async_read(buffer_, beast::bind_front_handler(&WsSession::on_read, shared_from_this()));
+  }
+
+  void on_read(beast::error_code ec, std::size_t) {
+    if (ec) {
+      if (ec == websocket::error::message_too_big) {
+        // Beast has failed the connection with close code 1009 (PROTOCOL.md allows it).
+        server_.metrics.count_error(ErrorCode::kTooLarge);
+        spdlog::info("event=closed session={} reason=too_large detail=\"message over {} bytes\"",
+                     registry_id_, limits_.max_message_bytes);
+      } else if (!closing_ && ec != websocket::error::closed &&
+                 ec != net::error::operation_aborted) {
+        spdlog::debug("event=read_failed session={} error=\"{}\"", registry_id_, ec.message());
+      } else if (ec == websocket::error::closed) {
+        spdlog::info("event=closed session={} reason=client_closed", registry_id_);
+      }
+      closing_ = true;
+      timer_.cancel();
+      release();
+      return;
+    }
+    if (closing_) return;
+    server_.metrics.messages_total.add();
+    if (!ws_.got_text()) {
+      buffer_.consume(buffer_.size());
+      fail(Error{ErrorCode::kBadFrame, "clients must not send binary frames"}, std::nullopt,
+           websocket::close_code::policy_error);
+      return;
+    }
+    std::string text = beast::buffers_to_string(buffer_.data());
+    buffer_.consume(buffer_.size());
+    if (hello_done_) arm_timer(std::chrono::milliseconds{limits_.idle_timeout_ms});
+    handle(text);
+    do_read();
+  }
+
+  void handle(const std::string& text) {
+    proto::Ref ref;
+    auto parsed = proto::parse_client_message(text, limits_, &ref);
+    if (!parsed) {
+      bool whole_too_large = text.size() > limits_.max_message_bytes;
+      // PROTOCOL.md: a malformed first message is fatal (anything but a valid hello first is).
+      bool fatal = whole_too_large || !hello_done_;
+      ErrorCode code = parsed.error().code;
+      if (!hello_done_ && !whole_too_large && code == ErrorCode::kUnknownType) {
+        code = ErrorCode::kOutOfOrder;
+      }
+      Error e{code, parsed.error().message};
+      if (fatal) {
+        fail(
+            e, ref,
+            whole_too_large ? websocket::close_code::too_big : websocket::close_code::policy_error);
+      } else {
+        send_error(proto::error_reply(e, ref));
+      }
+      return;
+    }
+    std::visit([&](auto& m) { on_message(m); }, parsed.value());
+  }
+
+  bool require_hello(const proto::Ref& ref, const char* type) {
+    if (hello_done_) return true;
+    fail(Error{ErrorCode::kOutOfOrder, std::string("'") + type + "' before hello"}, ref,
+         websocket::close_code::policy_error);
+    return false;
+  }
+
+  void on_message(const proto::Hello& m) {
+    if (hello_done_) {
+      fail(Error{ErrorCode::kOutOfOrder, "a second hello"}, m.ref,
+           websocket::close_code::policy_error);
+      return;
+    }
+    uint32_t chosen = 0;
+    for (uint32_t v : m.versions) {
+      if (v == proto::kProtocolVersion) chosen = v;
+    }
+    if (chosen == 0) {
+      auto e = proto::error_reply(Error{ErrorCode::kUnsupportedVersion,
+                                        "no protocol version in common; this server speaks " +
+                                            std::to_string(proto::kProtocolVersion)},
+                                  m.ref);
+      e.versions = {proto::kProtocolVersion};
+      e.fatal = true;
+      fail_with(std::move(e), websocket::close_code::policy_error);
+      return;
+    }
+    const auto& world = server_.generator->world();
+    if (m.seed && *m.seed != world.seed()) {
+      fail(Error{ErrorCode::kWorldMismatch, "this server serves seed " +
+                                                std::to_string(world.seed()) + ", not " +
+                                                std::to_string(*m.seed)},
+           m.ref, websocket::close_code::policy_error);
+      return;
+    }
+    if (m.params && *m.params != server_.params_digest) {
+      fail(Error{ErrorCode::kWorldMismatch,
+                 "this server's parameter digest differs from the one asked for"},
+           m.ref, websocket::close_code::policy_error);
+      return;
+    }
+    hello_done_ = true;
+    name_ = proto::echo(m.name);
+    std::weak_ptr<WsSession> weak = weak_from_this();
+    auto executor = ws_.get_executor();
+    auto gate = server_.gate;
+    client_ = server_.generator->add_client([weak, executor, gate](Delivery d) {
+      std::lock_guard lock(gate->mutex);
+      if (!gate->open) return;
+      net::post(executor, [weak, d = std::move(d)]() mutable {
+        if (auto self = weak.lock()) self->on_delivery(std::move(d));
+      });
+    });
+    proto::Welcome w;
+    w.ref = m.ref;
+    w.version = chosen;
+    w.server = product_version();
+    w.seed = world.seed();
+    w.params = server_.params_digest;
+    w.limits = limits_;
+    send_text(proto::serialize(proto::ServerMessage{w}));
+    spdlog::info("event=hello session={} name=\"{}\" version={}", registry_id_, name_, chosen);
+    arm_timer(std::chrono::milliseconds{limits_.idle_timeout_ms});
+  }
+
+  void on_message(const proto::Locate& m) {
+    if (!require_hello(m.ref, "locate")) return;
+    proto::Located r;
+    r.ref = m.ref;
+    r.point = m.point;
+    r.room = server_.generator->locate(m.point);
+    send_text(proto::serialize(proto::ServerMessage{r}));
+  }
+
+  void on_message(const proto::Spawn& m) {
+    if (!require_hello(m.ref, "spawn")) return;
+    proto::SpawnPoint r = server_.generator->spawn();
+    r.ref = m.ref;
+    send_text(proto::serialize(proto::ServerMessage{r}));
+  }
+
+  void on_message(const proto::Request& m) {
+    if (!require_hello(m.ref, "request")) return;
+    size_t added = 0;
+    for (const auto& w : m.rooms) {
+      if (!in_flight_.contains(w.id.packed())) ++added;
+    }
+    if (in_flight_.size() + added > limits_.max_rooms_in_flight) {
+      send_error(proto::error_reply(
+          Error{ErrorCode::kLimitExceeded,
+                "request would take rooms in flight to " +
+                    std::to_string(in_flight_.size() + added) + " (max_rooms_in_flight " +
+                    std::to_string(limits_.max_rooms_in_flight) + "); nothing in it was queued"},
+          m.ref));
+      return;
+    }
+    auto now = Clock::now();
+    std::vector<cave::RoomId> relod;
+    for (const auto& w : m.rooms) {
+      auto [it, inserted] = in_flight_.try_emplace(w.id.packed(), InFlight{w.lod, now});
+      // Re-requested: its priority is replaced (the generator does that); a new lod replaces the
+      // old one, so the old lod's want goes.
+      if (!inserted && it->second.lod != w.lod) {
+        it->second.lod = w.lod;
+        relod.push_back(w.id);
+      }
+    }
+    if (!relod.empty()) server_.generator->cancel(client_, relod);
+    server_.metrics.rooms_requested.add(m.rooms.size());
+    // Cache hits are delivered inside request(): sorted first so they go out by priority too
+    // (stable: ties keep the order requested).
+    std::vector<proto::RoomWant> wants = m.rooms;
+    std::stable_sort(wants.begin(), wants.end(),
+                     [](const auto& a, const auto& b) { return a.priority < b.priority; });
+    server_.generator->request(client_, wants);
+  }
+
+  void on_message(const proto::Cancel& m) {
+    if (!require_hello(m.ref, "cancel")) return;
+    std::vector<cave::RoomId> ids;
+    for (const auto& id : m.rooms) {
+      if (in_flight_.erase(id.packed()) > 0) ids.push_back(id);
+    }
+    if (!ids.empty()) server_.generator->cancel(client_, ids);
+  }
+
+  void on_message(const proto::Ping& m) {
+    if (!require_hello(m.ref, "ping")) return;
+    proto::Pong p;
+    p.ref = m.ref;
+    p.t = m.t;
+    p.time_ms = unix_millis();
+    send_text(proto::serialize(proto::ServerMessage{p}));
+  }
+
+  void on_message(const proto::StatsQuery& m) {
+    if (!require_hello(m.ref, "stats")) return;
+    proto::Stats s;
+    s.ref = m.ref;
+    s.in_flight = in_flight_.size();
+    s.rooms_sent = rooms_sent_;
+    s.bytes_sent = bytes_sent_;
+    s.errors = errors_sent_;
+    send_text(proto::serialize(proto::ServerMessage{s}));
+  }
+
+  // ---- deliveries from the generator (posted to this strand) ----
+
+  void on_delivery(Delivery d) {
+    if (closing_) return;
+    auto it = in_flight_.find(d.key.id.packed());
+    if (it == in_flight_.end()) return;       // cancelled meanwhile: not sent
+    if (it->second.lod != d.key.lod) return;  // a lod the client replaced since
+    in_flight_.erase(it);
+    if (d.error) {
+      if (d.error->code == ErrorCode::kServiceRestart) {
+        fail(*d.error, std::nullopt, websocket::close_code::going_away);
+        return;
+      }
+      auto e = proto::error_reply(*d.error, std::nullopt, d.key.id);
+      e.fatal = false;  // a room's failure refuses that room only
+      send_error(std::move(e));
+      return;
+    }
+    ++rooms_sent_;
+    server_.metrics.rooms_served.add();
+    enqueue(Outgoing{{}, std::move(d.room)});
+  }
+
+  // ---- writing: one async_write in flight, the rest queued up to send_queue_bytes ----
+
+  void send_text(std::string text) { enqueue(Outgoing{std::move(text), nullptr}); }
+
+  void send_error(proto::ErrorMessage e) {
+    ++errors_sent_;
+    server_.metrics.count_error(e.code);
+    spdlog::info("event=error_sent session={} code={} fatal={} detail=\"{}\"", registry_id_,
+                 proto::wire_code_name(e.code), e.fatal, proto::echo(e.message));
+    send_text(proto::serialize(proto::ServerMessage{std::move(e)}));
+  }
+
+  void enqueue(Outgoing out) {
+    if (dropped_) return;
+    queued_bytes_ += out.size();
+    queue_.push_back(std::move(out));
+    // A single message larger than the limit still goes out when nothing else waits.
+    if (queue_.size() > 1 && queued_bytes_ > server_.config.send_queue_bytes) {
+      drop_slow_client();
+      return;
+    }
+    if (!writing_) do_write();
+  }
+
+  void do_write() {
+    if (queue_.empty()) {
+      writing_ = false;
+      if (close_after_flush_) do_close();
+      return;
+    }
+    writing_ = true;
+    const Outgoing& front = queue_.front();
+    if (front.room) {
+      ws_.binary(true);
+      ws_.async_write(net::buffer(front.room->frame),
+                      beast::bind_front_handler(&WsSession::on_write, shared_from_this()));
+    } else {
+      ws_.text(true);
+      ws_.async_write(net::buffer(front.text),
+                      beast::bind_front_handler(&WsSession::on_write, shared_from_this()));
+    }
+  }
+
+  void on_write(beast::error_code ec, std::size_t bytes) {
+    if (ec) {
+      writing_ = false;
+      closing_ = true;
+      timer_.cancel();
+      release();
+      return;
+    }
+    bytes_sent_ += bytes;
+    server_.metrics.bytes_sent.add(bytes);
+    queued_bytes_ -= queue_.front().size();
+    queue_.pop_front();
+    do_write();
+  }
+
+  // The client does not read: it is disconnected and its queue released. Its close frame waits
+  // behind the write in flight, so the socket is cut if that does not finish within kCloseGrace.
+  void drop_slow_client() {
+    dropped_ = true;
+    server_.metrics.slow_clients_dropped.add();
+    spdlog::warn("event=slow_client_dropped session={} peer={} queued_bytes={} limit={}",
+                 registry_id_, peer_, queued_bytes_, server_.config.send_queue_bytes);
+    // The front is being written (Beast holds its buffer); everything behind it goes now.
+    while (queue_.size() > 1) {
+      queued_bytes_ -= queue_.back().size();
+      queue_.pop_back();
+    }
+    close_code_ = websocket::close_reason(websocket::close_code::policy_error, "slow_client");
+    close_after_flush_ = true;
+    begin_closing(kCloseGrace);
+    if (!writing_) do_write();
+  }
+
+  // A fatal error: the error message, then the close (PROTOCOL.md: the close reason is the code).
+  void fail(const Error& error, proto::Ref ref, websocket::close_code code) {
+    auto e = proto::error_reply(error, ref);
+    e.fatal = true;
+    fail_with(std::move(e), code);
+  }
+
+  void fail_with(proto::ErrorMessage e, websocket::close_code code) {
+    if (closing_ || dropped_) return;
+    close_code_ = websocket::close_reason(code, proto::wire_code_name(e.code));
+    send_error(std::move(e));
+    close_after_flush_ = true;
+    begin_closing(server_.config.http_timeout);
+    if (!writing_) do_write();
+  }
+
+  void begin_closing(std::chrono::milliseconds grace) {
+    closing_ = true;
+    // Nothing this client asked for is wanted any more.
+    if (client_ != 0) {
+      server_.generator->remove_client(client_);
+      client_ = 0;
+    }
+    in_flight_.clear();
+    timer_.expires_after(grace);
+    timer_.async_wait([self = shared_from_this()](beast::error_code ec) {
+      if (!ec) self->cut_socket();
+    });
+  }
+
+  void do_close() {
+    if (close_started_) return;
+    close_started_ = true;
+    spdlog::info("event=closing session={} code={} reason={}", registry_id_,
+                 static_cast<int>(close_code_.code), std::string(close_code_.reason.c_str()));
+    ws_.async_close(close_code_, [self = shared_from_this()](beast::error_code) {
+      self->timer_.cancel();
+      self->cut_socket();
+    });
+  }
+
+  void cut_socket() {
+    beast::error_code ignored;
+    auto& socket = beast::get_lowest_layer(ws_).socket();
+    if (socket.is_open()) {
+      socket.shutdown(tcp::socket::shutdown_both, ignored);
+      socket.close(ignored);
+    }
+    closing_ = true;
+    release();
+  }
+
+  // Memory this session holds for the client, released as soon as it is closing.
+  void release() {
+    if (client_ != 0) {
+      server_.generator->remove_client(client_);
+      client_ = 0;
+    }
+    in_flight_.clear();
+    if (!writing_) {
+      queue_.clear();
+      queued_bytes_ = 0;
+    }
+  }
+
+  Server::Impl& server_;
+  const proto::Limits limits_;
+  websocket::stream<beast::tcp_stream> ws_;
+  beast::flat_buffer buffer_;
+  net::steady_timer timer_;
+  std::string peer_;
+  std::string name_;
+  uint64_t registry_id_ = 0;
+  ClientId client_ = 0;
+  bool hello_done_ = false;
+  bool closing_ = false;
+  bool dropped_ = false;
+  bool writing_ = false;
+  bool close_after_flush_ = false;
+  bool close_started_ = false;
+  websocket::close_reason close_code_;
+  std::deque<Outgoing> queue_;
+  size_t queued_bytes_ = 0;
+  std::unordered_map<uint64_t, InFlight> in_flight_;  // by packed room id
+  uint64_t rooms_sent_ = 0;
+  uint64_t bytes_sent_ = 0;
+  uint64_t errors_sent_ = 0;
+};
+
+// ---- HTTP session: health, metrics, version, and the upgrade to /ws ----
+
+class HttpSession : public std::enable_shared_from_this<HttpSession> {
+ public:
+  HttpSession(Server::Impl& server, tcp::socket&& socket)
+      : server_(server), stream_(std::move(socket)) {}
+
+  void run() {
+    net::dispatch(stream_.get_executor(),
+                  beast::bind_front_handler(&HttpSession::do_read, shared_from_this()));
+  }
+
+ private:
+  void do_read() {
+    parser_.emplace();
+    parser_->header_limit(kHttpHeaderLimit);
+    parser_->body_limit(kHttpBodyLimit);
+    stream_.expires_after(server_.config.http_timeout);
+    http::async_read(stream_, buffer_, *parser_,
+                     beast::bind_front_handler(&HttpSession::on_read, shared_from_this()));
+  }
+
+  void on_read(beast::error_code ec, std::size_t) {
+    if (ec == http::error::end_of_stream) {
+      beast::error_code ignored;
+      stream_.socket().shutdown(tcp::socket::shutdown_send, ignored);
+      return;
+    }
+    if (ec) {
+      if (ec == http::error::header_limit || ec == http::error::body_limit ||
+          ec == http::error::buffer_overflow) {
+        respond_and_close(http::status::request_header_fields_too_large, "request too large\n");
+      }
+      return;  // timeouts and resets: the connection just goes
+    }
+    auto req = parser_->release();
+    std::string_view target(req.target().data(), req.target().size());
+    std::string_view path = target.substr(0, target.find('?'));
+    if (websocket::is_upgrade(req)) {
+      if (path != proto::kWebSocketPath) {
+        server_.metrics.http_requests_total.add();
+        return respond(req, http::status::not_found, "text/plain", "not found\n");
+      }
+      std::make_shared<WsSession>(server_, std::move(stream_))->run(std::move(req));
+      return;
+    }
+    server_.metrics.http_requests_total.add();
+    if (req.method() != http::verb::get && req.method() != http::verb::head) {
+      return respond(req, http::status::method_not_allowed, "text/plain", "GET only\n");
+    }
+    if (path == "/healthz") {
+      // Touches nothing but this process: answers while generation is saturated.
+      return respond(req, http::status::ok, "text/plain", "ok\n");
+    }
+    if (path == "/readyz") {
+      bool ready = server_.generator != nullptr && !server_.stopping.load();
+      return respond(req, ready ? http::status::ok : http::status::service_unavailable,
+                     "text/plain", ready ? "ready\n" : "not ready\n");
+    }
+    if (path == "/metrics") {
+      return respond(req, http::status::ok, "text/plain; version=0.0.4; charset=utf-8",
+                     server_.metrics.render());
+    }
+    if (path == "/version") {
+      return respond(req, http::status::ok, "application/json",
+                     "{\"server\":\"" + product_version() +
+                         "\",\"protocol\":" + std::to_string(proto::kProtocolVersion) + "}\n");
+    }
+    if (path == proto::kWebSocketPath) {
+      return respond(req, http::status::upgrade_required, "text/plain",
+                     "this path speaks WebSocket (proto/PROTOCOL.md): send an upgrade request\n",
+                     true);
+    }
+    return respond(req, http::status::not_found, "text/plain", "not found\n");
+  }
+
+  template <class Request>
+  void respond(const Request& req, http::status status, const char* type, std::string body,
+               bool upgrade = false) {
+    auto res = std::make_shared<http::response<http::string_body>>(status, req.version());
+    res->set(http::field::server, product_version());
+    res->set(http::field::content_type, type);
+    if (upgrade) {
+      res->set(http::field::upgrade, "websocket");
+      res->set(http::field::connection, "Upgrade");
+    }
+    res->keep_alive(req.keep_alive() && !upgrade);
+    bool head = req.method() == http::verb::head;
+    res->body() = std::move(body);
+    res->prepare_payload();
+    if (head) res->body().clear();
+    stream_.expires_after(server_.config.http_timeout);
+    http::async_write(stream_, *res,
+                      [self = shared_from_this(), res](beast::error_code ec, std::size_t) {
+                        self->on_write(ec, res->keep_alive());
+                      });
+  }
+
+  void respond_and_close(http::status status, std::string body) {
+    auto res = std::make_shared<http::response<http::string_body>>(status, 11);
+    res->set(http::field::server, product_version());
+    res->set(http::field::content_type, "text/plain");
+    res->keep_alive(false);
+    res->body() = std::move(body);
+    res->prepare_payload();
+    http::async_write(stream_, *res,
+                      [self = shared_from_this(), res](beast::error_code ec, std::size_t) {
+                        self->on_write(ec, false);
+                      });
+  }
+
+  void on_write(beast::error_code ec, bool keep_alive) {
+    if (ec) return;
+    if (!keep_alive || server_.stopping.load()) {
+      beast::error_code ignored;
+      stream_.socket().shutdown(tcp::socket::shutdown_send, ignored);
+      return;
+    }
+    do_read();
+  }
+
+  Server::Impl& server_;
+  beast::tcp_stream stream_;
+  beast::flat_buffer buffer_{kHttpHeaderLimit + kHttpBodyLimit};
+  std::optional<http::request_parser<http::string_body>> parser_;
+};
+
+}  // namespace
+
+void Server::Impl::do_accept() {
+  acceptor->async_accept(net::make_strand(ioc), [this](beast::error_code ec, tcp::socket s) {
+    on_accept(ec, std::move(s));
+  });
+}
+
+void Server::Impl::on_accept(beast::error_code ec, tcp::socket socket) {
+  if (stopping.load() || !acceptor->is_open()) return;
+  if (ec) {
+    spdlog::warn("event=accept_failed error=\"{}\"", ec.message());
+  } else {
+    std::make_shared<HttpSession>(*this, std::move(socket))->run();
+  }
+  do_accept();
+}
+
+// ---- Server ----
+
+Server::Server(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+
+Server::~Server() {
+  stop(impl_->config.drain_timeout);
+}
+
+Result<std::unique_ptr<Server>> Server::start(const ServerConfig& config) {
+  if (auto st = validate(config); !st) return st.error();
+  auto world = cave::World::create(config.seed, config.layout);
+  if (!world) return invalid_argument("layout: " + world.error().message);
+  int threads = config.io_threads > 0
+                    ? config.io_threads
+                    : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  auto impl = std::make_unique<Impl>(threads);
+  impl->config = config;
+  impl->params_digest = world_params_digest(config.layout, config.mesh);
+  auto generator = Generator::create(*world, config.mesh, config.generator, impl->metrics);
+  if (!generator) return generator.error();
+  impl->generator = std::move(generator).value();
+  impl->metrics.set_compute_path(impl->generator->compute_path());
+
+  beast::error_code ec;
+  auto address = net::ip::make_address(config.bind, ec);
+  if (ec) return invalid_argument("bind: '" + proto::echo(config.bind) + "' is not an IP address");
+  tcp::endpoint endpoint(address, config.port);
+  impl->accept_strand.emplace(net::make_strand(impl->ioc));
+  impl->acceptor.emplace(*impl->accept_strand);
+  auto& acc = *impl->acceptor;
+  auto where = config.bind + ":" + std::to_string(config.port);
+  if (acc.open(endpoint.protocol(), ec); ec) {
+    return Error{ErrorCode::kUnavailable,
+                 "cannot open a socket for " + where + ": " + ec.message()};
+  }
+  if (acc.set_option(net::socket_base::reuse_address(true), ec); ec) {
+    return Error{ErrorCode::kUnavailable, "cannot set SO_REUSEADDR: " + ec.message()};
+  }
+  if (acc.bind(endpoint, ec); ec) {
+    return Error{ErrorCode::kUnavailable, "cannot bind " + where + ": " + ec.message()};
+  }
+  if (acc.listen(net::socket_base::max_listen_connections, ec); ec) {
+    return Error{ErrorCode::kUnavailable, "cannot listen on " + where + ": " + ec.message()};
+  }
+  impl->bound = acc.local_endpoint(ec);
+  net::dispatch(*impl->accept_strand, [p = impl.get()] { p->do_accept(); });
+  for (int i = 0; i < threads; ++i) {
+    impl->threads.emplace_back([p = impl.get()] { p->ioc.run(); });
+  }
+  spdlog::info(
+      "event=listening address={}:{} io_threads={} compute=\"{}\" seed={} max_connections={}",
+      impl->bound.address().to_string(), impl->bound.port(), threads,
+      impl->generator->compute_path(), config.seed, config.max_connections);
+  return std::unique_ptr<Server>(new Server(std::move(impl)));
+}
+
+uint16_t Server::port() const {
+  return impl_->bound.port();
+}
+
+std::string Server::address() const {
+  auto a = impl_->bound.address();
+  std::string host = a.is_v6() ? "[" + a.to_string() + "]" : a.to_string();
+  return host + ":" + std::to_string(impl_->bound.port());
+}
+
+const ServerConfig& Server::config() const {
+  return impl_->config;
+}
+Metrics& Server::metrics() {
+  return impl_->metrics;
+}
+Generator& Server::generator() {
+  return *impl_->generator;
+}
+bool Server::stopping() const {
+  return impl_->stopping.load();
+}
+
+size_t Server::sessions() const {
+  std::lock_guard lock(impl_->sessions_mutex);
+  return impl_->sessions.size();
+}
+
+void Server::stop(std::chrono::milliseconds drain) {
+  std::lock_guard stop_lock(impl_->stop_mutex);
+  if (impl_->stopped) return;
+  impl_->stopped = true;
+  auto& s = *impl_;
+  auto deadline = Clock::now() + drain;
+  spdlog::info("event=stopping drain_ms={}", drain.count());
+  s.stopping.store(true);
+  {
+    // Stop accepting (on the acceptor's strand; wait for it so no accept races the rest).
+    std::promise<void> closed;
+    auto done = closed.get_future();
+    net::dispatch(*s.accept_strand, [&] {
+      beast::error_code ignored;
+      s.acceptor->close(ignored);
+      closed.set_value();
+    });
+    done.wait_for(std::chrono::milliseconds{1000});
+  }
+  std::vector<std::shared_ptr<WsSession>> live;
+  {
+    std::lock_guard lock(s.sessions_mutex);
+    for (auto& [id, weak] : s.sessions) {
+      if (auto p = weak.lock()) live.push_back(std::move(p));
+    }
+  }
+  for (auto& p : live)
+    p->shutdown();
+  // Queued rooms fail with service_restart; building ones finish within their batch.
+  s.generator->shutdown(
+      std::max(std::chrono::milliseconds{0},
+               std::chrono::duration_cast<std::chrono::milliseconds>(deadline - Clock::now())));
+  live.clear();
+  {
+    std::unique_lock lock(s.sessions_mutex);
+    s.sessions_cv.wait_until(lock, deadline, [&] { return s.sessions.empty(); });
+    for (auto& [id, weak] : s.sessions) {
+      if (auto p = weak.lock()) live.push_back(std::move(p));
+    }
+  }
+  if (!live.empty()) {
+    spdlog::warn("event=drain_timeout sessions_left={}", live.size());
+    for (auto& p : live)
+      p->cut();
+    live.clear();
+    std::unique_lock lock(s.sessions_mutex);
+    s.sessions_cv.wait_for(lock, std::chrono::milliseconds{200},
+                           [&] { return s.sessions.empty(); });
+  }
+  {
+    std::lock_guard lock(s.gate->mutex);
+    s.gate->open = false;
+  }
+  s.ioc.stop();
+  for (auto& t : s.threads)
+    t.join();
+  s.threads.clear();
+  spdlog::info("event=stopped");
+}
+
+}  // namespace grotto::server
