@@ -49,7 +49,17 @@ std::string short_reason(std::string reason) {
       reason = reason.substr(colon + 2);
     }
   }
-  // What is left may still quote a token (a number): bounded and printable.
+  // What is left may still quote a token ("number overflow parsing '1e400'", the whole token
+  // however long): the quote goes through echo(), so it is at most kMaxEchoBytes like every
+  // other quote in an error message.
+  if (std::size_t open = reason.find('\''); open != std::string::npos) {
+    std::size_t close = reason.rfind('\'');
+    if (close == open) close = reason.size();
+    std::string tail = close < reason.size() ? reason.substr(close) : std::string("'");
+    reason = reason.substr(0, open + 1) +
+             echo(std::string_view(reason).substr(open + 1, close - open - 1)) + tail;
+  }
+  // Bounded and printable whatever else nlohmann says.
   if (reason.size() > 120) reason = reason.substr(0, 120) + "...";
   for (char& c : reason) {
     if (static_cast<unsigned char>(c) < 0x20 || static_cast<unsigned char>(c) >= 0x7f) c = '?';
@@ -122,21 +132,18 @@ const char* type_name(const json& value) {
   return value.type_name();
 }
 
-Result<uint64_t> to_uint(const json& value, std::string_view field, uint64_t max) {
+Result<uint64_t> to_uint(const json& value, std::string_view field, uint64_t max, uint64_t min) {
   if (!value.is_number_integer()) {
     return field_error(field, std::string("must be an integer (got ") + type_name(value) + ")");
   }
+  const std::string range = "must be in [" + std::to_string(min) + ", " + std::to_string(max) + "]";
   // nlohmann stores "-0" as a signed integer; only a negative value is out of range.
   if (!value.is_number_unsigned() && value.get<int64_t>() < 0) {
-    return field_error(field, "must be in [0, " + std::to_string(max) + "] (got " +
-                                  std::to_string(value.get<int64_t>()) + ")");
+    return field_error(field, range + " (got " + std::to_string(value.get<int64_t>()) + ")");
   }
   uint64_t v = value.is_number_unsigned() ? value.get<uint64_t>()
                                           : static_cast<uint64_t>(value.get<int64_t>());
-  if (v > max) {
-    return field_error(
-        field, "must be in [0, " + std::to_string(max) + "] (got " + std::to_string(v) + ")");
-  }
+  if (v < min || v > max) return field_error(field, range + " (got " + std::to_string(v) + ")");
   return v;
 }
 
@@ -155,10 +162,10 @@ const json* Fields::find(std::string_view key) const {
   return it == object_.end() ? nullptr : &*it;
 }
 
-Result<uint64_t> Fields::uint(std::string_view key, uint64_t max) const {
+Result<uint64_t> Fields::uint(std::string_view key, uint64_t max, uint64_t min) const {
   const json* v = find(key);
   if (!v) return field_error(key, "is missing");
-  return to_uint(*v, key, max);
+  return to_uint(*v, key, max, min);
 }
 
 Result<std::optional<uint64_t>> Fields::optional_uint(std::string_view key, uint64_t max) const {

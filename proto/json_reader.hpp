@@ -28,7 +28,7 @@ class Fields {
   explicit Fields(const json& object) : object_(object) {}
 
   const json* find(std::string_view key) const;
-  Result<uint64_t> uint(std::string_view key, uint64_t max) const;
+  Result<uint64_t> uint(std::string_view key, uint64_t max, uint64_t min = 0) const;
   Result<std::optional<uint64_t>> optional_uint(std::string_view key, uint64_t max) const;
   Result<double> number(std::string_view key) const;
   Result<std::string> string(std::string_view key, std::size_t max_bytes) const;
@@ -45,7 +45,8 @@ class Fields {
 
 Error field_error(std::string_view field, std::string_view problem);
 const char* type_name(const json& value);
-Result<uint64_t> to_uint(const json& value, std::string_view field, uint64_t max);
+// An integer in [min, max]; out of range names the range ("must be in [1, 65535] (got 0)").
+Result<uint64_t> to_uint(const json& value, std::string_view field, uint64_t max, uint64_t min = 0);
 Result<double> to_number(const json& value, std::string_view field);
 
 }  // namespace grotto::proto::detail

@@ -95,30 +95,50 @@ Result<std::vector<uint32_t>> versions(const json& array, std::string_view key) 
   for (std::size_t i = 0; i < array.size(); ++i) {
     std::string name = std::string(key) + "[" + std::to_string(i) + "]";
     uint64_t v = 0;
-    PROTO_TRY(v, detail::to_uint(array[i], name, 65535));
-    if (v == 0) return field_error(name, "must be in [1, 65535] (got 0)");
+    PROTO_TRY(v, detail::to_uint(array[i], name, 65535, 1));
     out.push_back(static_cast<uint32_t>(v));
   }
   return out;
 }
 
-// Names and server strings end up in logs: no control characters (UTF-8 validity is already
-// guaranteed by the JSON parser).
+// Names and server strings end up in logs and on screens: no control characters (C0, DEL, C1)
+// and no bidirectional formatting characters (UAX #9's explicit embeddings, overrides and
+// isolates, and its implicit marks), which can make a log line read as something it is not
+// ("Trojan Source", CVE-2021-42574). UTF-8 validity is already guaranteed by the JSON parser.
 Status printable(const std::string& s, std::string_view field) {
-  for (unsigned char c : s) {
-    if (c < 0x20 || c == 0x7f) return field_error(field, "must not contain control characters");
+  for (std::size_t i = 0; i < s.size();) {
+    unsigned char c = static_cast<unsigned char>(s[i]);
+    uint32_t cp = c;
+    std::size_t n = c < 0x80 ? 1 : c < 0xe0 ? 2 : c < 0xf0 ? 3 : 4;
+    if (n > 1 && i + n <= s.size()) {
+      cp = c & (0x7f >> n);
+      for (std::size_t k = 1; k < n; ++k)
+        cp = (cp << 6) | (static_cast<unsigned char>(s[i + k]) & 0x3f);
+    }
+    if (cp < 0x20 || (cp >= 0x7f && cp <= 0x9f)) {
+      return field_error(field, "must not contain control characters");
+    }
+    if (cp == 0x061c || cp == 0x200e || cp == 0x200f || (cp >= 0x202a && cp <= 0x202e) ||
+        (cp >= 0x2066 && cp <= 0x2069)) {
+      return field_error(field, "must not contain bidirectional formatting characters");
+    }
+    i += n;
   }
   return {};
 }
 
-// Error messages are cut to kMaxErrorBytes ("..." at the end) without splitting a UTF-8
-// sequence.
+// Error messages are printable ASCII (every other byte becomes '?') and at most kMaxErrorBytes
+// ("..." at the end when cut): what is cut here is exactly what goes on the wire, since
+// serializing printable ASCII escapes nothing but the quote and the backslash (and replaces
+// nothing).
 std::string cut_message(std::string message) {
+  for (char& c : message) {
+    unsigned char u = static_cast<unsigned char>(c);
+    if (u < 0x20 || u >= 0x7f) c = '?';
+  }
   if (message.size() <= kMaxErrorBytes) return message;
-  std::size_t cut = kMaxErrorBytes - 3;
-  while (cut > 0 && (static_cast<unsigned char>(message[cut]) & 0xc0) == 0x80)
-    --cut;
-  return message.substr(0, cut) + "...";
+  message.resize(kMaxErrorBytes - 3);
+  return message + "...";
 }
 
 // ---- client messages ----
@@ -202,6 +222,13 @@ Result<ClientMessage> parse_cancel(const Fields& f, Ref ref, const Limits& limit
   return {std::move(m)};
 }
 
+bool is_client_type(std::string_view type) {
+  for (std::string_view t : {"hello", "locate", "spawn", "request", "cancel", "ping", "stats"}) {
+    if (type == t) return true;
+  }
+  return false;
+}
+
 Result<ClientMessage> parse_client_body(const Fields& f, std::string_view type, Ref ref,
                                         const Limits& limits) {
   if (type == "hello") return parse_hello(f, ref);
@@ -224,7 +251,7 @@ Result<ClientMessage> parse_client_body(const Fields& f, std::string_view type, 
   return Error{ErrorCode::kUnknownType, "unknown message type '" + echo(type) + "'"};
 }
 
-// Reads "ref" and "type", the two fields every message shares.
+// Reads "type", the field every message has.
 Result<std::string> message_type(const Fields& f) {
   const json* type = f.find("type");
   if (!type) return field_error("type", "is missing");
@@ -275,8 +302,7 @@ Result<ServerMessage> parse_welcome(const Fields& f, Ref ref) {
   Welcome m;
   m.ref = ref;
   uint64_t v = 0;
-  PROTO_TRY(v, f.uint("version", 65535));
-  if (v == 0) return field_error("version", "must be in [1, 65535] (got 0)");
+  PROTO_TRY(v, f.uint("version", 65535, 1));
   m.version = static_cast<uint32_t>(v);
   PROTO_TRY(m.server, f.string("server", kMaxNameBytes));
   if (Status s = printable(m.server, "server"); !s) return s.error();
@@ -300,6 +326,9 @@ Result<ServerMessage> parse_error_message(const Fields& f, Ref ref) {
   PROTO_TRY(code, f.string("code", kMaxTypeBytes));
   std::optional<ErrorCode> known = parse_wire_code(code);
   PROTO_TRY(m.message, f.string("message", kMaxErrorBytes));
+  // A server's message is printable ASCII; whatever else arrives is masked the same way
+  // serialize() would mask it, so a parsed error serializes to what it parsed from.
+  m.message = cut_message(std::move(m.message));
   if (known) {
     m.code = *known;
   } else {
@@ -481,16 +510,24 @@ ojson to_json(const Stats& m) {
 }  // namespace
 
 Result<ClientMessage> parse_client_message(std::string_view text, const Limits& limits,
-                                           Ref* ref_out) {
+                                           Ref* ref_out, std::string* type_out) {
+  // PROTOCOL.md, "Which error a message gets": size, JSON, type, (order: the server's), fields.
+  if (type_out) type_out->clear();
   Result<json> value = detail::parse_object(text, limits.max_message_bytes);
   if (!value) return value.error();
   Fields f(*value);
-  Ref ref;
-  PROTO_TRY(ref, f.optional_uint("ref", kMaxJsonInteger));
-  if (ref_out) *ref_out = ref;
+  // The ref is a field (its errors come after the type's), but a valid one is reported
+  // whatever fails, so that the error can name the message it concerns.
+  Result<Ref> ref = f.optional_uint("ref", kMaxJsonInteger);
+  if (ref && ref_out) *ref_out = *ref;
   std::string type;
   PROTO_TRY(type, message_type(f));
-  return parse_client_body(f, type, ref, limits);
+  if (!is_client_type(type)) {
+    return Error{ErrorCode::kUnknownType, "unknown message type '" + echo(type) + "'"};
+  }
+  if (type_out) *type_out = type;
+  if (!ref) return ref.error();
+  return parse_client_body(f, type, *ref, limits);
 }
 
 Result<ServerMessage> parse_server_message(std::string_view text, const Limits& limits) {

@@ -32,7 +32,7 @@ inline constexpr std::string_view kWebSocketPath = "/ws";
 inline constexpr int kMaxJsonDepth = 16;             // arrays/objects nested; messages need 3
 inline constexpr std::size_t kMaxNameBytes = 64;     // hello.name, welcome.server
 inline constexpr std::size_t kMaxVersions = 16;      // hello.versions, error.versions
-inline constexpr std::size_t kMaxTypeBytes = 32;     // the "type" string
+inline constexpr std::size_t kMaxTypeBytes = 32;     // error.code (longer: too_large)
 inline constexpr std::size_t kMaxErrorBytes = 1024;  // error.message
 inline constexpr std::size_t kMaxEchoBytes = 32;  // how much of bad input an error message quotes
 // Integers travel as JSON numbers only up to 2^53 - 1 (exact in a JavaScript double); larger
@@ -50,9 +50,9 @@ struct Limits {
   uint32_t max_frame_bytes = 4 * 1024 * 1024;  // a binary room frame (server to client)
   uint32_t max_rooms_per_request = 256;        // entries in one request or cancel
   uint32_t max_rooms_in_flight = 1024;         // requested, not yet delivered/failed/cancelled
-  uint32_t max_lod = 0;                        // the highest level of detail served (≤ 255)
-  uint32_t idle_timeout_ms = 60'000;           // no message from the client for this long: closed
-  uint32_t handshake_timeout_ms = 10'000;      // no hello this long after the upgrade: closed
+  uint32_t max_lod = 0;  // the highest wire lod served (≤ 255; proto/lod.hpp maps it to mesh::Lod)
+  uint32_t idle_timeout_ms = 60'000;       // no message from the client for this long: closed
+  uint32_t handshake_timeout_ms = 10'000;  // no hello this long after the upgrade: closed
   friend bool operator==(const Limits&, const Limits&) = default;
 };
 
@@ -67,7 +67,9 @@ struct Hello {
   std::vector<uint32_t> versions;  // 1..kMaxVersions entries, each in [1, 65535]
   std::optional<uint64_t> seed;    // the world wanted; absent: the server's world
   std::optional<uint64_t> params;  // its parameter digest; absent: whatever the server uses
-  std::string name;                // ≤ kMaxNameBytes, printable (no control characters)
+  // ≤ kMaxNameBytes, no control characters (C0, DEL, C1) or bidirectional formatting
+  // characters (U+061C, U+200E, U+200F, U+202A-U+202E, U+2066-U+2069)
+  std::string name;
   friend bool operator==(const Hello&, const Hello&) = default;
 };
 
@@ -84,7 +86,7 @@ struct Spawn {
 
 struct RoomWant {
   cave::RoomId id = cave::RoomId::interior({}, 0);
-  uint32_t lod = 0;       // ≤ Limits::max_lod
+  uint32_t lod = 0;       // wire lod (proto/lod.hpp), ≤ Limits::max_lod
   uint32_t priority = 0;  // smaller is sooner
   friend bool operator==(const RoomWant&, const RoomWant&) = default;
 };
@@ -143,7 +145,7 @@ struct SpawnPoint {
 struct ErrorMessage {
   Ref ref;  // the ref of the message that caused it, when it had a valid one
   ErrorCode code = ErrorCode::kInternal;
-  std::string message;               // for people; ≤ kMaxErrorBytes
+  std::string message;               // for people; printable ASCII, ≤ kMaxErrorBytes
   std::optional<cave::RoomId> room;  // the room it concerns (request failures)
   std::vector<uint32_t> versions;    // unsupported_version: the versions the server speaks
   bool fatal = false;                // the server closes the connection after sending it
@@ -172,10 +174,18 @@ using ServerMessage = std::variant<Welcome, Located, SpawnPoint, ErrorMessage, P
 
 // A server's side: one text frame from a client. Errors carry a wire code (bad_json,
 // bad_message, unknown_type, too_large, invalid_room_id) and a message naming the field.
+// Checks run in PROTOCOL.md's order (size, JSON, type, then fields; the order check between type
+// and fields is the server's, since only it knows whether welcome was sent), and the first
+// failure is returned.
 // When `ref` is not null it receives the message's ref whenever the "ref" field itself was
-// valid, also when parsing fails later, so the error can name the message it concerns.
+// valid, also when parsing fails, so the error can name the message it concerns.
+// When `type` is not null it is cleared, then receives the "type" string once it names a client
+// message of this version ("hello", "locate", ...), also when a field fails later. Empty on
+// return with an error: the error is from the size, JSON or type checks, which come before the
+// order check. Non-empty: the server checks the order (hello first, and only once) before
+// answering any field error, and knows whether the failed message was a hello.
 Result<ClientMessage> parse_client_message(std::string_view text, const Limits& limits,
-                                           Ref* ref = nullptr);
+                                           Ref* ref = nullptr, std::string* type = nullptr);
 // A client's side: one text frame from a server, checked as strictly.
 Result<ServerMessage> parse_server_message(std::string_view text, const Limits& limits);
 
@@ -194,9 +204,11 @@ std::optional<ErrorCode> parse_wire_code(std::string_view name);
 // Whether the connection survives an error of this code sent by a server (PROTOCOL.md's table).
 bool is_fatal(ErrorCode code);
 
-// The error a server sends for a refused message or room: the code, the message (cut to
-// kMaxErrorBytes when serialized) and is_fatal(code); set `fatal` afterwards where PROTOCOL.md
-// says otherwise (an error in answer to hello, a whole message over max_message_bytes).
+// The error a server sends for a refused message or room: the code, the message (masked to
+// printable ASCII, each other byte a '?', and cut to kMaxErrorBytes) and is_fatal(code); set
+// `fatal` afterwards where PROTOCOL.md says otherwise (every error before welcome, a whole
+// message over max_message_bytes). serialize() applies the same mask and cut to any
+// ErrorMessage, so an error's JSON text never exceeds its limit whatever the message held.
 ErrorMessage error_reply(const Error& error, Ref ref = std::nullopt,
                          std::optional<cave::RoomId> room = std::nullopt);
 

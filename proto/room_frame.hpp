@@ -31,7 +31,7 @@ inline constexpr double kMaxOriginOffset = 32768.0;
 
 struct RoomFrame {
   cave::Room room;               // id, sphere and portals, world coordinates
-  uint8_t lod = 0;               // level of detail of the payload
+  uint8_t lod = 0;               // wire level of detail of the payload (proto/lod.hpp)
   Vec3 origin;                   // on the 1/256 m grid; payload positions are offsets from it
   std::vector<uint8_t> payload;  // the mesh (common/codec); at least one byte
 };
@@ -41,11 +41,17 @@ constexpr std::size_t room_frame_size(std::size_t portals, std::size_t payload_b
   return kRoomHeaderBytes + kPortalRecordBytes * portals + payload_bytes;
 }
 
-// The checks decode applies, for senders that want to know before they send: kBadFrame naming
-// the field on failure.
+// The checks decode applies after the header's, for senders that want to know before they send:
+// kTooLarge when the frame would exceed limits.max_frame_bytes, otherwise kBadFrame naming the
+// field on failure.
 Status validate_room_frame(const RoomFrame& frame, const Limits& limits);
 
-// Precondition (asserted in debug builds): validate_room_frame(frame, Limits{...}) holds.
+// Writes the frame's bytes. Preconditions (asserted): at most cave::kMaxPortalsPerRoom portals and
+// fewer than 2^32 payload bytes (what the header's count and length fields hold). Nothing else is
+// checked: encoding does not call validate_room_frame, so it also writes frames that
+// decode_room_frame refuses (the tests build invalid frames this way). A sender validates first
+// unless its frames are valid by construction (the layout's rooms, an origin on the grid, a
+// non-empty payload, lod ≤ max_lod).
 // The payload is passed separately so a server can send cached bytes without copying them first.
 std::vector<uint8_t> encode_room_frame(const cave::Room& room, uint8_t lod, Vec3 origin,
                                        std::span<const uint8_t> payload);

@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <span>
+#include <string>
 #include <string_view>
 
 #include "proto/messages.hpp"
@@ -34,7 +35,18 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   limits.max_lod = 3;
   limits.max_rooms_per_request = 64;
 
-  if (auto client = parse_client_message(text, limits); client.ok()) {
+  std::string type;
+  auto client = parse_client_message(text, limits, nullptr, &type);
+  // The type is reported exactly when parsing got past the type check (PROTOCOL.md's order):
+  // after it, neither bad_json nor unknown_type can come.
+  if (client.ok() && type.empty())
+    fail("parsed client message reported no type", std::string(text));
+  if (!client.ok() && !type.empty() &&
+      (client.error().code == grotto::ErrorCode::kBadJson ||
+       client.error().code == grotto::ErrorCode::kUnknownType)) {
+    fail("a type was reported with an error from before the type check", client.error().message);
+  }
+  if (client.ok()) {
     std::string again = serialize(*client);
     auto back = parse_client_message(again, roomy(limits));
     if (!back.ok()) fail("client message does not re-parse", back.error().message + ": " + again);

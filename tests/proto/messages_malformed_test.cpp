@@ -85,11 +85,13 @@ std::vector<Case> client_corpus() {
       {"versions empty", R"({"type":"hello","versions":[]})", ErrorCode::kBadMessage,
        "field 'versions' must not be empty"},
       {"version 0", R"({"type":"hello","versions":[0]})", ErrorCode::kBadMessage,
-       "field 'versions[0]'"},
+       "field 'versions[0]' must be in [1, 65535] (got 0)"},
       {"version a float", R"({"type":"hello","versions":[1.5]})", ErrorCode::kBadMessage,
        "field 'versions[0]' must be an integer (got float)"},
       {"version too big", R"({"type":"hello","versions":[1,65536]})", ErrorCode::kBadMessage,
-       "field 'versions[1]' must be in [0, 65535]"},
+       "field 'versions[1]' must be in [1, 65535] (got 65536)"},
+      {"version negative", R"({"type":"hello","versions":[-1]})", ErrorCode::kBadMessage,
+       "field 'versions[0]' must be in [1, 65535] (got -1)"},
       {"17 versions", R"({"type":"hello","versions":)" + many_versions + "}", ErrorCode::kTooLarge,
        "field 'versions' has 17 entries, over the limit of 16"},
       {"seed a number", hello_with(R"(,"seed":42)"), ErrorCode::kBadMessage,
@@ -109,6 +111,17 @@ std::vector<Case> client_corpus() {
        "field 'name' must not contain control characters"},
       {"name with a NUL", hello_with(R"(,"name":"a\u0000b")"), ErrorCode::kBadMessage,
        "field 'name'"},
+      {"name with a C1 control", hello_with(R"(,"name":"a\u0085b")"), ErrorCode::kBadMessage,
+       "field 'name' must not contain control characters"},
+      {"name with DEL", hello_with(R"(,"name":"a\u007fb")"), ErrorCode::kBadMessage,
+       "field 'name' must not contain control characters"},
+      {"name with a right-to-left override", hello_with(R"(,"name":"evil\u202etxt.exe")"),
+       ErrorCode::kBadMessage, "field 'name' must not contain bidirectional formatting"},
+      {"name with a bidi isolate", hello_with(R"(,"name":"a\u2066b")"), ErrorCode::kBadMessage,
+       "field 'name' must not contain bidirectional formatting"},
+      {"room id over 64 characters",
+       request_with(R"({"id":")" + std::string(65, '1') + R"(","lod":0,"priority":0})"),
+       ErrorCode::kInvalidRoomId, "rooms[0].id"},
       // locate
       {"locate without point", R"({"type":"locate"})", ErrorCode::kBadMessage,
        "field 'point' is missing"},
@@ -118,6 +131,9 @@ std::vector<Case> client_corpus() {
        "field 'point' must be an array of 3 numbers"},
       {"number overflowing a double", R"({"type":"locate","point":[0,1e400,0]})",
        ErrorCode::kBadJson, "number overflow parsing '1e400'"},
+      {"long number overflowing a double",
+       R"({"type":"locate","point":[0,1)" + std::string(400, '0') + ",0]}", ErrorCode::kBadJson,
+       "number overflow parsing '10000000000000000000000000000000...'"},
       {"point far away", R"({"type":"locate","point":[0,0,-1e9]})", ErrorCode::kBadMessage,
        "field 'point[2]' must be within"},
       {"point a string", R"({"type":"locate","point":["1",0,0]})", ErrorCode::kBadMessage,
@@ -304,6 +320,21 @@ TEST(ProtoMalformed, server_messages_are_checked_as_strictly) {
        "field 'time'"},
       {"a client message type", R"({"type":"hello","versions":[1]})", ErrorCode::kUnknownType,
        "unknown message type 'hello'"},
+      {"welcome version 0",
+       R"({"type":"welcome","version":0,"server":"s","seed":"1","params":"0000000000000000",)" +
+           limits + "}",
+       ErrorCode::kBadMessage, "field 'version' must be in [1, 65535] (got 0)"},
+      {"welcome version 65536",
+       R"({"type":"welcome","version":65536,"server":"s","seed":"1","params":"0000000000000000",)" +
+           limits + "}",
+       ErrorCode::kBadMessage, "field 'version' must be in [1, 65535] (got 65536)"},
+      {"server name with a bidi override",
+       R"({"type":"welcome","version":1,"server":"s\u202e","seed":"1","params":"0000000000000000",)" +
+           limits + "}",
+       ErrorCode::kBadMessage, "field 'server' must not contain bidirectional formatting"},
+      {"error code over 32 bytes",
+       R"({"type":"error","code":")" + std::string(33, 'c') + R"(","message":"x","fatal":false})",
+       ErrorCode::kTooLarge, "field 'code' is 33 bytes, over the limit of 32"},
   };
   for (const ServerCase& c : cases) {
     Result<ServerMessage> r = parse_server_message(c.text, Limits{});
@@ -331,6 +362,80 @@ TEST(ProtoMalformed, minus_zero_is_zero_but_other_negatives_are_refused) {
   ASSERT_TRUE(r.ok()) << r.error().message;
   EXPECT_EQ(std::get<Spawn>(*r).ref, Ref(0));
   EXPECT_FALSE(parse_client_message(R"({"type":"spawn","ref":-1})", Limits{}).ok());
+}
+
+}  // namespace
+}  // namespace grotto::proto
+
+namespace grotto::proto {
+namespace {
+
+// PROTOCOL.md, "Which error a message gets": the type is checked before any field, the ref
+// included, and reported to the server, which needs it to choose between out_of_order and the field
+// error.
+TEST(ProtoMalformed, the_type_is_read_before_the_ref_and_reported) {
+  Ref ref;
+  std::string type = "stale";
+  Result<ClientMessage> r =
+      parse_client_message(R"({"type":"hello","ref":-1,"versions":[1]})", Limits{}, &ref, &type);
+  ASSERT_FALSE(r.ok());
+  EXPECT_EQ(r.error().code, ErrorCode::kBadMessage);
+  EXPECT_NE(r.error().message.find("field 'ref'"), std::string::npos) << r.error().message;
+  EXPECT_EQ(type, "hello");  // a malformed hello is known to be a hello
+  EXPECT_EQ(ref, std::nullopt);
+
+  // A field error after the type: the type is reported, and so is a valid ref.
+  type = "stale";
+  r = parse_client_message(R"({"type":"hello","ref":4,"versions":"1"})", Limits{}, &ref, &type);
+  ASSERT_FALSE(r.ok());
+  EXPECT_EQ(type, "hello");
+  EXPECT_EQ(ref, Ref(4));
+
+  // Errors before the type is known leave it empty: a bad ref does not hide a missing type.
+  for (const char* text : {R"({"ref":"x"})", R"({"type":7,"ref":"x"})", "[1]", "{", ""}) {
+    type = "stale";
+    r = parse_client_message(text, Limits{}, nullptr, &type);
+    ASSERT_FALSE(r.ok()) << text;
+    EXPECT_EQ(type, "") << text;
+  }
+  r = parse_client_message(R"({"ref":"x"})", Limits{}, nullptr, &type);
+  EXPECT_EQ(r.error().message, "field 'type' is missing");
+
+  // An unknown type wins over a bad ref, and is not reported as a type.
+  type = "stale";
+  r = parse_client_message(R"({"type":"teleport","ref":"x"})", Limits{}, nullptr, &type);
+  ASSERT_FALSE(r.ok());
+  EXPECT_EQ(r.error().code, ErrorCode::kUnknownType);
+  EXPECT_EQ(type, "");
+
+  // A valid ref is still reported when the type is missing.
+  ref.reset();
+  r = parse_client_message(R"({"ref":9})", Limits{}, &ref, &type);
+  ASSERT_FALSE(r.ok());
+  EXPECT_EQ(ref, Ref(9));
+
+  // Success reports the type too; the old three-argument call still works.
+  r = parse_client_message(R"({"type":"spawn","ref":1})", Limits{}, &ref, &type);
+  ASSERT_TRUE(r.ok()) << r.error().message;
+  EXPECT_EQ(type, "spawn");
+  EXPECT_TRUE(parse_client_message(R"({"type":"stats"})", Limits{}, &ref).ok());
+}
+
+TEST(ProtoMalformed, an_overflowing_number_is_quoted_at_most_kMaxEchoBytes) {
+  for (std::string number : {"1" + std::string(500, '0'), "1" + std::string(500, '0') + "e400",
+                             "-" + std::string(300, '9') + ".5e999"}) {
+    std::string text = R"({"type":"locate","point":[)" + number + ",0,0]}";
+    Result<ClientMessage> r = parse_client_message(text, Limits{});
+    ASSERT_FALSE(r.ok());
+    EXPECT_EQ(r.error().code, ErrorCode::kBadJson);
+    const std::string& m = r.error().message;
+    std::size_t open = m.find('\'');
+    ASSERT_NE(open, std::string::npos) << m;
+    std::size_t close = m.find('\'', open + 1);
+    ASSERT_NE(close, std::string::npos) << m;
+    EXPECT_LE(close - open - 1, kMaxEchoBytes + 3) << m;  // "..." marks the cut
+    EXPECT_EQ(m.substr(open + 1, 8), number.substr(0, 8)) << m;
+  }
 }
 
 }  // namespace

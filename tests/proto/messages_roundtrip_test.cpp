@@ -2,6 +2,7 @@
 // codes map one to one.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 
@@ -178,6 +179,61 @@ TEST(ProtoErrorReply, carries_code_ref_room_and_the_default_fatality) {
   ErrorMessage general = error_reply(invalid_argument(std::string(3000, 'x')));
   EXPECT_EQ(general.message.size(), kMaxErrorBytes);
   EXPECT_NE(serialize(ServerMessage(general)).find(R"("code":"bad_message")"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace grotto::proto
+
+namespace grotto::proto {
+namespace {
+
+bool printable_ascii(const std::string& s) {
+  return std::all_of(s.begin(), s.end(), [](char c) { return c >= 0x20 && c < 0x7f; });
+}
+
+// PROTOCOL.md: error.message is printable ASCII within 1024 bytes. Serializing used to turn each
+// invalid byte into U+FFFD (3 bytes), so 1024 such bytes went out as 3 KB that the client then
+// refused as too_large.
+TEST(ProtoErrorReply, messages_of_invalid_bytes_stay_printable_ascii_within_the_limit) {
+  std::string bad;
+  for (int i = 0; i < 3000; ++i)
+    bad.push_back(static_cast<char>(0x80 + i % 0x80));  // no valid UTF-8 in it
+  Limits tight;
+  tight.max_message_bytes = 1100;  // room for the message and the JSON around it, not for 3 KB
+  for (const std::string& message : {bad, bad.substr(0, kMaxErrorBytes), "a\x01\tb\x7f" + bad}) {
+    ErrorMessage reply = error_reply(Error{ErrorCode::kInternal, message});
+    EXPECT_LE(reply.message.size(), kMaxErrorBytes);
+    EXPECT_TRUE(printable_ascii(reply.message)) << reply.message;
+    // Also an ErrorMessage built by hand: serialize() masks and cuts the same way.
+    for (const ErrorMessage& e :
+         {reply, ErrorMessage{1, ErrorCode::kInternal, message, std::nullopt, {}, false}}) {
+      std::string text = serialize(ServerMessage(e));
+      EXPECT_LE(text.size(), kMaxErrorBytes + 100);
+      Result<ServerMessage> back = parse_server_message(text, tight);
+      ASSERT_TRUE(back.ok()) << back.error().message;
+      const std::string& got = std::get<ErrorMessage>(*back).message;
+      EXPECT_LE(got.size(), kMaxErrorBytes);
+      EXPECT_TRUE(printable_ascii(got)) << got;
+    }
+  }
+  EXPECT_EQ(error_reply(Error{ErrorCode::kInternal, "caf\xc3\xa9\n"}).message, "caf??\?");
+}
+
+// A received error message is masked like a sent one, so parse -> serialize -> parse is stable.
+TEST(ProtoErrorReply, a_received_message_with_control_characters_is_masked) {
+  Result<ServerMessage> m = parse_server_message(
+      R"({"type":"error","code":"internal","message":"a\u0007b\u00e9","fatal":false})", Limits{});
+  ASSERT_TRUE(m.ok()) << m.error().message;
+  EXPECT_EQ(std::get<ErrorMessage>(*m).message, "a?b??");
+  EXPECT_EQ(*parse_server_message(serialize(*m), Limits{}), *m);
+}
+
+TEST(ProtoRoundTrip, names_with_printable_unicode_survive) {
+  Hello h{1, {1}, std::nullopt, std::nullopt, "caf\xc3\xa9 \xe2\x98\x83 \xd7\xa9\xd7\x9c"};
+  std::string text = serialize(ClientMessage(h));
+  Result<ClientMessage> back = parse_client_message(text, Limits{});
+  ASSERT_TRUE(back.ok()) << back.error().message;
+  EXPECT_EQ(std::get<Hello>(*back), h);
 }
 
 }  // namespace

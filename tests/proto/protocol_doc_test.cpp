@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "proto/lod.hpp"
 #include "proto/messages.hpp"
 
 namespace grotto::proto {
@@ -48,6 +49,19 @@ TEST(ProtocolDoc, error_code_table_lists_every_wire_code_with_its_fatality) {
   for (int c = 0; c <= static_cast<int>(ErrorCode::kTimeout); ++c) {
     std::string name = wire_code_name(static_cast<ErrorCode>(c));
     EXPECT_TRUE(documented.count(name)) << name << " is not in PROTOCOL.md's error table";
+  }
+}
+
+TEST(ProtocolDoc, levels_of_detail_table_is_proto_lod_mapping) {
+  std::vector<std::string> rows = section_lines("Levels of detail", {"| 0", "| 1", "| 2", "| 3"});
+  ASSERT_EQ(rows.size(), std::size_t{kMaxWireLod} + 1);
+  for (const std::string& row : rows) {
+    SCOPED_TRACE(row);
+    uint32_t wire = static_cast<uint32_t>(std::stoul(row.substr(2)));
+    std::optional<mesh::Lod> lod = mesh_lod(wire);
+    ASSERT_TRUE(lod.has_value());
+    // The second column names mesh::Lod by lod_name(): "| 0 | `patch` | ...".
+    EXPECT_NE(row.find(std::string("| `") + mesh::lod_name(*lod) + "` |"), std::string::npos);
   }
 }
 

@@ -267,6 +267,32 @@ TEST(RoomFrame, validate_agrees_with_decode) {
   EXPECT_EQ(s.error().code, ErrorCode::kBadFrame);
 }
 
+// room_frame.hpp: validate reports kTooLarge (not kBadFrame) over max_frame_bytes, as decode does.
+TEST(RoomFrame, validate_reports_an_oversized_frame_as_too_large) {
+  RoomFrame f = sample_frame();
+  Limits limits;
+  limits.max_frame_bytes = static_cast<uint32_t>(encode_room_frame(f).size());
+  EXPECT_TRUE(validate_room_frame(f, limits).ok());
+  f.payload.push_back(0);
+  Status s = validate_room_frame(f, limits);
+  ASSERT_FALSE(s.ok());
+  EXPECT_EQ(s.error().code, ErrorCode::kTooLarge);
+  Result<RoomFrame> d = decode_room_frame(encode_room_frame(f), limits);
+  ASSERT_FALSE(d.ok());
+  EXPECT_EQ(d.error().code, ErrorCode::kTooLarge);
+}
+
+// room_frame.hpp: encoding does not validate, so invalid frames can be built (and are refused
+// when decoded); only the header's own capacity is asserted.
+TEST(RoomFrame, encode_writes_frames_that_validate_refuses) {
+  RoomFrame f = sample_frame();
+  f.origin.x += 1.0 / 512;  // off the grid
+  ASSERT_FALSE(validate_room_frame(f, Limits{}).ok());
+  std::vector<uint8_t> b = encode_room_frame(f);
+  EXPECT_EQ(b.size(), room_frame_size(f.room.portals.size(), f.payload.size()));
+  expect_error(b, ErrorCode::kBadFrame, "origin is not on the 1/256 m grid");
+}
+
 TEST(RoomFrame, every_single_byte_flip_is_decoded_or_refused_without_crashing) {
   // Cheap, deterministic cousin of the fuzzer: flip each bit of a valid frame. Whatever still
   // decodes must encode back to the same bytes.
