@@ -32,13 +32,18 @@ inline constexpr uint32_t kNormalId = 1;
 inline constexpr uint32_t kChannelsId = 2;
 inline constexpr uint32_t kRimId = 3;
 
-// Limits a decoder enforces by default. A patch room has ~450 vertices and ~2.2 KB of payload
-// (median; the largest caverns ~5,000 vertices), a detail room five times the vertices; the
-// limits leave room for the largest caverns at detail density and bound every allocation the
-// decoder makes.
-inline constexpr size_t kMaxPayloadBytes = size_t{1} << 20;
-inline constexpr uint32_t kMaxVertices = uint32_t{1} << 17;
-inline constexpr uint32_t kMaxTriangles = uint32_t{1} << 18;
+// The format's ceilings: encode_room refuses a room over them and decode_room never accepts more,
+// whatever DecodeLimits asks. Measured over five sectors (seed 42, 551 room meshes): the largest
+// patch room has 4,825 vertices, 9,541 triangles and 15,567 payload bytes; the largest detail room
+// 24,734 vertices, 49,224 triangles and 50,896 bytes. The ceilings hold that detail room 2.6x over.
+inline constexpr size_t kMaxPayloadBytes = size_t{1} << 18;   // 256 KiB
+inline constexpr uint32_t kMaxVertices = uint32_t{1} << 16;   // 65,536
+inline constexpr uint32_t kMaxTriangles = uint32_t{1} << 17;  // 131,072
+// What a brace-initialized DecodeLimits accepts: the streamed patch level, 3.4x the largest patch
+// room (4x its bytes). A client decoding detail payloads (wire lod 1) passes kDetailLimits.
+inline constexpr size_t kPatchMaxPayloadBytes = size_t{1} << 16;   // 64 KiB
+inline constexpr uint32_t kPatchMaxVertices = uint32_t{1} << 14;   // 16,384
+inline constexpr uint32_t kPatchMaxTriangles = uint32_t{1} << 15;  // 32,768
 inline constexpr int kMaxPortals = 127;  // rim slots are int8 in mesh::RoomMesh
 // Offsets from the room origin stay within this many metres on every axis (rooms are tens of
 // metres across; float32 holds grid values exactly to grid::kFrameSize).
@@ -84,14 +89,30 @@ struct DecodedRoom {
   size_t triangle_count() const { return indices.size() / 3; }
 };
 
-// What decode_room accepts. Brace-init gives the k* defaults above; a client passes the room's
-// portal count from the frame's descriptor so that rim slots are checked against it.
+// What decode_room accepts. Brace-init gives the patch level (kPatch* above); a client passes the
+// room's portal count from the frame's descriptor so that rim slots are checked against it. Values
+// above the format's ceilings (kMax*) are treated as the ceilings.
 struct DecodeLimits {
-  size_t max_bytes = kMaxPayloadBytes;
-  uint32_t max_vertices = kMaxVertices;
-  uint32_t max_triangles = kMaxTriangles;
+  size_t max_bytes = kPatchMaxPayloadBytes;
+  uint32_t max_vertices = kPatchMaxVertices;
+  uint32_t max_triangles = kPatchMaxTriangles;
   int portal_count = kMaxPortals;  // rim slots must be below this
 };
+// The format's ceilings, for detail payloads.
+inline constexpr DecodeLimits kDetailLimits = {kMaxPayloadBytes, kMaxVertices, kMaxTriangles,
+                                               kMaxPortals};
+
+// What decode_room may hold at once, Draco's allocations included, within DecodeLimits{} and
+// within kDetailLimits: 24 MiB and 96 MiB. Measured, not derived from Draco's source: the
+// largest payload known is a mesh at the triangle limit whose three non-position attributes have
+// a seam on every edge (a value per corner, 3 x triangles values each, under 2 KB of payload).
+// tests/codec/room_codec_alloc_test.cpp decodes one at 31,752 and 129,032 triangles with each of
+// Draco's speed settings and holds decode_room to these figures: peaks 18.6 MB and 75.2 MB,
+// ~580 bytes a triangle, so ~19.2 MB and ~76.4 MB at the limits; the largest single allocation
+// is 1.1 MB and 4.6 MB. The bound rests on the attribute check in decode_room: with only the four
+// layouts above, no value is wider than 12 bytes.
+inline constexpr int64_t kPatchDecodePeakBytes = int64_t{24} << 20;
+inline constexpr int64_t kDetailDecodePeakBytes = int64_t{96} << 20;
 
 // Views of the codec's inputs; the spans point into `mesh` / `room`, which must outlive the view.
 RoomView view_of(const mesh::RoomMesh& mesh);
@@ -99,21 +120,26 @@ RoomView view_of(const DecodedRoom& room, Vec3 origin = {});
 
 // Encodes a room as a Draco payload. Fails (invalid_argument) when the room breaks a contract of
 // RoomView: mismatched array sizes, an off-grid origin, non-finite or out-of-range values, an
-// index out of range, a degenerate triangle, an off-grid rim vertex, counts over the k* limits.
-// Deterministic: the same room and options give the same bytes. Thread-safe (no shared state).
+// index out of range, a degenerate triangle, an off-grid rim vertex, counts over the kMax*
+// ceilings, or a payload that would come out over kMaxPayloadBytes. Deterministic: the same room
+// and options give the same bytes. Thread-safe (no shared state).
 Result<std::vector<uint8_t>> encode_room(const RoomView& room, const EncodeOptions& options = {});
 inline Result<std::vector<uint8_t>> encode_room(const mesh::RoomMesh& mesh,
                                                 const EncodeOptions& options = {}) {
   return encode_room(view_of(mesh), options);
 }
 
-// Decodes a payload made by encode_room. Safe for untrusted input: the size limit and the
-// counts that Draco's header declares are checked before Draco allocates anything for them; only
-// draco::Decoder parses the bytes; then the attribute layout above and every value are validated
-// (finite positions within kMaxOffset, rim vertices on the grid, unit normals, channels in [0, 1],
-// rim slots below limits.portal_count, indices in range, no degenerate triangle). Every failure
-// is an invalid_argument Error whose message names the problem; nothing throws or aborts.
-// Deterministic: the same bytes decode to the same room. Thread-safe.
+// Decodes a payload made by encode_room. Safe for untrusted input, with bounded memory
+// (kPatchDecodePeakBytes / kDetailDecodePeakBytes): the size limit and the counts that Draco's
+// header declares are checked before Draco allocates anything for them; Draco's edgebreaker
+// decoder parses the bytes, and when it reaches the attribute descriptors (after connectivity,
+// before any attribute value is allocated) they must be exactly the four of the layout above, or
+// decoding stops there; then the layout and every value are validated (finite positions within
+// kMaxOffset, rim vertices on the grid, unit normals, channels in [0, 1], rim slots below
+// limits.portal_count, indices in range, no degenerate triangle). Limits over the kMax* ceilings
+// count as the ceilings. Every failure is an invalid_argument Error whose message names the
+// problem; nothing throws or aborts. Deterministic: the same bytes decode to the same room.
+// Thread-safe.
 Result<DecodedRoom> decode_room(std::span<const uint8_t> payload, const DecodeLimits& limits = {});
 
 }  // namespace grotto::codec

@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Builds Grotto's libFuzzer targets with clang in a build directory of their own and runs each
 # for a bounded time, seeded from tests/fuzz/seeds/<name>/. Fails on any crash, leak, sanitizer
-# report or timeout; exits 77 (CTest's skip) when clang or libFuzzer's runtime is missing.
+# report, timeout or single allocation over 64 MB; exits 77 (CTest's skip) when clang or
+# libFuzzer's runtime is missing.
 #   tests/fuzz/run_fuzzers.sh [SOURCE_DIR] [BUILD_DIR]
 # Environment: GROTTO_FUZZ_SECONDS per fuzzer (default 30), GROTTO_FUZZ_JOBS build jobs
 # (default 2), GROTTO_FUZZERS a space-separated subset to run.
@@ -46,7 +47,10 @@ for name in "${fuzzers[@]}"; do
   dirs=("$corpus")
   [[ -d "$src/tests/fuzz/seeds/$name" ]] && dirs+=("$src/tests/fuzz/seeds/$name")
   log="$build/$name.log"
-  "$build/bin/$name" -max_total_time="$seconds" -timeout=10 -rss_limit_mb=2048 \
+  # -malloc_limit_mb: one allocation over 64 MB fails the run. Without it libFuzzer's limit is
+  # rss_limit_mb (2 GB), which let a 255-component attribute claim 1.6 GB unseen; the room
+  # decoder's largest single allocation at its default limits is ~1.1 MB (room_codec.hpp).
+  "$build/bin/$name" -max_total_time="$seconds" -timeout=10 -rss_limit_mb=2048 -malloc_limit_mb=64 \
     -print_final_stats=1 -artifact_prefix="$artifacts/" "${dirs[@]}" >"$log" 2>&1
   rc=$?
   runs=$(grep -m1 -o 'stat::number_of_executed_units: *[0-9]*' "$log" | grep -o '[0-9]*$')
