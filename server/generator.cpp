@@ -1,0 +1,574 @@
+// The generation service: scheduling (per-client priority queues, round-robin across clients),
+// single flight, cancellation, batching, deadlines, the encoded-room cache and the workers.
+//
+// One mutex guards the scheduler (clients, jobs, queues, the room cache). Layout, building and
+// encoding run outside it, on the worker that took the batch; deliver callbacks run outside it
+// too, and remove_client waits for callbacks already started for that client, so that nothing
+// reaches a removed client after remove_client returns.
+#include "server/generator.hpp"
+
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <cassert>
+#include <condition_variable>
+#include <deque>
+#include <map>
+#include <mutex>
+#include <set>
+#include <thread>
+
+#include "codec/room_codec.hpp"
+#include "mesh/context.hpp"
+#include "proto/lod.hpp"
+#include "proto/room_frame.hpp"
+#include "server/metrics.hpp"
+#include "server/room_cache.hpp"
+#include "server/sector_cache.hpp"
+
+namespace grotto::server {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double seconds_between(Clock::time_point a, Clock::time_point b) {
+  return std::chrono::duration<double>(b - a).count();
+}
+
+// One room at one lod, wanted by one or more clients: built at most once while it exists.
+struct Job {
+  enum class Stage { kQueued, kBuilding };
+  RoomKey key;
+  Stage stage = Stage::kQueued;
+  std::vector<ClientId> waiters;
+  Clock::time_point created;
+};
+using JobPtr = std::shared_ptr<Job>;
+
+// A client's place for one job in its queue: smaller priority first, then first come.
+struct QueueEntry {
+  uint32_t priority = 0;
+  uint64_t seq = 0;  // unique per want, increasing
+  RoomKey key;
+  friend bool operator<(const QueueEntry& a, const QueueEntry& b) {
+    return a.priority != b.priority ? a.priority < b.priority : a.seq < b.seq;
+  }
+};
+
+struct Want {
+  uint32_t priority = 0;
+  uint64_t seq = 0;
+  Clock::time_point received;
+  bool queued = false;  // in the client's queue (its job has not started)
+};
+
+struct Client {
+  ClientId id = 0;
+  Generator::DeliverFn deliver;
+  std::map<RoomKey, Want, RoomKeyLess> wants;
+  std::set<QueueEntry> queue;  // wants whose job is queued
+  int delivering = 0;          // callbacks collected or running outside the lock
+};
+using ClientPtr = std::shared_ptr<Client>;
+
+struct Outgoing {
+  ClientPtr client;
+  Delivery delivery;
+};
+
+Delivery error_delivery(RoomKey key, Error error) {
+  Delivery d;
+  d.key = key;
+  d.error = std::move(error);
+  return d;
+}
+
+}  // namespace
+
+struct Generator::State {
+  State(const cave::World& w, mesh::MeshContext ctx, const GeneratorConfig& c, Metrics& m)
+      : world(w),
+        mesh_ctx(std::move(ctx)),
+        config(c),
+        metrics(m),
+        sectors(w, c.sector_cache_entries),
+        cache(c.cache_bytes) {}
+
+  const cave::World world;
+  const mesh::MeshContext mesh_ctx;  // builders keep a pointer to it
+  const GeneratorConfig config;
+  Metrics& metrics;
+  SectorCache sectors;
+  std::string compute_path;
+
+  std::mutex mutex;
+  std::condition_variable work_cv;     // queued work, or stopping
+  std::condition_variable deliver_cv;  // a client's callbacks finished
+  std::condition_variable exit_cv;     // a worker exited or its builder is ready
+  bool stopping = false;
+  ClientId next_client = 1;
+  uint64_t next_seq = 1;
+  ClientId rr_cursor = 0;  // the client served last; the next batch starts after it
+  std::map<ClientId, ClientPtr> clients;
+  std::map<RoomKey, JobPtr, RoomKeyLess> jobs;
+  size_t queued_jobs = 0;
+  std::deque<std::weak_ptr<Job>> by_age;  // jobs in creation order, for the deadline sweep
+  RoomCache cache;
+  std::vector<std::thread> threads;
+  std::vector<std::optional<kernels::RoomBuilder>> builders;
+  int builders_ready = 0;
+  int workers_exited = 0;
+
+  // ---- under the lock ----
+
+  void publish_gauges() {
+    metrics.queue_depth.set(static_cast<int64_t>(queued_jobs));
+    metrics.cache_bytes.set(static_cast<int64_t>(cache.bytes()));
+    metrics.cache_entries.set(static_cast<int64_t>(cache.entries()));
+  }
+
+  // Answers one want of `client`: forgets it and queues the callback.
+  void answer(const ClientPtr& client, const RoomKey& key, Delivery d, std::vector<Outgoing>& out) {
+    auto it = client->wants.find(key);
+    assert(it != client->wants.end());
+    if (it->second.queued) client->queue.erase({it->second.priority, it->second.seq, key});
+    metrics.room_latency_seconds.observe(seconds_between(it->second.received, Clock::now()));
+    client->wants.erase(it);
+    metrics.rooms_in_flight.add(-1);
+    ++client->delivering;
+    out.push_back({client, std::move(d)});
+  }
+
+  // Ends a job for every waiter with the same outcome and forgets it.
+  void finish_job(const JobPtr& job, const RoomPtr& room, const std::optional<Error>& error,
+                  std::vector<Outgoing>& out) {
+    if (job->stage == Job::Stage::kQueued) --queued_jobs;
+    for (ClientId id : job->waiters) {
+      auto c = clients.find(id);
+      assert(c != clients.end());
+      Delivery d;
+      d.key = job->key;
+      d.room = room;
+      d.error = error;
+      answer(c->second, job->key, std::move(d), out);
+    }
+    job->waiters.clear();
+    auto it = jobs.find(job->key);
+    if (it != jobs.end() && it->second == job) jobs.erase(it);
+  }
+
+  // Removes one want of a client (cancel or removal); a queued job nobody waits for goes.
+  void drop_want(Client& client, std::map<RoomKey, Want, RoomKeyLess>::iterator it) {
+    RoomKey key = it->first;
+    if (it->second.queued) client.queue.erase({it->second.priority, it->second.seq, key});
+    client.wants.erase(it);
+    metrics.rooms_in_flight.add(-1);
+    metrics.rooms_cancelled.add();
+    auto j = jobs.find(key);
+    if (j == jobs.end()) return;
+    JobPtr job = j->second;
+    std::erase(job->waiters, client.id);
+    if (job->waiters.empty() && job->stage == Job::Stage::kQueued) {
+      --queued_jobs;
+      jobs.erase(j);
+    }
+  }
+
+  // Fails queued jobs older than the deadline with `overloaded`.
+  void expire(Clock::time_point now, std::vector<Outgoing>& out) {
+    while (!by_age.empty()) {
+      JobPtr job = by_age.front().lock();
+      if (job && job->stage == Job::Stage::kQueued) {
+        if (now - job->created < config.job_deadline) break;
+        metrics.rooms_failed.add();
+        finish_job(job, nullptr,
+                   Error{ErrorCode::kOverloaded, "room " + job->key.id.to_string() +
+                                                     " waited longer than " +
+                                                     std::to_string(config.job_deadline.count()) +
+                                                     " ms for a builder; retry later"},
+                   out);
+      }
+      by_age.pop_front();
+    }
+  }
+
+  // Moves up to `limit` queued jobs into `batch`, one per client in turn, starting after the
+  // client served last. All jobs of a batch share the lod of its first job.
+  void take(std::vector<JobPtr>& batch, size_t limit) {
+    while (batch.size() < limit && queued_jobs > 0) {
+      bool progress = false;
+      auto start = clients.upper_bound(rr_cursor);
+      for (size_t n = 0; n < clients.size() && batch.size() < limit; ++n, ++start) {
+        if (start == clients.end()) start = clients.begin();
+        Client& c = *start->second;
+        auto e = c.queue.begin();
+        if (!batch.empty()) {
+          uint8_t lod = batch.front()->key.lod;
+          while (e != c.queue.end() && e->key.lod != lod)
+            ++e;
+        }
+        if (e == c.queue.end()) continue;
+        JobPtr job = jobs.at(e->key);
+        assert(job->stage == Job::Stage::kQueued);
+        job->stage = Job::Stage::kBuilding;
+        --queued_jobs;
+        // The job leaves every waiter's queue; the wants stay until it is answered.
+        for (ClientId id : job->waiters) {
+          Client& w = *clients.at(id);
+          Want& want = w.wants.at(job->key);
+          w.queue.erase({want.priority, want.seq, job->key});
+          want.queued = false;
+        }
+        batch.push_back(std::move(job));
+        rr_cursor = c.id;
+        progress = true;
+      }
+      if (!progress) break;
+    }
+  }
+
+  // Runs callbacks outside the lock, then lets remove_client know they are done.
+  void deliver(std::unique_lock<std::mutex>& lock, std::vector<Outgoing>& out) {
+    if (out.empty()) return;
+    publish_gauges();
+    lock.unlock();
+    for (Outgoing& o : out) {
+      o.client->deliver(std::move(o.delivery));
+    }
+    lock.lock();
+    for (Outgoing& o : out)
+      --o.client->delivering;
+    out.clear();
+    deliver_cv.notify_all();
+  }
+
+  // ---- outside the lock ----
+
+  // Layout, build, encode: one outcome per job, in order.
+  std::vector<Result<RoomPtr>> build(kernels::RoomBuilder& builder,
+                                     const std::vector<JobPtr>& batch) {
+    std::vector<Result<RoomPtr>> results(batch.size(), Result<RoomPtr>(RoomPtr{}));
+    std::vector<cave::Room> rooms;
+    std::vector<size_t> slots;
+    for (size_t i = 0; i < batch.size(); ++i) {
+      Result<cave::Room> room = sectors.room(batch[i]->key.id);
+      if (!room) {
+        results[i] = room.error();
+        continue;
+      }
+      rooms.push_back(std::move(room).value());
+      slots.push_back(i);
+    }
+    if (rooms.empty()) return results;
+    uint8_t lod = batch.front()->key.lod;
+    auto t0 = Clock::now();
+    std::vector<Result<mesh::RoomMesh>> meshes = builder.build(rooms, *proto::mesh_lod(lod));
+    double build_each = seconds_between(t0, Clock::now()) / static_cast<double>(rooms.size());
+    metrics.batches.add();
+    for (size_t k = 0; k < rooms.size(); ++k) {
+      size_t i = slots[k];
+      if (!meshes[k]) {
+        spdlog::warn("event=room_build_failed room={} lod={} error=\"{}\"", rooms[k].id.to_string(),
+                     lod, meshes[k].error().message);
+        results[i] =
+            Error{ErrorCode::kInternal, "room " + rooms[k].id.to_string() +
+                                            " could not be built: " + meshes[k].error().message};
+        continue;
+      }
+      const mesh::RoomMesh& m = *meshes[k];
+      auto t1 = Clock::now();
+      Result<std::vector<uint8_t>> payload = codec::encode_room(m);
+      if (!payload) {
+        spdlog::warn("event=room_encode_failed room={} lod={} error=\"{}\"",
+                     rooms[k].id.to_string(), lod, payload.error().message);
+        results[i] =
+            Error{ErrorCode::kInternal, "room " + rooms[k].id.to_string() +
+                                            " could not be encoded: " + payload.error().message};
+        continue;
+      }
+      auto encoded = std::make_shared<EncodedRoom>();
+      encoded->key = batch[i]->key;
+      encoded->frame = proto::encode_room_frame(rooms[k], lod, m.origin, *payload);
+      encoded->build_seconds = build_each;
+      encoded->encode_seconds = seconds_between(t1, Clock::now());
+      metrics.build_seconds.observe(encoded->build_seconds);
+      metrics.encode_seconds.observe(encoded->encode_seconds);
+      metrics.rooms_built.add();
+      results[i] = RoomPtr(std::move(encoded));
+    }
+    return results;
+  }
+
+  void worker_main(size_t index) {
+    builders[index].emplace(kernels::RoomBuilder::create(mesh_ctx, config.builder));
+    kernels::RoomBuilder& builder = *builders[index];
+    std::unique_lock lock(mutex);
+    ++builders_ready;
+    exit_cv.notify_all();
+    std::vector<Outgoing> out;
+    size_t max_batch = config.max_batch_rooms;
+    while (true) {
+      work_cv.wait(lock, [&] { return stopping || queued_jobs > 0; });
+      if (stopping) break;
+      expire(Clock::now(), out);
+      std::vector<JobPtr> batch;
+      take(batch, max_batch);
+      if (batch.size() < max_batch && !batch.empty() && config.max_batch_wait.count() > 0) {
+        // A fuller batch amortizes the launch; wait a little for more wants of this lod.
+        auto until = Clock::now() + config.max_batch_wait;
+        while (batch.size() < max_batch && !stopping &&
+               work_cv.wait_until(lock, until) == std::cv_status::no_timeout) {
+          take(batch, max_batch);
+        }
+        take(batch, max_batch);
+      }
+      if (queued_jobs > 0) work_cv.notify_one();  // work left: wake another worker
+      // Jobs cancelled by everyone while the batch filled are not built.
+      std::erase_if(batch, [&](const JobPtr& job) {
+        if (!job->waiters.empty()) return false;
+        jobs.erase(job->key);
+        return true;
+      });
+      publish_gauges();
+      if (batch.empty()) {
+        deliver(lock, out);
+        continue;
+      }
+      lock.unlock();
+      std::vector<Result<RoomPtr>> results = build(builder, batch);
+      lock.lock();
+      for (size_t i = 0; i < batch.size(); ++i) {
+        if (results[i]) {
+          cache.insert(*results[i]);
+          finish_job(batch[i], *results[i], std::nullopt, out);
+        } else {
+          metrics.rooms_failed.add();
+          finish_job(batch[i], nullptr, results[i].error(), out);
+        }
+      }
+      deliver(lock, out);
+    }
+    ++workers_exited;
+    exit_cv.notify_all();
+  }
+};
+
+Result<std::unique_ptr<Generator>> Generator::create(const cave::World& world,
+                                                     const mesh::MeshParams& mesh_params,
+                                                     const GeneratorConfig& config,
+                                                     Metrics& metrics) {
+  if (config.workers < 0 || config.workers > 1024) {
+    return invalid_argument("workers must be in [0, 1024] (0: one per hardware thread), got " +
+                            std::to_string(config.workers));
+  }
+  if (config.max_batch_rooms < 1 || config.max_batch_rooms > 4096) {
+    return invalid_argument("max_batch_rooms must be in [1, 4096], got " +
+                            std::to_string(config.max_batch_rooms));
+  }
+  if (config.max_batch_wait.count() < 0 || config.max_batch_wait.count() > 10'000) {
+    return invalid_argument("max_batch_wait must be in [0, 10000] ms, got " +
+                            std::to_string(config.max_batch_wait.count()));
+  }
+  if (config.job_deadline.count() < 1) {
+    return invalid_argument("job_deadline must be at least 1 ms, got " +
+                            std::to_string(config.job_deadline.count()));
+  }
+  Result<mesh::MeshContext> ctx = mesh::MeshContext::create(world, mesh_params);
+  if (!ctx) return Error{ctx.error().code, "mesh parameters: " + ctx.error().message};
+
+  auto state = std::make_unique<State>(world, std::move(ctx).value(), config, metrics);
+  size_t workers = config.workers > 0 ? static_cast<size_t>(config.workers)
+                                      : std::max(1u, std::thread::hardware_concurrency());
+  State* s = state.get();
+  s->builders.resize(workers);
+  // Each worker opens its own builder (and OpenCL context): builders are not thread-safe, and
+  // opening them in parallel overlaps the program loads.
+  for (size_t i = 0; i < workers; ++i) {
+    s->threads.emplace_back([s, i] { s->worker_main(i); });
+  }
+  {
+    std::unique_lock lock(s->mutex);
+    s->exit_cv.wait(lock, [&] { return s->builders_ready == static_cast<int>(workers); });
+  }
+  s->compute_path = s->builders[0]->path();
+  for (size_t i = 1; i < workers; ++i) {
+    if (s->builders[i]->path() != s->compute_path) {
+      spdlog::warn("event=builder_path_differs worker={} path=\"{}\" first=\"{}\"", i,
+                   s->builders[i]->path(), s->compute_path);
+    }
+  }
+  metrics.set_compute_path(s->compute_path);
+  spdlog::info("event=generator_started workers={} path=\"{}\" cache_bytes={} max_batch_rooms={}",
+               workers, s->compute_path, config.cache_bytes, config.max_batch_rooms);
+  return std::unique_ptr<Generator>(new Generator(std::move(state)));
+}
+
+Generator::Generator(std::unique_ptr<State> state) : state_(std::move(state)) {}
+
+Generator::~Generator() {
+  shutdown();
+  for (std::thread& t : state_->threads) {
+    if (t.joinable()) t.join();
+  }
+}
+
+ClientId Generator::add_client(DeliverFn deliver) {
+  State& s = *state_;
+  std::lock_guard lock(s.mutex);
+  auto client = std::make_shared<Client>();
+  client->id = s.next_client++;
+  client->deliver = std::move(deliver);
+  s.clients.emplace(client->id, client);
+  return client->id;
+}
+
+void Generator::remove_client(ClientId id) {
+  State& s = *state_;
+  std::unique_lock lock(s.mutex);
+  auto it = s.clients.find(id);
+  if (it == s.clients.end()) return;
+  ClientPtr client = it->second;
+  while (!client->wants.empty())
+    s.drop_want(*client, client->wants.begin());
+  s.clients.erase(it);
+  s.publish_gauges();
+  // Callbacks already collected for this client finish before we return.
+  s.deliver_cv.wait(lock, [&] { return client->delivering == 0; });
+}
+
+void Generator::request(ClientId id, std::span<const proto::RoomWant> wants) {
+  State& s = *state_;
+  std::unique_lock lock(s.mutex);
+  auto c = s.clients.find(id);
+  if (c == s.clients.end()) return;
+  ClientPtr client = c->second;
+  std::vector<Outgoing> out;
+  auto now = Clock::now();
+  bool queued = false;
+  for (const proto::RoomWant& w : wants) {
+    if (!proto::mesh_lod(w.lod)) {
+      ++client->delivering;
+      out.push_back({client, error_delivery({w.id, static_cast<uint8_t>(std::min(w.lod, 255u))},
+                                            invalid_argument("lod " + std::to_string(w.lod) +
+                                                             " is not served"))});
+      continue;
+    }
+    RoomKey key{w.id, static_cast<uint8_t>(w.lod)};
+    if (s.stopping) {
+      ++client->delivering;
+      out.push_back({client, error_delivery(key, Error{ErrorCode::kServiceRestart,
+                                                       "the generation service is stopping"})});
+      continue;
+    }
+    if (auto known = client->wants.find(key); known != client->wants.end()) {
+      // Already waiting: only the priority changes (its place among equals stays).
+      Want& want = known->second;
+      if (want.queued) {
+        client->queue.erase({want.priority, want.seq, key});
+        client->queue.insert({w.priority, want.seq, key});
+      }
+      want.priority = w.priority;
+      continue;
+    }
+    if (RoomPtr hit = s.cache.find(key)) {
+      s.metrics.rooms_from_cache.add();
+      s.metrics.room_latency_seconds.observe(0);
+      Delivery d;
+      d.key = key;
+      d.room = std::move(hit);
+      d.from_cache = true;
+      ++client->delivering;
+      out.push_back({client, std::move(d)});
+      continue;
+    }
+    Want want{w.priority, s.next_seq++, now, false};
+    auto j = s.jobs.find(key);
+    if (j != s.jobs.end()) {
+      s.metrics.rooms_deduplicated.add();
+      j->second->waiters.push_back(id);
+      want.queued = j->second->stage == Job::Stage::kQueued;
+    } else {
+      auto job = std::make_shared<Job>();
+      job->key = key;
+      job->created = now;
+      job->waiters.push_back(id);
+      s.jobs.emplace(key, job);
+      s.by_age.push_back(job);
+      ++s.queued_jobs;
+      want.queued = true;
+      queued = true;
+    }
+    if (want.queued) client->queue.insert({want.priority, want.seq, key});
+    client->wants.emplace(key, want);
+    s.metrics.rooms_in_flight.add(1);
+  }
+  s.publish_gauges();
+  if (queued) s.work_cv.notify_all();
+  s.deliver(lock, out);
+}
+
+void Generator::cancel(ClientId id, std::span<const cave::RoomId> rooms) {
+  State& s = *state_;
+  std::lock_guard lock(s.mutex);
+  auto c = s.clients.find(id);
+  if (c == s.clients.end()) return;
+  Client& client = *c->second;
+  for (cave::RoomId room : rooms) {
+    // Every lod of the room: keys order by id first.
+    auto it = client.wants.lower_bound(RoomKey{room, 0});
+    while (it != client.wants.end() && it->first.id == room) {
+      auto next = std::next(it);
+      s.drop_want(client, it);
+      it = next;
+    }
+  }
+  s.publish_gauges();
+}
+
+std::optional<cave::RoomId> Generator::locate(Vec3 point) {
+  return state_->sectors.locate(point);
+}
+
+proto::SpawnPoint Generator::spawn() {
+  return state_->sectors.spawn();
+}
+
+void Generator::shutdown(std::chrono::milliseconds timeout) {
+  State& s = *state_;
+  std::unique_lock lock(s.mutex);
+  if (!s.stopping) {
+    s.stopping = true;
+    std::vector<Outgoing> out;
+    std::vector<JobPtr> queued;
+    for (auto& [key, job] : s.jobs) {
+      if (job->stage == Job::Stage::kQueued) queued.push_back(job);
+    }
+    for (const JobPtr& job : queued) {
+      s.metrics.rooms_failed.add();
+      s.finish_job(job, nullptr,
+                   Error{ErrorCode::kServiceRestart, "the generation service is stopping"}, out);
+    }
+    s.by_age.clear();
+    s.work_cv.notify_all();
+    spdlog::info("event=generator_stopping failed_queued={}", queued.size());
+    s.deliver(lock, out);
+  }
+  s.exit_cv.wait_for(lock, timeout,
+                     [&] { return s.workers_exited == static_cast<int>(s.threads.size()); });
+}
+
+const cave::World& Generator::world() const {
+  return state_->world;
+}
+
+std::string Generator::compute_path() const {
+  return state_->compute_path;
+}
+
+size_t Generator::queue_depth() const {
+  std::lock_guard lock(state_->mutex);
+  return state_->queued_jobs;
+}
+
+}  // namespace grotto::server

@@ -1,0 +1,120 @@
+// The generation service behind the server's sockets (DESIGN "streaming model"): rooms wanted by
+// clients are scheduled per client by priority and round-robin across clients, built once for
+// all who want them (single flight), dropped before they run when nobody wants them any more
+// (cancellation), built in batches that share one kernel launch, encoded into ready-to-send room
+// frames, and kept in an LRU cache bounded in bytes. No socket code here: sessions call in from
+// their strands and receive results through a callback.
+//
+// Thread safety: every public member function may be called from any thread at any time.
+#pragma once
+
+#include <chrono>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <optional>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "cave/layout.hpp"
+#include "core/result.hpp"
+#include "kernels/room_builder.hpp"
+#include "mesh/params.hpp"
+#include "proto/lod.hpp"
+#include "proto/messages.hpp"
+
+namespace grotto::server {
+
+class Metrics;
+
+using ClientId = uint64_t;
+
+// The highest wire lod the generator builds (proto/lod.hpp maps wire lods to mesh lods). Checking
+// a want's lod against the announced max_lod is the caller's job; the generator answers a lod
+// above this with invalid_argument.
+inline constexpr uint32_t kMaxServedLod = proto::kMaxWireLod;
+
+// A room at a level of detail: the unit of building, caching and single flight.
+struct RoomKey {
+  cave::RoomId id = cave::RoomId::interior({}, 0);
+  uint8_t lod = 0;
+  friend bool operator==(const RoomKey&, const RoomKey&) = default;
+};
+
+// A built room, ready for the wire: the whole binary room frame (proto/room_frame.hpp: header,
+// descriptor, Draco payload). Immutable and shared by the cache and every session sending it.
+struct EncodedRoom {
+  RoomKey key;
+  std::vector<uint8_t> frame;
+  double build_seconds = 0;   // this room's share of its batch's build
+  double encode_seconds = 0;  // Draco encoding and framing
+};
+using RoomPtr = std::shared_ptr<const EncodedRoom>;
+
+// The outcome of one wanted room for one client: a room, or an error whose code PROTOCOL.md lists
+// (not_found: the id names no room; overloaded: the job waited past its deadline, retry later;
+// internal: building or encoding failed; service_restart: the service is shutting down).
+struct Delivery {
+  RoomKey key;
+  RoomPtr room;  // null exactly when error is set
+  std::optional<Error> error;
+  bool from_cache = false;  // served without touching the worker pool
+};
+
+struct GeneratorConfig {
+  int workers = 0;                              // build threads; 0: one per hardware thread
+  size_t cache_bytes = size_t{256} << 20;       // encoded frames kept (LRU); 0 disables the cache
+  size_t sector_cache_entries = 4096;           // sector layouts kept (LRU) for room/locate
+  size_t max_batch_rooms = 32;                  // rooms per build call (one kernel launch)
+  std::chrono::milliseconds max_batch_wait{2};  // a worker waits at most this for a fuller batch
+  std::chrono::milliseconds job_deadline{30'000};  // queued longer than this: overloaded error
+  kernels::RoomBuilder::Options builder{};  // OpenCL device choice (each worker has a builder)
+};
+
+class Generator {
+ public:
+  // Called once per (client, wanted room) outcome, on a worker thread or, for cache hits and
+  // immediate errors, on the caller's thread inside request(). It must not block and must not
+  // call back into the Generator synchronously (post to the session's strand instead).
+  using DeliverFn = std::function<void(Delivery)>;
+
+  // Errors: invalid configuration (names the setting). Starts the workers.
+  static Result<std::unique_ptr<Generator>> create(const cave::World& world,
+                                                   const mesh::MeshParams& mesh_params,
+                                                   const GeneratorConfig& config, Metrics& metrics);
+  ~Generator();  // shutdown() then join
+
+  ClientId add_client(DeliverFn deliver);
+  // Forgets the client: its queued wants are dropped (jobs nobody else wants are never built) and
+  // nothing more is delivered to it once this returns.
+  void remove_client(ClientId client);
+
+  // Queues rooms for a client; smaller priority is served sooner. A room the client already waits
+  // for gets the new priority and lod-less duplicates are ignored. Cache hits are delivered before
+  // this returns, without the worker pool. The caller enforces the per-client in-flight limit.
+  void request(ClientId client, std::span<const proto::RoomWant> wants);
+  // Stops waiting for these rooms (any lod). A job nobody waits for any more is never built; a
+  // job already building finishes (and is cached) but is not delivered to this client.
+  void cancel(ClientId client, std::span<const cave::RoomId> rooms);
+
+  // The layout side, served from the sector cache.
+  std::optional<cave::RoomId> locate(Vec3 point);
+  proto::SpawnPoint spawn();
+
+  // Stops taking work: queued jobs fail with `service_restart`, building ones finish, workers exit.
+  // Idempotent; waits at most `timeout` for the workers.
+  void shutdown(std::chrono::milliseconds timeout = std::chrono::milliseconds{5000});
+
+  const cave::World& world() const;
+  // "opencl: <device>" or "cpu: <why>", as kernels::RoomBuilder::path() reports it.
+  std::string compute_path() const;
+  size_t queue_depth() const;  // jobs queued, not yet building
+
+ private:
+  struct State;
+  explicit Generator(std::unique_ptr<State> state);
+  std::unique_ptr<State> state_;
+};
+
+}  // namespace grotto::server

@@ -1,0 +1,97 @@
+// The server's metrics, rendered in the Prometheus text exposition format (version 0.0.4) at
+// /metrics. A fixed set of named series, so every series is documented here and in
+// docs/OPERATING.md; updates are lock-free atomics, safe from any thread.
+#pragma once
+
+#include <array>
+#include <atomic>
+#include <cstdint>
+#include <mutex>
+#include <string>
+#include <vector>
+
+#include "core/result.hpp"
+
+namespace grotto::server {
+
+class Counter {
+ public:
+  void add(uint64_t n = 1) { value_.fetch_add(n, std::memory_order_relaxed); }
+  uint64_t value() const { return value_.load(std::memory_order_relaxed); }
+
+ private:
+  std::atomic<uint64_t> value_{0};
+};
+
+class Gauge {
+ public:
+  void set(int64_t v) { value_.store(v, std::memory_order_relaxed); }
+  void add(int64_t d) { value_.fetch_add(d, std::memory_order_relaxed); }
+  int64_t value() const { return value_.load(std::memory_order_relaxed); }
+
+ private:
+  std::atomic<int64_t> value_{0};
+};
+
+// Cumulative buckets with fixed upper bounds (seconds), plus sum and count.
+class Histogram {
+ public:
+  static constexpr std::array<double, 14> kBounds = {0.0005, 0.001, 0.002, 0.005, 0.01, 0.02, 0.05,
+                                                     0.1,    0.2,   0.5,   1.0,   2.0,  5.0,  10.0};
+  void observe(double seconds);
+  uint64_t count() const { return count_.load(std::memory_order_relaxed); }
+  double sum() const;
+  // Observations ≤ kBounds[i] (cumulative, as Prometheus wants); index kBounds.size() is +Inf.
+  uint64_t bucket(size_t i) const;
+
+ private:
+  std::array<std::atomic<uint64_t>, kBounds.size() + 1> buckets_{};
+  std::atomic<uint64_t> count_{0};
+  std::atomic<uint64_t> sum_micros_{0};
+};
+
+class Metrics {
+ public:
+  // Connections (sessions on the WebSocket path; HTTP requests counted apart).
+  Counter connections_total;       // grotto_connections_total
+  Gauge connections_open;          // grotto_connections_open
+  Counter connections_rejected;    // grotto_connections_rejected_total (over max_connections)
+  Counter http_requests_total;     // grotto_http_requests_total
+  // Control messages received, and room wants they carried.
+  Counter messages_total;          // grotto_messages_total
+  Counter rooms_requested;         // grotto_rooms_requested_total
+  // The generation service.
+  Counter rooms_built;             // grotto_rooms_built_total (each build counts once)
+  Counter rooms_served;            // grotto_rooms_served_total (room frames sent)
+  Counter rooms_from_cache;        // grotto_rooms_cache_hits_total
+  Counter rooms_cancelled;         // grotto_rooms_cancelled_total (wants cancelled before sent)
+  Counter rooms_deduplicated;      // grotto_rooms_deduplicated_total (joined a job in flight)
+  Counter rooms_failed;            // grotto_rooms_failed_total
+  Counter batches;                 // grotto_batches_total (build calls / kernel launches)
+  Gauge queue_depth;               // grotto_queue_depth (jobs queued, not building)
+  Gauge rooms_in_flight;           // grotto_rooms_in_flight (wants not yet answered, all clients)
+  Gauge cache_bytes;               // grotto_cache_bytes
+  Gauge cache_entries;             // grotto_cache_entries
+  Histogram build_seconds;         // grotto_build_seconds (per room)
+  Histogram encode_seconds;        // grotto_encode_seconds (per room)
+  Histogram room_latency_seconds;  // grotto_room_latency_seconds (want received -> frame queued)
+  Counter bytes_sent;              // grotto_bytes_sent_total (all frames)
+  Counter slow_clients_dropped;    // grotto_slow_clients_dropped_total (send queue over limit)
+
+  // Errors sent to clients, by wire code: grotto_errors_total{code="..."}.
+  void count_error(ErrorCode code);
+  uint64_t errors(ErrorCode code) const;
+
+  // grotto_compute_path_info{path="..."} 1 (set once the generator knows it).
+  void set_compute_path(std::string path);
+
+  // The whole exposition, every series with # HELP and # TYPE lines.
+  std::string render() const;
+
+ private:
+  std::array<Counter, 32> errors_{};
+  mutable std::mutex path_mutex_;
+  std::string compute_path_;
+};
+
+}  // namespace grotto::server

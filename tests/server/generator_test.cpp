@@ -1,0 +1,619 @@
+// The generation service (server/generator.hpp): rooms reach clients as frames that decode to the
+// mesh built in-process; single flight, cancellation, client removal, fairness, priorities, the
+// encoded-room cache and its byte bound, not_found, deadlines, shutdown and determinism. Real
+// OpenCL (PoCL, or whatever $GROTTO_OPENCL_DEVICE picks) and the CPU path (device "none"), real
+// codec. Waits are condition variables with generous timeouts; nothing asserts a duration.
+//
+// Many tests stall the single worker inside a deliver callback (a Gate), so that what they
+// queue next is known not to have started: scheduling is then deterministic.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <condition_variable>
+#include <functional>
+#include <map>
+#include <mutex>
+#include <thread>
+
+#include "codec/room_codec.hpp"
+#include "mesh/context.hpp"
+#include "proto/lod.hpp"
+#include "proto/room_frame.hpp"
+#include "server/generator.hpp"
+#include "server/metrics.hpp"
+#include "server/room_cache.hpp"
+#include "server/sector_cache.hpp"
+
+namespace grotto::server {
+namespace {
+
+using namespace std::chrono_literals;
+constexpr auto kWait = 60s;  // a bound for waits that normally end in milliseconds
+
+const cave::World& test_world() {
+  static const cave::World world = cave::World::create(42, cave::LayoutParams{}).value();
+  return world;
+}
+
+// Interior rooms that exist, sector by sector along +x, in order.
+std::vector<cave::RoomId> existing_rooms(size_t n) {
+  std::vector<cave::RoomId> out;
+  for (int x = 0; out.size() < n; ++x) {
+    cave::SectorLayout s = cave::generate_sector(test_world(), {x, 0, 0});
+    for (const cave::Room& r : s.rooms) {
+      if (out.size() < n) out.push_back(r.id);
+    }
+  }
+  return out;
+}
+
+std::vector<proto::RoomWant> wants_of(const std::vector<cave::RoomId>& ids, uint32_t lod = 0,
+                                      uint32_t priority = 0) {
+  std::vector<proto::RoomWant> out;
+  for (cave::RoomId id : ids)
+    out.push_back({id, lod, priority});
+  return out;
+}
+
+// Records the deliveries of one client, in order.
+class Inbox {
+ public:
+  // on_deliver runs inside the callback, on the delivering thread, before the delivery counts.
+  Generator::DeliverFn fn(std::function<void()> on_deliver = {}) {
+    return [this, on_deliver](Delivery d) {
+      if (on_deliver) on_deliver();
+      std::lock_guard lock(mutex_);
+      got_.push_back(std::move(d));
+      cv_.notify_all();
+    };
+  }
+  // True when at least n deliveries arrived within the bound.
+  bool wait_for(size_t n) {
+    std::unique_lock lock(mutex_);
+    return cv_.wait_for(lock, kWait, [&] { return got_.size() >= n; });
+  }
+  std::vector<Delivery> got() const {
+    std::lock_guard lock(mutex_);
+    return got_;
+  }
+  size_t size() const {
+    std::lock_guard lock(mutex_);
+    return got_.size();
+  }
+
+ private:
+  mutable std::mutex mutex_;
+  std::condition_variable cv_;
+  std::vector<Delivery> got_;
+};
+
+// Holds the thread that enters it until opened; tells the test when a thread is inside.
+class Gate {
+ public:
+  void pass() {
+    std::unique_lock lock(mutex_);
+    ++inside_;
+    cv_.notify_all();
+    cv_.wait(lock, [&] { return open_; });
+  }
+  bool wait_entered() {
+    std::unique_lock lock(mutex_);
+    return cv_.wait_for(lock, kWait, [&] { return inside_ > 0; });
+  }
+  void open() {
+    std::lock_guard lock(mutex_);
+    open_ = true;
+    cv_.notify_all();
+  }
+
+ private:
+  std::mutex mutex_;
+  std::condition_variable cv_;
+  int inside_ = 0;
+  bool open_ = false;
+};
+
+GeneratorConfig cpu_config(int workers = 1) {
+  GeneratorConfig c;
+  c.workers = workers;
+  c.builder.device.device = "none";
+  return c;
+}
+
+std::unique_ptr<Generator> make_generator(const GeneratorConfig& config, Metrics& metrics) {
+  auto g = Generator::create(test_world(), mesh::MeshParams{}, config, metrics);
+  EXPECT_TRUE(g.ok()) << (g.ok() ? "" : g.error().message);
+  return g.ok() ? std::move(g).value() : nullptr;
+}
+
+// A generator whose only worker is held inside a deliver callback: work queued while it is
+// held has not started. open() releases it.
+struct Stalled {
+  Gate gate;  // declared first: outlives the generator whose worker may be inside it
+  Metrics metrics;
+  std::unique_ptr<Generator> gen;
+  ClientId staller = 0;
+
+  explicit Stalled(GeneratorConfig config) {
+    gen = make_generator(config, metrics);
+    staller = gen->add_client([this](Delivery) { gate.pass(); });
+    std::vector<proto::RoomWant> one = wants_of({existing_rooms(1)});
+    gen->request(staller, one);
+    EXPECT_TRUE(gate.wait_entered());
+  }
+  ~Stalled() { gate.open(); }
+};
+
+// ---- frames ----
+
+class GeneratorPathTest : public ::testing::TestWithParam<std::string> {};
+
+TEST_P(GeneratorPathTest, delivered_frame_decodes_to_the_mesh_built_in_process) {
+  GeneratorConfig config;
+  config.workers = 1;
+  config.builder.device.device = GetParam();
+  Metrics metrics;
+  auto gen = make_generator(config, metrics);
+  ASSERT_TRUE(gen);
+  EXPECT_FALSE(gen->compute_path().empty());
+  if (GetParam() == "none") {
+    EXPECT_EQ(gen->compute_path().rfind("cpu:", 0), 0u);
+  }
+
+  cave::RoomId id = existing_rooms(3)[2];
+  Inbox inbox;
+  ClientId c = gen->add_client(inbox.fn());
+  std::vector<proto::RoomWant> want = {{id, 0, 0}};
+  gen->request(c, want);
+  ASSERT_TRUE(inbox.wait_for(1));
+  Delivery d = inbox.got()[0];
+  ASSERT_FALSE(d.error) << d.error->message;
+  ASSERT_TRUE(d.room);
+  EXPECT_EQ(d.key.id, id);
+  EXPECT_FALSE(d.from_cache);
+
+  auto frame = proto::decode_room_frame(d.room->frame, proto::Limits{.max_lod = 1});
+  ASSERT_TRUE(frame.ok()) << frame.error().message;
+  EXPECT_EQ(frame->lod, 0);
+  cave::Room expected_room = cave::room(test_world(), id).value();
+  std::vector<unsigned char> a, b;
+  cave::append_bytes(frame->room, a);
+  cave::append_bytes(expected_room, b);
+  EXPECT_EQ(a, b);
+
+  // The same room built here, with a builder of the same options, encoded the same way.
+  auto ctx = mesh::MeshContext::create(test_world(), mesh::MeshParams{}).value();
+  auto builder = kernels::RoomBuilder::create(ctx, config.builder);
+  auto meshes = builder.build(std::span(&expected_room, 1), mesh::Lod::kPatch);
+  ASSERT_TRUE(meshes[0].ok());
+  EXPECT_EQ(frame->origin, meshes[0]->origin);
+  auto payload = codec::encode_room(*meshes[0]);
+  ASSERT_TRUE(payload.ok());
+  auto got = codec::decode_room(frame->payload);
+  auto want_room = codec::decode_room(*payload);
+  ASSERT_TRUE(got.ok()) << got.error().message;
+  ASSERT_TRUE(want_room.ok());
+  EXPECT_GT(got->vertex_count(), 100u);
+  EXPECT_EQ(got->positions.size(), want_room->positions.size());
+  EXPECT_TRUE(std::equal(got->positions.begin(), got->positions.end(), want_room->positions.begin(),
+                         want_room->positions.end(),
+                         [](auto p, auto q) { return p.x == q.x && p.y == q.y && p.z == q.z; }));
+  EXPECT_EQ(got->indices, want_room->indices);
+  EXPECT_EQ(got->rim_portal, want_room->rim_portal);
+  EXPECT_EQ(got->rim_index, want_room->rim_index);
+  EXPECT_EQ(got->roughness, want_room->roughness);
+  EXPECT_EQ(frame->payload, *payload);
+  EXPECT_EQ(metrics.rooms_built.value(), 1u);
+  EXPECT_EQ(metrics.batches.value(), 1u);
+  EXPECT_EQ(metrics.build_seconds.count(), 1u);
+  EXPECT_EQ(metrics.encode_seconds.count(), 1u);
+  EXPECT_EQ(metrics.rooms_in_flight.value(), 0);
+}
+
+INSTANTIATE_TEST_SUITE_P(Paths, GeneratorPathTest, ::testing::Values("", "none"),
+                         [](const ::testing::TestParamInfo<std::string>& param_info) {
+                           return param_info.param.empty() ? std::string("opencl_or_default")
+                                                           : std::string("cpu");
+                         });
+
+TEST(GeneratorTest, frames_are_identical_across_generators_and_batch_mixes) {
+  std::vector<cave::RoomId> ids = existing_rooms(12);
+  cave::RoomId target = ids[5];
+  auto frame_of = [&](const GeneratorConfig& config, const std::vector<cave::RoomId>& batch) {
+    Metrics metrics;
+    auto gen = make_generator(config, metrics);
+    Inbox inbox;
+    ClientId c = gen->add_client(inbox.fn());
+    gen->request(c, wants_of(batch));
+    EXPECT_TRUE(inbox.wait_for(batch.size()));
+    for (const Delivery& d : inbox.got()) {
+      if (d.key.id == target && d.room) return d.room->frame;
+    }
+    ADD_FAILURE() << "target room not delivered";
+    return std::vector<uint8_t>{};
+  };
+  GeneratorConfig alone;
+  alone.workers = 1;
+  alone.max_batch_rooms = 1;
+  GeneratorConfig mixed;
+  mixed.workers = 2;
+  mixed.max_batch_rooms = 12;
+  std::vector<uint8_t> a = frame_of(alone, {target});
+  std::vector<uint8_t> b = frame_of(mixed, ids);
+  std::vector<cave::RoomId> reversed(ids.rbegin(), ids.rend());
+  std::vector<uint8_t> c = frame_of(mixed, reversed);
+  ASSERT_FALSE(a.empty());
+  EXPECT_EQ(a, b);
+  EXPECT_EQ(a, c);
+}
+
+// ---- scheduling ----
+
+TEST(GeneratorTest, single_flight_builds_a_room_once_for_every_client) {
+  Stalled s(cpu_config());
+  cave::RoomId id = existing_rooms(2)[1];
+  constexpr int kClients = 6;
+  std::vector<std::unique_ptr<Inbox>> inboxes;
+  for (int i = 0; i < kClients; ++i) {
+    inboxes.push_back(std::make_unique<Inbox>());
+    ClientId c = s.gen->add_client(inboxes.back()->fn());
+    std::vector<proto::RoomWant> want = {{id, 0, static_cast<uint32_t>(i)}};
+    s.gen->request(c, want);
+  }
+  EXPECT_EQ(s.gen->queue_depth(), 1u);
+  EXPECT_EQ(s.metrics.rooms_deduplicated.value(), kClients - 1u);
+  uint64_t built = s.metrics.rooms_built.value();
+  s.gate.open();
+  for (auto& inbox : inboxes) {
+    ASSERT_TRUE(inbox->wait_for(1));
+    Delivery d = inbox->got()[0];
+    ASSERT_TRUE(d.room);
+    EXPECT_EQ(d.key.id, id);
+  }
+  EXPECT_EQ(s.metrics.rooms_built.value(), built + 1);
+  // Every client got the very same encoded room.
+  for (auto& inbox : inboxes)
+    EXPECT_EQ(inbox->got()[0].room, inboxes[0]->got()[0].room);
+}
+
+TEST(GeneratorTest, cancelled_before_start_is_never_built_nor_delivered) {
+  Stalled s(cpu_config());
+  std::vector<cave::RoomId> ids = existing_rooms(6);
+  Inbox keep, drop;
+  ClientId a = s.gen->add_client(keep.fn());
+  ClientId b = s.gen->add_client(drop.fn());
+  std::vector<proto::RoomWant> keep_wants = wants_of({ids[1], ids[2]});
+  std::vector<proto::RoomWant> drop_wants = wants_of({ids[3], ids[4], ids[2]});
+  s.gen->request(a, keep_wants);
+  s.gen->request(b, drop_wants);
+  EXPECT_EQ(s.gen->queue_depth(), 4u);
+  std::vector<cave::RoomId> cancel = {ids[3], ids[4], ids[2], ids[5] /* never wanted */};
+  s.gen->cancel(b, cancel);
+  EXPECT_EQ(s.gen->queue_depth(), 2u);  // ids[2] stays: a still wants it
+  EXPECT_EQ(s.metrics.rooms_cancelled.value(), 3u);
+  uint64_t built = s.metrics.rooms_built.value();
+  s.gate.open();
+  ASSERT_TRUE(keep.wait_for(2));
+  // Once a's rooms are out the queue is empty; b's would have been built in the same batches.
+  EXPECT_EQ(s.gen->queue_depth(), 0u);
+  EXPECT_EQ(s.metrics.rooms_built.value(), built + 2);
+  EXPECT_EQ(drop.size(), 0u);
+  s.gen->shutdown();
+  EXPECT_EQ(drop.size(), 0u);
+  EXPECT_EQ(s.metrics.rooms_built.value(), built + 2);
+}
+
+TEST(GeneratorTest, remove_client_drops_its_work_and_delivers_nothing_more) {
+  Stalled s(cpu_config());
+  std::vector<cave::RoomId> ids = existing_rooms(8);
+  Inbox gone, stays;
+  ClientId a = s.gen->add_client(gone.fn());
+  ClientId b = s.gen->add_client(stays.fn());
+  std::vector<proto::RoomWant> a_wants = wants_of({ids[1], ids[2], ids[3], ids[4]});
+  std::vector<proto::RoomWant> b_wants = wants_of({ids[4], ids[5]});
+  s.gen->request(a, a_wants);
+  s.gen->request(b, b_wants);
+  EXPECT_EQ(s.gen->queue_depth(), 5u);
+  s.gen->remove_client(a);
+  EXPECT_EQ(s.gen->queue_depth(), 2u);
+  EXPECT_EQ(s.metrics.rooms_in_flight.value(), 2);  // b's two (the staller's is answered)
+  uint64_t built = s.metrics.rooms_built.value();
+  // Requests for a removed client are ignored.
+  s.gen->request(a, a_wants);
+  EXPECT_EQ(s.gen->queue_depth(), 2u);
+  s.gate.open();
+  ASSERT_TRUE(stays.wait_for(2));
+  EXPECT_EQ(s.metrics.rooms_built.value(), built + 2);
+  EXPECT_EQ(gone.size(), 0u);
+}
+
+TEST(GeneratorTest, a_client_asking_few_rooms_is_not_starved_by_one_asking_many) {
+  GeneratorConfig config = cpu_config();
+  config.max_batch_rooms = 8;
+  Stalled s(config);
+  std::vector<cave::RoomId> ids = existing_rooms(502);
+  // One worker delivers in order, so A's count read inside B's (or C's) callback is exactly
+  // how many of A's rooms reached A first.
+  Inbox many, few, later;
+  std::atomic<size_t> a_at_b{0}, a_at_c{0};
+  ClientId a = s.gen->add_client(many.fn());
+  ClientId b = s.gen->add_client(few.fn([&] { a_at_b = many.size(); }));
+  ClientId c = s.gen->add_client(later.fn([&] { a_at_c = many.size(); }));
+  std::vector<cave::RoomId> a_ids(ids.begin(), ids.begin() + 500);
+  s.gen->request(a, wants_of(a_ids));
+  std::vector<proto::RoomWant> b_want = wants_of({ids[500]});
+  s.gen->request(b, b_want);
+  s.gate.open();
+  // Round-robin: B's one room is in the first batch after A's 500 were queued.
+  ASSERT_TRUE(few.wait_for(1));
+  ASSERT_TRUE(few.got()[0].room);
+  EXPECT_LT(a_at_b.load(), 8u);
+  // A client arriving while A's batches are building waits for the batch building when it
+  // asked and for the rest of its own batch: 8 + 7 of A's rooms with one worker (plus one
+  // batch of slack: A's count is read just before C asks, and a batch may finish in between).
+  size_t a_at_request = many.size();
+  std::vector<proto::RoomWant> c_want = wants_of({ids[501]});
+  s.gen->request(c, c_want);
+  ASSERT_TRUE(later.wait_for(1));
+  ASSERT_TRUE(later.got()[0].room);
+  EXPECT_LE(a_at_c.load() - a_at_request, 15u + 8u);
+  EXPECT_LT(a_at_c.load(), 50u);
+  s.gen->remove_client(a);
+  EXPECT_EQ(s.gen->queue_depth(), 0u);
+}
+
+TEST(GeneratorTest, priorities_are_honoured_within_a_client) {
+  GeneratorConfig config = cpu_config();
+  config.max_batch_rooms = 1;
+  Stalled s(config);
+  std::vector<cave::RoomId> ids = existing_rooms(7);
+  Inbox inbox;
+  ClientId c = s.gen->add_client(inbox.fn());
+  std::vector<proto::RoomWant> wants = {{ids[1], 0, 50}, {ids[2], 0, 30}, {ids[3], 0, 90},
+                                        {ids[4], 0, 10}, {ids[5], 0, 30}, {ids[6], 0, 70}};
+  s.gen->request(c, wants);
+  // A repeated want changes the priority: ids[3] now comes first.
+  std::vector<proto::RoomWant> again = {{ids[3], 0, 0}};
+  s.gen->request(c, again);
+  s.gate.open();
+  ASSERT_TRUE(inbox.wait_for(6));
+  std::vector<cave::RoomId> order;
+  for (const Delivery& d : inbox.got())
+    order.push_back(d.key.id);
+  std::vector<cave::RoomId> expected = {ids[3], ids[4], ids[2], ids[5], ids[1], ids[6]};
+  EXPECT_EQ(order, expected);
+}
+
+// ---- cache ----
+
+TEST(GeneratorTest, second_request_is_served_from_cache_inside_request) {
+  Metrics metrics;
+  auto gen = make_generator(cpu_config(), metrics);
+  cave::RoomId id = existing_rooms(1)[0];
+  Inbox first, second;
+  ClientId a = gen->add_client(first.fn());
+  ClientId b = gen->add_client(second.fn());
+  std::vector<proto::RoomWant> want = {{id, 0, 0}};
+  gen->request(a, want);
+  ASSERT_TRUE(first.wait_for(1));
+  ASSERT_TRUE(first.got()[0].room);
+  EXPECT_FALSE(first.got()[0].from_cache);
+  EXPECT_EQ(metrics.rooms_built.value(), 1u);
+  gen->request(b, want);
+  ASSERT_EQ(second.size(), 1u);  // delivered before request() returned
+  EXPECT_TRUE(second.got()[0].from_cache);
+  EXPECT_EQ(second.got()[0].room, first.got()[0].room);
+  EXPECT_EQ(metrics.rooms_built.value(), 1u);
+  EXPECT_EQ(metrics.rooms_from_cache.value(), 1u);
+  EXPECT_EQ(metrics.cache_entries.value(), 1);
+  EXPECT_EQ(metrics.cache_bytes.value(), static_cast<int64_t>(first.got()[0].room->frame.size()));
+  // Another lod is another room.
+  std::vector<proto::RoomWant> detail = {{id, 1, 0}};
+  gen->request(b, detail);
+  ASSERT_TRUE(second.wait_for(2));
+  EXPECT_FALSE(second.got()[1].from_cache);
+  EXPECT_EQ(second.got()[1].key.lod, 1);
+  EXPECT_EQ(metrics.rooms_built.value(), 2u);
+}
+
+TEST(GeneratorTest, cache_keeps_within_its_byte_bound_evicting_least_recent) {
+  GeneratorConfig config = cpu_config();
+  config.cache_bytes = 12'000;  // a few patch frames
+  Metrics metrics;
+  auto gen = make_generator(config, metrics);
+  std::vector<cave::RoomId> ids = existing_rooms(10);
+  Inbox inbox;
+  ClientId c = gen->add_client(inbox.fn());
+  for (size_t i = 0; i < ids.size(); ++i) {
+    std::vector<proto::RoomWant> one = wants_of({ids[i]});
+    gen->request(c, one);
+    ASSERT_TRUE(inbox.wait_for(i + 1));
+    EXPECT_LE(metrics.cache_bytes.value(), 12'000);
+  }
+  EXPECT_GT(metrics.cache_entries.value(), 0);
+  EXPECT_LT(metrics.cache_entries.value(), 10);
+  uint64_t built = metrics.rooms_built.value();
+  std::vector<proto::RoomWant> last = wants_of({ids.back()});
+  gen->request(c, last);
+  ASSERT_EQ(inbox.size(), ids.size() + 1);
+  EXPECT_TRUE(inbox.got().back().from_cache);
+  std::vector<proto::RoomWant> first = wants_of({ids.front()});
+  gen->request(c, first);
+  ASSERT_TRUE(inbox.wait_for(ids.size() + 2));
+  EXPECT_FALSE(inbox.got().back().from_cache);
+  EXPECT_EQ(metrics.rooms_built.value(), built + 1);
+}
+
+TEST(GeneratorTest, cache_disabled_builds_every_time) {
+  GeneratorConfig config = cpu_config();
+  config.cache_bytes = 0;
+  Metrics metrics;
+  auto gen = make_generator(config, metrics);
+  Inbox inbox;
+  ClientId c = gen->add_client(inbox.fn());
+  std::vector<proto::RoomWant> one = wants_of(existing_rooms(1));
+  gen->request(c, one);
+  ASSERT_TRUE(inbox.wait_for(1));
+  gen->request(c, one);
+  ASSERT_TRUE(inbox.wait_for(2));
+  EXPECT_EQ(metrics.rooms_built.value(), 2u);
+  EXPECT_EQ(metrics.cache_entries.value(), 0);
+}
+
+TEST(RoomCacheTest, lru_bound_in_bytes) {
+  auto room = [](int i, size_t bytes) {
+    auto r = std::make_shared<EncodedRoom>();
+    r->key = {cave::RoomId::interior({0, 0, 0}, i), 0};
+    r->frame.assign(bytes, 0);
+    return RoomPtr(r);
+  };
+  RoomCache cache(1000);
+  cache.insert(room(0, 400));
+  cache.insert(room(1, 400));
+  EXPECT_TRUE(cache.find(room(0, 0)->key));  // 0 becomes the most recent
+  cache.insert(room(2, 400));                // evicts 1
+  EXPECT_EQ(cache.bytes(), 800u);
+  EXPECT_FALSE(cache.find(room(1, 0)->key));
+  EXPECT_TRUE(cache.find(room(0, 0)->key));
+  cache.insert(room(3, 1001));  // larger than the bound: not kept, nothing evicted
+  EXPECT_EQ(cache.entries(), 2u);
+  cache.insert(room(2, 100));  // replaces
+  EXPECT_EQ(cache.bytes(), 500u);
+  RoomCache off(0);
+  off.insert(room(0, 1));
+  EXPECT_EQ(off.entries(), 0u);
+}
+
+// ---- errors ----
+
+TEST(GeneratorTest, missing_room_is_not_found_and_bad_lod_invalid) {
+  Metrics metrics;
+  auto gen = make_generator(cpu_config(), metrics);
+  Inbox inbox;
+  ClientId c = gen->add_client(inbox.fn());
+  std::vector<proto::RoomWant> wants = {{cave::RoomId::interior({0, 0, 0}, 4000), 0, 0},
+                                        {cave::RoomId::gate({0, 0, 0}, 1, 15), 0, 0},
+                                        {existing_rooms(1)[0], proto::kMaxWireLod + 1, 0}};
+  gen->request(c, wants);
+  ASSERT_TRUE(inbox.wait_for(3));
+  std::map<cave::RoomId, ErrorCode> codes;
+  for (const Delivery& d : inbox.got()) {
+    ASSERT_TRUE(d.error);
+    EXPECT_FALSE(d.room);
+    codes[d.key.id] = d.error->code;
+  }
+  EXPECT_EQ(codes[wants[0].id], ErrorCode::kNotFound);
+  EXPECT_EQ(codes[wants[1].id], ErrorCode::kNotFound);
+  EXPECT_EQ(codes[wants[2].id], ErrorCode::kInvalidArgument);
+  EXPECT_EQ(metrics.rooms_built.value(), 0u);
+  EXPECT_EQ(metrics.rooms_failed.value(), 2u);
+  EXPECT_EQ(metrics.rooms_in_flight.value(), 0);
+}
+
+TEST(GeneratorTest, jobs_queued_past_the_deadline_fail_overloaded) {
+  GeneratorConfig config = cpu_config();
+  config.job_deadline = 1ms;
+  config.max_batch_rooms = 2;
+  Stalled s(config);
+  std::vector<cave::RoomId> ids = existing_rooms(11);
+  Inbox inbox;
+  ClientId c = s.gen->add_client(inbox.fn());
+  std::vector<cave::RoomId> queued(ids.begin() + 1, ids.end());
+  s.gen->request(c, wants_of(queued));
+  // Let the deadline pass while the worker is held (a guaranteed wait, not a hope).
+  std::this_thread::sleep_for(20ms);
+  s.gate.open();
+  ASSERT_TRUE(inbox.wait_for(queued.size()));
+  size_t overloaded = 0;
+  for (const Delivery& d : inbox.got()) {
+    if (d.error) {
+      EXPECT_EQ(d.error->code, ErrorCode::kOverloaded);
+      ++overloaded;
+    }
+  }
+  EXPECT_EQ(overloaded, queued.size());  // every one waited past 1 ms before any could start
+  EXPECT_EQ(s.metrics.rooms_in_flight.value(), 0);
+}
+
+TEST(GeneratorTest, shutdown_fails_queued_work_with_service_restart_and_returns) {
+  auto s = std::make_unique<Stalled>(cpu_config());
+  std::vector<cave::RoomId> ids = existing_rooms(21);
+  Inbox inbox;
+  ClientId c = s->gen->add_client(inbox.fn());
+  std::vector<cave::RoomId> queued(ids.begin() + 1, ids.end());
+  s->gen->request(c, wants_of(queued));
+  auto start = std::chrono::steady_clock::now();
+  s->gen->shutdown(200ms);  // the worker is held: shutdown stops waiting after 200 ms
+  EXPECT_LT(std::chrono::steady_clock::now() - start, 30s);
+  ASSERT_EQ(inbox.size(), queued.size());  // delivered inside shutdown()
+  for (const Delivery& d : inbox.got()) {
+    ASSERT_TRUE(d.error);
+    EXPECT_EQ(d.error->code, ErrorCode::kServiceRestart);
+  }
+  s->gen->shutdown(10ms);  // idempotent
+  std::vector<proto::RoomWant> late = wants_of({ids[0]});
+  s->gen->request(c, late);
+  ASSERT_EQ(inbox.size(), queued.size() + 1);
+  EXPECT_EQ(inbox.got().back().error->code, ErrorCode::kServiceRestart);
+  s->gate.open();
+  s.reset();  // the destructor joins the released worker
+}
+
+TEST(GeneratorTest, create_rejects_bad_config_naming_the_setting) {
+  Metrics metrics;
+  GeneratorConfig c = cpu_config();
+  c.max_batch_rooms = 0;
+  auto g = Generator::create(test_world(), mesh::MeshParams{}, c, metrics);
+  ASSERT_FALSE(g.ok());
+  EXPECT_NE(g.error().message.find("max_batch_rooms"), std::string::npos);
+  c = cpu_config(-1);
+  g = Generator::create(test_world(), mesh::MeshParams{}, c, metrics);
+  ASSERT_FALSE(g.ok());
+  EXPECT_NE(g.error().message.find("workers"), std::string::npos);
+}
+
+// ---- layout side ----
+
+TEST(SectorCacheTest, rooms_locate_and_spawn_match_the_layout_functions) {
+  SectorCache cache(test_world(), 4);
+  std::vector<cave::RoomId> ids = existing_rooms(40);
+  cave::SectorLayout s0 = cave::generate_sector(test_world(), {0, 0, 0});
+  for (const cave::Room& g : s0.gates)
+    ids.push_back(g.id);
+  ids.push_back(cave::RoomId::interior({0, 0, 0}, 4000));
+  ids.push_back(cave::RoomId::gate({0, 0, 0}, 2, 15));
+  for (cave::RoomId id : ids) {
+    auto want = cave::room(test_world(), id);
+    auto got = cache.room(id);
+    ASSERT_EQ(want.ok(), got.ok()) << id.to_string();
+    if (!want.ok()) {
+      EXPECT_EQ(got.error().code, want.error().code);
+      continue;
+    }
+    std::vector<unsigned char> a, b;
+    cave::append_bytes(*want, a);
+    cave::append_bytes(*got, b);
+    EXPECT_EQ(a, b) << id.to_string();
+  }
+  EXPECT_LE(cache.size(), 4u);
+  EXPECT_GT(cache.hits(), 0u);
+  for (const cave::Room& r : s0.rooms) {
+    EXPECT_EQ(cache.locate(r.sphere.centre), cave::locate(test_world(), r.sphere.centre));
+  }
+  proto::SpawnPoint spawn = cache.spawn();
+  EXPECT_EQ(spawn.room, cave::spawn_room(test_world()));
+  EXPECT_EQ(cave::locate(test_world(), spawn.position), spawn.room);
+}
+
+TEST(GeneratorTest, locate_and_spawn_agree) {
+  Metrics metrics;
+  auto gen = make_generator(cpu_config(), metrics);
+  proto::SpawnPoint spawn = gen->spawn();
+  EXPECT_EQ(gen->locate(spawn.position), spawn.room);
+  EXPECT_FALSE(gen->locate({1e30, 0, 0}));
+}
+
+}  // namespace
+}  // namespace grotto::server
