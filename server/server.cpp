@@ -166,7 +166,10 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
     ws_.set_option(t);
     ws_.set_option(websocket::stream_base::decorator(
         [](websocket::response_type& res) { res.set(http::field::server, product_version()); }));
-    ws_.read_message_max(limits_.max_message_bytes);
+    // Twice the limit: a message up to that size is read whole and refused with our own error
+    // (too_large, fatal, close 1009); only bigger ones are cut by Beast, which fails the
+    // connection without telling the client why.
+    ws_.read_message_max(uint64_t{2} * limits_.max_message_bytes);
     peer_ = endpoint_text();
     ws_.async_accept(req, beast::bind_front_handler(&WsSession::on_accept, shared_from_this()));
   }

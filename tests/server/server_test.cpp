@@ -1,0 +1,997 @@
+// grotto-server over real sockets: a Server started in-process on 127.0.0.1, port 0, and Beast
+// WebSocket/HTTP clients on loopback. Every wait is bounded (kWait), so a broken server fails a
+// test instead of hanging it.
+#include <gtest/gtest.h>
+#include <poll.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <boost/asio/connect.hpp>
+#include <boost/asio/ip/tcp.hpp>
+#include <boost/beast/core.hpp>
+#include <boost/beast/http.hpp>
+#include <boost/beast/websocket.hpp>
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <map>
+#include <optional>
+#include <regex>
+#include <set>
+#include <sstream>
+#include <thread>
+
+#include "cave/layout.hpp"
+#include "codec/room_codec.hpp"
+#include "mesh/context.hpp"
+#include "mesh/room_mesh.hpp"
+#include "proto/messages.hpp"
+#include "proto/room_frame.hpp"
+#include "server/config.hpp"
+#include "server/server.hpp"
+
+namespace {
+
+namespace beast = boost::beast;
+namespace http = beast::http;
+namespace websocket = beast::websocket;
+namespace net = boost::asio;
+using tcp = net::ip::tcp;
+using namespace std::chrono_literals;
+using Clock = std::chrono::steady_clock;
+using grotto::ErrorCode;
+using grotto::cave::RoomId;
+using grotto::server::Server;
+using grotto::server::ServerConfig;
+
+constexpr auto kWait = 20s;  // the longest any single step may take before the test fails
+
+ServerConfig test_config() {
+  ServerConfig c;
+  c.port = 0;
+  c.io_threads = 2;
+  c.generator.workers = 2;
+  c.generator.builder.device.device = "none";  // the CPU reference: no OpenCL start-up in tests
+  c.drain_timeout = 3000ms;
+  c.log_level = "warn";
+  return c;
+}
+
+std::unique_ptr<Server> start(const ServerConfig& c) {
+  auto s = Server::start(c);
+  EXPECT_TRUE(s.ok()) << (s.ok() ? "" : s.error().message);
+  if (!s.ok()) return nullptr;
+  return std::move(s).value();
+}
+
+std::vector<grotto::cave::Room> sector_rooms(uint64_t seed, grotto::cave::SectorCoord sector) {
+  auto world = grotto::cave::World::create(seed, {});
+  return grotto::cave::generate_sector(*world, sector).rooms;
+}
+
+// A message from the server: a text frame (parsed) or a binary room frame.
+struct Incoming {
+  bool text = false;
+  std::string data;
+  std::optional<grotto::proto::ServerMessage> message;
+  template <class T>
+  const T* as() const {
+    return message ? std::get_if<T>(&*message) : nullptr;
+  }
+};
+
+// A WebSocket client on its own io_context; every operation runs with a deadline.
+class Client {
+ public:
+  explicit Client(uint16_t port) : port_(port), ws_(ioc_) {}
+
+  beast::error_code connect(const std::string& target = "/ws") {
+    tcp::resolver resolver(ioc_);
+    beast::error_code ec;
+    auto results = resolver.resolve("127.0.0.1", std::to_string(port_), ec);
+    if (ec) return ec;
+    ec = run([&](auto h) { beast::get_lowest_layer(ws_).async_connect(*results.begin(), h); });
+    if (ec) return ec;
+    return run([&](auto h) { ws_.async_handshake(response_, "127.0.0.1", target, h); });
+  }
+
+  // Reads for at most `timeout`: a frame, or the error (websocket::error::closed after a close).
+  std::pair<beast::error_code, Incoming> read(std::chrono::milliseconds timeout = kWait) {
+    beast::flat_buffer buffer;
+    auto ec = run([&](auto h) { ws_.async_read(buffer, h); }, timeout);
+    Incoming in;
+    if (ec) return {ec, in};
+    in.text = ws_.got_text();
+    in.data = beast::buffers_to_string(buffer.data());
+    if (in.text) {
+      auto m = grotto::proto::parse_server_message(in.data, grotto::proto::Limits{});
+      EXPECT_TRUE(m.ok()) << in.data;
+      if (m.ok()) in.message = std::move(m).value();
+    }
+    return {ec, in};
+  }
+
+  // The next text message, skipping room frames (counted in `frames_skipped`).
+  std::optional<Incoming> next_text(std::chrono::milliseconds timeout = kWait) {
+    auto deadline = Clock::now() + timeout;
+    while (Clock::now() < deadline) {
+      auto [ec, in] =
+          read(std::chrono::duration_cast<std::chrono::milliseconds>(deadline - Clock::now()));
+      if (ec) {
+        last_error_ = ec;
+        return std::nullopt;
+      }
+      if (in.text) return in;
+      frames.push_back(std::move(in.data));
+    }
+    return std::nullopt;
+  }
+
+  beast::error_code send(const std::string& text) {
+    ws_.text(true);
+    return run([&](auto h) { ws_.async_write(net::buffer(text), h); });
+  }
+  beast::error_code send(const grotto::proto::ClientMessage& m) {
+    return send(grotto::proto::serialize(m));
+  }
+  beast::error_code send_binary(const std::string& bytes) {
+    ws_.binary(true);
+    return run([&](auto h) { ws_.async_write(net::buffer(bytes), h); });
+  }
+
+  // hello, then the welcome; fails the test otherwise.
+  grotto::proto::Welcome hello(std::string name = "test") {
+    grotto::proto::Hello h;
+    h.ref = 1;
+    h.versions = {1};
+    h.name = std::move(name);
+    EXPECT_FALSE(send(h));
+    auto in = next_text();
+    EXPECT_TRUE(in && in->as<grotto::proto::Welcome>()) << (in ? in->data : "no reply");
+    if (in && in->as<grotto::proto::Welcome>()) return *in->as<grotto::proto::Welcome>();
+    return {};
+  }
+
+  // A ping answered: the connection still works.
+  bool alive(uint64_t ref = 99) {
+    grotto::proto::Ping p;
+    p.ref = ref;
+    p.t = 1.5;
+    if (send(p)) return false;
+    auto in = next_text();
+    while (in && !in->as<grotto::proto::Pong>())
+      in = next_text();
+    return in && in->as<grotto::proto::Pong>() && in->as<grotto::proto::Pong>()->ref == ref;
+  }
+
+  // The next error message.
+  std::optional<grotto::proto::ErrorMessage> next_error() {
+    auto in = next_text();
+    while (in && !in->as<grotto::proto::ErrorMessage>())
+      in = next_text();
+    if (!in) return std::nullopt;
+    return *in->as<grotto::proto::ErrorMessage>();
+  }
+
+  // Reads until the server closes; returns its close reason (code 0 if it never closed).
+  websocket::close_reason wait_close(std::chrono::milliseconds timeout = kWait) {
+    auto deadline = Clock::now() + timeout;
+    while (Clock::now() < deadline) {
+      auto [ec, in] =
+          read(std::chrono::duration_cast<std::chrono::milliseconds>(deadline - Clock::now()));
+      if (ec == websocket::error::closed) return ws_.reason();
+      if (ec) {
+        // Beast reports some closes (the peer's teardown racing our close reply) as another
+        // error; the close frame it read still tells the code.
+        last_error_ = ec;
+        return ws_.reason();
+      }
+    }
+    return {};
+  }
+
+  void close_tcp() {
+    beast::error_code ignored;
+    beast::get_lowest_layer(ws_).socket().close(ignored);
+  }
+
+  websocket::stream<beast::tcp_stream>& ws() { return ws_; }
+  const websocket::response_type& response() const { return response_; }
+  std::vector<std::string> frames;  // room frames received while waiting for text
+  beast::error_code last_error_;
+
+ private:
+  template <class Start>
+  beast::error_code run(Start start, std::chrono::milliseconds timeout = kWait) {
+    std::optional<beast::error_code> result;
+    ioc_.restart();
+    start([&](beast::error_code ec, auto&&...) { result = ec; });
+    auto deadline = Clock::now() + timeout;
+    while (!result && Clock::now() < deadline)
+      ioc_.run_one_until(deadline);
+    if (!result) {
+      beast::get_lowest_layer(ws_).cancel();
+      for (int i = 0; i < 5 && !result; ++i)
+        ioc_.run_one_for(1s);
+      return net::error::timed_out;
+    }
+    return *result;
+  }
+
+  uint16_t port_;
+  net::io_context ioc_;
+  websocket::stream<beast::tcp_stream> ws_;
+  websocket::response_type response_;
+};
+
+struct HttpReply {
+  int status = 0;
+  std::string body;
+  std::string content_type;
+};
+
+// One GET (or a raw request) on a fresh connection, bounded.
+HttpReply http_get(uint16_t port, const std::string& target) {
+  net::io_context ioc;
+  beast::tcp_stream stream(ioc);
+  HttpReply out;
+  stream.expires_after(kWait);
+  beast::error_code ec;
+  stream.connect(tcp::endpoint(net::ip::make_address("127.0.0.1"), port), ec);
+  if (ec) return out;
+  http::request<http::empty_body> req(http::verb::get, target, 11);
+  req.set(http::field::host, "127.0.0.1");
+  bool done = false;
+  http::response<http::string_body> res;
+  beast::flat_buffer buffer;
+  http::async_write(stream, req, [&](beast::error_code e, std::size_t) {
+    if (e) {
+      done = true;
+      return;
+    }
+    http::async_read(stream, buffer, res, [&](beast::error_code e2, std::size_t) {
+      done = true;
+      if (!e2) {
+        out.status = static_cast<int>(res.result_int());
+        out.body = res.body();
+        out.content_type = std::string(res[http::field::content_type]);
+      }
+    });
+  });
+  ioc.run_for(kWait);
+  (void)done;
+  return out;
+}
+
+grotto::proto::Request request_of(const std::vector<grotto::cave::Room>& rooms, size_t from,
+                                  size_t count, uint64_t ref, uint32_t priority = 0) {
+  grotto::proto::Request r;
+  r.ref = ref;
+  for (size_t i = from; i < from + count && i < rooms.size(); ++i) {
+    r.rooms.push_back({rooms[i].id, 0, priority});
+  }
+  return r;
+}
+
+std::vector<grotto::cave::Room> many_rooms(size_t count) {
+  std::vector<grotto::cave::Room> out;
+  for (int x = 0; out.size() < count; ++x) {
+    for (int z = 0; z < 8 && out.size() < count; ++z) {
+      for (auto& r : sector_rooms(7, {x, 0, z})) {
+        if (out.size() < count) out.push_back(std::move(r));
+      }
+    }
+  }
+  return out;
+}
+
+RoomId frame_id(const std::string& frame) {
+  auto f = grotto::proto::decode_room_frame(
+      std::span(reinterpret_cast<const uint8_t*>(frame.data()), frame.size()),
+      grotto::proto::Limits{});
+  EXPECT_TRUE(f.ok());
+  return f.ok() ? f->room.id : RoomId::interior({}, 0);
+}
+
+// ---- session basics ----
+
+TEST(ServerSession, hello_gets_welcome_with_the_servers_limits) {
+  auto c = test_config();
+  c.limits.max_rooms_in_flight = 77;
+  c.limits.max_rooms_per_request = 33;
+  auto server = start(c);
+  ASSERT_TRUE(server);
+  Client client(server->port());
+  ASSERT_FALSE(client.connect());
+  auto w = client.hello();
+  EXPECT_EQ(w.ref, 1u);
+  EXPECT_EQ(w.version, grotto::proto::kProtocolVersion);
+  EXPECT_EQ(w.seed, c.seed);
+  EXPECT_EQ(w.limits, c.limits);
+  EXPECT_EQ(w.server, grotto::server::product_version());
+  EXPECT_TRUE(client.alive());
+  // spawn and locate answer with the layout's own values.
+  grotto::proto::Spawn sp;
+  sp.ref = 5;
+  ASSERT_FALSE(client.send(sp));
+  auto in = client.next_text();
+  ASSERT_TRUE(in && in->as<grotto::proto::SpawnPoint>());
+  auto world = grotto::cave::World::create(c.seed, c.layout);
+  EXPECT_EQ(in->as<grotto::proto::SpawnPoint>()->room, grotto::cave::spawn_room(*world));
+  grotto::proto::Locate lo;
+  lo.ref = 6;
+  lo.point = in->as<grotto::proto::SpawnPoint>()->position;
+  ASSERT_FALSE(client.send(lo));
+  auto located = client.next_text();
+  ASSERT_TRUE(located && located->as<grotto::proto::Located>());
+  EXPECT_EQ(located->as<grotto::proto::Located>()->ref, 6u);
+  EXPECT_TRUE(located->as<grotto::proto::Located>()->room.has_value());
+}
+
+TEST(ServerRooms, room_over_the_wire_decodes_to_the_in_process_mesh) {
+  auto c = test_config();
+  auto server = start(c);
+  ASSERT_TRUE(server);
+  Client client(server->port());
+  ASSERT_FALSE(client.connect());
+  client.hello();
+  auto rooms = sector_rooms(c.seed, {0, 0, 0});
+  ASSERT_GE(rooms.size(), 3u);
+  ASSERT_FALSE(client.send(request_of(rooms, 0, 3, 10)));
+  std::map<uint64_t, std::string> got;
+  while (got.size() < 3) {
+    auto [ec, in] = client.read();
+    ASSERT_FALSE(ec) << ec.message();
+    ASSERT_FALSE(in.text) << in.data;
+    got[frame_id(in.data).packed()] = in.data;
+  }
+  auto world = grotto::cave::World::create(c.seed, c.layout);
+  auto ctx = grotto::mesh::MeshContext::create(*world, c.mesh);
+  ASSERT_TRUE(ctx.ok());
+  for (size_t i = 0; i < 3; ++i) {
+    const std::string& bytes = got.at(rooms[i].id.packed());
+    auto frame = grotto::proto::decode_room_frame(
+        std::span(reinterpret_cast<const uint8_t*>(bytes.data()), bytes.size()),
+        server->config().limits);
+    ASSERT_TRUE(frame.ok()) << frame.error().message;
+    EXPECT_EQ(frame->room.id, rooms[i].id);
+    EXPECT_EQ(frame->room.portals.size(), rooms[i].portals.size());
+    auto wire = grotto::codec::decode_room(frame->payload);
+    ASSERT_TRUE(wire.ok()) << wire.error().message;
+    auto local = grotto::mesh::build_room_mesh(*ctx, rooms[i], grotto::mesh::Lod::kPatch);
+    ASSERT_TRUE(local.ok()) << local.error().message;
+    EXPECT_EQ(frame->origin, local->origin);
+    // The same mesh: the wire decodes exactly as the in-process mesh encoded and decoded again.
+    auto payload = grotto::codec::encode_room(*local);
+    ASSERT_TRUE(payload.ok());
+    auto again = grotto::codec::decode_room(*payload);
+    ASSERT_TRUE(again.ok());
+    EXPECT_EQ(wire->vertex_count(), local->vertex_count());
+    EXPECT_EQ(wire->triangle_count(), local->triangle_count());
+    ASSERT_EQ(wire->positions.size(), again->positions.size());
+    for (size_t v = 0; v < wire->positions.size(); ++v) {
+      EXPECT_EQ(wire->positions[v].x, again->positions[v].x);
+      EXPECT_EQ(wire->positions[v].y, again->positions[v].y);
+      EXPECT_EQ(wire->positions[v].z, again->positions[v].z);
+    }
+    EXPECT_EQ(wire->indices, again->indices);
+    EXPECT_EQ(wire->rim_index, again->rim_index);
+  }
+  EXPECT_GE(server->metrics().rooms_served.value(), 3u);
+}
+
+TEST(ServerRooms, many_clients_wanting_one_room_cause_one_build) {
+  auto c = test_config();
+  auto server = start(c);
+  ASSERT_TRUE(server);
+  auto rooms = sector_rooms(c.seed, {1, 0, 0});
+  std::vector<std::unique_ptr<Client>> clients;
+  for (int i = 0; i < 4; ++i) {
+    clients.push_back(std::make_unique<Client>(server->port()));
+    ASSERT_FALSE(clients.back()->connect());
+    clients.back()->hello();
+  }
+  for (auto& cl : clients)
+    ASSERT_FALSE(cl->send(request_of(rooms, 5, 1, 1)));
+  for (auto& cl : clients) {
+    auto [ec, in] = cl->read();
+    ASSERT_FALSE(ec);
+    ASSERT_FALSE(in.text) << in.data;
+    EXPECT_EQ(frame_id(in.data), rooms[5].id);
+  }
+  EXPECT_EQ(server->metrics().rooms_built.value(), 1u);
+  EXPECT_EQ(server->metrics().rooms_served.value(), 4u);
+}
+
+TEST(ServerRooms, cancelled_rooms_are_not_sent) {
+  auto c = test_config();
+  c.generator.workers = 1;
+  c.generator.max_batch_rooms = 1;
+  auto server = start(c);
+  ASSERT_TRUE(server);
+  auto rooms = many_rooms(200);
+  Client client(server->port());
+  ASSERT_FALSE(client.connect());
+  client.hello();
+  ASSERT_FALSE(client.send(request_of(rooms, 0, 200, 2)));
+  grotto::proto::Cancel cancel;
+  cancel.ref = 3;
+  for (const auto& r : rooms)
+    cancel.rooms.push_back(r.id);
+  ASSERT_FALSE(client.send(cancel));
+  grotto::proto::StatsQuery q;
+  q.ref = 4;
+  ASSERT_FALSE(client.send(q));
+  auto in = client.next_text();
+  ASSERT_TRUE(in && in->as<grotto::proto::Stats>()) << (in ? in->data : "");
+  EXPECT_EQ(in->as<grotto::proto::Stats>()->in_flight, 0u);
+  size_t before_stats = client.frames.size();
+  // Nothing cancelled arrives after the cancel was processed: the next thing is the pong.
+  EXPECT_TRUE(client.alive());
+  EXPECT_EQ(client.frames.size(), before_stats);
+  EXPECT_LT(before_stats, rooms.size());
+  EXPECT_GT(server->metrics().rooms_cancelled.value(), 0u);
+  EXPECT_LT(server->metrics().rooms_built.value(), rooms.size());
+}
+
+TEST(ServerRooms, a_greedy_client_does_not_starve_a_modest_one) {
+  auto c = test_config();
+  c.generator.workers = 1;
+  c.generator.max_batch_rooms = 4;
+  auto server = start(c);
+  ASSERT_TRUE(server);
+  auto rooms = many_rooms(1001);
+  Client greedy(server->port());
+  Client modest(server->port());
+  ASSERT_FALSE(greedy.connect());
+  ASSERT_FALSE(modest.connect());
+  greedy.hello("greedy");
+  modest.hello("modest");
+  for (size_t i = 0; i < 1000; i += 250)
+    ASSERT_FALSE(greedy.send(request_of(rooms, i, 250, i)));
+  std::this_thread::sleep_for(50ms);
+  ASSERT_FALSE(modest.send(request_of(rooms, 1000, 1, 1)));
+  auto [ec, in] = modest.read();
+  ASSERT_FALSE(ec);
+  ASSERT_FALSE(in.text) << in.data;
+  EXPECT_EQ(frame_id(in.data), rooms[1000].id);
+  // Round-robin across clients: the modest room went out long before the greedy client's 1,000.
+  EXPECT_LT(server->metrics().rooms_served.value(), 500u);
+}
+
+// ---- bad input: each case gets its documented code; the server and other clients carry on ----
+
+struct BadCase {
+  const char* name;
+  std::string text;
+  ErrorCode code;
+};
+
+TEST(ServerBadInput, non_fatal_errors_leave_the_connection_working) {
+  auto c = test_config();
+  c.limits.max_rooms_per_request = 4;
+  c.limits.max_rooms_in_flight = 3;
+  auto server = start(c);
+  ASSERT_TRUE(server);
+  Client bystander(server->port());
+  ASSERT_FALSE(bystander.connect());
+  bystander.hello("bystander");
+  Client client(server->port());
+  ASSERT_FALSE(client.connect());
+  client.hello();
+  auto rooms = sector_rooms(c.seed, {0, 0, 0});
+  std::string id0 = rooms[0].id.to_string();
+  std::vector<BadCase> cases = {
+      {"invalid JSON", "{\"type\":\"ping\",", ErrorCode::kBadJson},
+      {"not an object", "[1,2]", ErrorCode::kBadMessage},
+      {"wrong type of field", "{\"type\":\"ping\",\"ref\":7,\"t\":\"soon\"}",
+       ErrorCode::kBadMessage},
+      {"unknown type", "{\"type\":\"teleport\",\"ref\":8}", ErrorCode::kUnknownType},
+      {"malformed room id",
+       "{\"type\":\"request\",\"ref\":9,\"rooms\":[{\"id\":\"0.0.0.q1\",\"lod\":0,\"priority\":0}]"
+       "}",
+       ErrorCode::kInvalidRoomId},
+      {"out-of-range room id",
+       "{\"type\":\"request\",\"ref\":10,\"rooms\":[{\"id\":\"70000.0.0.r1\",\"lod\":0,"
+       "\"priority\":0}]}",
+       ErrorCode::kInvalidRoomId},
+      {"lod over max_lod",
+       "{\"type\":\"request\",\"ref\":11,\"rooms\":[{\"id\":\"" + id0 +
+           "\",\"lod\":1,\"priority\":0}]}",
+       ErrorCode::kBadMessage},
+      {"rooms over max_rooms_per_request",
+       "{\"type\":\"cancel\",\"ref\":12,\"rooms\":[\"0.0.0.r1\",\"0.0.0.r2\",\"0.0.0.r3\","
+       "\"0.0.0.r4\",\"0.0.0.r5\"]}",
+       ErrorCode::kTooLarge},
+  };
+  for (const auto& bad : cases) {
+    SCOPED_TRACE(bad.name);
+    ASSERT_FALSE(client.send(bad.text));
+    auto e = client.next_error();
+    ASSERT_TRUE(e);
+    EXPECT_EQ(e->code, bad.code) << e->message;
+    EXPECT_FALSE(e->fatal);
+    EXPECT_TRUE(client.alive());
+  }
+  // A well-formed id that names no room: not_found, naming the room.
+  auto missing = RoomId::interior({0, 0, 0}, 4000);
+  grotto::proto::Request r;
+  r.ref = 20;
+  r.rooms.push_back({missing, 0, 0});
+  ASSERT_FALSE(client.send(r));
+  auto e = client.next_error();
+  ASSERT_TRUE(e);
+  EXPECT_EQ(e->code, ErrorCode::kNotFound) << e->message;
+  EXPECT_EQ(e->room, missing);
+  EXPECT_FALSE(e->fatal);
+  // A request flood: over max_rooms_in_flight refuses the whole request; nothing is queued.
+  ASSERT_FALSE(client.send(request_of(rooms, 0, 4, 22, 1)));
+  e = client.next_error();
+  ASSERT_TRUE(e);
+  EXPECT_EQ(e->code, ErrorCode::kLimitExceeded) << e->message;
+  EXPECT_EQ(e->ref, 22u);
+  EXPECT_FALSE(e->room.has_value());
+  grotto::proto::StatsQuery q;
+  q.ref = 23;
+  ASSERT_FALSE(client.send(q));
+  auto stats = client.next_text();
+  ASSERT_TRUE(stats && stats->as<grotto::proto::Stats>());
+  EXPECT_EQ(stats->as<grotto::proto::Stats>()->in_flight, 0u);
+  EXPECT_TRUE(client.frames.empty());
+  EXPECT_TRUE(client.alive());
+  EXPECT_TRUE(bystander.alive());
+  EXPECT_GT(server->metrics().errors(ErrorCode::kBadJson), 0u);
+  EXPECT_GT(server->metrics().errors(ErrorCode::kLimitExceeded), 0u);
+}
+
+struct FatalCase {
+  const char* name;
+  std::function<void(Client&)> act;
+  ErrorCode code;  // the error expected before the close
+  uint16_t close_code;
+};
+
+TEST(ServerBadInput, fatal_errors_close_only_that_connection) {
+  auto c = test_config();
+  c.limits.max_message_bytes = 2048;
+  auto server = start(c);
+  ASSERT_TRUE(server);
+  Client bystander(server->port());
+  ASSERT_FALSE(bystander.connect());
+  bystander.hello("bystander");
+  std::vector<FatalCase> cases = {
+      {"binary frame",
+       [](Client& cl) {
+         cl.hello();
+         cl.send_binary("GRTO\x01");
+       },
+       ErrorCode::kBadFrame, 1008},
+      {"wrong protocol version",
+       [](Client& cl) { cl.send("{\"type\":\"hello\",\"ref\":1,\"versions\":[2,3]}"); },
+       ErrorCode::kUnsupportedVersion, 1008},
+      {"message before hello", [](Client& cl) { cl.send("{\"type\":\"spawn\",\"ref\":1}"); },
+       ErrorCode::kOutOfOrder, 1008},
+      {"hello twice",
+       [](Client& cl) {
+         cl.hello();
+         cl.send("{\"type\":\"hello\",\"ref\":2,\"versions\":[1]}");
+       },
+       ErrorCode::kOutOfOrder, 1008},
+      {"another world",
+       [](Client& cl) {
+         cl.send("{\"type\":\"hello\",\"ref\":1,\"versions\":[1],\"seed\":\"8\"}");
+       },
+       ErrorCode::kWorldMismatch, 1008},
+      {"bad hello", [](Client& cl) { cl.send("{\"type\":\"hello\",\"ref\":1,\"versions\":[]}"); },
+       ErrorCode::kBadMessage, 1008},
+  };
+  for (const auto& fatal : cases) {
+    SCOPED_TRACE(fatal.name);
+    Client client(server->port());
+    ASSERT_FALSE(client.connect());
+    fatal.act(client);
+    auto e = client.next_error();
+    ASSERT_TRUE(e);
+    EXPECT_EQ(e->code, fatal.code) << e->message;
+    EXPECT_TRUE(e->fatal);
+    if (fatal.code == ErrorCode::kUnsupportedVersion) {
+      EXPECT_EQ(e->versions, std::vector<uint32_t>{1});
+    }
+    auto reason = client.wait_close();
+    EXPECT_EQ(reason.code, fatal.close_code);
+    EXPECT_EQ(std::string(reason.reason.c_str()), grotto::proto::wire_code_name(fatal.code));
+    EXPECT_TRUE(bystander.alive());
+  }
+  // A message over max_message_bytes: too_large, fatal, close 1009.
+  Client big(server->port());
+  ASSERT_FALSE(big.connect());
+  big.hello();
+  big.send("{\"type\":\"ping\",\"t\":1,\"pad\":\"" + std::string(3000, 'x') + "\"}");
+  auto e = big.next_error();
+  ASSERT_TRUE(e);
+  EXPECT_EQ(e->code, ErrorCode::kTooLarge);
+  EXPECT_TRUE(e->fatal);
+  EXPECT_EQ(big.wait_close().code, 1009) << big.last_error_.message();
+  // A far bigger one is cut by the WebSocket layer; the connection ends either way.
+  Client huge(server->port());
+  ASSERT_FALSE(huge.connect());
+  huge.hello();
+  huge.send("{\"type\":\"ping\",\"t\":1,\"pad\":\"" + std::string(100000, 'x') + "\"}");
+  auto [ec, in] = huge.read();
+  EXPECT_TRUE(ec);
+  EXPECT_TRUE(bystander.alive());
+  EXPECT_GT(server->metrics().errors(ErrorCode::kTooLarge), 0u);
+}
+
+TEST(ServerHttp, endpoints_answer_and_plain_http_on_ws_is_426) {
+  auto server = start(test_config());
+  ASSERT_TRUE(server);
+  EXPECT_EQ(http_get(server->port(), "/ws").status, 426);
+  EXPECT_EQ(http_get(server->port(), "/nothing-here").status, 404);
+  EXPECT_EQ(http_get(server->port(), "/healthz").status, 200);
+  EXPECT_EQ(http_get(server->port(), "/readyz").status, 200);
+  auto v = http_get(server->port(), "/version");
+  EXPECT_EQ(v.status, 200);
+  EXPECT_NE(v.body.find("\"protocol\":1"), std::string::npos) << v.body;
+  // A WebSocket upgrade on another path is refused too.
+  Client wrong(server->port());
+  EXPECT_TRUE(wrong.connect("/elsewhere"));
+  // The server and its WebSocket clients are unaffected.
+  Client client(server->port());
+  ASSERT_FALSE(client.connect());
+  client.hello();
+  EXPECT_TRUE(client.alive());
+}
+
+TEST(ServerHttp, metrics_scrape_parses_as_prometheus_text) {
+  auto server = start(test_config());
+  ASSERT_TRUE(server);
+  Client client(server->port());
+  ASSERT_FALSE(client.connect());
+  client.hello();
+  EXPECT_TRUE(client.alive());
+  client.send("nonsense");
+  client.next_error();
+  auto m = http_get(server->port(), "/metrics");
+  ASSERT_EQ(m.status, 200);
+  EXPECT_NE(m.content_type.find("text/plain; version=0.0.4"), std::string::npos);
+  std::regex sample(R"(^[a-zA-Z_:][a-zA-Z0-9_:]*(\{[^}]*\})? [-+0-9.eEIinfNa]+$)");
+  std::map<std::string, double> values;
+  std::istringstream lines(m.body);
+  std::string line;
+  int samples = 0;
+  while (std::getline(lines, line)) {
+    if (line.empty() || line[0] == '#') continue;
+    EXPECT_TRUE(std::regex_match(line, sample)) << line;
+    auto space = line.rfind(' ');
+    values[line.substr(0, space)] = std::stod(line.substr(space + 1));
+    ++samples;
+  }
+  EXPECT_GT(samples, 10);
+  EXPECT_EQ(values["grotto_connections_total"], 1);
+  EXPECT_EQ(values["grotto_connections_open"], 1);
+  EXPECT_GE(values["grotto_messages_total"], 3);
+  EXPECT_EQ(values["grotto_errors_total{code=\"bad_json\"}"], 1);
+}
+
+TEST(ServerHttp, healthz_answers_while_generation_is_saturated) {
+  auto c = test_config();
+  c.generator.workers = 1;
+  c.generator.max_batch_rooms = 1;
+  auto server = start(c);
+  ASSERT_TRUE(server);
+  auto rooms = many_rooms(1000);
+  Client greedy(server->port());
+  ASSERT_FALSE(greedy.connect());
+  greedy.hello();
+  for (size_t i = 0; i < 1000; i += 250)
+    ASSERT_FALSE(greedy.send(request_of(rooms, i, 250, i)));
+  auto deadline = Clock::now() + kWait;
+  while (server->generator().queue_depth() < 100 && Clock::now() < deadline) {
+    std::this_thread::sleep_for(5ms);
+  }
+  ASSERT_GE(server->generator().queue_depth(), 100u);
+  for (int i = 0; i < 5; ++i)
+    EXPECT_EQ(http_get(server->port(), "/healthz").status, 200);
+  EXPECT_EQ(http_get(server->port(), "/readyz").status, 200);
+  EXPECT_GT(server->generator().queue_depth(), 0u);  // still saturated after the probes
+}
+
+// ---- limits and timeouts ----
+
+TEST(ServerLimits, a_client_that_does_not_read_is_dropped_and_others_carry_on) {
+  auto c = test_config();
+  c.send_queue_bytes = 4096;
+  c.limits.max_rooms_per_request = 256;
+  auto server = start(c);
+  ASSERT_TRUE(server);
+  auto rooms = many_rooms(1024);
+  Client other(server->port());
+  ASSERT_FALSE(other.connect());
+  other.hello("other");
+  Client slow(server->port());
+  // A small receive buffer so the server's writes back up soon.
+  beast::get_lowest_layer(slow.ws()).socket().open(tcp::v4());
+  beast::get_lowest_layer(slow.ws()).socket().set_option(
+      net::socket_base::receive_buffer_size(4096));
+  ASSERT_FALSE(slow.connect());
+  slow.hello("slow");
+  for (size_t i = 0; i < 1024; i += 256)
+    ASSERT_FALSE(slow.send(request_of(rooms, i, 256, i)));
+  // ... and never reads. The server notices once its queue for this client passes 4 KiB.
+  auto deadline = Clock::now() + kWait;
+  while (server->metrics().slow_clients_dropped.value() == 0 && Clock::now() < deadline) {
+    std::this_thread::sleep_for(10ms);
+  }
+  EXPECT_EQ(server->metrics().slow_clients_dropped.value(), 1u);
+  deadline = Clock::now() + kWait;
+  while (server->sessions() > 1 && Clock::now() < deadline)
+    std::this_thread::sleep_for(10ms);
+  EXPECT_EQ(server->sessions(), 1u);  // its session and memory are gone
+  EXPECT_TRUE(other.alive());
+  ASSERT_FALSE(other.send(request_of(rooms, 0, 1, 5)));
+  auto [ec, in] = other.read();
+  EXPECT_FALSE(ec);
+  EXPECT_FALSE(in.text);
+}
+
+TEST(ServerLimits, no_hello_within_the_handshake_timeout_closes_with_timeout) {
+  auto c = test_config();
+  c.limits.handshake_timeout_ms = 100;
+  auto server = start(c);
+  ASSERT_TRUE(server);
+  Client client(server->port());
+  ASSERT_FALSE(client.connect());
+  auto e = client.next_error();
+  ASSERT_TRUE(e);
+  EXPECT_EQ(e->code, ErrorCode::kTimeout);
+  EXPECT_TRUE(e->fatal);
+  EXPECT_EQ(std::string(client.wait_close().reason.c_str()), "timeout");
+}
+
+TEST(ServerLimits, silence_past_the_idle_timeout_closes_with_timeout) {
+  auto c = test_config();
+  c.limits.idle_timeout_ms = 300;
+  auto server = start(c);
+  ASSERT_TRUE(server);
+  Client client(server->port());
+  ASSERT_FALSE(client.connect());
+  client.hello();
+  // Pings keep it open past the timeout ...
+  for (int i = 0; i < 4; ++i) {
+    std::this_thread::sleep_for(100ms);
+    EXPECT_TRUE(client.alive(i));
+  }
+  // ... silence closes it.
+  auto e = client.next_error();
+  ASSERT_TRUE(e);
+  EXPECT_EQ(e->code, ErrorCode::kTimeout);
+  EXPECT_EQ(std::string(client.wait_close().reason.c_str()), "timeout");
+}
+
+TEST(ServerLimits, connections_over_max_connections_are_refused) {
+  auto c = test_config();
+  c.max_connections = 2;
+  auto server = start(c);
+  ASSERT_TRUE(server);
+  Client a(server->port()), b(server->port()), extra(server->port());
+  ASSERT_FALSE(a.connect());
+  ASSERT_FALSE(b.connect());
+  a.hello();
+  b.hello();
+  ASSERT_FALSE(extra.connect());
+  auto e = extra.next_error();
+  ASSERT_TRUE(e);
+  EXPECT_EQ(e->code, ErrorCode::kOverloaded);
+  EXPECT_TRUE(e->fatal);
+  extra.wait_close();
+  EXPECT_EQ(server->metrics().connections_rejected.value(), 1u);
+  EXPECT_TRUE(a.alive());
+  // A place frees up when a client leaves.
+  a.ws().close(websocket::close_code::normal);
+  auto deadline = Clock::now() + kWait;
+  while (server->sessions() > 1 && Clock::now() < deadline)
+    std::this_thread::sleep_for(5ms);
+  Client later(server->port());
+  ASSERT_FALSE(later.connect());
+  later.hello();
+  EXPECT_TRUE(later.alive());
+}
+
+// ---- shutdown ----
+
+TEST(ServerShutdown, stop_closes_every_session_with_service_restart_in_bounded_time) {
+  auto c = test_config();
+  c.generator.workers = 1;
+  auto server = start(c);
+  ASSERT_TRUE(server);
+  auto rooms = many_rooms(300);
+  std::vector<std::unique_ptr<Client>> clients;
+  for (int i = 0; i < 3; ++i) {
+    clients.push_back(std::make_unique<Client>(server->port()));
+    ASSERT_FALSE(clients.back()->connect());
+    clients.back()->hello();
+    ASSERT_FALSE(clients.back()->send(request_of(rooms, 100 * i, 100, 1)));
+  }
+  std::thread reader([&] {
+    for (auto& cl : clients) {
+      auto e = cl->next_error();
+      while (e && e->code != ErrorCode::kServiceRestart)
+        e = cl->next_error();
+      EXPECT_TRUE(e && e->fatal);
+      auto reason = cl->wait_close();
+      EXPECT_EQ(reason.code, 1001);
+      EXPECT_EQ(std::string(reason.reason.c_str()), "service_restart");
+    }
+  });
+  std::this_thread::sleep_for(50ms);
+  auto t0 = Clock::now();
+  server->stop(2000ms);
+  EXPECT_LT(Clock::now() - t0, 4s);
+  reader.join();
+  EXPECT_EQ(http_get(server->port(), "/healthz").status, 0);  // no longer listening
+}
+
+// ---- configuration ----
+
+grotto::server::CommandLine parse(std::vector<std::string> args) {
+  std::vector<const char*> argv{"grotto-server"};
+  for (auto& a : args)
+    argv.push_back(a.c_str());
+  return grotto::server::parse_command_line(static_cast<int>(argv.size()), argv.data());
+}
+
+std::string write_temp(const std::string& name, const std::string& text) {
+  auto path = std::filesystem::temp_directory_path() / ("grotto_server_test_" + name);
+  std::ofstream(path) << text;
+  return path.string();
+}
+
+TEST(ServerSettings, flags_override_the_file_which_overrides_defaults) {
+  auto defaults = parse({});
+  ASSERT_TRUE(defaults.run) << defaults.text;
+  EXPECT_EQ(defaults.config.bind, "127.0.0.1");
+  EXPECT_EQ(defaults.config.port, grotto::server::kDefaultPort);
+  auto file = write_temp("ok.json",
+                         R"({"port": 9000, "workers": 3, "seed": "18446744073709551615",
+                             "max-rooms-in-flight": 50, "log-level": "debug",
+                             "sector-size": 128.0, "opencl-device": "none"})");
+  auto cl = parse({"--config", file, "--port", "9001", "--idle-timeout-ms", "1234"});
+  ASSERT_TRUE(cl.run) << cl.text;
+  EXPECT_EQ(cl.config.port, 9001);
+  EXPECT_EQ(cl.config.generator.workers, 3);
+  EXPECT_EQ(cl.config.seed, 18446744073709551615ull);
+  EXPECT_EQ(cl.config.limits.max_rooms_in_flight, 50u);
+  EXPECT_EQ(cl.config.limits.idle_timeout_ms, 1234u);
+  EXPECT_EQ(cl.config.log_level, "debug");
+  EXPECT_EQ(cl.config.layout.sector_size, 128.0);
+  EXPECT_EQ(cl.config.generator.builder.device.device, "none");
+}
+
+TEST(ServerSettings, invalid_settings_are_refused_naming_the_setting) {
+  struct Case {
+    std::vector<std::string> args;
+    std::string mention;
+  };
+  std::vector<Case> cases = {
+      {{"--port", "70000"}, "--port"},
+      {{"--port", "http"}, "--port"},
+      {{"--max-rooms-in-flight", "0"}, "--max-rooms-in-flight"},
+      {{"--log-level", "loud"}, "--log-level"},
+      {{"--no-such-flag"}, "no-such-flag"},
+      {{"--sector-size", "1"}, "sector_size"},
+      {{"--config", "/nonexistent/grotto.json"}, "/nonexistent/grotto.json"},
+      {{"--config", write_temp("unknown.json", R"({"prot": 1})")}, "prot"},
+      {{"--config", write_temp("type.json", R"({"port": "7878"})")}, "port"},
+      {{"--config", write_temp("range.json", R"({"max-message-bytes": 10})")}, "max-message-bytes"},
+      {{"--config", write_temp("nested.json", R"({"limits": {"a": 1}})")}, "limits"},
+      {{"--config", write_temp("broken.json", R"({"port": )")}, "broken.json"},
+  };
+  for (const auto& c : cases) {
+    auto cl = parse(c.args);
+    EXPECT_FALSE(cl.run) << c.args[0];
+    EXPECT_EQ(cl.exit_code, 2) << cl.text;
+    EXPECT_NE(cl.text.find(c.mention), std::string::npos) << cl.text;
+  }
+}
+
+// ---- the program ----
+
+struct Process {
+  pid_t pid = -1;
+  int out = -1;  // its stdout
+};
+
+Process spawn(std::vector<std::string> args) {
+  int pipe_fds[2];
+  EXPECT_EQ(pipe(pipe_fds), 0);
+  Process p;
+  p.pid = fork();
+  if (p.pid == 0) {
+    dup2(pipe_fds[1], 1);
+    close(pipe_fds[0]);
+    std::vector<char*> argv;
+    std::string bin = GROTTO_SERVER_BIN;
+    argv.push_back(bin.data());
+    for (auto& a : args)
+      argv.push_back(a.data());
+    argv.push_back(nullptr);
+    execv(bin.c_str(), argv.data());
+    _exit(127);
+  }
+  close(pipe_fds[1]);
+  p.out = pipe_fds[0];
+  return p;
+}
+
+// Reads stdout until `pattern` matches or the deadline passes.
+std::string read_until(int fd, const std::string& needle, std::chrono::milliseconds timeout) {
+  std::string text;
+  auto deadline = Clock::now() + timeout;
+  while (Clock::now() < deadline && text.find(needle) == std::string::npos) {
+    pollfd pfd{fd, POLLIN, 0};
+    if (poll(&pfd, 1, 100) <= 0) continue;
+    char buf[4096];
+    ssize_t n = ::read(fd, buf, sizeof buf);
+    if (n <= 0) break;
+    text.append(buf, static_cast<size_t>(n));
+  }
+  return text;
+}
+
+// Waits for the process; its exit status, or -1 if it had to be killed.
+int wait_exit(pid_t pid, std::chrono::milliseconds timeout) {
+  auto deadline = Clock::now() + timeout;
+  int status = 0;
+  while (Clock::now() < deadline) {
+    if (waitpid(pid, &status, WNOHANG) == pid) return WIFEXITED(status) ? WEXITSTATUS(status) : -2;
+    std::this_thread::sleep_for(10ms);
+  }
+  kill(pid, SIGKILL);
+  waitpid(pid, &status, 0);
+  return -1;
+}
+
+TEST(ServerProgram, help_lists_every_option_and_exits_0) {
+  auto p = spawn({"--help"});
+  auto text = read_until(p.out, "log-level", 10s);
+  text += read_until(p.out, "\x01", 500ms);
+  EXPECT_EQ(wait_exit(p.pid, 10s), 0);
+  close(p.out);
+  for (const char* flag :
+       {"--config", "--bind", "--port", "--io-threads", "--seed", "--max-connections",
+        "--send-queue-bytes", "--max-rooms-in-flight", "--idle-timeout-ms",
+        "--handshake-timeout-ms", "--workers", "--cache-bytes", "--batch-rooms", "--batch-wait-ms",
+        "--job-deadline-ms", "--opencl-device", "--drain-timeout-ms", "--log-level"}) {
+    EXPECT_NE(text.find(flag), std::string::npos) << flag;
+  }
+}
+
+TEST(ServerProgram, starts_serves_healthz_and_exits_0_on_sigterm) {
+  auto p = spawn({"--port", "0", "--opencl-device", "none", "--workers", "1", "--io-threads", "1",
+                  "--log-level", "warn"});
+  auto text = read_until(p.out, "/ws)", 30s);
+  std::smatch m;
+  std::regex address(R"(http://127\.0\.0\.1:(\d+))");
+  ASSERT_TRUE(std::regex_search(text, m, address)) << text;
+  uint16_t port = static_cast<uint16_t>(std::stoi(m[1]));
+  EXPECT_EQ(http_get(port, "/healthz").status, 200);
+  Client client(port);
+  ASSERT_FALSE(client.connect());
+  client.hello();
+  kill(p.pid, SIGTERM);
+  EXPECT_EQ(std::string(client.wait_close().reason.c_str()), "service_restart");
+  EXPECT_EQ(wait_exit(p.pid, 15s), 0);
+  close(p.out);
+}
+
+TEST(ServerProgram, invalid_flag_exits_2_naming_it) {
+  auto p = spawn({"--max-lod", "9"});
+  EXPECT_EQ(wait_exit(p.pid, 10s), 2);
+  close(p.out);
+}
+
+}  // namespace
