@@ -301,7 +301,13 @@ struct Generator::State {
   }
 
   void worker_main(size_t index) {
-    builders[index].emplace(kernels::RoomBuilder::create(mesh_ctx, config.builder));
+    {
+      // One builder opens at a time, process-wide: PoCL's device discovery run from several
+      // threads at once made some of them report "no OpenCL device" (seen in server_bench).
+      static std::mutex open_mutex;
+      std::lock_guard open_lock(open_mutex);
+      builders[index].emplace(kernels::RoomBuilder::create(mesh_ctx, config.builder));
+    }
     kernels::RoomBuilder& builder = *builders[index];
     std::unique_lock lock(mutex);
     ++builders_ready;
@@ -312,6 +318,11 @@ struct Generator::State {
       work_cv.wait(lock, [&] { return stopping || queued_jobs > 0; });
       if (stopping) break;
       expire(Clock::now(), out);
+      if (!out.empty()) {
+        // Tell those clients now rather than after the next build; then look again.
+        deliver(lock, out);
+        continue;
+      }
       std::vector<JobPtr> batch;
       take(batch, max_batch);
       if (batch.size() < max_batch && !batch.empty() && config.max_batch_wait.count() > 0) {
@@ -382,8 +393,8 @@ Result<std::unique_ptr<Generator>> Generator::create(const cave::World& world,
                                       : std::max(1u, std::thread::hardware_concurrency());
   State* s = state.get();
   s->builders.resize(workers);
-  // Each worker opens its own builder (and OpenCL context): builders are not thread-safe, and
-  // opening them in parallel overlaps the program loads.
+  // Each worker opens its own builder (and OpenCL context) on its thread: builders are not
+  // thread-safe. They open one after another (see worker_main).
   for (size_t i = 0; i < workers; ++i) {
     s->threads.emplace_back([s, i] { s->worker_main(i); });
   }
