@@ -90,12 +90,17 @@ class Generator {
   // nothing more is delivered to it once this returns.
   void remove_client(ClientId client);
 
-  // Queues rooms for a client; smaller priority is served sooner. A room the client already waits
-  // for gets the new priority and lod-less duplicates are ignored. Cache hits are delivered before
-  // this returns, without the worker pool. The caller enforces the per-client in-flight limit.
+  // Queues rooms for a client; smaller priority is served sooner, equal priorities first come
+  // first served. A (room, lod) the client already waits for only takes the new priority (the
+  // same room at another lod is another want). Cache hits are delivered before this returns,
+  // without the worker pool; so are immediate errors (a lod above kMaxServedLod:
+  // invalid_argument; after shutdown: service_restart). Unknown or removed clients are ignored.
+  // The caller enforces the per-client in-flight limit and the announced max_lod.
   void request(ClientId client, std::span<const proto::RoomWant> wants);
   // Stops waiting for these rooms (any lod). A job nobody waits for any more is never built; a
-  // job already building finishes (and is cached) but is not delivered to this client.
+  // job already building finishes (and is cached) but is not delivered to this client. A
+  // delivery already on its way when cancel() is called (its job finished a moment before) may
+  // still arrive: sessions drop deliveries for rooms they no longer have in flight.
   void cancel(ClientId client, std::span<const cave::RoomId> rooms);
 
   // The layout side, served from the sector cache.

@@ -53,14 +53,17 @@ class Histogram {
 class Metrics {
  public:
   // Connections (sessions on the WebSocket path; HTTP requests counted apart).
-  Counter connections_total;       // grotto_connections_total
-  Gauge connections_open;          // grotto_connections_open
-  Counter connections_rejected;    // grotto_connections_rejected_total (over max_connections)
-  Counter http_requests_total;     // grotto_http_requests_total
+  Counter connections_total;     // grotto_connections_total
+  Gauge connections_open;        // grotto_connections_open
+  Counter connections_rejected;  // grotto_connections_rejected_total (over max_connections)
+  Counter http_requests_total;   // grotto_http_requests_total
   // Control messages received, and room wants they carried.
-  Counter messages_total;          // grotto_messages_total
-  Counter rooms_requested;         // grotto_rooms_requested_total
-  // The generation service.
+  Counter messages_total;   // grotto_messages_total
+  Counter rooms_requested;  // grotto_rooms_requested_total
+  // The generation service. Generator updates these (rooms_served excepted), the latency
+  // histogram (want received by request() -> delivery callback; cache hits observe 0) and the
+  // compute path; the network layer updates the rest, errors included (errors are counted
+  // where they are sent, so the generator never calls count_error).
   Counter rooms_built;             // grotto_rooms_built_total (each build counts once)
   Counter rooms_served;            // grotto_rooms_served_total (room frames sent)
   Counter rooms_from_cache;        // grotto_rooms_cache_hits_total
