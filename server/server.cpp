@@ -294,19 +294,29 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
     do_read();
   }
 
+  // PROTOCOL.md, "Which error a message gets": size, JSON, type, then order (hello first and
+  // only once), then fields, then what the message asks; every error before welcome is fatal.
   void handle(const std::string& text) {
     proto::Ref ref;
-    auto parsed = proto::parse_client_message(text, limits_, &ref);
+    std::string type;
+    auto parsed = proto::parse_client_message(text, limits_, &ref, &type);
     if (!parsed) {
-      bool whole_too_large = text.size() > limits_.max_message_bytes;
-      // PROTOCOL.md: a malformed first message is fatal (anything but a valid hello first is).
-      bool fatal = whole_too_large || !hello_done_;
-      ErrorCode code = parsed.error().code;
-      if (!hello_done_ && !whole_too_large && code == ErrorCode::kUnknownType) {
-        code = ErrorCode::kOutOfOrder;
+      if (!type.empty()) {
+        bool is_hello = type == "hello";
+        if (!hello_done_ && !is_hello) {
+          fail(Error{ErrorCode::kOutOfOrder, "'" + type + "' before hello"}, ref,
+               websocket::close_code::policy_error);
+          return;
+        }
+        if (hello_done_ && is_hello) {
+          fail(Error{ErrorCode::kOutOfOrder, "a second hello"}, ref,
+               websocket::close_code::policy_error);
+          return;
+        }
       }
-      Error e{code, parsed.error().message};
-      if (fatal) {
+      bool whole_too_large = text.size() > limits_.max_message_bytes;
+      Error e{parsed.error().code, parsed.error().message};
+      if (whole_too_large || !hello_done_) {
         fail(
             e, ref,
             whole_too_large ? websocket::close_code::too_big : websocket::close_code::policy_error);

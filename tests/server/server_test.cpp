@@ -587,6 +587,20 @@ TEST(ServerBadInput, fatal_errors_close_only_that_connection) {
        ErrorCode::kWorldMismatch, 1008},
       {"bad hello", [](Client& cl) { cl.send("{\"type\":\"hello\",\"ref\":1,\"versions\":[]}"); },
        ErrorCode::kBadMessage, 1008},
+      // PROTOCOL.md's order of checks: every error before welcome is fatal, and the order check
+      // comes before the fields.
+      {"invalid field before hello", [](Client& cl) { cl.send("{\"type\":\"ping\",\"t\":\"x\"}"); },
+       ErrorCode::kOutOfOrder, 1008},
+      {"unknown type before hello", [](Client& cl) { cl.send("{\"type\":\"teleport\"}"); },
+       ErrorCode::kUnknownType, 1008},
+      {"invalid JSON before hello", [](Client& cl) { cl.send("{\"type\":"); }, ErrorCode::kBadJson,
+       1008},
+      {"invalid second hello",
+       [](Client& cl) {
+         cl.hello();
+         cl.send("{\"type\":\"hello\",\"versions\":\"1\"}");
+       },
+       ErrorCode::kOutOfOrder, 1008},
   };
   for (const auto& fatal : cases) {
     SCOPED_TRACE(fatal.name);
