@@ -462,6 +462,65 @@ TEST(ServerRooms, a_greedy_client_does_not_starve_a_modest_one) {
   EXPECT_LT(server->metrics().rooms_served.value(), 500u);
 }
 
+TEST(ServerRooms, re_requesting_a_room_replaces_its_lod_and_priority) {
+  auto c = test_config();
+  c.generator.workers = 1;
+  c.generator.max_batch_rooms = 2;
+  c.limits.max_lod = 1;
+  auto server = start(c);
+  ASSERT_TRUE(server);
+  auto rooms = many_rooms(301);
+  Client client(server->port());
+  ASSERT_FALSE(client.connect());
+  client.hello();
+  // 300 rooms queue ahead of room X at lod 0 ...
+  for (size_t i = 0; i < 300; i += 150) {
+    ASSERT_FALSE(client.send(request_of(rooms, i, 150, i, 10)));
+  }
+  grotto::proto::Request x;
+  x.ref = 1;
+  x.rooms.push_back({rooms[300].id, 0, 20});
+  ASSERT_FALSE(client.send(x));
+  // ... then X again at lod 1, first in line: the lod and the priority are replaced.
+  x.ref = 2;
+  x.rooms[0] = {rooms[300].id, 1, 0};
+  ASSERT_FALSE(client.send(x));
+  int x_frames = 0;
+  int lod = -1;
+  for (int n = 0; n < 301 && x_frames == 0; ++n) {
+    auto [ec, in] = client.read();
+    ASSERT_FALSE(ec);
+    if (in.text) continue;
+    auto f = grotto::proto::decode_room_frame(
+        std::span(reinterpret_cast<const uint8_t*>(in.data.data()), in.data.size()), c.limits);
+    ASSERT_TRUE(f.ok()) << f.error().message;
+    if (f->room.id == rooms[300].id) {
+      ++x_frames;
+      lod = f->lod;
+    }
+  }
+  EXPECT_EQ(x_frames, 1);
+  EXPECT_EQ(lod, 1);
+  // X is no longer in flight: the lod-0 want is gone with it.
+  grotto::proto::Cancel cancel;
+  for (size_t i = 0; i < 300; i += 1) {
+    cancel.rooms.push_back(rooms[i].id);
+    if (cancel.rooms.size() == 256 || i == 299) {
+      ASSERT_FALSE(client.send(cancel));
+      cancel.rooms.clear();
+    }
+  }
+  grotto::proto::StatsQuery q;
+  q.ref = 3;
+  ASSERT_FALSE(client.send(q));
+  auto st = client.next_text();
+  ASSERT_TRUE(st && st->as<grotto::proto::Stats>());
+  EXPECT_EQ(st->as<grotto::proto::Stats>()->in_flight, 0u);
+  EXPECT_TRUE(client.alive());
+  for (const auto& frame : client.frames)
+    EXPECT_NE(frame_id(frame), rooms[300].id);
+}
+
 // ---- bad input: each case gets its documented code; the server and other clients carry on ----
 
 struct BadCase {
@@ -583,6 +642,11 @@ TEST(ServerBadInput, fatal_errors_close_only_that_connection) {
       {"another world",
        [](Client& cl) {
          cl.send("{\"type\":\"hello\",\"ref\":1,\"versions\":[1],\"seed\":\"8\"}");
+       },
+       ErrorCode::kWorldMismatch, 1008},
+      {"another parameter digest",
+       [](Client& cl) {
+         cl.send("{\"type\":\"hello\",\"ref\":1,\"versions\":[1],\"params\":\"0000000000000001\"}");
        },
        ErrorCode::kWorldMismatch, 1008},
       {"bad hello", [](Client& cl) { cl.send("{\"type\":\"hello\",\"ref\":1,\"versions\":[]}"); },
