@@ -24,13 +24,13 @@ enum class ErrorCode {
   kTooLarge,            // a frame, string or list over its limit
   kInvalidRoomId,       // a room id that is malformed or out of range (not merely absent)
   kLimitExceeded,       // a per-client limit (rooms in flight, request rate) would be exceeded
-  kWorldMismatch,       // the client asked for a world (seed, parameters) this server does not serve
-  kOutOfOrder,          // a message that is not valid now (before hello, or hello twice)
-  kBadFrame,            // a binary frame that fails validation
-  kUnauthorized,        // the deployment requires credentials the client did not give
-  kServiceRestart,      // the server is shutting down; reconnect later
-  kOverloaded,          // the server cannot take more work now; retry later
-  kTimeout,             // no complete message within the handshake or idle timeout
+  kWorldMismatch,   // the client asked for a world (seed, parameters) this server does not serve
+  kOutOfOrder,      // a message that is not valid now (before hello, or hello twice)
+  kBadFrame,        // a binary frame that fails validation
+  kUnauthorized,    // the deployment requires credentials the client did not give
+  kServiceRestart,  // the server is shutting down; reconnect later
+  kOverloaded,      // the server cannot take more work now; retry later
+  kTimeout,         // no complete message within the handshake or idle timeout
 };
 
 const char* error_code_name(ErrorCode code);
