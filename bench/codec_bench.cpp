@@ -21,28 +21,14 @@
 #include "codec/room_codec.hpp"
 #include "core/grid.hpp"
 #include "mesh/room_mesh.hpp"
+#include "timing.hpp"
 
 namespace {
 
 using namespace grotto;
-using clock_type = std::chrono::steady_clock;
+using bench::median;
+using bench::median_ms;
 
-// Median over `reps` runs of f, in milliseconds.
-double median_ms(int reps, const std::function<void()>& f) {
-  std::vector<double> t;
-  for (int i = 0; i < reps; ++i) {
-    auto start = clock_type::now();
-    f();
-    t.push_back(1000.0 * std::chrono::duration<double>(clock_type::now() - start).count());
-  }
-  std::sort(t.begin(), t.end());
-  return t[t.size() / 2];
-}
-
-double median(std::vector<double> v) {
-  std::sort(v.begin(), v.end());
-  return v.empty() ? 0 : v[v.size() / 2];
-}
 double mean(const std::vector<double>& v) {
   double s = 0;
   for (double x : v)

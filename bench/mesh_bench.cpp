@@ -7,46 +7,18 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
-#include <ctime>
 #include <fstream>
 #include <functional>
 #include <nlohmann/json.hpp>
 
 #include "kernels/deform.hpp"
 #include "mesh/room_mesh.hpp"
+#include "timing.hpp"
 
 namespace {
 
 using namespace grotto;
-using clock_type = std::chrono::steady_clock;
-
-double seconds_since(clock_type::time_point t) {
-  return std::chrono::duration<double>(clock_type::now() - t).count();
-}
-
-// CPU seconds used so far by every thread of this process (PoCL's workers run in-process).
-double process_cpu_seconds() {
-  timespec ts{};
-  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
-  return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
-}
-
-// Median of `reps` timed runs of f, in milliseconds; *cpu_ms (if given) receives the median CPU
-// time of the whole process over a run, which other load on the machine does not inflate.
-double median_ms(int reps, const std::function<void()>& f, double* cpu_ms = nullptr) {
-  std::vector<double> t, c;
-  for (int i = 0; i < reps; ++i) {
-    auto start = clock_type::now();
-    double cpu_start = process_cpu_seconds();
-    f();
-    t.push_back(1000.0 * seconds_since(start));
-    c.push_back(1000.0 * (process_cpu_seconds() - cpu_start));
-  }
-  std::sort(t.begin(), t.end());
-  std::sort(c.begin(), c.end());
-  if (cpu_ms) *cpu_ms = c[c.size() / 2];
-  return t[t.size() / 2];
-}
+using bench::median_ms;
 
 struct Deformed {
   std::vector<std::vector<mesh::core::float3>> positions;
