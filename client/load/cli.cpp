@@ -1,0 +1,157 @@
+// grotto-load's command line (CLI11). Every flag is described in --help; a bad value gives a
+// message that names the flag and exit code 2.
+#include <CLI/CLI.hpp>
+#include <charconv>
+#include <cmath>
+
+#include "client/load/load.hpp"
+#include "client/stream/stream.hpp"
+
+namespace grotto::client::load {
+namespace {
+
+constexpr const char* kDescription =
+    "grotto-load: simulated players walking a Grotto cave over client/stream, measuring what "
+    "players get: time to first room, request->room latency, rooms/s and MB/s, stalls (a player "
+    "at a portal whose room is not ready), errors, reconnects and decode time.\n"
+    "Without --server it starts a server in-process on 127.0.0.1.\n"
+    "Exit codes: 0 pass; 1 errors (error messages from the server, a stream refused for good, "
+    "--verify failures, or the run could not start); 2 invalid flags; 3 more stalls than "
+    "--max-stalls.";
+
+// A finite double within [lo, hi] (CLI::Range lets NaN through).
+std::string check_number(const char* flag, double v, double lo, double hi) {
+  if (!std::isfinite(v) || v < lo || v > hi) {
+    return std::string(flag) + ": must be a number in [" + CLI::detail::to_string(lo) + ", " +
+           CLI::detail::to_string(hi) + "] (got " + CLI::detail::to_string(v) + ")";
+  }
+  return {};
+}
+
+}  // namespace
+
+CommandLine parse_command_line(int argc, const char* const* argv) {
+  CommandLine out;
+  LoadOptions& o = out.options;
+  CLI::App app{kDescription, "grotto-load"};
+  app.get_formatter()->column_width(30);
+
+  std::string mode = "walk";
+  std::string seed_text;
+  app.add_option("--server", o.url,
+                 "Server WebSocket url, ws://HOST:PORT[/PATH] (default path /ws); without it a "
+                 "server runs in-process on 127.0.0.1")
+      ->type_name("URL");
+  app.add_option("--mode", mode,
+                 "walk: players walk the portal graph; burst: players stand still and want "
+                 "everything within --radius at once (ends when all is ready); soak: walk for "
+                 "long")
+      ->check(CLI::IsMember({"walk", "burst", "soak"}))
+      ->capture_default_str();
+  app.add_option("--players", o.players, "Simulated players, one Stream (connection) each")
+      ->check(CLI::Range(1, 10'000))
+      ->capture_default_str();
+  app.add_option("--duration", o.duration_s,
+                 "Seconds to run (default: walk 20, soak 600; burst: at most 60)")
+      ->type_name("SECONDS");
+  app.add_option("--speed", o.speed,
+                 "Walking speed in m/s; players sprint at 2.5x now and then (--burst-rate)")
+      ->capture_default_str();
+  app.add_option("--horizon", o.horizon_s,
+                 "Prefetch horizon in seconds: rooms reachable within it are requested (walk, "
+                 "soak)")
+      ->capture_default_str();
+  app.add_option("--radius", o.radius_m,
+                 "burst mode: metres of walking distance wanted around each player")
+      ->capture_default_str();
+  app.add_option("--seed", seed_text,
+                 "World seed (unsigned 64-bit). Embedded server: the world it serves (default "
+                 "7); remote: the world asked for (default: the server's)");
+  app.add_option("--device", o.device,
+                 "Embedded server's OpenCL device: auto, gpu, accelerator, cpu, none (CPU "
+                 "reference) or a name substring; empty: $GROTTO_OPENCL_DEVICE, else auto");
+  app.add_option("--server-workers", o.server_workers,
+                 "Embedded server's generation threads (0: one per hardware thread)")
+      ->check(CLI::Range(0, 1024))
+      ->capture_default_str();
+  app.add_option("--io-threads", o.io_threads, "Client I/O threads shared by all players")
+      ->check(CLI::Range(1, 256))
+      ->capture_default_str();
+  app.add_option("--decode-workers", o.decode_workers,
+                 "Client decode threads shared by all players (0: one per hardware thread)")
+      ->check(CLI::Range(0, 1024))
+      ->capture_default_str();
+  app.add_option("--rng-seed", o.rng_seed,
+                 "Seed of the players' walks (player i uses rng-seed + i): same seed, same "
+                 "choices")
+      ->capture_default_str();
+  app.add_flag("--spread", o.spread,
+               "Player i starts in room 0 of sector (3i, 0, 0) instead of the spawn point, so "
+               "players share no rooms (with --server, give --seed)");
+  app.add_flag("--verify", o.verify,
+               "Check every received room (mesh against descriptor), every seam with a received "
+               "neighbour (bit-identical rims) and the portal graph; failures exit 1");
+  app.add_option("--max-stalls", o.max_stalls,
+                 "More stalls than this (all players together) exit 3; -1: no limit")
+      ->check(CLI::Range(-1, 1'000'000'000))
+      ->capture_default_str();
+  app.add_option("--tick-hz", o.tick_hz, "Simulation steps per second")->capture_default_str();
+  app.add_option("--turn-back", o.walker.turn_back_chance,
+                 "Chance per room entered that a player turns round part-way and goes back")
+      ->capture_default_str();
+  app.add_option("--burst-rate", o.walker.burst_rate,
+                 "Sprints started per second of walking (each 2-5 s at 2.5x speed)")
+      ->capture_default_str();
+  app.add_option("--json", out.json_path, "Write every figure as JSON to this file")
+      ->type_name("FILE");
+  app.add_flag("--quiet", out.quiet,
+               "No progress line and no table (the progress line is shown only when stderr is "
+               "a terminal)");
+  app.add_option("--log-level", out.log_level, "Log level on stderr")
+      ->check(CLI::IsMember({"trace", "debug", "info", "warn", "error", "off"}))
+      ->capture_default_str();
+
+  auto fail = [&](const std::string& message) {
+    out.exit_code = kExitBadFlags;
+    out.text = "grotto-load: " + message + " (see --help)";
+    return out;
+  };
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::CallForHelp&) {
+    out.text = app.help();
+    return out;
+  } catch (const CLI::ParseError& e) {
+    return fail(e.what());
+  }
+
+  o.mode = mode == "burst" ? Mode::kBurst : (mode == "soak" ? Mode::kSoak : Mode::kWalk);
+  for (const std::string& m : {check_number("--duration", o.duration_s, 0, 1e7),
+                               check_number("--speed", o.speed, 0.01, 1000),
+                               check_number("--horizon", o.horizon_s, 0.01, 3600),
+                               check_number("--radius", o.radius_m, 0.01, 100'000),
+                               check_number("--tick-hz", o.tick_hz, 1, 1000),
+                               check_number("--turn-back", o.walker.turn_back_chance, 0, 1),
+                               check_number("--burst-rate", o.walker.burst_rate, 0, 100)}) {
+    if (!m.empty()) return fail(m);
+  }
+  if (!seed_text.empty()) {
+    uint64_t v = 0;
+    const char* end = seed_text.data() + seed_text.size();
+    auto [p, ec] = std::from_chars(seed_text.data(), end, v);
+    if (ec != std::errc() || p != end) {
+      return fail("--seed: must be an unsigned 64-bit integer (got '" + seed_text + "')");
+    }
+    o.seed = v;
+  }
+  if (!o.url.empty()) {
+    if (auto url = parse_url(o.url); !url) return fail("--server: " + url.error().message);
+  }
+  if (o.spread && !o.url.empty() && !o.seed) {
+    return fail("--spread with --server needs --seed (start rooms are laid out locally)");
+  }
+  out.run = true;
+  return out;
+}
+
+}  // namespace grotto::client::load

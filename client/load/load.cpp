@@ -1,0 +1,359 @@
+#include "client/load/load.hpp"
+
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <memory>
+#include <thread>
+#include <vector>
+
+#include "cave/layout.hpp"
+#include "client/load/verifier.hpp"
+#include "client/stream/stream.hpp"
+#include "server/server.hpp"
+
+namespace grotto::client::load {
+
+const char* mode_name(Mode mode) {
+  switch (mode) {
+    case Mode::kWalk:
+      return "walk";
+    case Mode::kBurst:
+      return "burst";
+    case Mode::kSoak:
+      return "soak";
+  }
+  return "walk";
+}
+
+double default_duration_s(Mode mode) {
+  switch (mode) {
+    case Mode::kWalk:
+      return 20;
+    case Mode::kBurst:
+      return 60;
+    case Mode::kSoak:
+      return 600;
+  }
+  return 20;
+}
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double seconds_since(Clock::time_point t0, Clock::time_point t) {
+  return std::chrono::duration<double>(t - t0).count();
+}
+
+struct Player {
+  int index = 0;
+  std::unique_ptr<Stream> stream;
+  std::unique_ptr<Walker> walker;
+  std::optional<cave::RoomId> start;
+  PortalGraph graph;  // burst mode: the rooms received, for the plan over the radius
+  double burst_complete_s = -1;
+  uint64_t burst_rooms = 0;
+  StreamStats final_stats;
+  StreamState final_state = StreamState::kConnecting;  // before stop()
+};
+
+// player i's start with --spread: interior room 0 of sector (3i, 0, 0), at its sphere's centre.
+// Three sectors apart, players share no rooms for a while, so the server's cache does not hide
+// generation.
+Result<std::vector<std::pair<cave::RoomId, Vec3>>> spread_starts(uint64_t seed, int players) {
+  auto world = cave::World::create(seed, {});
+  if (!world) return world.error();
+  std::vector<std::pair<cave::RoomId, Vec3>> out;
+  for (int i = 0; i < players; ++i) {
+    cave::SectorCoord sector{3 * i, 0, 0};
+    auto layout = cave::generate_sector(*world, sector);
+    if (layout.rooms.empty()) {
+      return Error{ErrorCode::kNotFound,
+                   "--spread: sector " + cave::to_string(sector) + " has no interior room"};
+    }
+    out.emplace_back(layout.rooms[0].id, layout.rooms[0].sphere.centre);
+  }
+  return out;
+}
+
+Status check(const LoadOptions& o) {
+  if (o.players < 1 || o.players > 10'000)
+    return invalid_argument("--players must be in [1, 10000]");
+  if (!(o.speed > 0)) return invalid_argument("--speed must be > 0");
+  if (!(o.horizon_s > 0)) return invalid_argument("--horizon must be > 0");
+  if (!(o.radius_m > 0)) return invalid_argument("--radius must be > 0");
+  if (!(o.duration_s >= 0)) return invalid_argument("--duration must be >= 0");
+  if (!(o.tick_hz > 0)) return invalid_argument("tick_hz must be > 0");
+  if (o.spread && !o.url.empty() && !o.seed) {
+    return invalid_argument(
+        "--spread with --server needs --seed (the start rooms are laid out "
+        "locally, so the world must be known)");
+  }
+  return {};
+}
+
+// One line, rewritten in place (\r, erase to end of line).
+void print_progress(double t, const std::vector<Player>& players, uint64_t latency_p50_ms,
+                    uint64_t verify_failures) {
+  uint64_t rooms = 0, bytes = 0, errors = 0, stalls = 0, waiting = 0;
+  double stall_s = 0;
+  for (const auto& p : players) {
+    StreamStats s = p.stream->stats();
+    rooms += s.rooms_ready;
+    bytes += s.bytes_received;
+    for (const auto& [code, n] : s.errors)
+      errors += n;
+    const auto& w = p.walker->stats();
+    stalls += w.stalls_s.size() + (p.walker->state() == WalkerState::kStalled ? 1 : 0);
+    for (double d : w.stalls_s)
+      stall_s += d;
+    stall_s += p.walker->open_stall_s();
+    waiting += p.walker->state() == WalkerState::kWaiting ? 1 : 0;
+  }
+  std::fprintf(
+      stderr,
+      "\r[%6.1f s] rooms %llu (%.1f/s) %.2f MB/s  p50 %llu ms  stalls %llu (%.1f s)  "
+      "waiting %llu/%zu  errors %llu%s\x1b[K",
+      t, static_cast<unsigned long long>(rooms), t > 0 ? static_cast<double>(rooms) / t : 0,
+      t > 0 ? static_cast<double>(bytes) / 1e6 / t : 0,
+      static_cast<unsigned long long>(latency_p50_ms), static_cast<unsigned long long>(stalls),
+      stall_s, static_cast<unsigned long long>(waiting), players.size(),
+      static_cast<unsigned long long>(errors),
+      verify_failures ? (" verify failures " + std::to_string(verify_failures)).c_str() : "");
+  std::fflush(stderr);
+}
+
+// Burst mode: is everything within the player's radius known and ready?
+void check_burst(Player& p, double t, const PlanOptions& plan_options) {
+  if (p.burst_complete_s >= 0 || p.walker->state() == WalkerState::kWaiting) return;
+  auto plan = p.graph.plan(*p.walker->room(), p.walker->pose(), plan_options);
+  p.burst_rooms = plan.size();
+  for (const auto& room : plan) {
+    if (!room.known || !p.stream->ready(room.id)) return;
+  }
+  p.burst_complete_s = t;
+}
+
+}  // namespace
+
+Result<LoadReport> run_load(const LoadOptions& options) {
+  if (Status s = check(options); !s) return s.error();
+  const double duration =
+      options.duration_s > 0 ? options.duration_s : default_duration_s(options.mode);
+  const bool burst = options.mode == Mode::kBurst;
+
+  LoadReport report;
+  report.mode = mode_name(options.mode);
+  report.players = options.players;
+  report.speed = options.speed;
+  report.horizon_s = burst ? options.radius_m / options.speed : options.horizon_s;
+  report.radius_m = burst ? options.radius_m : 0;
+  report.duration_s = duration;
+  report.max_stalls = options.max_stalls;
+  report.seed = options.seed;
+
+  // The embedded server: loopback, an ephemeral port, the world and device asked for.
+  std::unique_ptr<server::Server> server;
+  std::string url = options.url;
+  if (url.empty()) {
+    server::ServerConfig config;
+    config.port = 0;
+    config.bind = "127.0.0.1";
+    if (options.seed) config.seed = *options.seed;
+    config.generator.builder.device.device = options.device;
+    config.generator.workers = options.server_workers;
+    config.drain_timeout = std::chrono::milliseconds(2'000);
+    auto started = server::Server::start(config);
+    if (!started) return started.error();
+    server = std::move(started).value();
+    url = "ws://127.0.0.1:" + std::to_string(server->port()) + "/ws";
+    report.embedded_server = true;
+    report.seed = config.seed;
+    spdlog::info("event=embedded_server url={} compute={}", url,
+                 server->generator().compute_path());
+  }
+  report.url = url;
+
+  std::vector<std::pair<cave::RoomId, Vec3>> starts;
+  if (options.spread) {
+    auto s = spread_starts(*report.seed, options.players);
+    if (!s) return s.error();
+    starts = std::move(s).value();
+  }
+
+  PlanOptions plan_options;
+  plan_options.horizon_s = report.horizon_s;
+
+  // The Runtime outlives the Streams (declared first, destroyed last); the Streams stop before
+  // the embedded server so that its shutdown is no error of theirs.
+  Runtime runtime(options.io_threads, options.decode_workers);
+  std::vector<Player> players(static_cast<size_t>(options.players));
+  for (int i = 0; i < options.players; ++i) {
+    Player& p = players[static_cast<size_t>(i)];
+    p.index = i;
+    StreamOptions so;
+    so.url = url;
+    so.seed = options.seed;
+    so.name = "grotto-load";
+    so.plan = plan_options;
+    so.spawn = !options.spread;
+    auto stream = Stream::start(so, runtime);
+    if (!stream) return stream.error();
+    p.stream = std::move(stream).value();
+    Stream* s = p.stream.get();
+    WorldView view{[s](cave::RoomId id) { return s->descriptor(id); },
+                   [s](cave::RoomId id) { return s->ready(id); }};
+    WalkerOptions wo = options.walker;
+    wo.speed = options.speed;
+    p.walker = std::make_unique<Walker>(std::move(view), wo, options.rng_seed + i);
+    if (options.spread) {
+      p.start = starts[static_cast<size_t>(i)].first;
+      p.walker->place(starts[static_cast<size_t>(i)].first, starts[static_cast<size_t>(i)].second);
+      p.stream->set_pose(p.walker->pose());
+    }
+  }
+
+  std::unique_ptr<Verifier> verifier;
+  if (options.verify) {
+    verifier = std::make_unique<Verifier>(options.players, [&players](int i, cave::RoomId id) {
+      return players[static_cast<size_t>(i)].stream->room(id);
+    });
+  }
+
+  std::vector<double> latencies, decodes;
+  auto drain = [&](Player& p) {
+    for (auto& room : p.stream->take_new_rooms()) {
+      if (burst) (void)p.graph.add(room->room);  // disagreements: --verify counts them
+      if (verifier) verifier->push(p.index, std::move(room));
+    }
+    for (const auto& sample : p.stream->take_samples()) {
+      latencies.push_back(sample.latency_ms);
+      decodes.push_back(sample.decode_ms);
+    }
+  };
+
+  // The simulation: real time, one thread. While a player waits for its first room the loop
+  // ticks at 200 Hz so that time to first room is measured to ~5 ms.
+  const auto t0 = Clock::now();
+  auto last = t0;
+  double next_progress = 1.0, next_burst_check = 0;
+  double t = 0;
+  for (;;) {
+    const auto now = Clock::now();
+    const double dt = seconds_since(last, now);
+    last = now;
+    t = seconds_since(t0, now);
+    bool waiting = false, all_failed = true;
+    for (auto& p : players) {
+      if (!p.walker->placed()) {
+        if (auto spawn = p.stream->spawn_point()) {
+          p.start = spawn->room;
+          p.walker->place(spawn->room, spawn->position);
+        }
+      }
+      // Burst players stand where they start; their walker only measures time to first room.
+      if (!burst || p.walker->state() == WalkerState::kWaiting) p.walker->advance(dt);
+      if (p.walker->placed()) {
+        Pose pose = p.walker->pose();
+        if (burst) pose.speed = options.speed;
+        p.stream->set_pose(pose);
+      }
+      waiting |= p.walker->state() == WalkerState::kWaiting;
+      all_failed &= p.stream->state() == StreamState::kFailed;
+      drain(p);
+    }
+    if (burst && t >= next_burst_check) {
+      next_burst_check = t + 0.1;
+      bool all = true;
+      for (auto& p : players) {
+        check_burst(p, t, plan_options);
+        all &= p.burst_complete_s >= 0;
+      }
+      if (all) {
+        report.burst_s = t;
+        break;
+      }
+    }
+    if (options.progress && t >= next_progress) {
+      next_progress = t + 1.0;
+      std::vector<double> sorted = latencies;
+      std::sort(sorted.begin(), sorted.end());
+      print_progress(t, players, static_cast<uint64_t>(percentile(sorted, 50)),
+                     verifier ? verifier->failures() : 0);
+    }
+    if (t >= duration || all_failed) break;
+    const double interval = waiting ? 0.005 : 1.0 / options.tick_hz;
+    std::this_thread::sleep_until(
+        now + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(interval)));
+  }
+  if (options.progress) std::fprintf(stderr, "\r\x1b[K");
+  report.elapsed_s = seconds_since(t0, Clock::now());
+
+  for (auto& p : players) {
+    p.final_state = p.stream->state();
+    p.stream->stop();
+    drain(p);  // what arrived between the last step and the stop
+    p.final_stats = p.stream->stats();
+  }
+  if (verifier) report.verify = verifier->finish();
+
+  std::vector<double> first_rooms, stalls;
+  for (auto& p : players) {
+    const StreamStats& s = p.final_stats;
+    const WalkerStats& w = p.walker->stats();
+    PlayerReport pr;
+    pr.index = p.index;
+    if (p.start) pr.start_room = p.start->to_string();
+    if (w.first_room_s) {
+      pr.first_room_ms = *w.first_room_s * 1000.0;
+      first_rooms.push_back(pr.first_room_ms);
+    }
+    pr.rooms_ready = s.rooms_ready;
+    pr.rooms_received = s.rooms_received;
+    pr.bytes = s.bytes_received;
+    pr.requests = s.requests_sent;
+    pr.cancels = s.cancels_sent;
+    pr.rooms_entered = w.rooms_entered;
+    pr.turn_backs = w.turn_backs;
+    pr.distance_m = w.distance_m;
+    for (double d : w.stalls_s) {
+      stalls.push_back(d * 1000.0);
+      pr.stall_s += d;
+    }
+    pr.stalls = w.stalls_s.size();
+    if (p.walker->state() == WalkerState::kStalled) {
+      stalls.push_back(p.walker->open_stall_s() * 1000.0);
+      pr.stall_s += p.walker->open_stall_s();
+      ++pr.stalls;
+    }
+    pr.reconnects = s.reconnects;
+    for (const auto& [code, n] : s.errors) {
+      pr.errors += n;
+      report.errors[code] += n;
+    }
+    pr.state = state_name(p.final_state);
+    pr.burst_complete_s = p.burst_complete_s;
+    pr.burst_rooms = p.burst_rooms;
+    report.rooms_rejected += s.rooms_rejected;
+    report.rooms_evicted += s.rooms_evicted;
+    report.rooms_given_up += s.rooms_given_up;
+    report.drops += s.drops;
+    report.streams_failed += p.final_state == StreamState::kFailed ? 1 : 0;
+    if (!s.server.empty()) report.server = s.server;
+    report.players_detail.push_back(std::move(pr));
+  }
+  report.first_room_ms = summarize(std::move(first_rooms));
+  report.latency_ms = summarize(std::move(latencies));
+  report.decode_ms = summarize(std::move(decodes));
+  report.stall_ms = summarize(std::move(stalls));
+  total_players(report);
+
+  players.clear();  // the Streams go before the Runtime and the server
+  if (server) server->stop(std::chrono::milliseconds(2'000));
+  return report;
+}
+
+}  // namespace grotto::client::load

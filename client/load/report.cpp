@@ -1,0 +1,231 @@
+#include "client/load/report.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdarg>
+#include <cstdio>
+#include <nlohmann/json.hpp>
+
+namespace grotto::client::load {
+
+double percentile(const std::vector<double>& sorted, double p) {
+  if (sorted.empty()) return 0;
+  // Nearest rank: rank = ceil(p/100 × n), 1-based.
+  double rank = std::ceil(p / 100.0 * static_cast<double>(sorted.size()));
+  size_t i = rank < 1 ? 0 : static_cast<size_t>(rank) - 1;
+  return sorted[std::min(i, sorted.size() - 1)];
+}
+
+Distribution summarize(std::vector<double> samples) {
+  Distribution d;
+  if (samples.empty()) return d;
+  std::sort(samples.begin(), samples.end());
+  d.count = samples.size();
+  double sum = 0;
+  for (double s : samples)
+    sum += s;
+  d.mean = sum / static_cast<double>(samples.size());
+  d.p50 = percentile(samples, 50);
+  d.p90 = percentile(samples, 90);
+  d.p99 = percentile(samples, 99);
+  d.max = samples.back();
+  return d;
+}
+
+void total_players(LoadReport& r) {
+  r.rooms_ready = r.rooms_received = r.bytes = r.requests = r.cancels = 0;
+  r.stalls = 0;
+  r.stall_total_s = 0;
+  r.reconnects = 0;
+  r.rooms_entered = r.turn_backs = 0;
+  r.distance_m = 0;
+  r.players_without_room = 0;
+  for (const auto& p : r.players_detail) {
+    r.players_without_room += p.first_room_ms < 0 ? 1 : 0;
+    r.rooms_ready += p.rooms_ready;
+    r.rooms_received += p.rooms_received;
+    r.bytes += p.bytes;
+    r.requests += p.requests;
+    r.cancels += p.cancels;
+    r.stalls += p.stalls;
+    r.stall_total_s += p.stall_s;
+    r.reconnects += p.reconnects;
+    r.rooms_entered += p.rooms_entered;
+    r.turn_backs += p.turn_backs;
+    r.distance_m += p.distance_m;
+  }
+  r.errors_total = 0;
+  for (const auto& [code, n] : r.errors)
+    r.errors_total += n;
+  if (r.elapsed_s > 0) {
+    r.rooms_per_s = static_cast<double>(r.rooms_ready) / r.elapsed_s;
+    r.mb_per_s = static_cast<double>(r.bytes) / 1e6 / r.elapsed_s;
+  }
+}
+
+int exit_code(const LoadReport& r) {
+  if (r.errors_total > 0 || r.streams_failed > 0 || r.players_without_room > 0 ||
+      r.verify.failures() > 0) {
+    return kExitErrors;
+  }
+  if (r.max_stalls >= 0 && r.stalls > static_cast<uint64_t>(r.max_stalls)) return kExitStalls;
+  return kExitOk;
+}
+
+namespace {
+
+void appendf(std::string& out, const char* format, ...) __attribute__((format(printf, 2, 3)));
+void appendf(std::string& out, const char* format, ...) {
+  char buf[512];
+  va_list args;
+  va_start(args, format);
+  int n = std::vsnprintf(buf, sizeof buf, format, args);
+  va_end(args);
+  if (n > 0) out.append(buf, std::min(static_cast<size_t>(n), sizeof buf - 1));
+}
+
+void distribution_row(std::string& out, const char* name, const Distribution& d) {
+  appendf(out, "  %-22s %8llu %9.1f %9.1f %9.1f %9.1f %9.1f\n", name,
+          static_cast<unsigned long long>(d.count), d.mean, d.p50, d.p90, d.p99, d.max);
+}
+
+nlohmann::json to_json(const Distribution& d) {
+  return {{"count", d.count}, {"mean", d.mean}, {"p50", d.p50},
+          {"p90", d.p90},     {"p99", d.p99},   {"max", d.max}};
+}
+
+}  // namespace
+
+std::string format_table(const LoadReport& r) {
+  std::string out;
+  auto u = [](uint64_t v) { return static_cast<unsigned long long>(v); };
+  appendf(out, "grotto-load: %s, %d players, %.1f s (asked %.1f s), server %s%s\n", r.mode.c_str(),
+          r.players, r.elapsed_s, r.duration_s, r.url.c_str(),
+          r.embedded_server ? " (embedded)" : "");
+  appendf(out, "  world seed %s, %s; speed %.1f m/s, horizon %.1f s\n",
+          r.seed ? std::to_string(*r.seed).c_str() : "(the server's)",
+          r.server.empty() ? "server unknown" : r.server.c_str(), r.speed, r.horizon_s);
+  appendf(out, "\n  %-22s %8s %9s %9s %9s %9s %9s\n", "", "count", "mean", "p50", "p90", "p99",
+          "max");
+  distribution_row(out, "time to first room ms", r.first_room_ms);
+  distribution_row(out, "request->room ms", r.latency_ms);
+  distribution_row(out, "decode ms", r.decode_ms);
+  distribution_row(out, "stall ms", r.stall_ms);
+  appendf(out, "\n  rooms ready       %10llu  (%.1f rooms/s)\n", u(r.rooms_ready), r.rooms_per_s);
+  appendf(out, "  bytes received    %10llu  (%.2f MB/s)\n", u(r.bytes), r.mb_per_s);
+  appendf(out, "  rooms received    %10llu  rejected %llu, evicted %llu, given up %llu\n",
+          u(r.rooms_received), u(r.rooms_rejected), u(r.rooms_evicted), u(r.rooms_given_up));
+  appendf(out, "  requested         %10llu  cancelled %llu\n", u(r.requests), u(r.cancels));
+  appendf(out, "  stalls            %10llu  total %.2f s%s\n", u(r.stalls), r.stall_total_s,
+          r.max_stalls >= 0 ? (" (limit " + std::to_string(r.max_stalls) + ")").c_str() : "");
+  appendf(out, "  walked            %10.0f m, %llu portals, %llu turn-backs\n", r.distance_m,
+          u(r.rooms_entered), u(r.turn_backs));
+  appendf(out, "  reconnects        %10llu  drops %llu, streams failed %llu\n", u(r.reconnects),
+          u(r.drops), u(r.streams_failed));
+  if (r.players_without_room > 0) {
+    appendf(out, "  players without a room %llu\n", u(r.players_without_room));
+  }
+  appendf(out, "  errors            %10llu", u(r.errors_total));
+  for (const auto& [code, n] : r.errors)
+    appendf(out, "  %s=%llu", code.c_str(), u(n));
+  out += "\n";
+  if (r.mode == "burst") {
+    if (r.burst_s >= 0) {
+      appendf(out, "  burst: every player's %.0f m radius ready after %.2f s\n", r.radius_m,
+              r.burst_s);
+    } else {
+      appendf(out, "  burst: not every player's %.0f m radius was ready in time\n", r.radius_m);
+    }
+  }
+  if (r.verify.enabled) {
+    appendf(out, "  verify: %llu rooms, %llu seams; failures: room %llu, seam %llu, graph %llu\n",
+            u(r.verify.rooms_checked), u(r.verify.seams_checked), u(r.verify.room_failures),
+            u(r.verify.seam_failures), u(r.verify.graph_failures));
+    for (const auto& f : r.verify.first_failures)
+      appendf(out, "    %s\n", f.c_str());
+  }
+  int code = exit_code(r);
+  appendf(out, "\n  result: %s (exit %d)\n",
+          code == kExitOk ? "pass" : (code == kExitStalls ? "too many stalls" : "errors"), code);
+  return out;
+}
+
+std::string to_json_text(const LoadReport& r) {
+  nlohmann::json players = nlohmann::json::array();
+  for (const auto& p : r.players_detail) {
+    players.push_back({{"index", p.index},
+                       {"start_room", p.start_room},
+                       {"first_room_ms", p.first_room_ms},
+                       {"rooms_ready", p.rooms_ready},
+                       {"rooms_received", p.rooms_received},
+                       {"bytes", p.bytes},
+                       {"requests", p.requests},
+                       {"cancels", p.cancels},
+                       {"rooms_entered", p.rooms_entered},
+                       {"turn_backs", p.turn_backs},
+                       {"distance_m", p.distance_m},
+                       {"stalls", p.stalls},
+                       {"stall_s", p.stall_s},
+                       {"reconnects", p.reconnects},
+                       {"errors", p.errors},
+                       {"state", p.state},
+                       {"burst_complete_s", p.burst_complete_s},
+                       {"burst_rooms", p.burst_rooms}});
+  }
+  nlohmann::json verify = {{"enabled", r.verify.enabled},
+                           {"rooms_checked", r.verify.rooms_checked},
+                           {"seams_checked", r.verify.seams_checked},
+                           {"room_failures", r.verify.room_failures},
+                           {"seam_failures", r.verify.seam_failures},
+                           {"graph_failures", r.verify.graph_failures},
+                           {"failures", r.verify.failures()},
+                           {"first_failures", r.verify.first_failures}};
+  nlohmann::json doc = {
+      {"tool", "grotto-load"},
+      {"mode", r.mode},
+      {"url", r.url},
+      {"embedded_server", r.embedded_server},
+      // A string: 64-bit seeds do not fit a JSON double (PROTOCOL.md); null: the server's own.
+      {"seed", r.seed ? nlohmann::json(std::to_string(*r.seed)) : nlohmann::json(nullptr)},
+      {"server", r.server},
+      {"players", r.players},
+      {"speed_m_s", r.speed},
+      {"horizon_s", r.horizon_s},
+      {"radius_m", r.radius_m},
+      {"duration_s", r.duration_s},
+      {"elapsed_s", r.elapsed_s},
+      {"first_room_ms", to_json(r.first_room_ms)},
+      {"latency_ms", to_json(r.latency_ms)},
+      {"decode_ms", to_json(r.decode_ms)},
+      {"stall_ms", to_json(r.stall_ms)},
+      {"rooms",
+       {{"ready", r.rooms_ready},
+        {"received", r.rooms_received},
+        {"rejected", r.rooms_rejected},
+        {"evicted", r.rooms_evicted},
+        {"given_up", r.rooms_given_up},
+        {"requested", r.requests},
+        {"cancelled", r.cancels}}},
+      {"bytes", r.bytes},
+      {"rooms_per_s", r.rooms_per_s},
+      {"mb_per_s", r.mb_per_s},
+      {"stalls", {{"count", r.stalls}, {"total_s", r.stall_total_s}, {"max", r.max_stalls}}},
+      {"reconnects", r.reconnects},
+      {"drops", r.drops},
+      {"streams_failed", r.streams_failed},
+      {"players_without_room", r.players_without_room},
+      {"errors", r.errors},
+      {"errors_total", r.errors_total},
+      {"walk",
+       {{"rooms_entered", r.rooms_entered},
+        {"turn_backs", r.turn_backs},
+        {"distance_m", r.distance_m}}},
+      {"burst_s", r.burst_s},
+      {"verify", verify},
+      {"per_player", players},
+      {"exit_code", exit_code(r)},
+  };
+  return doc.dump(2);
+}
+
+}  // namespace grotto::client::load

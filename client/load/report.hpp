@@ -1,0 +1,110 @@
+// What grotto-load measured, as plain data, and its three outputs: the final table for people,
+// the JSON document (--json) for scripts and CI, and the exit code that gates a deployment.
+#pragma once
+#include <cstdint>
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace grotto::client::load {
+
+// Nearest-rank percentile of ascending `sorted` samples: the smallest sample with at least p% of
+// the samples at or below it (p in (0, 100]). 0 for no samples.
+double percentile(const std::vector<double>& sorted, double p);
+
+struct Distribution {
+  uint64_t count = 0;
+  double mean = 0, p50 = 0, p90 = 0, p99 = 0, max = 0;
+};
+// Summarises samples in any order (nearest rank).
+Distribution summarize(std::vector<double> samples);
+
+// One simulated player.
+struct PlayerReport {
+  int index = 0;
+  std::string start_room;       // text id; empty when the player never got a start
+  double first_room_ms = -1;    // start of the run → start room ready; -1: never
+  uint64_t rooms_ready = 0;     // rooms decoded and stored by its Stream
+  uint64_t rooms_received = 0;  // room frames accepted
+  uint64_t bytes = 0;           // bytes received
+  uint64_t requests = 0;        // rooms requested
+  uint64_t cancels = 0;         // rooms cancelled
+  uint64_t rooms_entered = 0;   // portals crossed by the walker
+  uint64_t turn_backs = 0;
+  double distance_m = 0;
+  uint64_t stalls = 0;  // finished and open
+  double stall_s = 0;   // their total time
+  uint64_t reconnects = 0;
+  uint64_t errors = 0;           // error messages received
+  std::string state;             // the Stream's state at the end
+  double burst_complete_s = -1;  // burst mode: everything within the radius ready; -1: not
+  uint64_t burst_rooms = 0;      // burst mode: rooms within the radius (the last plan)
+};
+
+struct VerifyReport {
+  bool enabled = false;
+  uint64_t rooms_checked = 0;
+  uint64_t seams_checked = 0;
+  uint64_t room_failures = 0;   // verify_room
+  uint64_t seam_failures = 0;   // verify_seam
+  uint64_t graph_failures = 0;  // PortalGraph::add: portals that disagree with a neighbour
+  std::vector<std::string> first_failures;  // the first few messages
+  uint64_t failures() const { return room_failures + seam_failures + graph_failures; }
+};
+
+struct LoadReport {
+  // What was run.
+  std::string mode;  // walk, burst, soak
+  std::string url;
+  bool embedded_server = false;
+  std::optional<uint64_t> seed;  // the world asked for or served embedded; absent: the server's
+  std::string server;            // welcome.server
+  int players = 0;
+  double speed = 0;
+  double horizon_s = 0;
+  double radius_m = 0;    // burst mode
+  double duration_s = 0;  // asked for
+  double elapsed_s = 0;   // measured, start of the run to the Streams' stop
+
+  // Figures over all players.
+  Distribution first_room_ms;  // per player, the players who got one
+  Distribution latency_ms;     // request → room frame, every sample
+  Distribution decode_ms;
+  Distribution stall_ms;  // every stall (finished or open at the end)
+  uint64_t rooms_ready = 0, rooms_received = 0, rooms_rejected = 0, rooms_evicted = 0,
+           rooms_given_up = 0, requests = 0, cancels = 0, bytes = 0;
+  double rooms_per_s = 0, mb_per_s = 0;  // rooms_ready and bytes over elapsed_s (MB = 10^6 B)
+  uint64_t stalls = 0;
+  double stall_total_s = 0;
+  uint64_t reconnects = 0, drops = 0, streams_failed = 0;
+  uint64_t players_without_room = 0;       // never got their start room (counts as an error)
+  std::map<std::string, uint64_t> errors;  // error messages by wire code
+  uint64_t errors_total = 0;
+  uint64_t rooms_entered = 0, turn_backs = 0;
+  double distance_m = 0;
+  double burst_s = -1;  // burst mode: time until every player had its radius ready; -1: not
+  VerifyReport verify;
+  std::vector<PlayerReport> players_detail;
+
+  // The outcome, given max_stalls (-1: no limit).
+  int max_stalls = -1;
+};
+
+// Sums the players into the totals (rooms, bytes, stalls, ...) and derives the rates; leaves the
+// distributions and errors (filled from raw samples) alone.
+void total_players(LoadReport& report);
+
+// Exit codes: 0 pass, 1 errors (error messages, a Stream that failed for good, a player that never
+// got its start room, verification failures), 3 more stalls than max_stalls; 1 wins over 3.
+inline constexpr int kExitOk = 0;
+inline constexpr int kExitErrors = 1;
+inline constexpr int kExitBadFlags = 2;
+inline constexpr int kExitStalls = 3;
+int exit_code(const LoadReport& report);
+
+std::string format_table(const LoadReport& report);
+// The JSON document: every figure of the report, exit_code included.
+std::string to_json_text(const LoadReport& report);
+
+}  // namespace grotto::client::load

@@ -1,0 +1,185 @@
+// grotto-load as a user runs it: a real process, its exit codes, its --help, and end to end
+// against the embedded server (CPU reference: --device none).
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <sstream>
+#include <string>
+
+#include "client/load/load.hpp"
+
+namespace {
+
+struct ProcessResult {
+  int exit_code;
+  std::string output;  // stdout and stderr together
+};
+
+ProcessResult run(const std::string& args) {
+  std::string cmd = std::string("'") + GROTTO_LOAD_BIN + "' " + args + " 2>&1";
+  FILE* p = popen(cmd.c_str(), "r");
+  ProcessResult r{-1, {}};
+  char buf[4096];
+  size_t n;
+  while ((n = std::fread(buf, 1, sizeof buf, p)) > 0)
+    r.output.append(buf, n);
+  int status = pclose(p);
+  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return r;
+}
+
+std::filesystem::path temp_dir(const char* name) {
+  auto dir =
+      std::filesystem::temp_directory_path() / (std::string(name) + "-" + std::to_string(getpid()));
+  std::filesystem::create_directories(dir);
+  return dir;
+}
+
+nlohmann::json read_json(const std::filesystem::path& path) {
+  std::ifstream f(path);
+  std::stringstream ss;
+  ss << f.rdbuf();
+  return nlohmann::json::parse(ss.str(), nullptr, false);
+}
+
+TEST(GrottoLoad, help_describes_every_option) {
+  ProcessResult r = run("--help");
+  EXPECT_EQ(r.exit_code, 0);
+  for (const char* flag :
+       {"--server",     "--mode",           "--players",   "--duration",   "--speed",
+        "--horizon",    "--radius",         "--seed",      "--device",     "--server-workers",
+        "--io-threads", "--decode-workers", "--rng-seed",  "--spread",     "--verify",
+        "--max-stalls", "--tick-hz",        "--turn-back", "--burst-rate", "--json",
+        "--quiet",      "--log-level",      "Exit codes"}) {
+    EXPECT_NE(r.output.find(flag), std::string::npos) << flag;
+  }
+}
+
+TEST(GrottoLoad, bad_flags_exit_2_with_a_message_naming_the_flag) {
+  const std::pair<const char*, const char*> cases[] = {
+      {"--players 0", "--players"},
+      {"--players many", "--players"},
+      {"--speed -1", "--speed"},
+      {"--speed nan", "--speed"},
+      {"--duration -5", "--duration"},
+      {"--mode fly", "--mode"},
+      {"--seed -3", "--seed"},
+      {"--seed 18446744073709551616", "--seed"},
+      {"--server http://example.com/", "--server"},
+      {"--max-stalls -2", "--max-stalls"},
+      {"--turn-back 2", "--turn-back"},
+      {"--spread --server ws://127.0.0.1:1/ws", "--spread"},
+      {"--no-such-flag", "--no-such-flag"},
+  };
+  for (const auto& [args, flag] : cases) {
+    ProcessResult r = run(args);
+    EXPECT_EQ(r.exit_code, 2) << args << ": " << r.output;
+    EXPECT_NE(r.output.find(flag), std::string::npos) << args << ": " << r.output;
+  }
+}
+
+TEST(GrottoLoad, parse_command_line_fills_the_options) {
+  const char* argv[] = {"grotto-load", "--players", "7",        "--mode",   "soak",
+                        "--seed",      "42",        "--spread", "--verify", "--max-stalls",
+                        "3",           "--json",    "x.json"};
+  auto cli = grotto::client::load::parse_command_line(static_cast<int>(std::size(argv)), argv);
+  ASSERT_TRUE(cli.run) << cli.text;
+  EXPECT_EQ(cli.options.players, 7);
+  EXPECT_EQ(cli.options.mode, grotto::client::load::Mode::kSoak);
+  EXPECT_EQ(cli.options.seed, 42u);
+  EXPECT_TRUE(cli.options.spread);
+  EXPECT_TRUE(cli.options.verify);
+  EXPECT_EQ(cli.options.max_stalls, 3);
+  EXPECT_EQ(cli.json_path, "x.json");
+  EXPECT_EQ(grotto::client::load::default_duration_s(cli.options.mode), 600);
+}
+
+// The figures of a run's JSON agree with each other and with the players'.
+void expect_consistent(const nlohmann::json& j, int players) {
+  ASSERT_TRUE(j.is_object());
+  ASSERT_EQ(j["per_player"].size(), static_cast<size_t>(players));
+  uint64_t ready = 0, received = 0, bytes = 0, stalls = 0, errors = 0;
+  for (const auto& p : j["per_player"]) {
+    ready += p["rooms_ready"].get<uint64_t>();
+    received += p["rooms_received"].get<uint64_t>();
+    bytes += p["bytes"].get<uint64_t>();
+    stalls += p["stalls"].get<uint64_t>();
+    errors += p["errors"].get<uint64_t>();
+    EXPECT_GE(p["first_room_ms"].get<double>(), 0) << "every player got its first room";
+  }
+  EXPECT_EQ(j["rooms"]["ready"].get<uint64_t>(), ready);
+  EXPECT_EQ(j["rooms"]["received"].get<uint64_t>(), received);
+  EXPECT_EQ(j["bytes"].get<uint64_t>(), bytes);
+  EXPECT_EQ(j["stalls"]["count"].get<uint64_t>(), stalls);
+  EXPECT_EQ(j["stall_ms"]["count"].get<uint64_t>(), stalls);
+  uint64_t by_code = 0;
+  for (const auto& [code, n] : j["errors"].items())
+    by_code += n.get<uint64_t>();
+  EXPECT_EQ(j["errors_total"].get<uint64_t>(), by_code);
+  EXPECT_EQ(j["errors_total"].get<uint64_t>(), errors);
+  EXPECT_GT(ready, 0u);
+  EXPECT_GE(received, ready);
+  EXPECT_GT(bytes, 0u);
+  EXPECT_GT(j["latency_ms"]["count"].get<uint64_t>(), 0u);
+  EXPECT_LE(j["latency_ms"]["count"].get<uint64_t>(), received);
+  EXPECT_EQ(j["first_room_ms"]["count"].get<int>(), players);
+  const double elapsed = j["elapsed_s"].get<double>();
+  EXPECT_NEAR(j["rooms_per_s"].get<double>(), static_cast<double>(ready) / elapsed, 1e-6);
+  EXPECT_NEAR(j["mb_per_s"].get<double>(), static_cast<double>(bytes) / 1e6 / elapsed, 1e-9);
+}
+
+TEST(GrottoLoad, four_players_walk_the_embedded_server_without_errors) {
+  auto dir = temp_dir("grotto-load-walk");
+  auto json = dir / "out.json";
+  ProcessResult r =
+      run("--players 4 --duration 5 --device none --server-workers 2 --verify "
+          "--json '" +
+          json.string() + "'");
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("request->room ms"), std::string::npos) << r.output;
+  auto j = read_json(json);
+  expect_consistent(j, 4);
+  EXPECT_EQ(j["errors_total"], 0) << j.dump(2);
+  EXPECT_EQ(j["streams_failed"], 0);
+  EXPECT_EQ(j["verify"]["failures"], 0) << j["verify"].dump(2);
+  EXPECT_GT(j["verify"]["rooms_checked"].get<uint64_t>(), 0u);
+  EXPECT_GE(j["elapsed_s"].get<double>(), 5.0);
+  EXPECT_GT(j["walk"]["distance_m"].get<double>(), 0);
+  std::filesystem::remove_all(dir);
+}
+
+TEST(GrottoLoad, burst_mode_gets_everything_within_the_radius) {
+  auto dir = temp_dir("grotto-load-burst");
+  auto json = dir / "out.json";
+  ProcessResult r =
+      run("--mode burst --players 2 --spread --radius 40 --duration 60 "
+          "--device none --server-workers 2 --json '" +
+          json.string() + "'");
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  auto j = read_json(json);
+  expect_consistent(j, 2);
+  EXPECT_GT(j["burst_s"].get<double>(), 0) << j.dump(2);
+  EXPECT_LT(j["elapsed_s"].get<double>(), 60);
+  for (const auto& p : j["per_player"]) {
+    EXPECT_GE(p["burst_complete_s"].get<double>(), 0);
+    EXPECT_GT(p["burst_rooms"].get<uint64_t>(), 1u);
+    EXPECT_EQ(p["distance_m"].get<double>(), 0) << "burst players stand still";
+  }
+  EXPECT_NE(j["per_player"][0]["start_room"], j["per_player"][1]["start_room"]);
+  std::filesystem::remove_all(dir);
+}
+
+TEST(GrottoLoad, a_server_that_is_not_there_is_an_error_not_a_hang) {
+  // A port nothing listens on: the Streams keep reconnecting; the run ends at its duration with
+  // no room and no player started, which is a failed gate (not 0).
+  ProcessResult r = run("--server ws://127.0.0.1:1/ws --players 1 --duration 1 --quiet");
+  EXPECT_NE(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.exit_code, 2) << r.output;
+}
+
+}  // namespace

@@ -1,0 +1,169 @@
+// The report: nearest-rank percentiles, totals, exit codes, and a JSON document with every figure.
+#include "client/load/report.hpp"
+
+#include <gtest/gtest.h>
+
+#include <nlohmann/json.hpp>
+
+namespace {
+
+using grotto::client::load::Distribution;
+using grotto::client::load::LoadReport;
+using grotto::client::load::percentile;
+using grotto::client::load::PlayerReport;
+using grotto::client::load::summarize;
+
+TEST(Report, percentiles_are_nearest_rank) {
+  // The textbook example: 15, 20, 35, 40, 50.
+  std::vector<double> s{15, 20, 35, 40, 50};
+  EXPECT_EQ(percentile(s, 5), 15);
+  EXPECT_EQ(percentile(s, 30), 20);
+  EXPECT_EQ(percentile(s, 40), 20);
+  EXPECT_EQ(percentile(s, 50), 35);
+  EXPECT_EQ(percentile(s, 100), 50);
+  EXPECT_EQ(percentile({}, 50), 0);
+  EXPECT_EQ(percentile({7}, 99), 7);
+
+  std::vector<double> hundred;
+  for (int i = 100; i >= 1; --i)
+    hundred.push_back(i);  // unsorted on purpose
+  Distribution d = summarize(hundred);
+  EXPECT_EQ(d.count, 100u);
+  EXPECT_EQ(d.p50, 50);
+  EXPECT_EQ(d.p90, 90);
+  EXPECT_EQ(d.p99, 99);
+  EXPECT_EQ(d.max, 100);
+  EXPECT_DOUBLE_EQ(d.mean, 50.5);
+  EXPECT_EQ(summarize({}).count, 0u);
+}
+
+LoadReport sample_report() {
+  LoadReport r;
+  r.mode = "walk";
+  r.url = "ws://127.0.0.1:1234/ws";
+  r.embedded_server = true;
+  r.seed = 18446744073709551615ull;
+  r.server = "grotto-server 0.1.0";
+  r.players = 2;
+  r.speed = 4;
+  r.horizon_s = 4;
+  r.duration_s = 10;
+  r.elapsed_s = 10;
+  r.latency_ms = summarize({10, 20, 30});
+  r.decode_ms = summarize({1, 2});
+  r.first_room_ms = summarize({100, 200});
+  r.stall_ms = summarize({500, 1500, 1000});
+  r.errors = {{"overloaded", 2}, {"not_found", 1}};
+  r.rooms_rejected = 4;
+  r.drops = 1;
+  for (int i = 0; i < 2; ++i) {
+    PlayerReport p;
+    p.index = i;
+    p.first_room_ms = 100 + 100 * i;
+    p.rooms_ready = 100 + i;
+    p.rooms_received = 110 + i;
+    p.bytes = 1'000'000;
+    p.requests = 120;
+    p.cancels = 7;
+    p.rooms_entered = 30;
+    p.turn_backs = 2;
+    p.distance_m = 40;
+    p.stalls = 1 + i;
+    p.stall_s = 1.0;
+    p.reconnects = i;
+    r.players_detail.push_back(p);
+  }
+  grotto::client::load::total_players(r);
+  return r;
+}
+
+TEST(Report, totals_add_up_the_players_and_rates_use_elapsed_time) {
+  LoadReport r = sample_report();
+  EXPECT_EQ(r.rooms_ready, 201u);
+  EXPECT_EQ(r.rooms_received, 221u);
+  EXPECT_EQ(r.bytes, 2'000'000u);
+  EXPECT_EQ(r.stalls, 3u);
+  EXPECT_DOUBLE_EQ(r.stall_total_s, 2.0);
+  EXPECT_EQ(r.reconnects, 1u);
+  EXPECT_EQ(r.errors_total, 3u);
+  EXPECT_DOUBLE_EQ(r.rooms_per_s, 20.1);
+  EXPECT_DOUBLE_EQ(r.mb_per_s, 0.2);
+}
+
+TEST(Report, exit_code_is_1_for_errors_3_for_too_many_stalls_and_errors_win) {
+  using grotto::client::load::exit_code;
+  LoadReport r = sample_report();
+  EXPECT_EQ(exit_code(r), 1);  // error messages
+  r.errors.clear();
+  grotto::client::load::total_players(r);
+  EXPECT_EQ(exit_code(r), 0);  // no limit on stalls by default
+  r.max_stalls = 3;
+  EXPECT_EQ(exit_code(r), 0);
+  r.max_stalls = 2;
+  EXPECT_EQ(exit_code(r), 3);
+  r.verify.enabled = true;
+  r.verify.seam_failures = 1;
+  EXPECT_EQ(exit_code(r), 1);
+  r.verify.seam_failures = 0;
+  r.streams_failed = 1;
+  EXPECT_EQ(exit_code(r), 1);
+  r.streams_failed = 0;
+  r.players_detail[0].first_room_ms = -1;  // a player that never got a room
+  grotto::client::load::total_players(r);
+  EXPECT_EQ(exit_code(r), 1);
+}
+
+TEST(Report, json_holds_every_figure) {
+  LoadReport r = sample_report();
+  r.verify.enabled = true;
+  r.verify.rooms_checked = 9;
+  r.verify.graph_failures = 1;
+  r.verify.first_failures = {"portal 3 disagrees"};
+  auto j = nlohmann::json::parse(grotto::client::load::to_json_text(r));
+  EXPECT_EQ(j["tool"], "grotto-load");
+  EXPECT_EQ(j["mode"], "walk");
+  EXPECT_EQ(j["seed"], "18446744073709551615");
+  EXPECT_EQ(j["players"], 2);
+  EXPECT_EQ(j["latency_ms"]["p50"], 20);
+  EXPECT_EQ(j["latency_ms"]["count"], 3);
+  EXPECT_EQ(j["latency_ms"]["p99"], 30);
+  EXPECT_EQ(j["decode_ms"]["max"], 2);
+  EXPECT_EQ(j["first_room_ms"]["p90"], 200);
+  EXPECT_EQ(j["stall_ms"]["p50"], 1000);
+  EXPECT_EQ(j["rooms"]["ready"], 201);
+  EXPECT_EQ(j["rooms"]["received"], 221);
+  EXPECT_EQ(j["rooms"]["rejected"], 4);
+  EXPECT_EQ(j["rooms"]["requested"], 240);
+  EXPECT_EQ(j["rooms"]["cancelled"], 14);
+  EXPECT_EQ(j["bytes"], 2'000'000);
+  EXPECT_DOUBLE_EQ(j["rooms_per_s"].get<double>(), 20.1);
+  EXPECT_DOUBLE_EQ(j["mb_per_s"].get<double>(), 0.2);
+  EXPECT_EQ(j["stalls"]["count"], 3);
+  EXPECT_DOUBLE_EQ(j["stalls"]["total_s"].get<double>(), 2.0);
+  EXPECT_EQ(j["reconnects"], 1);
+  EXPECT_EQ(j["drops"], 1);
+  EXPECT_EQ(j["errors"]["overloaded"], 2);
+  EXPECT_EQ(j["errors"]["not_found"], 1);
+  EXPECT_EQ(j["errors_total"], 3);
+  EXPECT_EQ(j["walk"]["turn_backs"], 4);
+  EXPECT_EQ(j["verify"]["rooms_checked"], 9);
+  EXPECT_EQ(j["verify"]["failures"], 1);
+  EXPECT_EQ(j["verify"]["first_failures"][0], "portal 3 disagrees");
+  ASSERT_EQ(j["per_player"].size(), 2u);
+  EXPECT_EQ(j["per_player"][1]["rooms_ready"], 101);
+  EXPECT_EQ(j["per_player"][1]["stalls"], 2);
+  EXPECT_EQ(j["exit_code"], 1);
+  r.seed.reset();
+  EXPECT_TRUE(nlohmann::json::parse(grotto::client::load::to_json_text(r))["seed"].is_null());
+}
+
+TEST(Report, table_names_the_figures_and_the_outcome) {
+  LoadReport r = sample_report();
+  std::string t = grotto::client::load::format_table(r);
+  for (const char* s : {"request->room ms", "time to first room", "decode ms", "stall ms",
+                        "rooms/s", "MB/s", "overloaded=2", "reconnects", "exit 1"}) {
+    EXPECT_NE(t.find(s), std::string::npos) << s << "\n" << t;
+  }
+}
+
+}  // namespace
