@@ -189,6 +189,8 @@ std::string to_json_text(const LoadReport& r) {
       {"seed", r.seed ? nlohmann::json(std::to_string(*r.seed)) : nlohmann::json(nullptr)},
       {"server", r.server},
       {"players", r.players},
+      {"rng_seed", std::to_string(r.rng_seed)},
+      {"spread", r.spread},
       {"speed_m_s", r.speed},
       {"horizon_s", r.horizon_s},
       {"radius_m", r.radius_m},

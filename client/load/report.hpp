@@ -61,6 +61,8 @@ struct LoadReport {
   std::optional<uint64_t> seed;  // the world asked for or served embedded; absent: the server's
   std::string server;            // welcome.server
   int players = 0;
+  uint64_t rng_seed = 0;  // the walks' seed (player i: rng_seed + i)
+  bool spread = false;    // players started in sectors (3i, 0, 0) instead of the spawn point
   double speed = 0;
   double horizon_s = 0;
   double radius_m = 0;    // burst mode

@@ -45,6 +45,8 @@ LoadReport sample_report() {
   r.seed = 18446744073709551615ull;
   r.server = "grotto-server 0.1.0";
   r.players = 2;
+  r.rng_seed = 5;
+  r.spread = true;
   r.speed = 4;
   r.horizon_s = 4;
   r.duration_s = 10;
@@ -124,6 +126,8 @@ TEST(Report, json_holds_every_figure) {
   EXPECT_EQ(j["mode"], "walk");
   EXPECT_EQ(j["seed"], "18446744073709551615");
   EXPECT_EQ(j["players"], 2);
+  EXPECT_EQ(j["rng_seed"], "5");
+  EXPECT_EQ(j["spread"], true);
   EXPECT_EQ(j["latency_ms"]["p50"], 20);
   EXPECT_EQ(j["latency_ms"]["count"], 3);
   EXPECT_EQ(j["latency_ms"]["p99"], 30);
