@@ -1,0 +1,497 @@
+// client/stream against real servers on loopback: a grotto Server started in-process (port 0 or a
+// fixed port for restarts), and a misbehaving server written here with Beast that speaks the
+// protocol wrongly on purpose (another version, corrupt rooms, a connection cut mid-frame). Every
+// wait is bounded (kWait), so a broken client fails a test instead of hanging it.
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <boost/asio/ip/tcp.hpp>
+#include <boost/beast/core.hpp>
+#include <boost/beast/websocket.hpp>
+#include <chrono>
+#include <functional>
+#include <map>
+#include <set>
+#include <thread>
+
+#include "cave/layout.hpp"
+#include "client/stream/stream.hpp"
+#include "codec/room_codec.hpp"
+#include "mesh/context.hpp"
+#include "mesh/room_mesh.hpp"
+#include "proto/room_frame.hpp"
+#include "server/server.hpp"
+
+namespace {
+
+namespace beast = boost::beast;
+namespace websocket = beast::websocket;
+namespace net = boost::asio;
+using tcp = net::ip::tcp;
+using namespace std::chrono_literals;
+using Clock = std::chrono::steady_clock;
+using grotto::cave::RoomId;
+using grotto::client::Pose;
+using grotto::client::Runtime;
+using grotto::client::Stream;
+using grotto::client::StreamOptions;
+using grotto::client::StreamState;
+using grotto::server::Server;
+using grotto::server::ServerConfig;
+
+constexpr auto kWait = 30s;
+
+ServerConfig test_config(uint16_t port = 0) {
+  ServerConfig c;
+  c.port = port;
+  c.io_threads = 1;
+  c.generator.workers = 2;
+  c.generator.builder.device.device = "none";  // the CPU reference: no OpenCL start-up in tests
+  c.drain_timeout = 2000ms;
+  c.log_level = "warn";
+  return c;
+}
+
+std::unique_ptr<Server> start_server(const ServerConfig& c) {
+  auto s = Server::start(c);
+  EXPECT_TRUE(s.ok()) << (s.ok() ? "" : s.error().message);
+  return s.ok() ? std::move(s).value() : nullptr;
+}
+
+std::string url_of(uint16_t port) {
+  return "ws://127.0.0.1:" + std::to_string(port) + "/ws";
+}
+
+// For failure messages: what the Stream did.
+std::string describe(const grotto::client::StreamStats& s) {
+  std::string text = std::string("state=") + grotto::client::state_name(s.state) +
+                     " requests=" + std::to_string(s.requests_sent) +
+                     " cancels=" + std::to_string(s.cancels_sent) +
+                     " received=" + std::to_string(s.rooms_received) +
+                     " ready=" + std::to_string(s.rooms_ready) +
+                     " rejected=" + std::to_string(s.rooms_rejected) +
+                     " in_flight=" + std::to_string(s.in_flight) +
+                     " drops=" + std::to_string(s.drops) + " last_error=\"" + s.last_error + "\"";
+  for (const auto& [code, n] : s.errors)
+    text += " " + code + "=" + std::to_string(n);
+  return text;
+}
+
+std::unique_ptr<Stream> start_stream(const StreamOptions& o, Runtime& rt) {
+  auto s = Stream::start(o, rt);
+  EXPECT_TRUE(s.ok()) << (s.ok() ? "" : s.error().message);
+  return s.ok() ? std::move(s).value() : nullptr;
+}
+
+// Polls `done` every 20 ms until it holds or kWait passes.
+bool wait_for(const std::function<bool()>& done, std::chrono::milliseconds limit = kWait) {
+  auto deadline = Clock::now() + limit;
+  while (Clock::now() < deadline) {
+    if (done()) return true;
+    std::this_thread::sleep_for(20ms);
+  }
+  return done();
+}
+
+// The whole portal graph of the sectors around the origin, from the layout itself: what the
+// client should end up knowing.
+grotto::client::PortalGraph layout_graph(uint64_t seed) {
+  auto world = grotto::cave::World::create(seed, {});
+  grotto::client::PortalGraph graph;
+  std::vector<grotto::cave::Room> all;
+  for (int x = -1; x <= 1; ++x) {
+    for (int y = -1; y <= 1; ++y) {
+      for (int z = -1; z <= 1; ++z) {
+        auto sector = grotto::cave::generate_sector(*world, {x, y, z});
+        all.insert(all.end(), sector.rooms.begin(), sector.rooms.end());
+      }
+    }
+  }
+  // Add in two passes: a room is consistent once its neighbours are there or absent.
+  for (const auto& r : all)
+    (void)graph.add(r);
+  for (const auto& r : all)
+    (void)graph.add(r);
+  return graph;
+}
+
+// The rooms within the horizon of the spawn pose, computed locally from the layout.
+std::set<RoomId> expected_rooms(uint64_t seed, const grotto::proto::SpawnPoint& spawn,
+                                double horizon_s) {
+  auto graph = layout_graph(seed);
+  Pose pose;
+  pose.position = spawn.position;
+  pose.room = spawn.room;
+  grotto::client::PlanOptions plan;
+  plan.horizon_s = horizon_s;
+  std::set<RoomId> ids;
+  for (const auto& p : graph.plan(spawn.room, pose, plan))
+    ids.insert(p.id);
+  return ids;
+}
+
+TEST(Stream, spawns_and_prefetches_every_room_within_the_horizon) {
+  auto server = start_server(test_config());
+  ASSERT_TRUE(server);
+  Runtime rt(1, 2);
+  StreamOptions o;
+  o.url = url_of(server->port());
+  o.plan.horizon_s = 3.0;
+  auto stream = start_stream(o, rt);
+  ASSERT_TRUE(stream);
+  ASSERT_TRUE(wait_for([&] { return stream->spawn_point().has_value(); }))
+      << describe(stream->stats());
+  auto spawn = *stream->spawn_point();
+  auto expected = expected_rooms(7, spawn, o.plan.horizon_s);
+  ASSERT_GT(expected.size(), 3u);
+  ASSERT_TRUE(wait_for([&] {
+    for (auto id : expected) {
+      if (!stream->ready(id)) return false;
+    }
+    return true;
+  })) << "rooms ready: "
+      << stream->stats().rooms_ready << " of " << expected.size();
+  auto stats = stream->stats();
+  EXPECT_EQ(stats.state, StreamState::kReady);
+  EXPECT_EQ(stats.rooms_rejected, 0u);
+  EXPECT_TRUE(stats.errors.empty());
+  EXPECT_EQ(stats.connects, 1u);
+  EXPECT_EQ(stats.server, "grotto-server 0.1.0");
+  auto fresh = stream->take_new_rooms();
+  EXPECT_GE(fresh.size(), expected.size());
+  for (const auto& r : fresh)
+    EXPECT_GT(r->mesh.triangle_count(), 0u);
+  auto samples = stream->take_samples();
+  EXPECT_EQ(samples.size(), fresh.size());
+  for (const auto& s : samples)
+    EXPECT_GT(s.latency_ms, 0.0);
+  EXPECT_TRUE(stream->take_new_rooms().empty());
+}
+
+TEST(Stream, cancels_what_falls_out_of_the_horizon_when_the_player_moves_away) {
+  auto config = test_config();
+  config.generator.workers = 1;  // slow enough that rooms are still in flight when we move
+  auto server = start_server(config);
+  ASSERT_TRUE(server);
+  Runtime rt(1, 1);
+  StreamOptions o;
+  o.url = url_of(server->port());
+  o.plan.horizon_s = 60.0;  // a wide horizon: hundreds of rooms wanted around the spawn
+  o.max_in_flight = 512;
+  o.spawn = false;
+  auto stream = start_stream(o, rt);
+  ASSERT_TRUE(stream);
+  Pose here;
+  here.room = RoomId::interior({0, 0, 0}, 0);
+  stream->set_pose(here);
+  // The graph unfolds as frames arrive (each brings its portals), so the frontier in flight grows
+  // with the rooms received.
+  ASSERT_TRUE(wait_for([&] { return stream->stats().in_flight >= 8; }))
+      << describe(stream->stats());
+  Pose far;
+  far.room = RoomId::interior({40, 0, 0}, 0);
+  far.position = {40 * 256.0, 0, 0};
+  stream->set_pose(far);
+  ASSERT_TRUE(wait_for([&] { return stream->stats().cancels_sent >= 4; }))
+      << describe(stream->stats());
+  ASSERT_TRUE(wait_for([&] { return stream->ready(far.room.value()); }))
+      << describe(stream->stats());
+  EXPECT_EQ(stream->stats().rooms_rejected, 0u);
+  // The server may have sent them already (it builds a patch room in milliseconds): rooms that
+  // arrive after their cancel are dropped quietly, not counted as rejected.
+}
+
+TEST(Stream, reconnects_after_a_server_restart_and_every_wanted_room_arrives) {
+  auto server = start_server(test_config());
+  ASSERT_TRUE(server);
+  const uint16_t port = server->port();
+  Runtime rt(1, 2);
+  StreamOptions o;
+  o.url = url_of(port);
+  o.plan.horizon_s = 6.0;
+  o.backoff_initial = 50ms;
+  o.backoff_max = 400ms;
+  auto stream = start_stream(o, rt);
+  ASSERT_TRUE(stream);
+  ASSERT_TRUE(wait_for([&] { return stream->stats().rooms_ready >= 3; }))
+      << describe(stream->stats());
+  server->stop(2000ms);  // mid-run: rooms are still in flight
+  server.reset();
+  ASSERT_TRUE(wait_for([&] { return stream->state() == StreamState::kBackoff; }))
+      << describe(stream->stats());
+  std::this_thread::sleep_for(300ms);  // a few refused reconnects while nothing listens
+  server = start_server(test_config(port));
+  ASSERT_TRUE(server);
+  auto spawn = *stream->spawn_point();
+  auto expected = expected_rooms(7, spawn, o.plan.horizon_s);
+  ASSERT_TRUE(wait_for([&] {
+    for (auto id : expected) {
+      if (!stream->ready(id)) return false;
+    }
+    return true;
+  })) << "rooms ready: "
+      << stream->stats().rooms_ready << " of " << expected.size();
+  auto stats = stream->stats();
+  EXPECT_GE(stats.reconnects, 1u);
+  EXPECT_GE(stats.drops, 1u);
+  EXPECT_EQ(stats.state, StreamState::kReady);
+  EXPECT_EQ(stats.rooms_rejected, 0u);
+  EXPECT_EQ(stats.rooms_given_up, 0u);
+}
+
+TEST(Stream, refuses_bad_urls_and_options_by_name) {
+  Runtime rt(1, 1);
+  for (const char* url : {"http://x:1/ws", "ws://", "ws://:80", "ws://host:0", "ws://host:99999",
+                          "ws://host:12x", "wss://host:443/ws", ""}) {
+    StreamOptions o;
+    o.url = url;
+    auto s = Stream::start(o, rt);
+    ASSERT_FALSE(s.ok()) << url;
+    EXPECT_NE(s.error().message.find("url"), std::string::npos) << s.error().message;
+  }
+  StreamOptions o;
+  o.url = "ws://127.0.0.1:1/ws";
+  o.plan.horizon_s = 0;
+  auto s = Stream::start(o, rt);
+  ASSERT_FALSE(s.ok());
+  EXPECT_NE(s.error().message.find("horizon"), std::string::npos);
+  auto url = grotto::client::parse_url("ws://example.org:8080/caves/ws");
+  ASSERT_TRUE(url.ok());
+  EXPECT_EQ(url->host, "example.org");
+  EXPECT_EQ(url->port, 8080);
+  EXPECT_EQ(url->path, "/caves/ws");
+  EXPECT_EQ(grotto::client::parse_url("ws://h")->path, "/ws");
+}
+
+// ---- a server that misbehaves on purpose ----
+
+enum class Misbehaviour {
+  kOtherVersion,     // welcome names protocol version 2
+  kRefuseVersion,    // error unsupported_version (fatal), then close
+  kCorruptRoom,      // every frame of one room has a payload byte flipped
+  kCutMidFrameOnce,  // the first connection's first room frame is cut off halfway
+  kGarbageControl,   // a text frame that is no JSON between good messages
+};
+
+// One connection at a time, synchronous Beast on a thread of its own; rooms are built with the CPU
+// reference mesher, as grotto-server builds them.
+class BadServer {
+ public:
+  explicit BadServer(Misbehaviour how)
+      : how_(how), acceptor_(ioc_, {net::ip::make_address("127.0.0.1"), 0}) {
+    world_ = grotto::cave::World::create(7, {}).value();
+    auto ctx = grotto::mesh::MeshContext::create(*world_, {});
+    ctx_ = std::make_unique<grotto::mesh::MeshContext>(std::move(ctx).value());
+    rooms_ = grotto::cave::generate_sector(*world_, {0, 0, 0}).rooms;
+    acceptor_.non_blocking(true);
+    thread_ = std::thread([this] { run(); });
+  }
+  ~BadServer() {
+    stop_ = true;
+    thread_.join();
+  }
+  uint16_t port() const { return acceptor_.local_endpoint().port(); }
+  int connections() const { return connections_; }
+  int frames_sent(RoomId id) const {
+    std::lock_guard lock(mu_);
+    auto it = sent_.find(id);
+    return it == sent_.end() ? 0 : it->second;
+  }
+  RoomId corrupt_room() const { return rooms_[0].id; }
+
+ private:
+  void run() {
+    while (!stop_) {
+      tcp::socket socket(ioc_);
+      beast::error_code ec;
+      acceptor_.accept(socket, ec);
+      if (ec) {
+        std::this_thread::sleep_for(5ms);
+        continue;
+      }
+      socket.non_blocking(false);
+      ++connections_;
+      serve(std::move(socket));
+    }
+  }
+
+  void serve(tcp::socket socket) {
+    websocket::stream<tcp::socket> ws(std::move(socket));
+    beast::error_code ec;
+    ws.accept(ec);
+    if (ec) return;
+    beast::flat_buffer buffer;
+    ws.read(buffer, ec);  // hello
+    if (ec) return;
+    auto hello = grotto::proto::parse_client_message(beast::buffers_to_string(buffer.data()), {});
+    buffer.clear();
+    grotto::proto::Ref ref = hello.ok() ? std::get<grotto::proto::Hello>(*hello).ref : std::nullopt;
+    ws.text(true);
+    if (how_ == Misbehaviour::kRefuseVersion) {
+      grotto::proto::ErrorMessage e;
+      e.ref = ref;
+      e.code = grotto::ErrorCode::kUnsupportedVersion;
+      e.message = "this server speaks only version 7";
+      e.versions = {7};
+      e.fatal = true;
+      ws.write(net::buffer(grotto::proto::serialize(grotto::proto::ServerMessage{e})), ec);
+      ws.close(websocket::close_code::policy_error, ec);
+      return;
+    }
+    grotto::proto::Welcome w;
+    w.ref = ref;
+    w.version = how_ == Misbehaviour::kOtherVersion ? 2 : 1;
+    w.server = "bad-server 0";
+    w.seed = 7;
+    w.params = 1;
+    ws.write(net::buffer(grotto::proto::serialize(grotto::proto::ServerMessage{w})), ec);
+    const bool cut_now = how_ == Misbehaviour::kCutMidFrameOnce && connections_ == 1;
+    while (!stop_ && !ec) {
+      // Blocking: the Stream closes its end when the test stops it, which ends this read.
+      ws.read(buffer, ec);
+      if (ec) break;
+      auto msg = grotto::proto::parse_client_message(beast::buffers_to_string(buffer.data()), {});
+      buffer.clear();
+      if (!msg.ok()) continue;
+      if (auto* s = std::get_if<grotto::proto::Spawn>(&*msg)) {
+        grotto::proto::SpawnPoint p;
+        p.ref = s->ref;
+        p.room = rooms_[0].id;
+        p.position = rooms_[0].sphere.centre;
+        ws.text(true);
+        ws.write(net::buffer(grotto::proto::serialize(grotto::proto::ServerMessage{p})), ec);
+        if (how_ == Misbehaviour::kGarbageControl) {
+          ws.write(net::buffer(std::string("{this is not json")), ec);
+        }
+      } else if (auto* r = std::get_if<grotto::proto::Request>(&*msg)) {
+        for (const auto& want : r->rooms) {
+          auto frame = frame_of(want.id);
+          if (frame.empty()) continue;
+          {
+            std::lock_guard lock(mu_);
+            ++sent_[want.id];
+          }
+          if (cut_now) {
+            // A binary frame header announcing the whole frame, half of it, then the socket
+            // closes without a WebSocket close.
+            std::vector<uint8_t> raw = {0x82, 127};
+            for (int i = 7; i >= 0; --i)
+              raw.push_back(uint8_t(uint64_t(frame.size()) >> (8 * i)));
+            raw.insert(raw.end(), frame.begin(), frame.begin() + frame.size() / 2);
+            net::write(ws.next_layer(), net::buffer(raw), ec);
+            ws.next_layer().close(ec);
+            return;
+          }
+          if (how_ == Misbehaviour::kCorruptRoom && want.id == corrupt_room()) {
+            // The payload's Draco magic, right after the header and portal records: the frame
+            // is valid, the mesh is not (caught by the decode on a worker).
+            frame[grotto::proto::room_frame_size(rooms_[0].portals.size(), 0) + 4] ^= 0x5a;
+          }
+          ws.binary(true);
+          ws.write(net::buffer(frame), ec);
+          if (ec) break;
+        }
+      }
+    }
+  }
+
+  std::vector<uint8_t> frame_of(RoomId id) {
+    for (const auto& room : rooms_) {
+      if (room.id != id) continue;
+      auto mesh = grotto::mesh::build_room_mesh(*ctx_, room, grotto::mesh::Lod::kPatch);
+      auto payload = grotto::codec::encode_room(*mesh);
+      return grotto::proto::encode_room_frame(room, 0, mesh->origin, *payload);
+    }
+    return {};
+  }
+
+  Misbehaviour how_;
+  net::io_context ioc_;
+  tcp::acceptor acceptor_;
+  std::optional<grotto::cave::World> world_;
+  std::unique_ptr<grotto::mesh::MeshContext> ctx_;
+  std::vector<grotto::cave::Room> rooms_;
+  std::atomic<bool> stop_{false};
+  std::atomic<int> connections_{0};
+  mutable std::mutex mu_;
+  std::map<RoomId, int> sent_;
+  std::thread thread_;
+};
+
+StreamOptions bad_server_options(uint16_t port) {
+  StreamOptions o;
+  o.url = url_of(port);
+  o.seed = 7;
+  o.plan.horizon_s = 10.0;  // the spawn room and a few rings of neighbours
+  o.backoff_initial = 20ms;
+  o.backoff_max = 100ms;
+  return o;
+}
+
+TEST(StreamAgainstABadServer, stops_with_a_clear_error_when_the_server_picks_another_version) {
+  BadServer bad(Misbehaviour::kOtherVersion);
+  Runtime rt(1, 1);
+  auto stream = start_stream(bad_server_options(bad.port()), rt);
+  ASSERT_TRUE(wait_for([&] { return stream->state() == StreamState::kFailed; }))
+      << describe(stream->stats());
+  auto stats = stream->stats();
+  EXPECT_NE(stats.last_error.find("version 2"), std::string::npos) << stats.last_error;
+  std::this_thread::sleep_for(300ms);
+  EXPECT_EQ(bad.connections(), 1) << "a refused version must not be retried";
+}
+
+TEST(StreamAgainstABadServer, stops_when_the_server_refuses_our_version) {
+  BadServer bad(Misbehaviour::kRefuseVersion);
+  Runtime rt(1, 1);
+  auto stream = start_stream(bad_server_options(bad.port()), rt);
+  ASSERT_TRUE(wait_for([&] { return stream->state() == StreamState::kFailed; }))
+      << describe(stream->stats());
+  auto stats = stream->stats();
+  EXPECT_NE(stats.last_error.find("unsupported_version"), std::string::npos) << stats.last_error;
+  EXPECT_EQ(stats.errors["unsupported_version"], 1u);
+  std::this_thread::sleep_for(300ms);
+  EXPECT_EQ(bad.connections(), 1);
+}
+
+TEST(StreamAgainstABadServer, rejects_a_corrupt_room_asks_again_and_gives_up_after_three) {
+  BadServer bad(Misbehaviour::kCorruptRoom);
+  Runtime rt(1, 1);
+  auto stream = start_stream(bad_server_options(bad.port()), rt);
+  ASSERT_TRUE(wait_for([&] { return stream->stats().rooms_given_up == 1; }))
+      << stream->stats().last_error;
+  EXPECT_EQ(bad.frames_sent(bad.corrupt_room()), 3);
+  ASSERT_TRUE(wait_for([&] { return stream->stats().rooms_ready >= 1; }))
+      << "the other rooms still arrive";
+  auto stats = stream->stats();
+  EXPECT_EQ(stats.rooms_rejected, 3u);
+  EXPECT_FALSE(stream->ready(bad.corrupt_room()));
+  EXPECT_EQ(stats.state, StreamState::kReady) << "one bad room does not end the connection";
+  EXPECT_EQ(bad.connections(), 1);
+}
+
+TEST(StreamAgainstABadServer, a_connection_cut_mid_frame_reconnects_and_the_room_arrives) {
+  BadServer bad(Misbehaviour::kCutMidFrameOnce);
+  Runtime rt(1, 1);
+  auto stream = start_stream(bad_server_options(bad.port()), rt);
+  ASSERT_TRUE(wait_for([&] { return stream->ready(bad.corrupt_room()); }))
+      << stream->stats().last_error;
+  auto stats = stream->stats();
+  EXPECT_EQ(bad.connections(), 2);
+  EXPECT_EQ(stats.drops, 1u);
+  EXPECT_EQ(stats.reconnects, 1u);
+  EXPECT_EQ(stats.rooms_rejected, 0u);
+}
+
+TEST(StreamAgainstABadServer, an_invalid_control_message_is_counted_and_the_stream_goes_on) {
+  BadServer bad(Misbehaviour::kGarbageControl);
+  Runtime rt(1, 1);
+  auto stream = start_stream(bad_server_options(bad.port()), rt);
+  ASSERT_TRUE(wait_for([&] { return stream->stats().rooms_ready >= 2; }))
+      << describe(stream->stats());
+  auto stats = stream->stats();
+  EXPECT_EQ(stats.errors["bad_message"], 1u);
+  EXPECT_NE(stats.last_error.find("invalid message"), std::string::npos) << stats.last_error;
+  EXPECT_EQ(bad.connections(), 1);
+}
+
+}  // namespace
