@@ -58,6 +58,7 @@ struct Player {
   uint64_t burst_rooms = 0;
   StreamStats final_stats;
   StreamState final_state = StreamState::kConnecting;  // before stop()
+  std::string final_error;                             // before stop()
 };
 
 // player i's start with --spread: interior room 0 of sector (3i, 0, 0), at its sphere's centre.
@@ -300,7 +301,9 @@ Result<LoadReport> run_load(const LoadOptions& options) {
   report.elapsed_s = seconds_since(t0, Clock::now());
 
   for (auto& p : players) {
-    p.final_state = p.stream->state();
+    StreamStats before = p.stream->stats();
+    p.final_state = before.state;
+    p.final_error = before.last_error;
     p.stream->stop();
     drain(p);  // what arrived between the last step and the stop
     p.final_stats = p.stream->stats();
@@ -342,6 +345,7 @@ Result<LoadReport> run_load(const LoadOptions& options) {
       report.errors[code] += n;
     }
     pr.state = state_name(p.final_state);
+    pr.last_error = p.final_error;
     pr.burst_complete_s = p.burst_complete_s;
     pr.burst_rooms = p.burst_rooms;
     report.rooms_rejected += s.rooms_rejected;

@@ -125,6 +125,13 @@ std::string format_table(const LoadReport& r) {
   if (r.players_without_room > 0) {
     appendf(out, "  players without a room %llu\n", u(r.players_without_room));
   }
+  for (const auto& p : r.players_detail) {
+    // The first player's last error says why, when a player never started or a stream failed.
+    if (!p.last_error.empty() && (r.players_without_room > 0 || r.streams_failed > 0)) {
+      appendf(out, "  last error (player %d): %s\n", p.index, p.last_error.c_str());
+      break;
+    }
+  }
   appendf(out, "  errors            %10llu", u(r.errors_total));
   for (const auto& [code, n] : r.errors)
     appendf(out, "  %s=%llu", code.c_str(), u(n));
@@ -169,6 +176,7 @@ std::string to_json_text(const LoadReport& r) {
                        {"reconnects", p.reconnects},
                        {"errors", p.errors},
                        {"state", p.state},
+                       {"last_error", p.last_error},
                        {"burst_complete_s", p.burst_complete_s},
                        {"burst_rooms", p.burst_rooms}});
   }

@@ -38,6 +38,7 @@ struct PlayerReport {
   uint64_t reconnects = 0;
   uint64_t errors = 0;           // error messages received
   std::string state;             // the Stream's state at the end
+  std::string last_error;        // its last error at the end, for people (empty: none)
   double burst_complete_s = -1;  // burst mode: everything within the radius ready; -1: not
   uint64_t burst_rooms = 0;      // burst mode: rooms within the radius (the last plan)
 };
