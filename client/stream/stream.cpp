@@ -178,6 +178,7 @@ struct Stream::Impl : std::enable_shared_from_this<Stream::Impl> {
   RoomStore store;
   std::vector<std::shared_ptr<const ReadyRoom>> fresh;
   std::vector<RoomSample> samples;
+  std::vector<cave::RoomId> evicted;
   StreamStats stats;
   bool stopping = false;
   std::atomic<bool> stop_called{false};
@@ -486,8 +487,9 @@ struct Stream::Impl : std::enable_shared_from_this<Stream::Impl> {
     samples.push_back(sample);
     failures.erase(id);
     ++stats.rooms_ready;
-    auto evicted = store.evict(pose.position, wanted);
-    stats.rooms_evicted += evicted.size();
+    auto gone = store.evict(pose.position, wanted);
+    stats.rooms_evicted += gone.size();
+    evicted.insert(evicted.end(), gone.begin(), gone.end());
   }
 
   // ---- planning ----
@@ -783,6 +785,11 @@ std::optional<cave::Room> Stream::descriptor(cave::RoomId id) const {
 std::vector<std::shared_ptr<const ReadyRoom>> Stream::take_new_rooms() {
   std::lock_guard lock(impl_->mu);
   return std::exchange(impl_->fresh, {});
+}
+
+std::vector<cave::RoomId> Stream::take_evicted() {
+  std::lock_guard lock(impl_->mu);
+  return std::exchange(impl_->evicted, {});
 }
 
 std::vector<RoomSample> Stream::take_samples() {

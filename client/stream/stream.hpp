@@ -123,6 +123,8 @@ class Stream {
   std::optional<cave::Room> descriptor(cave::RoomId id) const;
   // Rooms stored since the last call, in the order they became ready.
   std::vector<std::shared_ptr<const ReadyRoom>> take_new_rooms();
+  // Rooms the store evicted since the last call (a renderer frees their GPU buffers).
+  std::vector<cave::RoomId> take_evicted();
   // Measurements since the last call.
   std::vector<RoomSample> take_samples();
 

@@ -239,6 +239,40 @@ TEST(Stream, reconnects_after_a_server_restart_and_every_wanted_room_arrives) {
   EXPECT_EQ(stats.rooms_given_up, 0u);
 }
 
+TEST(Stream, keeps_its_store_within_budget_by_evicting_the_farthest_rooms) {
+  auto server = start_server(test_config());
+  ASSERT_TRUE(server);
+  Runtime rt(1, 2);
+  StreamOptions o;
+  o.url = url_of(server->port());
+  o.plan.horizon_s = 2.0;
+  o.store_bytes = 256 << 10;  // room for a handful of patch rooms (~20-100 KB each)
+  o.spawn = false;
+  auto stream = start_stream(o, rt);
+  ASSERT_TRUE(stream);
+  // Walk far along +x, a sector at a time: each stop wants rooms the store has no room for.
+  for (int x = 0; x < 6; ++x) {
+    Pose pose;
+    pose.room = RoomId::interior({x * 2, 0, 0}, 0);
+    auto d = [&] { return stream->descriptor(*pose.room); };
+    stream->set_pose(pose);
+    ASSERT_TRUE(wait_for([&] { return stream->ready(*pose.room); })) << describe(stream->stats());
+    pose.position = d()->sphere.centre;
+    stream->set_pose(pose);
+    std::this_thread::sleep_for(300ms);
+  }
+  auto stats = stream->stats();
+  EXPECT_GT(stats.rooms_evicted, 0u) << describe(stats);
+  EXPECT_LE(stats.store_bytes, o.store_bytes);
+  auto evicted = stream->take_evicted();
+  EXPECT_EQ(evicted.size(), stats.rooms_evicted);
+  // The first stop is the farthest from the last: its room went first.
+  EXPECT_FALSE(stream->ready(RoomId::interior({0, 0, 0}, 0)));
+  EXPECT_TRUE(stream->ready(RoomId::interior({10, 0, 0}, 0)));
+  for (auto id : evicted)
+    EXPECT_FALSE(stream->ready(id));
+}
+
 TEST(Stream, refuses_bad_urls_and_options_by_name) {
   Runtime rt(1, 1);
   for (const char* url : {"http://x:1/ws", "ws://", "ws://:80", "ws://host:0", "ws://host:99999",
