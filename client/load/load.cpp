@@ -175,6 +175,7 @@ Result<LoadReport> run_load(const LoadOptions& options) {
     url = "ws://127.0.0.1:" + std::to_string(server->port()) + "/ws";
     report.embedded_server = true;
     report.seed = config.seed;
+    report.compute = server->generator().compute_path();
     spdlog::info("event=embedded_server url={} compute={}", url,
                  server->generator().compute_path());
   }

@@ -105,6 +105,7 @@ std::string format_table(const LoadReport& r) {
   appendf(out, "  world seed %s, %s; speed %.1f m/s, horizon %.1f s\n",
           r.seed ? std::to_string(*r.seed).c_str() : "(the server's)",
           r.server.empty() ? "server unknown" : r.server.c_str(), r.speed, r.horizon_s);
+  if (!r.compute.empty()) appendf(out, "  embedded server compute: %s\n", r.compute.c_str());
   appendf(out, "\n  %-22s %8s %9s %9s %9s %9s %9s\n", "", "count", "mean", "p50", "p90", "p99",
           "max");
   distribution_row(out, "time to first room ms", r.first_room_ms);
@@ -196,6 +197,7 @@ std::string to_json_text(const LoadReport& r) {
       // A string: 64-bit seeds do not fit a JSON double (PROTOCOL.md); null: the server's own.
       {"seed", r.seed ? nlohmann::json(std::to_string(*r.seed)) : nlohmann::json(nullptr)},
       {"server", r.server},
+      {"compute", r.compute},
       {"players", r.players},
       {"rng_seed", std::to_string(r.rng_seed)},
       {"spread", r.spread},

@@ -61,6 +61,7 @@ struct LoadReport {
   bool embedded_server = false;
   std::optional<uint64_t> seed;  // the world asked for or served embedded; absent: the server's
   std::string server;            // welcome.server
+  std::string compute;           // embedded server: its compute path ("opencl: ..." or "cpu: ...")
   int players = 0;
   uint64_t rng_seed = 0;  // the walks' seed (player i: rng_seed + i)
   bool spread = false;    // players started in sectors (3i, 0, 0) instead of the spawn point

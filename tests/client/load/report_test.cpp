@@ -44,6 +44,7 @@ LoadReport sample_report() {
   r.embedded_server = true;
   r.seed = 18446744073709551615ull;
   r.server = "grotto-server 0.1.0";
+  r.compute = "cpu: test";
   r.players = 2;
   r.rng_seed = 5;
   r.spread = true;
@@ -124,6 +125,7 @@ TEST(Report, json_holds_every_figure) {
   auto j = nlohmann::json::parse(grotto::client::load::to_json_text(r));
   EXPECT_EQ(j["tool"], "grotto-load");
   EXPECT_EQ(j["mode"], "walk");
+  EXPECT_EQ(j["compute"], "cpu: test");
   EXPECT_EQ(j["seed"], "18446744073709551615");
   EXPECT_EQ(j["players"], 2);
   EXPECT_EQ(j["rng_seed"], "5");
