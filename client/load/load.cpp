@@ -169,6 +169,8 @@ Result<LoadReport> run_load(const LoadOptions& options) {
     config.generator.builder.device.device = options.device;
     config.generator.workers = options.server_workers;
     config.drain_timeout = std::chrono::milliseconds(2'000);
+    // Every player is one connection; the default cap (1024) must not be what a big run measures.
+    config.max_connections = std::max(config.max_connections, options.players + 16);
     auto started = server::Server::start(config);
     if (!started) return started.error();
     server = std::move(started).value();
