@@ -72,22 +72,39 @@ Status PortalGraph::add(const cave::Room& room) {
   }
   // The other direction: a known room that leads here must be listed back, or the graph would
   // depend on the order rooms arrived in.
-  for (const auto& [id, known] : rooms_) {
-    if (id == room.id || listed.count(id)) continue;
-    if (portal_to(known, room.id))
+  if (auto it = referrers_.find(room.id); it != referrers_.end()) {
+    for (cave::RoomId id : it->second) {
+      if (id == room.id || listed.count(id)) continue;
       return bad_frame("room " + room.id.to_string() + " has no portal to " + id.to_string() +
                        ", which has a portal to it");
+    }
   }
+  if (auto old = rooms_.find(room.id); old != rooms_.end()) unlink(old->second);
+  for (const auto& p : room.portals)
+    referrers_[p.neighbour].insert(room.id);
   rooms_.insert_or_assign(room.id, room);
   return {};
 }
 
+void PortalGraph::unlink(const cave::Room& room) {
+  for (const auto& p : room.portals) {
+    auto it = referrers_.find(p.neighbour);
+    if (it == referrers_.end()) continue;
+    it->second.erase(room.id);
+    if (it->second.empty()) referrers_.erase(it);
+  }
+}
+
 void PortalGraph::remove(cave::RoomId id) {
-  rooms_.erase(id);
+  auto it = rooms_.find(id);
+  if (it == rooms_.end()) return;
+  unlink(it->second);
+  rooms_.erase(it);
 }
 
 void PortalGraph::clear() {
   rooms_.clear();
+  referrers_.clear();
 }
 
 const cave::Room* PortalGraph::find(cave::RoomId id) const {

@@ -13,6 +13,7 @@
 #include <cstdint>
 #include <map>
 #include <optional>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -74,7 +75,12 @@ class PortalGraph {
                                 const PlanOptions& options) const;
 
  private:
+  void unlink(const cave::Room& room);  // drops room's entries from referrers_
+
   std::map<cave::RoomId, cave::Room> rooms_;
+  // For each room id, the known rooms with a portal to it: add() checks the other direction
+  // against these instead of scanning every room (a long walk knows thousands).
+  std::map<cave::RoomId, std::set<cave::RoomId>> referrers_;
 };
 
 }  // namespace grotto::client

@@ -489,6 +489,10 @@ struct Stream::Impl : std::enable_shared_from_this<Stream::Impl> {
     ++stats.rooms_ready;
     auto gone = store.evict(pose.position, wanted);
     stats.rooms_evicted += gone.size();
+    // Their descriptors go too, so a long walk keeps the graph as bounded as the store; coming
+    // back asks for the rooms again, descriptors included.
+    for (auto g : gone)
+      graph.remove(g);
     evicted.insert(evicted.end(), gone.begin(), gone.end());
   }
 

@@ -119,7 +119,8 @@ class Stream {
   // A stored room, or nullptr.
   std::shared_ptr<const ReadyRoom> room(cave::RoomId id) const;
   bool ready(cave::RoomId id) const { return room(id) != nullptr; }
-  // The descriptor of a room whose frame was received (before or after its decode), or nullopt.
+  // The descriptor of a room whose frame was received (before or after its decode), or nullopt;
+  // a room the store evicted is forgotten here too.
   std::optional<cave::Room> descriptor(cave::RoomId id) const;
   // Rooms stored since the last call, in the order they became ready.
   std::vector<std::shared_ptr<const ReadyRoom>> take_new_rooms();
