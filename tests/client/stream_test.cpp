@@ -305,6 +305,7 @@ enum class Misbehaviour {
   kCorruptRoom,      // every frame of one room has a payload byte flipped
   kCutMidFrameOnce,  // the first connection's first room frame is cut off halfway
   kGarbageControl,   // a text frame that is no JSON between good messages
+  kHoldLater,        // serves the rooms of the first request only; later ones stay in flight
 };
 
 // One connection at a time, synchronous Beast on a thread of its own; rooms are built with the CPU
@@ -332,6 +333,11 @@ class BadServer {
     return it == sent_.end() ? 0 : it->second;
   }
   RoomId corrupt_room() const { return rooms_[0].id; }
+  const grotto::cave::Room& first_room() const { return rooms_[0]; }
+  std::set<RoomId> cancelled() const {
+    std::lock_guard lock(mu_);
+    return cancelled_;
+  }
 
  private:
   void run() {
@@ -397,7 +403,11 @@ class BadServer {
         if (how_ == Misbehaviour::kGarbageControl) {
           ws.write(net::buffer(std::string("{this is not json")), ec);
         }
+      } else if (auto* c = std::get_if<grotto::proto::Cancel>(&*msg)) {
+        std::lock_guard lock(mu_);
+        cancelled_.insert(c->rooms.begin(), c->rooms.end());
       } else if (auto* r = std::get_if<grotto::proto::Request>(&*msg)) {
+        if (how_ == Misbehaviour::kHoldLater && requests_++ > 0) continue;
         for (const auto& want : r->rooms) {
           auto frame = frame_of(want.id);
           if (frame.empty()) continue;
@@ -449,6 +459,8 @@ class BadServer {
   std::atomic<int> connections_{0};
   mutable std::mutex mu_;
   std::map<RoomId, int> sent_;
+  std::set<RoomId> cancelled_;
+  int requests_ = 0;
   std::thread thread_;
 };
 
@@ -460,6 +472,45 @@ StreamOptions bad_server_options(uint16_t port) {
   o.backoff_initial = 20ms;
   o.backoff_max = 100ms;
   return o;
+}
+
+// Turning round makes the rooms ahead more expensive (the first hop is stretched for portals
+// behind the view): one whose cost passes cancel_factor x horizon is cancelled. The server holds
+// every room after the first, so the room is certainly still in flight when the player turns.
+TEST(StreamAgainstABadServer, turning_back_cancels_the_rooms_ahead_that_leave_the_horizon) {
+  BadServer bad(Misbehaviour::kHoldLater);
+  Runtime rt(1, 1);
+  const auto& room = bad.first_room();
+  ASSERT_FALSE(room.portals.empty());
+  // The portal farthest from the centre, at 0.8 of the horizon straight ahead: wanted; behind
+  // (cost x2 = 1.6 horizons) past the cancel line at 1.5.
+  const grotto::cave::Portal* ahead = &room.portals[0];
+  for (const auto& p : room.portals) {
+    if (distance(p.centre, room.sphere.centre) > distance(ahead->centre, room.sphere.centre)) {
+      ahead = &p;
+    }
+  }
+  const double d = distance(ahead->centre, room.sphere.centre);
+  StreamOptions o = bad_server_options(bad.port());
+  o.spawn = false;
+  o.plan.horizon_s = d / 0.8;
+  o.cancel_factor = 1.5;
+  o.replan_interval = 20ms;
+  auto stream = start_stream(o, rt);
+  Pose pose;
+  pose.room = room.id;
+  pose.position = room.sphere.centre;
+  pose.forward = ahead->centre - room.sphere.centre;
+  pose.speed = 1.0;
+  stream->set_pose(pose);
+  ASSERT_TRUE(wait_for([&] { return stream->ready(room.id) && stream->stats().in_flight > 0; }))
+      << describe(stream->stats());
+  EXPECT_TRUE(bad.cancelled().empty());
+  pose.forward = -pose.forward;
+  stream->set_pose(pose);
+  ASSERT_TRUE(wait_for([&] { return bad.cancelled().count(ahead->neighbour) == 1; }))
+      << describe(stream->stats());
+  EXPECT_GE(stream->stats().cancels_sent, 1u);
 }
 
 TEST(StreamAgainstABadServer, stops_with_a_clear_error_when_the_server_picks_another_version) {
