@@ -172,6 +172,7 @@ struct Stream::Impl : std::enable_shared_from_this<Stream::Impl> {
   mutable std::mutex mu;
   Pose pose;
   bool pose_set = false;
+  bool pose_from_spawn = false;  // the pose is the server's spawn point, not the caller's
   bool pose_dirty = false;
   std::optional<proto::SpawnPoint> spawn;
   PortalGraph graph;
@@ -185,8 +186,8 @@ struct Stream::Impl : std::enable_shared_from_this<Stream::Impl> {
 
   // Strand only.
   std::shared_ptr<Conn> conn;
-  proto::Limits limits;  // the welcome's, or defaults before one
-  std::optional<uint64_t> world_params;
+  proto::Limits limits;                                // the welcome's, or defaults before one
+  std::optional<std::pair<uint64_t, uint64_t>> world;  // (seed, params) of the last welcome
   std::map<cave::RoomId, InFlight> in_flight;
   std::set<cave::RoomId> decoding;
   std::map<cave::RoomId, int> failures;
@@ -325,17 +326,28 @@ struct Stream::Impl : std::enable_shared_from_this<Stream::Impl> {
       return fail("server serves seed " + std::to_string(w.seed) + ", not the requested " +
                   std::to_string(*options.seed));
     }
-    if (world_params && *world_params != w.params) {
-      // Another world behind the same address (a redeploy with new parameters): what we hold
-      // belongs to the old one.
-      spdlog::warn("event=world_changed server={} action=clear_rooms", w.server);
+    if (world && *world != std::pair{w.seed, w.params}) {
+      // Another world behind the same address (a redeploy with another seed or parameters): what
+      // we hold belongs to the old one. Renderers learn of it through take_evicted().
+      spdlog::warn("event=world_changed server={} seed={} action=clear_rooms", w.server, w.seed);
+      for (auto id : store.ids())
+        evicted.push_back(id);
+      stats.rooms_evicted += store.size();
       graph.clear();
       store.clear();
+      fresh.clear();
       failures.clear();
       given_up.clear();
       current.reset();
+      wanted.clear();
+      if (pose_from_spawn) {  // the old world's spawn point means nothing here
+        pose_set = false;
+        pose_from_spawn = false;
+        pose = {};
+      }
+      spawn.reset();
     }
-    world_params = w.params;
+    world = std::pair{w.seed, w.params};
     conn->welcomed = true;
     timer.cancel();
     limits = w.limits;
@@ -364,6 +376,7 @@ struct Stream::Impl : std::enable_shared_from_this<Stream::Impl> {
       pose.position = s.position;
       pose.room = s.room;
       pose_set = true;
+      pose_from_spawn = true;
     }
     plan();
   }
@@ -767,6 +780,7 @@ void Stream::set_pose(const Pose& pose) {
   std::lock_guard lock(impl_->mu);
   impl_->pose = pose;
   impl_->pose_set = true;
+  impl_->pose_from_spawn = false;
   impl_->pose_dirty = true;
 }
 

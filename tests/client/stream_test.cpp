@@ -239,6 +239,47 @@ TEST(Stream, reconnects_after_a_server_restart_and_every_wanted_room_arrives) {
   EXPECT_EQ(stats.rooms_given_up, 0u);
 }
 
+TEST(Stream, a_server_back_with_another_world_clears_what_was_held_and_spawns_again) {
+  auto server = start_server(test_config());
+  ASSERT_TRUE(server);
+  const uint16_t port = server->port();
+  Runtime rt(1, 2);
+  StreamOptions o;
+  o.url = url_of(port);
+  o.plan.horizon_s = 2.0;
+  o.backoff_initial = 20ms;
+  o.backoff_max = 100ms;
+  auto stream = start_stream(o, rt);
+  ASSERT_TRUE(stream);
+  ASSERT_TRUE(wait_for([&] {
+    auto s = stream->spawn_point();
+    return s && stream->ready(s->room);
+  })) << describe(stream->stats());
+  const auto old_spawn = *stream->spawn_point();
+  const auto old_room = stream->room(old_spawn.room);
+  const size_t held = stream->take_new_rooms().size();
+  server->stop(1000ms);
+  server.reset();
+  auto other = test_config(port);
+  other.seed = 8;  // a redeploy with another world behind the same address
+  server = start_server(other);
+  ASSERT_TRUE(server);
+  ASSERT_TRUE(wait_for([&] {
+    auto s = stream->spawn_point();
+    return stream->stats().connects == 2 && s && stream->ready(s->room);
+  })) << describe(stream->stats());
+  auto evicted = stream->take_evicted();
+  EXPECT_GE(evicted.size(), held) << "every room of the old world is reported gone";
+  const auto new_spawn = *stream->spawn_point();
+  const auto new_room = stream->room(new_spawn.room);
+  ASSERT_TRUE(new_room);
+  EXPECT_FALSE(new_spawn.position == old_spawn.position) << "a new spawn point was asked for";
+  if (new_spawn.room == old_spawn.room) {
+    EXPECT_FALSE(new_room->room.sphere.centre == old_room->room.sphere.centre);
+  }
+  EXPECT_EQ(stream->stats().rooms_rejected, 0u);
+}
+
 TEST(Stream, keeps_its_store_within_budget_by_evicting_the_farthest_rooms) {
   auto server = start_server(test_config());
   ASSERT_TRUE(server);
