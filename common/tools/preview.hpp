@@ -7,6 +7,7 @@
 
 #include "core/result.hpp"
 #include "mesh/room_mesh.hpp"
+#include "tools/png.hpp"  // write_png, which grotto-layout --png uses with this preview
 
 namespace grotto::tools {
 
@@ -21,9 +22,5 @@ struct PreviewOptions {
 // mineral channel.
 std::vector<unsigned char> render_preview(const std::vector<mesh::RoomMesh>& meshes,
                                           const PreviewOptions& options);
-
-// An RGB image (width * height * 3 bytes) as an uncompressed-deflate PNG file.
-Status write_png(const std::string& path, const std::vector<unsigned char>& rgb, int width,
-                 int height);
 
 }  // namespace grotto::tools
