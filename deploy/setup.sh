@@ -11,7 +11,7 @@ packages=(
   pocl-opencl-icd ocl-icd-opencl-dev opencl-headers opencl-clhpp-headers
   libepoxy-dev libgtest-dev libgmock-dev libbenchmark-dev libspdlog-dev libcli11-dev
   libmeshoptimizer-dev
-  xvfb libgl1-mesa-dri
+  xvfb xauth libgl1-mesa-dri  # grotto-client tests: Mesa llvmpipe under Xvfb (xvfb-run needs xauth)
   clang libclang-rt-14-dev  # libFuzzer (tests/fuzz); its runtime is in libclang-rt-14-dev
 )
 

@@ -1,0 +1,163 @@
+#include "client/render/renderer.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <glm/gtc/matrix_transform.hpp>
+#include <glm/gtc/type_ptr.hpp>
+#include <vector>
+
+#include "client/render/shaders.hpp"
+
+namespace grotto::render {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+constexpr double kMaxPitch = 89.0 * kPi / 180.0;
+// The anchor grid: a power of two, so anchor coordinates are exact and room offsets from it stay
+// below grid::kFrameSize (65536 m) for any room near the camera.
+constexpr double kAnchorStep = 1024.0;
+constexpr int kCapSegments = 24;
+constexpr double kCapScale = 1.15;   // caps overlap the rim loop's wall
+constexpr double kCapOffset = 0.01;  // metres beyond the portal plane
+
+glm::vec3 to_vec3(Vec3 v) {
+  return {static_cast<float>(v.x), static_cast<float>(v.y), static_cast<float>(v.z)};
+}
+
+Vec3 cross(Vec3 a, Vec3 b) {
+  return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
+}
+
+Vec3 normalized(Vec3 v) {
+  double n = std::sqrt(v.x * v.x + v.y * v.y + v.z * v.z);
+  return n > 0 ? Vec3{v.x / n, v.y / n, v.z / n} : Vec3{0, 0, 0};
+}
+
+// The fan of a disc over `portal` (anchor-relative), appended as triangles.
+void append_cap(const cave::Portal& portal, Vec3 anchor, std::vector<float>& out) {
+  Vec3 n = normalized(portal.normal);
+  Vec3 helper = std::abs(n.y) < 0.9 ? Vec3{0, 1, 0} : Vec3{1, 0, 0};
+  Vec3 t = normalized(cross(n, helper));
+  Vec3 b = cross(n, t);
+  Vec3 centre = portal.centre + n * kCapOffset - anchor;
+  double r = portal.radius * kCapScale;
+  auto point = [&](int k) {
+    double a = 2 * kPi * k / kCapSegments;
+    return centre + t * (r * std::cos(a)) + b * (r * std::sin(a));
+  };
+  for (int k = 0; k < kCapSegments; ++k) {
+    for (Vec3 p : {centre, point(k), point(k + 1)}) {
+      out.push_back(static_cast<float>(p.x));
+      out.push_back(static_cast<float>(p.y));
+      out.push_back(static_cast<float>(p.z));
+    }
+  }
+}
+
+}  // namespace
+
+Vec3 camera_forward(const Camera& c) {
+  double pitch = std::clamp(c.pitch, -kMaxPitch, kMaxPitch);
+  return {std::sin(c.yaw) * std::cos(pitch), std::sin(pitch), -std::cos(c.yaw) * std::cos(pitch)};
+}
+
+Vec3 render_anchor(Vec3 p) {
+  return {std::floor(p.x / kAnchorStep) * kAnchorStep, std::floor(p.y / kAnchorStep) * kAnchorStep,
+          std::floor(p.z / kAnchorStep) * kAnchorStep};
+}
+
+Result<Renderer> Renderer::create() {
+  Renderer r;
+  auto room = Program::build(room_stages());
+  if (!room.ok()) return room.error();
+  r.room_ = std::move(room).value();
+  auto cap = Program::build(cap_stages());
+  if (!cap.ok()) return cap.error();
+  r.cap_ = std::move(cap).value();
+  const Program& p = r.room_;
+  r.u_ = {p.uniform("u_room_offset"), p.uniform("u_camera"),      p.uniform("u_max_tess"),
+          p.uniform("u_max_dist"),    p.uniform("u_view_proj"),   p.uniform("u_anchor"),
+          p.uniform("u_surface"),     p.uniform("u_phong_alpha"), p.uniform("u_displacement"),
+          p.uniform("u_noise_scale"), p.uniform("u_fog_color"),   p.uniform("u_fog_start"),
+          p.uniform("u_fog_end"),     p.uniform("u_lamp_range")};
+  r.cap_view_proj_ = r.cap_.uniform("u_view_proj");
+  r.cap_fog_color_ = r.cap_.uniform("u_fog_color");
+  r.cap_vertex_array_ = make_vertex_array();
+  r.cap_vertices_ = make_buffer();
+  glBindVertexArray(r.cap_vertex_array_.get());
+  glBindBuffer(GL_ARRAY_BUFFER, r.cap_vertices_.get());
+  glEnableVertexAttribArray(0);
+  glVertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, 3 * sizeof(float), nullptr);
+  glBindVertexArray(0);
+  return r;
+}
+
+FrameStats Renderer::draw(const GpuRoomCache& cache, const Camera& camera, int width, int height,
+                          const RenderOptions& o) {
+  FrameStats stats;
+  const Vec3 anchor = render_anchor(camera.position);
+  const glm::vec3 eye = to_vec3(camera.position - anchor);
+  const glm::vec3 forward = to_vec3(camera_forward(camera));
+  const glm::mat4 view = glm::lookAt(eye, eye + forward, glm::vec3(0, 1, 0));
+  const float aspect = height > 0 ? static_cast<float>(width) / static_cast<float>(height) : 1.0f;
+  const glm::mat4 proj =
+      glm::perspective(static_cast<float>(camera.fov_y), aspect, o.near_plane, o.far_plane);
+  const glm::mat4 view_proj = proj * view;
+
+  glClearColor(o.clear_color.r, o.clear_color.g, o.clear_color.b, 1.0f);
+  glClearDepth(1.0);
+  glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
+  glEnable(GL_DEPTH_TEST);
+  glDepthFunc(GL_LESS);
+  glDisable(GL_CULL_FACE);  // rooms are seen from inside; a thin wall may show its back
+  glPolygonMode(GL_FRONT_AND_BACK, o.wireframe ? GL_LINE : GL_FILL);
+
+  room_.use();
+  glUniformMatrix4fv(u_.view_proj, 1, GL_FALSE, glm::value_ptr(view_proj));
+  glUniform3fv(u_.camera, 1, glm::value_ptr(eye));
+  glUniform3fv(u_.anchor, 1, glm::value_ptr(to_vec3(anchor)));
+  glUniform1f(u_.max_tess, o.tessellation ? std::clamp(o.max_tess, 1.0f, 64.0f) : 1.0f);
+  glUniform1f(u_.max_dist, std::max(o.max_dist, 1e-3f));
+  glUniform1i(u_.surface, o.tessellation ? static_cast<int>(o.surface) : 0);
+  glUniform1f(u_.phong_alpha, o.phong_alpha);
+  glUniform1f(u_.displacement, o.tessellation ? o.displacement : 0.0f);
+  glUniform1f(u_.noise_scale, o.noise_scale);
+  glUniform3fv(u_.fog_color, 1, glm::value_ptr(o.fog_color));
+  glUniform1f(u_.fog_start, o.fog_start);
+  glUniform1f(u_.fog_end, o.fog_end);
+  glUniform1f(u_.lamp_range, o.lamp_range);
+  glPatchParameteri(GL_PATCH_VERTICES, 3);
+
+  std::vector<float> caps;
+  for (const auto& [id, room] : cache.rooms()) {
+    // Exact: origin and anchor are grid values within kFrameSize of each other.
+    glUniform3fv(u_.room_offset, 1, glm::value_ptr(to_vec3(room.origin - anchor)));
+    glBindVertexArray(room.vertex_array.get());
+    glDrawElements(GL_PATCHES, room.index_count, GL_UNSIGNED_INT, nullptr);
+    ++stats.rooms_drawn;
+    stats.patches += static_cast<size_t>(room.index_count) / 3;
+    if (o.fog_caps) {
+      for (const cave::Portal& portal : room.room.portals) {
+        if (cache.contains(portal.neighbour)) continue;
+        append_cap(portal, anchor, caps);
+        ++stats.caps;
+      }
+    }
+  }
+
+  if (!caps.empty()) {
+    cap_.use();
+    glUniformMatrix4fv(cap_view_proj_, 1, GL_FALSE, glm::value_ptr(view_proj));
+    glUniform3fv(cap_fog_color_, 1, glm::value_ptr(o.fog_color));
+    glBindVertexArray(cap_vertex_array_.get());
+    glBindBuffer(GL_ARRAY_BUFFER, cap_vertices_.get());
+    glBufferData(GL_ARRAY_BUFFER, static_cast<GLsizeiptr>(caps.size() * sizeof(float)), caps.data(),
+                 GL_STREAM_DRAW);
+    glDrawArrays(GL_TRIANGLES, 0, static_cast<GLsizei>(caps.size() / 3));
+  }
+  glBindVertexArray(0);
+  glPolygonMode(GL_FRONT_AND_BACK, GL_FILL);
+  return stats;
+}
+
+}  // namespace grotto::render

@@ -1,0 +1,78 @@
+// The cave renderer: every room in a GpuRoomCache drawn as GL_PATCHES of 3 control points through
+// shaders/room.{vert,tesc,tese,frag} (per-edge distance LOD, PN triangles or Phong tessellation,
+// displacement, triplanar materials, a lamp at the player, fog), plus fog caps over portals whose
+// room is not loaded. Needs a GL 4.1 core context current for its whole life.
+#pragma once
+
+#include <glm/glm.hpp>
+
+#include "client/render/gl.hpp"
+#include "client/render/room_cache.hpp"
+#include "core/result.hpp"
+#include "core/vec3.hpp"
+
+namespace grotto::render {
+
+// A first-person camera. yaw 0 looks along -z, positive yaw turns towards +x; pitch up is
+// positive, clamped to ±89°; +y is up.
+struct Camera {
+  Vec3 position;
+  double yaw = 0;                     // radians
+  double pitch = 0;                   // radians
+  double fov_y = 1.2217304763960306;  // radians (70°)
+};
+Vec3 camera_forward(const Camera& camera);
+
+enum class Surface { kFlat = 0, kPnTriangles = 1, kPhong = 2 };
+
+// Brace-init gives the defaults grotto-client uses.
+struct RenderOptions {
+  bool tessellation = true;  // false: flat triangles, no displacement
+  float max_tess = 8;        // MaxTess of the distance heuristic (GL allows up to 64)
+  float max_dist = 40;       // MaxDist: metres where the level falls to 1
+  Surface surface = Surface::kPnTriangles;
+  float phong_alpha = 0.75f;
+  float displacement = 0.35f;  // metres at roughness 1 on a ceiling; 0: off
+  float noise_scale = 0.7f;    // 1/metres
+  bool wireframe = false;
+  bool fog_caps = true;  // discs over portals to rooms not loaded
+  float fog_start = 18;  // metres
+  float fog_end = 40;    // fully fogged here; must be below far_plane
+  float near_plane = 0.05f;
+  float far_plane = 60;
+  float lamp_range = 14;
+  glm::vec3 fog_color{0.045f, 0.05f, 0.06f};
+  glm::vec3 clear_color{0.045f, 0.05f, 0.06f};  // tests clear to a colour the cave never has
+};
+
+struct FrameStats {
+  int rooms_drawn = 0;
+  size_t patches = 0;  // triangles submitted as patches
+  int caps = 0;        // fog caps drawn
+};
+
+// A power-of-two grid point near the camera: room offsets from it are exact in float32.
+Vec3 render_anchor(Vec3 camera_position);
+
+class Renderer {
+ public:
+  // Builds the programs (embedded shaders); errors carry the driver's log.
+  static Result<Renderer> create();
+  // Clears the bound framebuffer (viewport width x height) and draws the cache.
+  FrameStats draw(const GpuRoomCache& cache, const Camera& camera, int width, int height,
+                  const RenderOptions& options);
+
+ private:
+  Program room_;
+  Program cap_;
+  VertexArray cap_vertex_array_;
+  Buffer cap_vertices_;
+  struct RoomUniforms {
+    GLint room_offset, camera, max_tess, max_dist, view_proj, anchor, surface, phong_alpha,
+        displacement, noise_scale, fog_color, fog_start, fog_end, lamp_range;
+  } u_{};
+  GLint cap_view_proj_ = -1;
+  GLint cap_fog_color_ = -1;
+};
+
+}  // namespace grotto::render

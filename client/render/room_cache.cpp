@@ -1,0 +1,61 @@
+#include "client/render/room_cache.hpp"
+
+#include <cstddef>
+
+namespace grotto::render {
+
+std::vector<RoomVertex> room_vertices(const codec::DecodedRoom& mesh) {
+  std::vector<RoomVertex> out(mesh.vertex_count());
+  for (size_t i = 0; i < out.size(); ++i) {
+    RoomVertex& v = out[i];
+    v.position[0] = mesh.positions[i].x;
+    v.position[1] = mesh.positions[i].y;
+    v.position[2] = mesh.positions[i].z;
+    v.normal[0] = mesh.normals[i].x;
+    v.normal[1] = mesh.normals[i].y;
+    v.normal[2] = mesh.normals[i].z;
+    v.roughness = i < mesh.roughness.size() ? mesh.roughness[i] : 0.0f;
+    v.mineral = i < mesh.mineral.size() ? mesh.mineral[i] : 0.0f;
+    v.rim = i < mesh.rim_portal.size() && mesh.rim_portal[i] >= 0 ? 1.0f : 0.0f;
+  }
+  return out;
+}
+
+void GpuRoomCache::upload(const client::ReadyRoom& room) {
+  evict(room.room.id);
+  GpuRoom g;
+  g.room = room.room;
+  g.origin = room.origin;
+  const std::vector<RoomVertex> vertices = room_vertices(room.mesh);
+  g.vertex_array = make_vertex_array();
+  glBindVertexArray(g.vertex_array.get());
+  g.vertices =
+      make_static_buffer(GL_ARRAY_BUFFER, vertices.data(), vertices.size() * sizeof(RoomVertex));
+  g.indices = make_static_buffer(GL_ELEMENT_ARRAY_BUFFER, room.mesh.indices.data(),
+                                 room.mesh.indices.size() * sizeof(uint32_t));
+  const GLsizei stride = sizeof(RoomVertex);
+  auto attribute = [&](GLuint location, GLint components, size_t offset) {
+    glEnableVertexAttribArray(location);
+    glVertexAttribPointer(location, components, GL_FLOAT, GL_FALSE, stride,
+                          reinterpret_cast<const void*>(offset));
+  };
+  attribute(0, 3, offsetof(RoomVertex, position));
+  attribute(1, 3, offsetof(RoomVertex, normal));
+  attribute(2, 1, offsetof(RoomVertex, roughness));
+  attribute(3, 1, offsetof(RoomVertex, mineral));
+  attribute(4, 1, offsetof(RoomVertex, rim));
+  glBindVertexArray(0);
+  g.index_count = static_cast<GLsizei>(room.mesh.indices.size());
+  g.bytes = vertices.size() * sizeof(RoomVertex) + room.mesh.indices.size() * sizeof(uint32_t);
+  bytes_ += g.bytes;
+  rooms_.emplace(room.room.id, std::move(g));
+}
+
+void GpuRoomCache::evict(cave::RoomId id) {
+  auto it = rooms_.find(id);
+  if (it == rooms_.end()) return;
+  bytes_ -= it->second.bytes;
+  rooms_.erase(it);
+}
+
+}  // namespace grotto::render
