@@ -123,7 +123,11 @@ void Walker::advance(double dt) {
     if (!view_.ready(*room_)) return;
     auto room = view_.descriptor(*room_);
     if (!room) return;
-    stats_.first_room_s = time_;
+    if (!stats_.first_room_s) stats_.first_room_s = time_;
+    bool neighbours = true;
+    for (const auto& p : room->portals)
+      neighbours &= view_.ready(p.neighbour);
+    if (!neighbours && time_ - *stats_.first_room_s < options_.start_wait_s) return;
     enter(*room, std::nullopt);
     return;  // starts moving with the next step
   }

@@ -37,10 +37,15 @@ struct WalkerOptions {
   double burst_min_s = 2.0;   // a burst lasts uniformly between these
   double burst_max_s = 5.0;
   double turn_back_chance = 0.1;  // per room entered: turn round part-way and go back
+  // A player fades in: it starts walking once the start room's neighbours are ready too (a game
+  // shows its first frame when what the player can reach at once is there), or after this many
+  // seconds of the start room alone. Without it a spawn point near a portal is a stall at once.
+  double start_wait_s = 2.0;
 };
 
 enum class WalkerState {
-  kWaiting,  // placed, but the start room is not ready yet (time to first room); or not placed
+  kWaiting,  // placed, but the start room (or its neighbours: start_wait_s) is not ready yet;
+             // or not placed
   kWalking,  // moving towards the target portal
   kStalled,  // at the target portal; the room behind it is not ready
 };

@@ -133,11 +133,12 @@ void expect_consistent(const nlohmann::json& j, int players) {
   EXPECT_NEAR(j["mb_per_s"].get<double>(), static_cast<double>(bytes) / 1e6 / elapsed, 1e-9);
 }
 
-TEST(GrottoLoad, four_players_walk_the_embedded_server_without_errors) {
+// Walking speed, 4 s of prefetch: no player may ever wait at a portal (--max-stalls 0 exits 3).
+TEST(GrottoLoad, four_players_walk_the_embedded_server_without_errors_or_stalls) {
   auto dir = temp_dir("grotto-load-walk");
   auto json = dir / "out.json";
   ProcessResult r =
-      run("--players 4 --duration 5 --device none --server-workers 2 --verify "
+      run("--players 4 --duration 5 --device none --server-workers 2 --verify --max-stalls 0 "
           "--json '" +
           json.string() + "'");
   EXPECT_EQ(r.exit_code, 0) << r.output;

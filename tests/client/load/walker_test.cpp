@@ -63,6 +63,38 @@ TEST(Walker, waits_for_its_start_room_and_records_time_to_first_room) {
   ASSERT_TRUE(w.target());
 }
 
+TEST(Walker, starts_walking_once_the_start_rooms_neighbours_are_ready_or_after_start_wait) {
+  Layout layout;
+  const RoomId start = layout.spawn();
+  const Room& room = layout.get(start);
+  ASSERT_FALSE(room.portals.empty());
+  layout.blocked.insert(room.portals[0].neighbour);
+  WalkerOptions o = steady();
+  o.start_wait_s = 1.0;
+  Walker w(layout.view(), o, 1);
+  w.place(start, room.sphere.centre);
+  w.advance(0.1);
+  ASSERT_TRUE(w.stats().first_room_s) << "the start room is ready: time to first room is taken";
+  EXPECT_EQ(w.state(), WalkerState::kWaiting) << "a neighbour is not ready yet";
+  w.advance(0.5);
+  EXPECT_EQ(w.state(), WalkerState::kWaiting);
+  layout.blocked.clear();  // the neighbour arrives: walk at once
+  w.advance(0.05);
+  EXPECT_EQ(w.state(), WalkerState::kWalking);
+
+  // A neighbour that never comes holds the player back start_wait_s at most.
+  Layout other;
+  other.blocked.insert(other.get(start).portals[0].neighbour);
+  Walker v(other.view(), o, 1);
+  v.place(start, room.sphere.centre);
+  for (int i = 0; i < 10; ++i)
+    v.advance(0.1);
+  EXPECT_EQ(v.state(), WalkerState::kWaiting);
+  for (int i = 0; i < 2; ++i)
+    v.advance(0.1);
+  EXPECT_NE(v.state(), WalkerState::kWaiting);
+}
+
 TEST(Walker, a_room_not_ready_stalls_the_walker_at_its_portal_for_as_long_as_it_is_not_ready) {
   Layout layout;
   const RoomId start = layout.spawn();
