@@ -1,12 +1,14 @@
 #include "client/render/renderer.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <glm/gtc/matrix_transform.hpp>
 #include <glm/gtc/type_ptr.hpp>
 #include <vector>
 
 #include "client/render/shaders.hpp"
+#include "client/stream/verify.hpp"
 
 namespace grotto::render {
 namespace {
@@ -52,6 +54,23 @@ void append_cap(const cave::Portal& portal, Vec3 anchor, std::vector<float>& out
       out.push_back(static_cast<float>(p.z));
     }
   }
+}
+
+// The six planes of the view frustum (Gribb & Hartmann 2001), unnormalized, from clip space.
+std::array<glm::vec4, 6> frustum_planes(const glm::mat4& m) {
+  const glm::vec4 r0{m[0][0], m[1][0], m[2][0], m[3][0]};
+  const glm::vec4 r1{m[0][1], m[1][1], m[2][1], m[3][1]};
+  const glm::vec4 r2{m[0][2], m[1][2], m[2][2], m[3][2]};
+  const glm::vec4 r3{m[0][3], m[1][3], m[2][3], m[3][3]};
+  return {r3 + r0, r3 - r0, r3 + r1, r3 - r1, r3 + r2, r3 - r2};
+}
+
+bool sphere_outside(const std::array<glm::vec4, 6>& planes, glm::vec3 c, float radius) {
+  for (const glm::vec4& p : planes) {
+    const glm::vec3 n{p};
+    if (glm::dot(n, c) + p.w < -radius * glm::length(n)) return true;
+  }
+  return false;
 }
 
 }  // namespace
@@ -128,14 +147,13 @@ FrameStats Renderer::draw(const GpuRoomCache& cache, const Camera& camera, int w
   glUniform1f(u_.lamp_range, o.lamp_range);
   glPatchParameteri(GL_PATCH_VERTICES, 3);
 
+  // Rooms whose sphere is outside the frustum are skipped. Every vertex of a room lies in its
+  // sphere up to vertex_sphere_margin (client/stream/verify.hpp checks it on arrival); PN bulges
+  // and displacement push surface points out by less than `margin` more.
+  const auto planes = frustum_planes(view_proj);
+  const float margin = (o.tessellation ? std::abs(o.displacement) : 0.0f) + 0.5f;
   std::vector<float> caps;
   for (const auto& [id, room] : cache.rooms()) {
-    // Exact: origin and anchor are grid values within kFrameSize of each other.
-    glUniform3fv(u_.room_offset, 1, glm::value_ptr(to_vec3(room.origin - anchor)));
-    glBindVertexArray(room.vertex_array.get());
-    glDrawElements(GL_PATCHES, room.index_count, GL_UNSIGNED_INT, nullptr);
-    ++stats.rooms_drawn;
-    stats.patches += static_cast<size_t>(room.index_count) / 3;
     if (o.fog_caps) {
       for (const cave::Portal& portal : room.room.portals) {
         if (cache.contains(portal.neighbour)) continue;
@@ -143,6 +161,19 @@ FrameStats Renderer::draw(const GpuRoomCache& cache, const Camera& camera, int w
         ++stats.caps;
       }
     }
+    const glm::vec3 centre = to_vec3(room.room.sphere.centre - anchor);
+    const double radius =
+        room.room.sphere.radius + client::vertex_sphere_margin(room.room.sphere.radius);
+    if (sphere_outside(planes, centre, static_cast<float>(radius) + margin)) {
+      ++stats.rooms_culled;
+      continue;
+    }
+    // Exact: origin and anchor are grid values within kFrameSize of each other.
+    glUniform3fv(u_.room_offset, 1, glm::value_ptr(to_vec3(room.origin - anchor)));
+    glBindVertexArray(room.vertex_array.get());
+    glDrawElements(GL_PATCHES, room.index_count, GL_UNSIGNED_INT, nullptr);
+    ++stats.rooms_drawn;
+    stats.patches += static_cast<size_t>(room.index_count) / 3;
   }
 
   if (!caps.empty()) {

@@ -47,8 +47,9 @@ struct RenderOptions {
 
 struct FrameStats {
   int rooms_drawn = 0;
-  size_t patches = 0;  // triangles submitted as patches
-  int caps = 0;        // fog caps drawn
+  int rooms_culled = 0;  // outside the view frustum
+  size_t patches = 0;    // triangles submitted as patches
+  int caps = 0;          // fog caps drawn
 };
 
 // A power-of-two grid point near the camera: room offsets from it are exact in float32.
