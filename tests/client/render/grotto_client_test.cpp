@@ -1,0 +1,116 @@
+// The grotto-client program: --help, the plain sentence without a display, and a headless
+// screenshot against its in-process server (CPU reference). Runs under xvfb-run with the other
+// render tests; the screenshot test skips where the display gives no GL 4.1 context.
+#include <gtest/gtest.h>
+
+#include <array>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <string>
+#include <vector>
+
+namespace {
+
+struct Outcome {
+  int status = -1;
+  std::string output;
+};
+
+Outcome run(const std::string& command) {
+  Outcome r;
+  FILE* pipe = popen((command + " 2>&1").c_str(), "r");
+  if (pipe == nullptr) return r;
+  std::array<char, 4096> buffer{};
+  size_t n = 0;
+  while ((n = fread(buffer.data(), 1, buffer.size(), pipe)) > 0)
+    r.output.append(buffer.data(), n);
+  int status = pclose(pipe);
+  r.status = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return r;
+}
+
+uint32_t be32(const std::vector<unsigned char>& b, size_t at) {
+  return (uint32_t{b[at]} << 24) | (uint32_t{b[at + 1]} << 16) | (uint32_t{b[at + 2]} << 8) |
+         b[at + 3];
+}
+
+// The pixels of a PNG written by tools::write_png (one IDAT of stored deflate blocks, filter 0).
+std::vector<unsigned char> read_stored_png(const std::string& path, int& width, int& height) {
+  std::ifstream f(path, std::ios::binary);
+  std::vector<unsigned char> b((std::istreambuf_iterator<char>(f)), {});
+  std::vector<unsigned char> pixels;
+  if (b.size() < 33 || b[1] != 'P') return pixels;
+  width = static_cast<int>(be32(b, 16));
+  height = static_cast<int>(be32(b, 20));
+  size_t at = 33;  // signature + IHDR
+  std::vector<unsigned char> z;
+  while (at + 12 <= b.size()) {
+    uint32_t length = be32(b, at);
+    std::string type(b.begin() + static_cast<long>(at) + 4, b.begin() + static_cast<long>(at) + 8);
+    if (type == "IDAT")
+      z.insert(z.end(), b.begin() + static_cast<long>(at) + 8,
+               b.begin() + static_cast<long>(at + 8 + length));
+    at += 12 + length;
+  }
+  std::vector<unsigned char> raw;
+  for (size_t p = 2; p + 5 <= z.size();) {
+    size_t n = z[p + 1] | (z[p + 2] << 8);
+    raw.insert(raw.end(), z.begin() + static_cast<long>(p) + 5,
+               z.begin() + static_cast<long>(p + 5 + n));
+    bool last = z[p] & 1;
+    p += 5 + n;
+    if (last) break;
+  }
+  for (int y = 0; y < height; ++y) {
+    size_t row = static_cast<size_t>(y) * (static_cast<size_t>(width) * 3 + 1) + 1;
+    if (row + static_cast<size_t>(width) * 3 > raw.size()) return {};
+    pixels.insert(pixels.end(), raw.begin() + static_cast<long>(row),
+                  raw.begin() + static_cast<long>(row + static_cast<size_t>(width) * 3));
+  }
+  return pixels;
+}
+
+TEST(GrottoClient, help_describes_every_option) {
+  Outcome r = run(std::string(GROTTO_CLIENT_BIN) + " --help");
+  EXPECT_EQ(r.status, 0) << r.output;
+  for (const char* option :
+       {"--server", "--seed", "--device", "--width", "--height", "--tess-max", "--no-tess",
+        "--wireframe", "--surface", "--screenshot", "--frames", "--pose", "--wait"})
+    EXPECT_NE(r.output.find(option), std::string::npos) << option;
+}
+
+TEST(GrottoClient, without_a_display_says_so_plainly) {
+  Outcome r = run(std::string("env -u DISPLAY -u WAYLAND_DISPLAY ") + GROTTO_CLIENT_BIN);
+  EXPECT_EQ(r.status, 1) << r.output;
+  EXPECT_EQ(r.output,
+            "grotto-client: no display (DISPLAY is not set); run it under a desktop session or "
+            "`xvfb-run -a grotto-client ...`, or use grotto-load for headless streaming\n");
+}
+
+TEST(GrottoClient, screenshot_writes_a_picture_of_the_spawn_room) {
+  const char* display = std::getenv("DISPLAY");
+  if (display == nullptr || *display == '\0') GTEST_SKIP() << "DISPLAY is not set";
+  const std::string path =
+      (std::filesystem::temp_directory_path() / "grotto_client_test_screenshot.png").string();
+  std::filesystem::remove(path);
+  Outcome r =
+      run(std::string(GROTTO_CLIENT_BIN) + " --device none --seed 7 --width 320 --height 240" +
+          " --tess-max 8 --frames 3 --wait 120 --screenshot " + path);
+  if (r.output.find("no OpenGL 4.1") != std::string::npos) GTEST_SKIP() << r.output;
+  ASSERT_EQ(r.status, 0) << r.output;
+  int width = 0, height = 0;
+  std::vector<unsigned char> rgb = read_stored_png(path, width, height);
+  ASSERT_EQ(width, 320);
+  ASSERT_EQ(height, 240);
+  ASSERT_EQ(rgb.size(), 320u * 240u * 3u);
+  int differing = 0;
+  for (size_t i = 3; i < rgb.size(); i += 3)
+    differing += rgb[i] != rgb[0] || rgb[i + 1] != rgb[1];
+  EXPECT_GT(differing, 320 * 240 / 4) << "the screenshot is nearly one colour";
+  std::filesystem::remove(path);
+}
+
+}  // namespace
