@@ -1,8 +1,10 @@
 // load_bench: issue 6's benchmark, what players get from a server, measured with grotto-load's
 // engine (client/load) over real loopback WebSockets, in one run:
 //   1. throughput: rooms/s delivered to N players (burst mode, spread over distinct sectors, so
-//      every room is built once) against the generation service driven in-process for the same
-//      rooms, each phase on a fresh server (empty caches), alternating, median of --repetitions;
+//      every room is built once) against the same rooms through the generation service driven
+//      in-process, alone and with every room decoded as a player would (the whole pipeline
+//      without the network), each phase on a fresh server (empty caches), alternating, median
+//      of --repetitions;
 //   2. latency: request -> room percentiles and time to first room for walking players at each
 //      count of --matrix;
 //   3. stalls: N players walking at --stall-speed m/s, for each horizon of --horizons.
@@ -11,8 +13,11 @@
 
 #include <CLI/CLI.hpp>
 #include <algorithm>
+#include <condition_variable>
 #include <cstdio>
+#include <deque>
 #include <fstream>
+#include <mutex>
 #include <nlohmann/json.hpp>
 #include <set>
 #include <thread>
@@ -22,9 +27,12 @@
 #include "cave/layout.hpp"
 #include "client/load/load.hpp"
 #include "client/stream/portal_graph.hpp"
+#include "codec/room_codec.hpp"
+#include "proto/room_frame.hpp"
 
 namespace {
 
+using grotto::bench::Clock;
 using grotto::bench::in_process;
 using grotto::bench::PhaseResult;
 using grotto::client::load::LoadOptions;
@@ -68,6 +76,84 @@ std::vector<grotto::cave::RoomId> burst_rooms(uint64_t seed, int players, double
       ids.insert(p.id);
   }
   return {ids.begin(), ids.end()};
+}
+
+// The pipeline a player needs, in-process: the generation service as in_process() does, and every
+// frame decoded (room frame, then the Draco payload) on `decoders` threads as a Stream would,
+// with no network in between. Done when the last room is decoded.
+PhaseResult in_process_decoded(const ServerConfig& config,
+                               const std::vector<grotto::cave::RoomId>& ids, int decoders) {
+  auto server = Server::start(config);
+  if (!server) {
+    spdlog::error("{}", server.error().message);
+    std::exit(1);
+  }
+  std::mutex mutex;
+  std::condition_variable cv;
+  std::deque<grotto::server::RoomPtr> queue;
+  size_t delivered = 0, decoded = 0, failed = 0;
+  uint64_t bytes = 0;
+  bool done = false;
+  std::vector<std::thread> threads;
+  for (int i = 0; i < decoders; ++i) {
+    threads.emplace_back([&] {
+      for (;;) {
+        grotto::server::RoomPtr room;
+        {
+          std::unique_lock lock(mutex);
+          cv.wait(lock, [&] { return done || !queue.empty(); });
+          if (queue.empty()) return;
+          room = std::move(queue.front());
+          queue.pop_front();
+        }
+        auto frame = grotto::proto::decode_room_frame(room->frame, config.limits);
+        bool ok = frame.ok();
+        if (ok) {
+          grotto::codec::DecodeLimits limits;
+          limits.portal_count = static_cast<int>(frame->room.portals.size());
+          ok = grotto::codec::decode_room(frame->payload, limits).ok();
+        }
+        std::lock_guard lock(mutex);
+        ++decoded;
+        failed += ok ? 0 : 1;
+        cv.notify_all();
+      }
+    });
+  }
+  auto& gen = (*server)->generator();
+  auto client = gen.add_client([&](grotto::server::Delivery d) {
+    std::lock_guard lock(mutex);
+    ++delivered;
+    if (d.room) {
+      bytes += d.room->frame.size();
+      queue.push_back(d.room);
+    } else {
+      ++decoded;  // nothing to decode
+    }
+    cv.notify_all();
+  });
+  auto t0 = Clock::now();
+  std::vector<grotto::proto::RoomWant> wants;
+  for (auto id : ids)
+    wants.push_back({id, 0, 0});
+  gen.request(client, wants);
+  {
+    std::unique_lock lock(mutex);
+    cv.wait(lock, [&] { return decoded == ids.size(); });
+    done = true;
+    cv.notify_all();
+  }
+  PhaseResult r;
+  r.seconds = std::chrono::duration<double>(Clock::now() - t0).count();
+  r.rooms = ids.size();
+  r.bytes = bytes;
+  for (auto& t : threads)
+    t.join();
+  if (failed) spdlog::warn("in-process decode: {} rooms failed", failed);
+  gen.remove_client(client);
+  grotto::bench::fill_histograms(**server, r);
+  (*server)->stop(std::chrono::milliseconds{2000});
+  return r;
 }
 
 LoadReport run(const LoadOptions& options) {
@@ -169,16 +255,21 @@ int main(int argc, char** argv) {
   auto ids = burst_rooms(config.seed, players, radius);
   (void)in_process(config, std::vector<grotto::cave::RoomId>(
                                ids.begin(), ids.begin() + std::min<size_t>(ids.size(), 32)));
-  std::vector<PhaseResult> locals;
+  std::vector<PhaseResult> locals, decodeds;
   std::vector<LoadReport> bursts;
   // Process CPU seconds per room delivered, server and players together: what a room costs, which
   // other load on the machine does not inflate (unlike rates).
-  std::vector<double> local_cpu, burst_cpu;
+  std::vector<double> local_cpu, decoded_cpu, burst_cpu;
+  const int decoders = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
   for (int r = 0; r < repetitions; ++r) {
     double cpu0 = grotto::bench::process_cpu_seconds();
     locals.push_back(in_process(config, ids));
     local_cpu.push_back((grotto::bench::process_cpu_seconds() - cpu0) * 1000.0 /
                         static_cast<double>(ids.size()));
+    cpu0 = grotto::bench::process_cpu_seconds();
+    decodeds.push_back(in_process_decoded(config, ids, decoders));
+    decoded_cpu.push_back((grotto::bench::process_cpu_seconds() - cpu0) * 1000.0 /
+                          static_cast<double>(ids.size()));
     cpu0 = grotto::bench::process_cpu_seconds();
     auto server = Server::start(config);
     if (!server) {
@@ -198,8 +289,9 @@ int main(int argc, char** argv) {
     burst_cpu.push_back((grotto::bench::process_cpu_seconds() - cpu0) * 1000.0 /
                         static_cast<double>(std::max<uint64_t>(bursts.back().rooms_ready, 1)));
   }
-  std::sort(locals.begin(), locals.end(),
-            [](const auto& a, const auto& b) { return a.seconds < b.seconds; });
+  auto by_time = [](const PhaseResult& a, const PhaseResult& b) { return a.seconds < b.seconds; };
+  std::sort(locals.begin(), locals.end(), by_time);
+  std::sort(decodeds.begin(), decodeds.end(), by_time);
   // A burst's rate: the rooms its players got over the time until every radius was ready.
   auto burst_rate = [](const LoadReport& r) {
     return r.burst_s > 0 ? static_cast<double>(r.rooms_ready) / r.burst_s : 0.0;
@@ -207,21 +299,28 @@ int main(int argc, char** argv) {
   std::sort(bursts.begin(), bursts.end(),
             [&](const auto& a, const auto& b) { return burst_rate(a) < burst_rate(b); });
   const PhaseResult& local = locals[locals.size() / 2];
+  const PhaseResult& decoded = decodeds[decodeds.size() / 2];
+  const double decoded_rate = static_cast<double>(decoded.rooms) / decoded.seconds;
   const LoadReport& burst = bursts[bursts.size() / 2];
   const double local_rate = static_cast<double>(local.rooms) / local.seconds;
-  nlohmann::json throughput = {{"players", players},
-                               {"radius_m", radius},
-                               {"in_process", grotto::bench::to_json(local)},
-                               {"over_loopback", summary(burst)},
-                               {"over_loopback_rooms_per_s", burst_rate(burst)},
-                               {"delivered_over_in_process", burst_rate(burst) / local_rate},
-                               {"in_process_cpu_ms_per_room", grotto::bench::median(local_cpu)},
-                               {"over_loopback_cpu_ms_per_room", grotto::bench::median(burst_cpu)}};
+  nlohmann::json throughput = {
+      {"players", players},
+      {"radius_m", radius},
+      {"in_process", grotto::bench::to_json(local)},
+      {"over_loopback", summary(burst)},
+      {"over_loopback_rooms_per_s", burst_rate(burst)},
+      {"in_process_decoded", grotto::bench::to_json(decoded)},
+      {"delivered_over_in_process", burst_rate(burst) / local_rate},
+      {"delivered_over_in_process_decoded", burst_rate(burst) / decoded_rate},
+      {"in_process_decoded_cpu_ms_per_room", grotto::bench::median(decoded_cpu)},
+      {"in_process_cpu_ms_per_room", grotto::bench::median(local_cpu)},
+      {"over_loopback_cpu_ms_per_room", grotto::bench::median(burst_cpu)}};
   std::fprintf(stderr,
-               "throughput: %d players, %.0f rooms/s delivered vs %.0f in-process: %.2f; "
-               "CPU ms/room %.2f vs %.2f\n",
-               players, burst_rate(burst), local_rate, burst_rate(burst) / local_rate,
-               grotto::bench::median(burst_cpu), grotto::bench::median(local_cpu));
+               "throughput: %d players, %.0f rooms/s delivered; in-process %.0f (%.2f), with "
+               "decode %.0f (%.2f); CPU ms/room %.2f vs %.2f, with decode %.2f\n",
+               players, burst_rate(burst), local_rate, burst_rate(burst) / local_rate, decoded_rate,
+               burst_rate(burst) / decoded_rate, grotto::bench::median(burst_cpu),
+               grotto::bench::median(local_cpu), grotto::bench::median(decoded_cpu));
 
   // 2. Latency by player count, walking; 3. stalls by horizon.
   auto walk = [&](int n, double speed, double horizon) {
