@@ -168,6 +168,41 @@ TEST(Stream, spawns_and_prefetches_every_room_within_the_horizon) {
   EXPECT_TRUE(stream->take_new_rooms().empty());
 }
 
+// A server with tight limits: the Stream never asks for more in flight, or puts more in one
+// request or one message, than welcome announced, so no request is refused, and everything still
+// arrives.
+TEST(Stream, stays_within_the_limits_the_server_announces) {
+  auto config = test_config();
+  config.limits.max_rooms_in_flight = 3;
+  config.limits.max_rooms_per_request = 2;
+  config.limits.max_message_bytes = 1024;
+  auto server = start_server(config);
+  ASSERT_TRUE(server);
+  Runtime rt(1, 2);
+  StreamOptions o;
+  o.url = url_of(server->port());
+  o.plan.horizon_s = 8.0;
+  auto stream = start_stream(o, rt);
+  ASSERT_TRUE(stream);
+  ASSERT_TRUE(wait_for([&] { return stream->spawn_point().has_value(); }));
+  auto expected = expected_rooms(7, *stream->spawn_point(), o.plan.horizon_s);
+  ASSERT_GT(expected.size(), 6u) << "enough rooms to need several rounds of requests";
+  uint64_t most_in_flight = 0;
+  ASSERT_TRUE(wait_for([&] {
+    most_in_flight = std::max(most_in_flight, stream->stats().in_flight);
+    for (auto id : expected) {
+      if (!stream->ready(id)) return false;
+    }
+    return true;
+  })) << describe(stream->stats());
+  auto stats = stream->stats();
+  EXPECT_TRUE(stats.errors.empty()) << describe(stats);
+  EXPECT_EQ(stats.limits.max_rooms_in_flight, 3u);
+  EXPECT_LE(most_in_flight, 3u);
+  EXPECT_EQ(server->metrics().errors(grotto::ErrorCode::kLimitExceeded), 0u);
+  EXPECT_EQ(server->metrics().errors(grotto::ErrorCode::kTooLarge), 0u);
+}
+
 TEST(Stream, cancels_what_falls_out_of_the_horizon_when_the_player_moves_away) {
   auto config = test_config();
   config.generator.workers = 1;  // slow enough that rooms are still in flight when we move
