@@ -270,6 +270,8 @@ int main(int argc, char** argv) {
       if (auto spawn = stream->spawn_point()) {
         camera.position = spawn->position;
         placed = true;
+        spdlog::info("event=spawn room={} x={} y={} z={}", spawn->room.to_string(),
+                     spawn->position.x, spawn->position.y, spawn->position.z);
       }
     }
     if (placed) {
@@ -290,7 +292,11 @@ int main(int argc, char** argv) {
         std::chrono::steady_clock::now() + std::chrono::duration<double>(o.wait_s);
     while (!(placed && surroundings_ready(cache, *stream, camera.position))) {
       if (std::chrono::steady_clock::now() > deadline) {
-        spdlog::warn("event=screenshot_wait_timeout rooms={} placed={}", cache.size(), placed);
+        // A pose in solid rock is located in no room, so nothing streams in.
+        spdlog::warn(
+            "event=screenshot_wait_timeout rooms={} placed={} hint=\"is the pose inside the "
+            "cave?\"",
+            cache.size(), placed);
         break;
       }
       pump(o.speed);
