@@ -261,15 +261,33 @@ int main(int argc, char** argv) {
   ro.wireframe = o.wireframe;
   ro.surface = o.surface == "phong" ? render::Surface::kPhong : render::Surface::kPnTriangles;
 
+  // At the spawn point the camera looks through the spawn room's widest portal, into the cave
+  // rather than at the nearest wall, once the room's descriptor has arrived.
+  std::optional<grotto::cave::RoomId> aim_room;
   auto pump = [&](double speed) {
     for (auto& room : stream->take_new_rooms())
       cache.upload(*room);
     for (auto id : stream->take_evicted())
       cache.evict(id);
+    if (aim_room) {
+      if (auto room = stream->descriptor(*aim_room)) {
+        aim_room.reset();
+        const grotto::cave::Portal* widest = nullptr;
+        for (const auto& portal : room->portals)
+          if (widest == nullptr || portal.radius > widest->radius) widest = &portal;
+        if (widest != nullptr) {
+          Vec3 d = widest->centre - camera.position;
+          double horizontal = std::sqrt(d.x * d.x + d.z * d.z);
+          camera.yaw = std::atan2(d.x, -d.z);
+          camera.pitch = std::clamp(std::atan2(d.y, horizontal), -kPi / 4, kPi / 4);
+        }
+      }
+    }
     if (!placed) {
       if (auto spawn = stream->spawn_point()) {
         camera.position = spawn->position;
         placed = true;
+        aim_room = spawn->room;
         spdlog::info("event=spawn room={} x={} y={} z={}", spawn->room.to_string(),
                      spawn->position.x, spawn->position.y, spawn->position.z);
       }
