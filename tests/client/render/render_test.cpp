@@ -263,5 +263,26 @@ TEST(Renderer, tessellated_displaced_rooms_have_no_cracks) {
   }
 }
 
+// The crack detector can see a hole: without fog caps, portals out of the sector show the
+// clear colour from some of the same poses.
+TEST(Renderer, without_fog_caps_the_void_shows_through_open_portals) {
+  REQUIRE_GL();
+  Scene scene;
+  ASSERT_TRUE(scene.ok());
+  const auto rooms = interior_rooms();
+  RenderOptions options;
+  options.tessellation = false;
+  options.fog_caps = false;
+  options.clear_color = {1.0f, 0.0f, 1.0f};
+  int magenta = 0;
+  for (const client::ReadyRoom* room : rooms) {
+    for (double yaw = 0; yaw < 360 && magenta == 0; yaw += 45)
+      for (double pitch : {-60.0, 0.0, 60.0})
+        magenta += scene.draw(camera_in(*room, yaw, pitch), options).count(255, 0, 255);
+    if (magenta > 0) break;
+  }
+  EXPECT_GT(magenta, 0);
+}
+
 }  // namespace
 }  // namespace grotto::render
