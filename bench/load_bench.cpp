@@ -323,8 +323,9 @@ int main(int argc, char** argv) {
                grotto::bench::median(local_cpu), grotto::bench::median(decoded_cpu));
 
   // 2. Latency by player count, walking; 3. stalls by horizon.
-  auto walk = [&](int n, double speed, double horizon) {
+  auto walk = [&](int n, double speed, double horizon, bool spread) {
     LoadOptions o;
+    o.spread = spread;
     o.players = n;
     o.duration_s = walk_seconds;
     o.speed = speed;
@@ -334,21 +335,33 @@ int main(int argc, char** argv) {
     return run(o);
   };
   nlohmann::json latency = nlohmann::json::array();
-  for (double n : parse_list(matrix)) {
-    auto r = walk(static_cast<int>(n), walk_speed, 4.0);
-    latency.push_back(summary(r));
-    std::fprintf(stderr,
-                 "latency: %3d players: p50 %.1f p90 %.1f p99 %.1f max %.1f ms, first %.1f ms\n",
-                 r.players, r.latency_ms.p50, r.latency_ms.p90, r.latency_ms.p99, r.latency_ms.max,
-                 r.first_room_ms.p50);
+  // Everyone at the server's spawn point (shared rooms: cache hits and single flight), then
+  // spread over distinct sectors (every room built for one player).
+  for (bool spread : {false, true}) {
+    for (double n : parse_list(matrix)) {
+      auto r = walk(static_cast<int>(n), walk_speed, 4.0, spread);
+      auto s = summary(r);
+      s["spread"] = spread;
+      latency.push_back(s);
+      std::fprintf(stderr,
+                   "latency (%s): %3d players: p50 %.1f p90 %.1f p99 %.1f max %.1f ms, first %.1f "
+                   "ms, stalls %llu\n",
+                   spread ? "spread" : "spawn", r.players, r.latency_ms.p50, r.latency_ms.p90,
+                   r.latency_ms.p99, r.latency_ms.max, r.first_room_ms.p50,
+                   static_cast<unsigned long long>(r.stalls));
+    }
   }
   nlohmann::json stalls = nlohmann::json::array();
-  for (double h : parse_list(horizons)) {
-    auto r = walk(players, stall_speed, h);
-    stalls.push_back(summary(r));
-    std::fprintf(stderr, "stalls: %d players at %.0f m/s, horizon %.1f s: %llu (%.2f s)\n",
-                 r.players, stall_speed, h, static_cast<unsigned long long>(r.stalls),
-                 r.stall_total_s);
+  for (bool spread : {false, true}) {
+    for (double h : parse_list(horizons)) {
+      auto r = walk(players, stall_speed, h, spread);
+      auto s = summary(r);
+      s["spread"] = spread;
+      stalls.push_back(s);
+      std::fprintf(stderr, "stalls (%s): %d players at %.0f m/s, horizon %.1f s: %llu (%.2f s)\n",
+                   spread ? "spread" : "spawn", r.players, stall_speed, h,
+                   static_cast<unsigned long long>(r.stalls), r.stall_total_s);
+    }
   }
 
   nlohmann::json report = {{"hardware_threads", std::thread::hardware_concurrency()},
