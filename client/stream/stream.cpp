@@ -142,6 +142,9 @@ bool is_final(ErrorCode code) {
          code == ErrorCode::kUnauthorized;
 }
 
+// Samples and evicted ids kept for a caller that does not drain them.
+constexpr size_t kMaxUndrained = size_t{1} << 16;
+
 double ms_since(Clock::time_point t) {
   return std::chrono::duration<double, std::milli>(Clock::now() - t).count();
 }
@@ -507,6 +510,20 @@ struct Stream::Impl : std::enable_shared_from_this<Stream::Impl> {
     for (auto g : gone)
       graph.remove(g);
     evicted.insert(evicted.end(), gone.begin(), gone.end());
+    // A caller that never drains must not make memory grow without bound: rooms it never took
+    // and that are gone now are dropped from `fresh` (it holds them alive), and the oldest
+    // samples and evicted ids go past kMaxUndrained.
+    if (!gone.empty() && !fresh.empty()) {
+      std::set<cave::RoomId> dead(gone.begin(), gone.end());
+      std::erase_if(fresh, [&](const auto& r) { return dead.count(r->room.id) != 0; });
+    }
+    trim(samples);
+    trim(evicted);
+  }
+
+  template <class T>
+  static void trim(std::vector<T>& v) {
+    if (v.size() > kMaxUndrained) v.erase(v.begin(), v.begin() + (v.size() - kMaxUndrained));
   }
 
   // ---- planning ----

@@ -122,7 +122,9 @@ class Stream {
   // The descriptor of a room whose frame was received (before or after its decode), or nullopt;
   // a room the store evicted is forgotten here too.
   std::optional<cave::Room> descriptor(cave::RoomId id) const;
-  // Rooms stored since the last call, in the order they became ready.
+  // Rooms stored since the last call, in the order they became ready (rooms evicted before the
+  // call are left out). The take_* functions are meant to be drained every frame; undrained
+  // samples and evicted ids are capped at the newest 65,536.
   std::vector<std::shared_ptr<const ReadyRoom>> take_new_rooms();
   // Rooms the store evicted since the last call (a renderer frees their GPU buffers).
   std::vector<cave::RoomId> take_evicted();
