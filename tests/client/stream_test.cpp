@@ -130,6 +130,14 @@ std::set<RoomId> expected_rooms(uint64_t seed, const grotto::proto::SpawnPoint& 
   return ids;
 }
 
+// Whether every room of `ids` is decoded and stored.
+bool all_ready(const Stream& stream, const std::set<RoomId>& ids) {
+  for (auto id : ids) {
+    if (!stream.ready(id)) return false;
+  }
+  return true;
+}
+
 TEST(Stream, spawns_and_prefetches_every_room_within_the_horizon) {
   auto server = start_server(test_config());
   ASSERT_TRUE(server);
@@ -144,13 +152,8 @@ TEST(Stream, spawns_and_prefetches_every_room_within_the_horizon) {
   auto spawn = *stream->spawn_point();
   auto expected = expected_rooms(7, spawn, o.plan.horizon_s);
   ASSERT_GT(expected.size(), 3u);
-  ASSERT_TRUE(wait_for([&] {
-    for (auto id : expected) {
-      if (!stream->ready(id)) return false;
-    }
-    return true;
-  })) << "rooms ready: "
-      << stream->stats().rooms_ready << " of " << expected.size();
+  ASSERT_TRUE(wait_for([&] { return all_ready(*stream, expected); }))
+      << "rooms ready: " << stream->stats().rooms_ready << " of " << expected.size();
   auto stats = stream->stats();
   EXPECT_EQ(stats.state, StreamState::kReady);
   EXPECT_EQ(stats.rooms_rejected, 0u);
@@ -190,10 +193,7 @@ TEST(Stream, stays_within_the_limits_the_server_announces) {
   uint64_t most_in_flight = 0;
   ASSERT_TRUE(wait_for([&] {
     most_in_flight = std::max(most_in_flight, stream->stats().in_flight);
-    for (auto id : expected) {
-      if (!stream->ready(id)) return false;
-    }
-    return true;
+    return all_ready(*stream, expected);
   })) << describe(stream->stats());
   auto stats = stream->stats();
   EXPECT_TRUE(stats.errors.empty()) << describe(stats);
@@ -259,13 +259,8 @@ TEST(Stream, reconnects_after_a_server_restart_and_every_wanted_room_arrives) {
   ASSERT_TRUE(server);
   auto spawn = *stream->spawn_point();
   auto expected = expected_rooms(7, spawn, o.plan.horizon_s);
-  ASSERT_TRUE(wait_for([&] {
-    for (auto id : expected) {
-      if (!stream->ready(id)) return false;
-    }
-    return true;
-  })) << "rooms ready: "
-      << stream->stats().rooms_ready << " of " << expected.size();
+  ASSERT_TRUE(wait_for([&] { return all_ready(*stream, expected); }))
+      << "rooms ready: " << stream->stats().rooms_ready << " of " << expected.size();
   auto stats = stream->stats();
   EXPECT_GE(stats.reconnects, 1u);
   EXPECT_GE(stats.drops, 1u);
