@@ -6,6 +6,8 @@
 #include "embedded_cl/room_tesc.hpp"
 #include "embedded_cl/room_tese.hpp"
 #include "embedded_cl/room_vert.hpp"
+#include "embedded_cl/text_frag.hpp"
+#include "embedded_cl/text_vert.hpp"
 
 namespace grotto::render {
 
@@ -19,6 +21,11 @@ std::vector<ShaderStage> room_stages() {
 std::vector<ShaderStage> cap_stages() {
   return {{GL_VERTEX_SHADER, kernels::source_cap_vert(), "cap.vert"},
           {GL_FRAGMENT_SHADER, kernels::source_cap_frag(), "cap.frag"}};
+}
+
+std::vector<ShaderStage> text_stages() {
+  return {{GL_VERTEX_SHADER, kernels::source_text_vert(), "text.vert"},
+          {GL_FRAGMENT_SHADER, kernels::source_text_frag(), "text.frag"}};
 }
 
 }  // namespace grotto::render

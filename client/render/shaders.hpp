@@ -10,5 +10,6 @@ namespace grotto::render {
 
 std::vector<ShaderStage> room_stages();  // room.vert, room.tesc, room.tese, room.frag
 std::vector<ShaderStage> cap_stages();   // cap.vert, cap.frag
+std::vector<ShaderStage> text_stages();  // text.vert, text.frag (the overlay)
 
 }  // namespace grotto::render
