@@ -1,0 +1,194 @@
+#include "client/play/collision.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace grotto::play {
+namespace {
+
+constexpr double kCell = 1.0;  // metres: a patch triangle spans about one to three cells
+
+Vec3 cross(Vec3 a, Vec3 b) {
+  return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
+}
+
+bool boxes_overlap(Vec3 lo_a, Vec3 hi_a, Vec3 lo_b, Vec3 hi_b) {
+  for (int i = 0; i < 3; ++i)
+    if (hi_a[i] < lo_b[i] || hi_b[i] < lo_a[i]) return false;
+  return true;
+}
+
+}  // namespace
+
+Vec3 closest_point(const Triangle& t, Vec3 p) {
+  const Vec3 ab = t.b - t.a, ac = t.c - t.a, ap = p - t.a;
+  const double d1 = dot(ab, ap), d2 = dot(ac, ap);
+  if (d1 <= 0 && d2 <= 0) return t.a;
+  const Vec3 bp = p - t.b;
+  const double d3 = dot(ab, bp), d4 = dot(ac, bp);
+  if (d3 >= 0 && d4 <= d3) return t.b;
+  const double vc = d1 * d4 - d3 * d2;
+  if (vc <= 0 && d1 >= 0 && d3 <= 0) return t.a + ab * (d1 / (d1 - d3));
+  const Vec3 cp = p - t.c;
+  const double d5 = dot(ab, cp), d6 = dot(ac, cp);
+  if (d6 >= 0 && d5 <= d6) return t.c;
+  const double vb = d5 * d2 - d1 * d6;
+  if (vb <= 0 && d2 >= 0 && d6 <= 0) return t.a + ac * (d2 / (d2 - d6));
+  const double va = d3 * d6 - d5 * d4;
+  if (va <= 0 && d4 - d3 >= 0 && d5 - d6 >= 0)
+    return t.b + (t.c - t.b) * ((d4 - d3) / ((d4 - d3) + (d5 - d6)));
+  const double denominator = va + vb + vc;
+  if (!(denominator > 0)) return t.a;  // degenerate: the vertex cases above cover it
+  return t.a + ab * (vb / denominator) + ac * (vc / denominator);
+}
+
+Vec3 closest_point(const Disc& d, Vec3 p) {
+  const Vec3 in_plane = p - d.normal * dot(p - d.centre, d.normal);
+  const Vec3 from_centre = in_plane - d.centre;
+  const double r = length(from_centre);
+  if (r <= d.radius) return in_plane;
+  return d.centre + from_centre * (d.radius / r);
+}
+
+Vec3 unit_normal(const Triangle& t) {
+  const Vec3 n = cross(t.b - t.a, t.c - t.a);
+  const double l = length(n);
+  return l > 0 ? n / l : Vec3{};
+}
+
+bool segment_crosses(const Triangle& t, Vec3 p, Vec3 q) {
+  // Möller-Trumbore on the segment's parameter range [0, 1].
+  const Vec3 dir = q - p, e1 = t.b - t.a, e2 = t.c - t.a;
+  const Vec3 h = cross(dir, e2);
+  const double det = dot(e1, h);
+  if (std::abs(det) < 1e-18) return false;  // parallel (or a zero-length segment)
+  const Vec3 s = p - t.a;
+  const double u = dot(s, h) / det;
+  if (u < 0 || u > 1) return false;
+  const Vec3 qv = cross(s, e1);
+  const double v = dot(dir, qv) / det;
+  if (v < 0 || u + v > 1) return false;
+  const double along = dot(e2, qv) / det;
+  return along >= 0 && along <= 1;
+}
+
+bool segment_crosses(const Disc& d, Vec3 p, Vec3 q) {
+  const double sp = dot(p - d.centre, d.normal), sq = dot(q - d.centre, d.normal);
+  if ((sp > 0 && sq > 0) || (sp < 0 && sq < 0) || sp == sq) return false;
+  const Vec3 x = p + (q - p) * (sp / (sp - sq));
+  return length_squared(x - d.centre) <= d.radius * d.radius;
+}
+
+void CollisionWorld::add(const client::ReadyRoom& ready) {
+  evict(ready.room.id);
+  Room r;
+  r.room = ready.room;
+  r.origin = ready.origin;
+  const auto& mesh = ready.mesh;
+  r.positions.reserve(mesh.vertex_count() * 3);
+  Vec3 lo{1e300, 1e300, 1e300}, hi{-1e300, -1e300, -1e300};
+  for (const auto& v : mesh.positions) {
+    r.positions.insert(r.positions.end(), {v.x, v.y, v.z});
+    const Vec3 d{v.x, v.y, v.z};
+    for (int i = 0; i < 3; ++i)
+      lo[i] = std::min(lo[i], d[i]), hi[i] = std::max(hi[i], d[i]);
+  }
+  r.indices = mesh.indices;
+  if (mesh.vertex_count() == 0) lo = hi = Vec3{};
+  r.bound_centre = r.origin + (lo + hi) * 0.5;
+  r.bound_radius = length(hi - lo) * 0.5;
+
+  for (int i = 0; i < 3; ++i) {
+    r.grid_lo[i] = static_cast<int>(std::floor(lo[i] / kCell));
+    r.dims[i] = static_cast<int>(std::floor(hi[i] / kCell)) - r.grid_lo[i] + 1;
+  }
+  const size_t cells = static_cast<size_t>(r.dims[0]) * r.dims[1] * r.dims[2];
+  const uint32_t triangles = static_cast<uint32_t>(r.indices.size() / 3);
+  // Two passes over the triangles' cell ranges: count, then fill (compressed rows).
+  auto for_each_cell = [&](uint32_t t, auto&& visit) {
+    int c_lo[3], c_hi[3];
+    for (int i = 0; i < 3; ++i) {
+      float mn = r.positions[3 * r.indices[3 * t] + i], mx = mn;
+      for (int k = 1; k < 3; ++k) {
+        const float x = r.positions[3 * r.indices[3 * t + k] + i];
+        mn = std::min(mn, x), mx = std::max(mx, x);
+      }
+      c_lo[i] = static_cast<int>(std::floor(mn / kCell)) - r.grid_lo[i];
+      c_hi[i] = static_cast<int>(std::floor(mx / kCell)) - r.grid_lo[i];
+    }
+    for (int x = c_lo[0]; x <= c_hi[0]; ++x)
+      for (int y = c_lo[1]; y <= c_hi[1]; ++y)
+        for (int z = c_lo[2]; z <= c_hi[2]; ++z)
+          visit((static_cast<size_t>(x) * r.dims[1] + y) * r.dims[2] + z);
+  };
+  r.cell_start.assign(cells + 1, 0);
+  for (uint32_t t = 0; t < triangles; ++t)
+    for_each_cell(t, [&](size_t c) { ++r.cell_start[c + 1]; });
+  for (size_t c = 0; c < cells; ++c)
+    r.cell_start[c + 1] += r.cell_start[c];
+  r.cell_triangles.resize(r.cell_start[cells]);
+  std::vector<uint32_t> fill(r.cell_start.begin(), r.cell_start.end() - 1);
+  for (uint32_t t = 0; t < triangles; ++t)
+    for_each_cell(t, [&](size_t c) { r.cell_triangles[fill[c]++] = t; });
+  rooms_.emplace(ready.room.id, std::move(r));
+}
+
+void CollisionWorld::evict(cave::RoomId id) {
+  rooms_.erase(id);
+}
+
+Triangle CollisionWorld::triangle(const Room& room, uint32_t t) const {
+  auto vertex = [&](int k) {
+    const float* v = &room.positions[3 * room.indices[3 * t + k]];
+    return room.origin + Vec3{v[0], v[1], v[2]};
+  };
+  return {vertex(0), vertex(1), vertex(2)};
+}
+
+void CollisionWorld::gather(Vec3 lo, Vec3 hi, Neighbourhood& out) const {
+  out.triangles.clear();
+  out.walls.clear();
+  for (const auto& [id, room] : rooms_) {
+    for (const cave::Portal& portal : room.room.portals) {
+      if (contains(portal.neighbour)) continue;
+      const double reach = portal.radius + kPortalWallMargin;
+      const Vec3 extent{reach, reach, reach};
+      if (boxes_overlap(lo, hi, portal.centre - extent, portal.centre + extent))
+        out.walls.push_back({portal.centre, portal.normal, reach});
+    }
+    const Vec3 extent{room.bound_radius, room.bound_radius, room.bound_radius};
+    if (!boxes_overlap(lo, hi, room.bound_centre - extent, room.bound_centre + extent)) continue;
+    int c_lo[3], c_hi[3];
+    for (int i = 0; i < 3; ++i) {
+      c_lo[i] = std::max(
+          0, static_cast<int>(std::floor((lo[i] - room.origin[i]) / kCell)) - room.grid_lo[i]);
+      c_hi[i] = std::min(
+          room.dims[i] - 1,
+          static_cast<int>(std::floor((hi[i] - room.origin[i]) / kCell)) - room.grid_lo[i]);
+    }
+    seen_.clear();
+    for (int x = c_lo[0]; x <= c_hi[0]; ++x)
+      for (int y = c_lo[1]; y <= c_hi[1]; ++y)
+        for (int z = c_lo[2]; z <= c_hi[2]; ++z) {
+          const size_t c = (static_cast<size_t>(x) * room.dims[1] + y) * room.dims[2] + z;
+          seen_.insert(seen_.end(), room.cell_triangles.begin() + room.cell_start[c],
+                       room.cell_triangles.begin() + room.cell_start[c + 1]);
+        }
+    std::sort(seen_.begin(), seen_.end());
+    seen_.erase(std::unique(seen_.begin(), seen_.end()), seen_.end());
+    for (uint32_t t : seen_)
+      out.triangles.push_back(triangle(room, t));
+  }
+}
+
+const cave::Room* CollisionWorld::room_at(Vec3 p) const {
+  const cave::Room* best = nullptr;
+  double best_ratio = 1;
+  for (const auto& [id, room] : rooms_) {
+    const double ratio = distance(p, room.room.sphere.centre) / room.room.sphere.radius;
+    if (ratio < best_ratio) best = &room.room, best_ratio = ratio;
+  }
+  return best;
+}
+
+}  // namespace grotto::play

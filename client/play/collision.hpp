@@ -1,0 +1,90 @@
+// What the player collides with: the patch meshes of the rooms the client holds, one triangle
+// set per room, added when client/stream delivers the room and removed when it is evicted, plus
+// a wall over every portal whose neighbour is not loaded, so nobody falls out of the streamed cave.
+//
+// Precision: a room keeps its decoded room-frame floats and its grid origin (as
+// client/render/room_cache does); triangles leave the world in double (origin + float offset), so
+// collision is as exact 10^4 m from the origin as at the spawn.
+//
+// Broad phase: each room has a bounding sphere around its vertices and a uniform grid of 1 m
+// cells over its box, each cell listing the triangles whose box overlaps it. No GL, no network,
+// not thread-safe.
+#pragma once
+
+#include <cstdint>
+#include <map>
+#include <vector>
+
+#include "cave/layout.hpp"
+#include "client/stream/room_store.hpp"
+#include "core/vec3.hpp"
+
+namespace grotto::play {
+
+struct Triangle {
+  Vec3 a, b, c;  // world metres
+};
+
+// A portal disc standing in for a neighbour room that is not loaded.
+struct Disc {
+  Vec3 centre;
+  Vec3 normal;  // unit
+  double radius = 0;
+};
+
+// Closest point of a triangle (Ericson, Real-Time Collision Detection §5.1.5) or a disc to p.
+Vec3 closest_point(const Triangle& t, Vec3 p);
+Vec3 closest_point(const Disc& d, Vec3 p);
+// The unit normal of the triangle's winding (a, b, c counter-clockwise), zero when degenerate.
+Vec3 unit_normal(const Triangle& t);
+// Whether the segment [p, q] meets the triangle or the disc (touching counts).
+bool segment_crosses(const Triangle& t, Vec3 p, Vec3 q);
+bool segment_crosses(const Disc& d, Vec3 p, Vec3 q);
+
+// The portal disc is widened by this much, so that the wall closes over the rim's triangles
+// (rim vertices lie on the portal circle; the patch triangles between them cut inside it).
+inline constexpr double kPortalWallMargin = 0.15;
+
+// The collision geometry near a box: the loaded rooms' triangles and the walls over portals to
+// rooms not loaded.
+struct Neighbourhood {
+  std::vector<Triangle> triangles;
+  std::vector<Disc> walls;
+};
+
+class CollisionWorld {
+ public:
+  // Adds the room's patch mesh, replacing a room with the same id.
+  void add(const client::ReadyRoom& room);
+  void evict(cave::RoomId id);
+  void clear() { rooms_.clear(); }
+  bool contains(cave::RoomId id) const { return rooms_.count(id) != 0; }
+  size_t size() const { return rooms_.size(); }
+  // Everything whose box overlaps [lo, hi] (world metres), appended to `out` (cleared first).
+  // A triangle appears once.
+  void gather(Vec3 lo, Vec3 hi, Neighbourhood& out) const;
+  // The loaded room whose sphere holds p most deeply (distance over radius), or nullptr.
+  const cave::Room* room_at(Vec3 p) const;
+
+ private:
+  struct Room {
+    cave::Room room;
+    Vec3 origin;
+    std::vector<float> positions;  // x, y, z per vertex, metres from origin
+    std::vector<uint32_t> indices;
+    Vec3 bound_centre;  // world
+    double bound_radius = 0;
+    // The grid over [grid_lo, grid_lo + dims) cells of kCell metres in the room frame; cell c
+    // holds triangles cell_triangles[cell_start[c], cell_start[c + 1]).
+    int grid_lo[3] = {0, 0, 0};
+    int dims[3] = {0, 0, 0};
+    std::vector<uint32_t> cell_start;
+    std::vector<uint32_t> cell_triangles;
+  };
+  Triangle triangle(const Room& room, uint32_t t) const;
+
+  std::map<cave::RoomId, Room> rooms_;
+  mutable std::vector<uint32_t> seen_;  // gather's dedup scratch
+};
+
+}  // namespace grotto::play

@@ -1,0 +1,23 @@
+// Real rooms for play_tests, as a client holds them: sector (0,0,0) of seed 7 built with the CPU
+// reference at the patch level, encoded by the room codec and decoded with the frame's limits.
+// Built once per test binary.
+#pragma once
+
+#include <map>
+#include <vector>
+
+#include "cave/layout.hpp"
+#include "client/stream/room_store.hpp"
+#include "core/vec3.hpp"
+
+namespace grotto::play::test {
+
+struct Cave {
+  std::map<cave::RoomId, client::ReadyRoom> rooms;  // every room of the sector and its gates
+  cave::RoomId spawn_room = cave::RoomId::interior({0, 0, 0}, 0);
+  Vec3 spawn;  // the server's spawn point (SectorCache::spawn's rule)
+};
+
+const Cave& sector_zero();
+
+}  // namespace grotto::play::test

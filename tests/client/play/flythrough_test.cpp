@@ -1,0 +1,76 @@
+// The scripted flythrough on real layout descriptors: it goes from the spawn point through
+// neighbouring rooms by portal centres, never visits a room twice, depends on the descriptors
+// only, waits for a descriptor it lacks, and its poses move continuously along the path.
+#include <gtest/gtest.h>
+
+#include <set>
+
+#include "cave.hpp"
+#include "client/play/flythrough.hpp"
+
+namespace grotto::play {
+namespace {
+
+Flythrough::Lookup lookup_in(const test::Cave& cave) {
+  return [&cave](cave::RoomId id) -> std::optional<cave::Room> {
+    auto it = cave.rooms.find(id);
+    if (it == cave.rooms.end()) return std::nullopt;
+    return it->second.room;
+  };
+}
+
+TEST(Flythrough, goes_from_room_to_neighbouring_room_through_portal_centres) {
+  const test::Cave& cave = test::sector_zero();
+  Flythrough f = Flythrough::plan(cave.spawn, cave.spawn_room, lookup_in(cave), 4);
+  ASSERT_EQ(f.rooms().size(), 5u) << "sector (0,0,0) has paths of four hops from the spawn";
+  EXPECT_EQ(f.rooms().front(), cave.spawn_room);
+  EXPECT_EQ(f.waypoints().size(), 1 + 2 * 4u);
+  EXPECT_FALSE(f.waiting_for());
+  EXPECT_EQ(std::set<cave::RoomId>(f.rooms().begin(), f.rooms().end()).size(), f.rooms().size());
+  for (size_t i = 1; i < f.rooms().size(); ++i) {
+    const cave::Room& from = cave.rooms.at(f.rooms()[i - 1]).room;
+    bool linked = false;
+    for (const cave::Portal& p : from.portals)
+      linked = linked || (p.neighbour == f.rooms()[i] && p.centre == f.waypoints()[2 * i - 1]);
+    EXPECT_TRUE(linked) << from.id.to_string() << " -> " << f.rooms()[i].to_string();
+  }
+  // Same descriptors, same path.
+  Flythrough again = Flythrough::plan(cave.spawn, cave.spawn_room, lookup_in(cave), 4);
+  EXPECT_EQ(again.waypoints(), f.waypoints());
+}
+
+TEST(Flythrough, stops_at_a_room_whose_descriptor_is_not_known_and_names_it) {
+  const test::Cave& cave = test::sector_zero();
+  Flythrough full = Flythrough::plan(cave.spawn, cave.spawn_room, lookup_in(cave), 4);
+  ASSERT_GE(full.rooms().size(), 3u);
+  const cave::RoomId missing = full.rooms()[2];
+  auto partial_lookup = [&](cave::RoomId id) -> std::optional<cave::Room> {
+    if (id == missing) return std::nullopt;
+    return lookup_in(cave)(id);
+  };
+  Flythrough partial = Flythrough::plan(cave.spawn, cave.spawn_room, partial_lookup, 6);
+  EXPECT_EQ(partial.waiting_for(), missing);
+  EXPECT_EQ(partial.rooms().size(), 2u);
+}
+
+TEST(Flythrough, poses_move_continuously_there_and_back) {
+  const test::Cave& cave = test::sector_zero();
+  Flythrough f = Flythrough::plan(cave.spawn, cave.spawn_room, lookup_in(cave), 4);
+  ASSERT_GT(f.length(), 10);
+  EXPECT_EQ(f.at(0).position, cave.spawn);
+  Vec3 last = f.at(0).position;
+  for (double s = 0.05; s < 2 * f.length(); s += 0.05) {
+    const PathPose pose = f.at(s);
+    EXPECT_LT(distance(pose.position, last), 0.051) << s;
+    EXPECT_NEAR(length(pose.forward), 1, 1e-9);
+    EXPECT_GT(dot(pose.forward, pose.position - last), -1e-9)
+        << "forward follows the travel at " << s << " of " << f.length();
+    last = pose.position;
+  }
+  EXPECT_LT(distance(f.at(2 * f.length()).position, cave.spawn), 1e-6);
+  const Vec3 end = f.waypoints().back();
+  EXPECT_LT(distance(f.at(f.length()).position, end), 1e-6);
+}
+
+}  // namespace
+}  // namespace grotto::play
