@@ -271,7 +271,7 @@ elif [[ -s "$work/metrics.txt" ]]; then
   # grotto-server's flags from its --help; other Grotto programs' flags from their sources
   # (CLI11 options) and deploy/nginx/render.sh's usage text; the few flags of other tools the
   # guide uses are listed here.
-  others=" --now --from-file --rm --test-dir --build --target "
+  others=" --now --from-file --rm --test-dir --build --target --offline "
   for flag in $(grep -o -- '--[a-z][a-z0-9-]*' "$guide" | sort -u); do
     grep -q -- "$flag[ ,=]" "$work/help.txt" && continue
     grep -rqF -- "\"$flag\"" "$src/client" "$src/bench" "$src/common" 2>/dev/null && continue
