@@ -3,8 +3,10 @@
 # what grotto-server does (probe paths, port, drain time, config keys, uid, cache paths, seed
 # hashing), both example config files start a real grotto-server (there is no check-only mode: it
 # starts on 127.0.0.1 with an ephemeral port and is stopped with SIGTERM), the probe paths and the
-# image's HEALTHCHECK command answer 200 from it, the systemd unit passes `systemd-analyze
-# verify`, and docs/OPERATING.md names only flags and metrics that exist.
+# image's HEALTHCHECK command answer 200 from it, the Dockerfile's build stage installs only
+# deploy/setup.sh's packages and its runtime stage every package grotto-server's shared libraries
+# come from (dpkg -S), the systemd unit passes `systemd-analyze verify`, and docs/OPERATING.md
+# names only flags and metrics that exist.
 # Not checked here: building the image (no container engine runs on these machines) and applying
 # the manifests to a cluster.
 #   manifests_test.sh SOURCE_DIR GROTTO_SERVER_BINARY
@@ -241,7 +243,31 @@ rc=$?
 [[ $rc -eq 2 ]] && grep -q "unknown setting 'workerz'" "$work/bad.err" ||
   fail "grotto-server accepted a config file with an unknown key (rc=$rc): $(cat "$work/bad.err")"
 
-# ---- 3. the systemd unit verifies, and stops after the drain ----
+# ---- 3. the Dockerfile's package lists ----
+# Its stages' apt-get lists: "build" (the first) and "runtime" (the second).
+stage_packages() {
+  awk -v want="$1" '/^FROM / {stage++}
+    /apt-get install/ {take = (want == "build" && stage == 1) || (want == "runtime" && stage == 2); next}
+    take && /rm -rf/ {take = 0}
+    take {for (i = 1; i <= NF; i++) if ($i != "\\" && $i != "&&") print $i}' "$src/deploy/Dockerfile"
+}
+# Build dependencies are the ones deploy/setup.sh installs for a build (no others).
+setup_list=$(bash "$src/deploy/setup.sh" --list)
+for p in $(stage_packages build); do
+  grep -qx "$p" <<<"$setup_list" || fail "deploy/Dockerfile builds with $p, which deploy/setup.sh does not list"
+done
+# Every shared library grotto-server loads comes from a runtime package (or from the base
+# image's libc6, libstdc++6, libgcc-s1), as dpkg on this Debian machine says.
+runtime=" $(stage_packages runtime | tr '\n' ' ') libc6 libstdc++6 libgcc-s1 "
+[[ "$runtime" == *" pocl-opencl-icd "* ]] || fail "deploy/Dockerfile's runtime stage lacks pocl-opencl-icd"
+for lib in $(ldd "$server" | awk '$3 ~ /^\// {print $3}'); do
+  owner=$(dpkg -S "$(realpath "$lib")" 2>/dev/null | head -n 1 | cut -d: -f1)
+  [[ -z "$owner" ]] && owner=$(dpkg -S "$lib" 2>/dev/null | head -n 1 | cut -d: -f1)
+  [[ -n "$owner" && "$runtime" == *" $owner "* ]] ||
+    fail "grotto-server loads $lib (package '${owner:-unknown}'), which the runtime stage does not install"
+done
+
+# ---- 4. the systemd unit verifies, and stops after the drain ----
 unit="$src/deploy/systemd/grotto-server.service"
 mkdir -p "$work/unit"
 # verify checks that ExecStart's program exists: point it at the binary under test.
@@ -258,7 +284,7 @@ unit_drain_ms=$("$python" -c 'import json,sys; print(json.load(open(sys.argv[1])
 grep -q "^ExecStart=.*--config /etc/grotto/grotto-server.json" "$unit" ||
   fail "the unit does not read /etc/grotto/grotto-server.json"
 
-# ---- 4. docs/OPERATING.md names only metrics and flags that exist ----
+# ---- 5. docs/OPERATING.md names only metrics and flags that exist ----
 guide="$src/docs/OPERATING.md"
 if [[ ! -f "$guide" ]]; then
   fail "docs/OPERATING.md missing"
