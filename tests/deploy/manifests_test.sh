@@ -240,8 +240,9 @@ done
 printf '{"workerz": 2}\n' >"$work/bad.json"
 "$server" --config "$work/bad.json" --port 0 >/dev/null 2>"$work/bad.err"
 rc=$?
-[[ $rc -eq 2 ]] && grep -q "unknown setting 'workerz'" "$work/bad.err" ||
+if [[ $rc -ne 2 ]] || ! grep -q "unknown setting 'workerz'" "$work/bad.err"; then
   fail "grotto-server accepted a config file with an unknown key (rc=$rc): $(cat "$work/bad.err")"
+fi
 
 # ---- 3. the Dockerfile's package lists ----
 # Its stages' apt-get lists: "build" (the first) and "runtime" (the second).
@@ -279,8 +280,9 @@ rc=$?
 stop_s=$(sed -n 's/^TimeoutStopSec=\([0-9]*\)$/\1/p' "$unit")
 unit_drain_ms=$("$python" -c 'import json,sys; print(json.load(open(sys.argv[1])).get("drain-timeout-ms", 5000))' \
   "$src/deploy/systemd/grotto-server.json")
-[[ -n "$stop_s" ]] && ((stop_s * 1000 > unit_drain_ms + 2000)) ||
+if [[ -z "$stop_s" ]] || ((stop_s * 1000 <= unit_drain_ms + 2000)); then
   fail "TimeoutStopSec=${stop_s:-unset} must exceed the drain (${unit_drain_ms} ms) + 2 s"
+fi
 grep -q "^ExecStart=.*--config /etc/grotto/grotto-server.json" "$unit" ||
   fail "the unit does not read /etc/grotto/grotto-server.json"
 
@@ -299,7 +301,7 @@ elif [[ -s "$work/metrics.txt" ]]; then
   # guide uses are listed here.
   others=" --now --from-file --rm --test-dir --build --target --offline "
   for flag in $(grep -o -- '--[a-z][a-z0-9-]*' "$guide" | sort -u); do
-    grep -q -- "$flag[ ,=]" "$work/help.txt" && continue
+    grep -q -- "${flag}[ ,=]" "$work/help.txt" && continue
     grep -rqF -- "\"$flag\"" "$src/client" "$src/bench" "$src/common" 2>/dev/null && continue
     grep -qE -- "^  $flag( |$)" "$src/deploy/nginx/render.sh" 2>/dev/null && continue
     [[ "$others" == *" $flag "* ]] && continue
