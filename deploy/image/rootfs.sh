@@ -6,7 +6,12 @@
 # readOnlyRootFilesystem would have it). Opt-in: it downloads Debian's packages (the root is
 # ~800 MB, PoCL's LLVM and clang most of it) and takes minutes, so CI does not run it; deploy/image/image_test.sh does once GROTTO_IMAGE_ROOT
 # names a root built here.
-#   deploy/image/rootfs.sh build ROOT SERVER_BINARY [MIRROR]   debootstrap ROOT (as root)
+#   deploy/image/rootfs.sh build ROOT SERVER_BINARY [MIRROR]   debootstrap ROOT (as root), add
+#                                                             the binary, user and directories
+#   deploy/image/rootfs.sh compile ROOT SOURCE_DIR OUTPUT      the build stage: its packages and
+#                                                             RUN commands on an overlay over
+#                                                             ROOT, SOURCE_DIR's HEAD as the
+#                                                             context; the binary to OUTPUT
 #   deploy/image/rootfs.sh smoke ROOT                        start it, wait for the image's
 #                                                             HEALTHCHECK, GET /readyz, /metrics
 #                                                             and /version, SIGTERM it: exit 0
@@ -24,12 +29,21 @@ die() {
   exit 1
 }
 
-# The runtime stage's apt-get install list.
-runtime_packages() {
-  awk '/^FROM debian:bookworm-slim/ {stage = 1}
-       stage && /apt-get install/ {take = 1; next}
-       take && /rm -rf/ {exit}
-       take {for (i = 1; i <= NF; i++) if ($i != "\\") print $i}' "$dockerfile"
+# A stage's apt-get install list: stage 1 is the build stage, 2 the runtime stage.
+stage_packages() {
+  awk -v want="$1" '/^FROM / {stage++}
+    /apt-get install/ {take = stage == want; next}
+    take && /rm -rf/ {take = 0}
+    take {for (i = 1; i <= NF; i++) if ($i != "\\") print $i}' "$dockerfile"
+}
+
+# The build stage's RUN commands after `COPY . .`, continuation lines joined, one per line.
+build_commands() {
+  awk '/^FROM / {stage++}
+    stage == 1 && /^COPY \. \./ {copied = 1; next}
+    copied && stage == 1 && /^RUN / {cmd = ""; run = 1; sub(/^RUN /, "")}
+    run {line = $0; more = sub(/\\$/, "", line); cmd = cmd line; if (!more) {print cmd; run = 0}}' \
+    "$dockerfile"
 }
 
 # The image's entrypoint flags (after the binary).
@@ -38,19 +52,25 @@ entrypoint_flags() {
     tr -d '",'
 }
 
-build() {
-  local root=$1 binary=$2 mirror=${3:-http://deb.debian.org/debian}
-  [[ -x "$binary" ]] || die "no grotto-server binary at $binary"
+# Debian 12 minbase in ROOT with the runtime stage's packages, unless ROOT already holds one.
+bootstrap() {
+  local root=$1 mirror=${2:-http://deb.debian.org/debian}
+  [[ -x "$root/usr/bin/apt-get" ]] && return 0
   command -v debootstrap >/dev/null || die "debootstrap is missing (apt-get install debootstrap)"
   local packages
-  packages=$(runtime_packages | paste -sd, -)
+  packages=$(stage_packages 2 | paste -sd, -)
   [[ -n "$packages" ]] || die "found no runtime packages in $dockerfile"
-  if [[ ! -x "$root/usr/bin/apt-get" ]]; then
-    echo "rootfs: debootstrap bookworm into $root with $packages"
-    debootstrap --variant=minbase --include="$packages" bookworm "$root" "$mirror" >"$root.log" 2>&1 ||
-      die "debootstrap failed (log: $root.log)"
-  fi
+  echo "rootfs: debootstrap bookworm into $root with $packages"
+  debootstrap --variant=minbase --include="$packages" bookworm "$root" "$mirror" >"$root.log" 2>&1 ||
+    die "debootstrap failed (log: $root.log)"
   rm -rf "$root"/var/cache/apt/archives/*.deb
+}
+
+# The runtime stage: its user and directories, and BINARY as /usr/local/bin/grotto-server.
+build() {
+  local root=$1 binary=$2
+  [[ -x "$binary" ]] || die "no grotto-server binary at $binary"
+  bootstrap "$root" "${3:-}"
   chroot "$root" sh -c "getent passwd $uid >/dev/null ||
     { groupadd --gid $uid grotto &&
       useradd --uid $uid --gid grotto --home-dir $cache --no-create-home \
@@ -62,6 +82,50 @@ build() {
   missing=$(chroot "$root" ldd /usr/local/bin/grotto-server | grep 'not found' || true)
   [[ -z "$missing" ]] || die "libraries missing from the runtime packages: $missing"
   echo "rootfs: $root ready ($(du -sh "$root" | cut -f1))"
+}
+
+# The build stage: on a throw-away overlay over ROOT, the build stage's packages, the committed
+# sources of SRC as the build context (git archive: no build trees, no .git), the stage's RUN
+# commands; the binary is copied to OUT. ROOT itself is left as it was.
+compile() {
+  local root=$1 src=$2 out=$3
+  bootstrap "$root" "${4:-}"
+  command -v git >/dev/null || die "git is missing"
+  local scratch
+  scratch=$(mktemp -d)
+  mkdir -p "$scratch/upper" "$scratch/work" "$scratch/merged"
+  git -C "$src" archive --prefix=src/ HEAD | tar -x -C "$scratch/upper" ||
+    die "cannot archive the sources of $src"
+  unshare --mount bash "$here/rootfs.sh" compile-inside "$(realpath "$root")" "$scratch" "$out"
+  local rc=$?
+  rm -rf "$scratch"
+  return $rc
+}
+
+compile_inside() {
+  local root=$1 scratch=$2 out=$3 merged=$2/merged
+  mount --make-rprivate /
+  mount -t overlay overlay -o "lowerdir=$root,upperdir=$scratch/upper,workdir=$scratch/work" "$merged"
+  mount -t proc proc "$merged/proc"
+  mount --rbind /dev "$merged/dev"
+  cp /etc/resolv.conf "$merged/etc/resolv.conf"
+  local packages started=$SECONDS
+  packages=$(stage_packages 1 | tr '\n' ' ')
+  chroot "$merged" sh -c "apt-get update -qq && DEBIAN_FRONTEND=noninteractive \
+    apt-get install -y -qq --no-install-recommends $packages >/dev/null" ||
+    die "apt-get install of the build stage's packages failed"
+  echo "rootfs: build stage packages installed in $((SECONDS - started)) s"
+  started=$SECONDS
+  local command
+  while IFS= read -r command; do
+    echo "rootfs: RUN $command"
+    # WORKDIR /src, as in the Dockerfile.
+    chroot "$merged" nice -n 10 sh -c "cd /src && $command" >"$scratch/build.log" 2>&1 ||
+      die "the build stage's RUN failed (last lines below)
+$(tail -n 30 "$scratch/build.log")"
+  done < <(build_commands)
+  echo "rootfs: built in $((SECONDS - started)) s"
+  install -m 0755 "$merged/build/bin/grotto-server" "$out"
 }
 
 # Re-runs this script as `inside ROOT ACTION ...` in fresh mount, PID and network namespaces.
@@ -135,11 +199,13 @@ smoke_inside() {
 [[ $(id -u) -eq 0 ]] || die "needs root (debootstrap, chroot and mounts)"
 case "${1:-}" in
   build) build "${2:?ROOT}" "${3:?SERVER_BINARY}" "${4:-}" ;;
+  compile) compile "${2:?ROOT}" "${3:?SOURCE_DIR}" "${4:?OUTPUT}" "${5:-}" ;;
+  compile-inside) compile_inside "$2" "$3" "$4" ;;
   smoke | run) in_namespaces "${2:?ROOT}" "$1" "${@:3}" ;;
   inside)
     root=$(realpath "$2")
     mount_root "$root"
     if [[ $3 == smoke ]]; then smoke_inside "$root"; else start_server "$root" "${@:4}"; fi
     ;;
-  *) die "usage: rootfs.sh build ROOT SERVER_BINARY [MIRROR] | smoke ROOT | run ROOT [FLAGS...]" ;;
+  *) die "usage: rootfs.sh build ROOT SERVER_BINARY [MIRROR] | compile ROOT SOURCE_DIR OUTPUT [MIRROR] | smoke ROOT | run ROOT [FLAGS...]" ;;
 esac
