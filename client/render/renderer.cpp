@@ -5,6 +5,7 @@
 #include <cmath>
 #include <glm/gtc/matrix_transform.hpp>
 #include <glm/gtc/type_ptr.hpp>
+#include <map>
 #include <vector>
 
 #include "client/render/shaders.hpp"
@@ -73,7 +74,151 @@ bool sphere_outside(const std::array<glm::vec4, 6>& planes, glm::vec3 c, float r
   return false;
 }
 
+// An axis-aligned rectangle in normalized device coordinates.
+struct ScreenRect {
+  float x0 = -1, y0 = -1, x1 = 1, y1 = 1;  // brace-init: the whole screen
+  bool empty() const { return !(x0 < x1 && y0 < y1); }
+  bool contains(const ScreenRect& r) const {
+    return x0 <= r.x0 && y0 <= r.y0 && r.x1 <= x1 && r.y1 <= y1;
+  }
+};
+
+ScreenRect intersect(const ScreenRect& a, const ScreenRect& b) {
+  return {std::max(a.x0, b.x0), std::max(a.y0, b.y0), std::min(a.x1, b.x1), std::min(a.y1, b.y1)};
+}
+
+ScreenRect unite(const ScreenRect& a, const ScreenRect& b) {
+  return {std::min(a.x0, b.x0), std::min(a.y0, b.y0), std::max(a.x1, b.x1), std::max(a.y1, b.y1)};
+}
+
+// What the camera can see of a portal's opening.
+struct PortalView {
+  enum Kind { kHidden, kRect, kNearPlane } kind = kHidden;
+  ScreenRect rect;  // kRect: contains the opening's projection
+};
+
+// The opening of `portal` (what shows the neighbour) lies within a slab around the portal's disc:
+// the rim loop stays inside the disc grown like the caps, and PN bulges and displacement of the
+// patches next to it move the surface by less than `margin` (the same bound as room culling).
+// Bounded by a circumscribed octagon of that disc at ±margin along the normal: 16 points whose
+// convex hull holds the opening. Hidden when every point is outside one clip plane; kNearPlane when
+// a point is not in front of the near plane (the projection of the hull is then no rectangle, so
+// the portal passes with its parent's rectangle).
+PortalView view_portal(const cave::Portal& portal, Vec3 anchor, const glm::mat4& view_proj,
+                       float near_plane, float margin) {
+  constexpr int kSides = 8;
+  const Vec3 n = normalized(portal.normal);
+  const Vec3 helper = std::abs(n.y) < 0.9 ? Vec3{0, 1, 0} : Vec3{1, 0, 0};
+  const Vec3 t = normalized(cross(n, helper));
+  const Vec3 b = cross(n, t);
+  const double r = (portal.radius * kCapScale + margin) / std::cos(kPi / kSides);
+  std::array<glm::vec4, 2 * kSides> clip;
+  for (int k = 0; k < kSides; ++k) {
+    const double a = 2 * kPi * (k + 0.5) / kSides;
+    const Vec3 rim = portal.centre - anchor + t * (r * std::cos(a)) + b * (r * std::sin(a));
+    for (int side = 0; side < 2; ++side) {
+      const Vec3 p = rim + n * (side == 0 ? -margin : margin);
+      clip[2 * k + side] = view_proj * glm::vec4(to_vec3(p), 1.0f);
+    }
+  }
+  // Outside one of the six clip planes (-w <= x, y, z <= w) with every point: hidden.
+  for (int axis = 0; axis < 3; ++axis) {
+    for (float sign : {-1.0f, 1.0f}) {
+      if (std::all_of(clip.begin(), clip.end(),
+                      [&](const glm::vec4& c) { return sign * c[axis] > c.w; }))
+        return {};
+    }
+  }
+  PortalView out;
+  if (std::any_of(clip.begin(), clip.end(),
+                  [&](const glm::vec4& c) { return c.w <= near_plane; })) {
+    out.kind = PortalView::kNearPlane;
+    return out;
+  }
+  out.kind = PortalView::kRect;
+  out.rect = {1, 1, -1, -1};
+  for (const glm::vec4& c : clip) {
+    out.rect.x0 = std::min(out.rect.x0, c.x / c.w);
+    out.rect.x1 = std::max(out.rect.x1, c.x / c.w);
+    out.rect.y0 = std::min(out.rect.y0, c.y / c.w);
+    out.rect.y1 = std::max(out.rect.y1, c.y / c.w);
+  }
+  return out;
+}
+
+// The rooms the camera is in: inside the room's sphere and not beyond any of its portal planes,
+// both with `tolerance`. A camera standing in a portal is in both rooms.
+std::vector<cave::RoomId> rooms_holding(const GpuRoomCache& cache, Vec3 camera, double tolerance) {
+  std::vector<cave::RoomId> out;
+  for (const auto& [id, room] : cache.rooms()) {
+    const cave::Sphere& s = room.room.sphere;
+    const double reach = s.radius + client::vertex_sphere_margin(s.radius) + tolerance;
+    const Vec3 d = camera - s.centre;
+    if (d.x * d.x + d.y * d.y + d.z * d.z > reach * reach) continue;
+    const bool inside =
+        std::all_of(room.room.portals.begin(), room.room.portals.end(), [&](const cave::Portal& p) {
+          const Vec3 q = camera - p.centre;
+          return q.x * p.normal.x + q.y * p.normal.y + q.z * p.normal.z <= tolerance;
+        });
+    if (inside) out.push_back(id);
+  }
+  return out;
+}
+
+// Portal rendering (thesis §3.3.4): from the rooms holding the camera, through every portal whose
+// opening overlaps the clip rectangle the room was reached with, narrowing the rectangle to the
+// portal's. A room reached along several paths keeps the union of their rectangles and is expanded
+// again when it grows. Empty when the camera is in no loaded room.
+std::map<cave::RoomId, ScreenRect> reach_through_portals(const GpuRoomCache& cache, Vec3 camera,
+                                                         Vec3 anchor, const glm::mat4& view_proj,
+                                                         float near_plane, float margin,
+                                                         FrameStats& stats) {
+  // A camera this close to a portal plane stands in the portal: both rooms are its rooms.
+  constexpr double kLocateTolerance = 0.25;
+  std::map<cave::RoomId, ScreenRect> reached;
+  std::vector<cave::RoomId> work;
+  for (cave::RoomId id : rooms_holding(cache, camera, kLocateTolerance)) {
+    reached[id] = ScreenRect{};
+    work.push_back(id);
+  }
+  // Rectangles only grow, so this ends; the bound is a guard against float creep.
+  size_t budget = 16 * cache.size() + 64;
+  while (!work.empty()) {
+    if (budget-- == 0) return {};  // give up: the caller draws everything
+    const cave::RoomId id = work.back();
+    work.pop_back();
+    const ScreenRect rect = reached.at(id);
+    for (const cave::Portal& portal : cache.rooms().at(id).room.portals) {
+      if (!cache.contains(portal.neighbour)) continue;  // a fog cap, not a room
+      ++stats.portals_tested;
+      const PortalView seen = view_portal(portal, anchor, view_proj, near_plane, margin);
+      if (seen.kind == PortalView::kHidden) continue;
+      const ScreenRect clip = seen.kind == PortalView::kRect ? intersect(rect, seen.rect) : rect;
+      if (clip.empty()) continue;
+      auto [it, fresh] = reached.try_emplace(portal.neighbour, clip);
+      if (!fresh) {
+        if (it->second.contains(clip)) continue;
+        it->second = unite(it->second, clip);
+      }
+      work.push_back(portal.neighbour);
+    }
+  }
+  return reached;
+}
+
 }  // namespace
+
+const char* lod_heuristic_name(LodHeuristic lod) {
+  switch (lod) {
+    case LodHeuristic::kDistance:
+      return "distance";
+    case LodHeuristic::kScreenSpace:
+      return "screen-space";
+    case LodHeuristic::kSilhouette:
+      return "silhouette";
+  }
+  return "?";
+}
 
 Vec3 camera_forward(const Camera& c) {
   double pitch = std::clamp(c.pitch, -kMaxPitch, kMaxPitch);
@@ -94,11 +239,13 @@ Result<Renderer> Renderer::create() {
   if (!cap.ok()) return cap.error();
   r.cap_ = std::move(cap).value();
   const Program& p = r.room_;
-  r.u_ = {p.uniform("u_room_offset"), p.uniform("u_camera"),      p.uniform("u_max_tess"),
-          p.uniform("u_max_dist"),    p.uniform("u_view_proj"),   p.uniform("u_anchor"),
-          p.uniform("u_surface"),     p.uniform("u_phong_alpha"), p.uniform("u_displacement"),
-          p.uniform("u_noise_scale"), p.uniform("u_fog_color"),   p.uniform("u_fog_start"),
-          p.uniform("u_fog_end"),     p.uniform("u_lamp_range")};
+  r.u_ = {p.uniform("u_room_offset"), p.uniform("u_camera"),        p.uniform("u_max_tess"),
+          p.uniform("u_max_dist"),    p.uniform("u_view_proj"),     p.uniform("u_anchor"),
+          p.uniform("u_surface"),     p.uniform("u_phong_alpha"),   p.uniform("u_displacement"),
+          p.uniform("u_noise_scale"), p.uniform("u_fog_color"),     p.uniform("u_fog_start"),
+          p.uniform("u_fog_end"),     p.uniform("u_lamp_range"),    p.uniform("u_lod"),
+          p.uniform("u_pixel_scale"), p.uniform("u_target_pixels"), p.uniform("u_patch_culling"),
+          p.uniform("u_frustum")};
   r.cap_view_proj_ = r.cap_.uniform("u_view_proj");
   r.cap_fog_color_ = r.cap_.uniform("u_fog_color");
   r.cap_vertex_array_ = make_vertex_array();
@@ -145,18 +292,45 @@ FrameStats Renderer::draw(const GpuRoomCache& cache, const Camera& camera, int w
   glUniform1f(u_.fog_start, o.fog_start);
   glUniform1f(u_.fog_end, o.fog_end);
   glUniform1f(u_.lamp_range, o.lamp_range);
+  glUniform1i(u_.lod, static_cast<int>(o.lod));
+  glUniform1f(u_.pixel_scale,
+              static_cast<float>(height) / (2.0f * std::tan(static_cast<float>(camera.fov_y) / 2)));
+  glUniform1f(u_.target_pixels, std::max(o.target_pixels, 0.5f));
+  glUniform1i(u_.patch_culling, o.patch_culling ? 1 : 0);
+  auto planes = frustum_planes(view_proj);
+  std::array<glm::vec4, 6> unit_planes;
+  for (size_t k = 0; k < planes.size(); ++k)
+    unit_planes[k] = planes[k] / glm::length(glm::vec3(planes[k]));
+  glUniform4fv(u_.frustum, 6, glm::value_ptr(unit_planes[0]));
   glPatchParameteri(GL_PATCH_VERTICES, 3);
 
   // Rooms whose sphere is outside the frustum are skipped. Every vertex of a room lies in its
   // sphere up to vertex_sphere_margin (client/stream/verify.hpp checks it on arrival); PN bulges
   // and displacement push surface points out by less than `margin` more.
-  const auto planes = frustum_planes(view_proj);
   const float margin = (o.tessellation ? std::abs(o.displacement) : 0.0f) + 0.5f;
+  std::map<cave::RoomId, ScreenRect> reached;
+  if (o.portal_culling) {
+    reached = reach_through_portals(cache, camera.position, anchor, view_proj, o.near_plane, margin,
+                                    stats);
+    stats.camera_located = !reached.empty();
+  }
   std::vector<float> caps;
   for (const auto& [id, room] : cache.rooms()) {
+    const ScreenRect* rect = nullptr;
+    if (stats.camera_located) {
+      auto it = reached.find(id);
+      if (it == reached.end()) continue;
+      rect = &it->second;
+    }
+    ++stats.rooms_reached;
     if (o.fog_caps) {
       for (const cave::Portal& portal : room.room.portals) {
         if (cache.contains(portal.neighbour)) continue;
+        if (rect != nullptr) {
+          const PortalView seen = view_portal(portal, anchor, view_proj, o.near_plane, margin);
+          if (seen.kind == PortalView::kHidden) continue;
+          if (seen.kind == PortalView::kRect && intersect(*rect, seen.rect).empty()) continue;
+        }
         append_cap(portal, anchor, caps);
         ++stats.caps;
       }

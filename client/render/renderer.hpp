@@ -1,5 +1,6 @@
-// The cave renderer: every room in a GpuRoomCache drawn as GL_PATCHES of 3 control points through
-// shaders/room.{vert,tesc,tese,frag} (per-edge distance LOD, PN triangles or Phong tessellation,
+// The cave renderer: the rooms of a GpuRoomCache that the camera can see through portals (thesis
+// §3.3.4) drawn as GL_PATCHES of 3 control points through shaders/room.{vert,tesc,tese,frag}
+// (per-edge LOD by one of three heuristics, patch culling, PN triangles or Phong tessellation,
 // displacement, triplanar materials, a lamp at the player, fog), plus fog caps over portals whose
 // room is not loaded. Needs a GL 4.1 core context current for its whole life.
 #pragma once
@@ -25,6 +26,15 @@ Vec3 camera_forward(const Camera& camera);
 
 enum class Surface { kFlat = 0, kPnTriangles = 1, kPhong = 2 };
 
+// How the TCS picks an edge's tessellation level. Every heuristic reads only the edge's two
+// endpoints, symmetrically, so the two patches sharing an edge agree (no cracks).
+enum class LodHeuristic {
+  kDistance = 0,     // thesis §5.2.1: MaxTess * cos(D / MaxDist * pi/2), D to the edge's midpoint
+  kScreenSpace = 1,  // the edge's projected length over RenderOptions::target_pixels
+  kSilhouette = 2,   // Dyken et al.: half the distance level, the full level on silhouette edges
+};
+const char* lod_heuristic_name(LodHeuristic lod);
+
 // Brace-init gives the defaults grotto-client uses.
 struct RenderOptions {
   bool tessellation = true;  // false: flat triangles, no displacement
@@ -36,8 +46,15 @@ struct RenderOptions {
   float noise_scale = 0.7f;    // 1/metres
   bool wireframe = false;
   bool fog_caps = true;  // discs over portals to rooms not loaded
-  float fog_start = 18;  // metres
-  float fog_end = 40;    // fully fogged here; must be below far_plane
+  // Draw only rooms seen through portals from the camera's room (thesis §3.3.4); every room
+  // (frustum-culled) when off or when the camera is in no loaded room.
+  bool portal_culling = true;
+  // The TCS discards patches provably outside the frustum or facing away from the camera.
+  bool patch_culling = true;
+  LodHeuristic lod = LodHeuristic::kDistance;
+  float target_pixels = 6;  // kScreenSpace: pixels per tessellated segment
+  float fog_start = 18;     // metres
+  float fog_end = 40;       // fully fogged here; must be below far_plane
   float near_plane = 0.05f;
   float far_plane = 60;
   float lamp_range = 14;
@@ -46,10 +63,13 @@ struct RenderOptions {
 };
 
 struct FrameStats {
+  int rooms_reached = 0;  // through portals (every loaded room without portal culling)
   int rooms_drawn = 0;
-  int rooms_culled = 0;  // outside the view frustum
-  size_t patches = 0;    // triangles submitted as patches
-  int caps = 0;          // fog caps drawn
+  int rooms_culled = 0;         // reached but outside the view frustum
+  int portals_tested = 0;       // portal rectangles tested against a clip rectangle
+  bool camera_located = false;  // the camera is in a loaded room (portal culling applies)
+  size_t patches = 0;           // triangles submitted as patches
+  int caps = 0;                 // fog caps drawn
 };
 
 // A power-of-two grid point near the camera: room offsets from it are exact in float32.
@@ -70,7 +90,8 @@ class Renderer {
   Buffer cap_vertices_;
   struct RoomUniforms {
     GLint room_offset, camera, max_tess, max_dist, view_proj, anchor, surface, phong_alpha,
-        displacement, noise_scale, fog_color, fog_start, fog_end, lamp_range;
+        displacement, noise_scale, fog_color, fog_start, fog_end, lamp_range, lod, pixel_scale,
+        target_pixels, patch_culling, frustum;
   } u_{};
   GLint cap_view_proj_ = -1;
   GLint cap_fog_color_ = -1;

@@ -138,10 +138,20 @@ class Scene {
   bool ok() const { return renderer_ && framebuffer_; }
   const GpuRoomCache& cache() const { return cache_; }
 
-  Image draw(const Camera& camera, const RenderOptions& options) {
+  // Draws one frame; `stats` gets the renderer's counts, `primitives` the triangles the
+  // tessellator emitted (GL_PRIMITIVES_GENERATED).
+  Image draw(const Camera& camera, const RenderOptions& options, FrameStats* stats = nullptr,
+             GLuint* primitives = nullptr) {
     framebuffer_->bind();
-    renderer_->draw(cache_, camera, kWidth, kHeight, options);
+    GLuint query = 0;
+    glGenQueries(1, &query);
+    glBeginQuery(GL_PRIMITIVES_GENERATED, query);
+    FrameStats s = renderer_->draw(cache_, camera, kWidth, kHeight, options);
+    glEndQuery(GL_PRIMITIVES_GENERATED);
     glFinish();
+    if (stats != nullptr) *stats = s;
+    if (primitives != nullptr) glGetQueryObjectuiv(query, GL_QUERY_RESULT, primitives);
+    glDeleteQueries(1, &query);
     Image out{framebuffer_->read_rgb()};
     glBindFramebuffer(GL_FRAMEBUFFER, 0);
     return out;
@@ -167,6 +177,40 @@ Camera camera_in(const client::ReadyRoom& room, double yaw_deg, double pitch_deg
   c.yaw = yaw_deg * kPi / 180;
   c.pitch = pitch_deg * kPi / 180;
   return c;
+}
+
+// Pose i of n: the interior rooms' centres in turn, yaw by the golden angle, pitch sweeping floor
+// to ceiling, so every direction gets looked at.
+Camera pose(int i, int n) {
+  const auto rooms = interior_rooms();
+  const client::ReadyRoom& room = *rooms[static_cast<size_t>(i) % rooms.size()];
+  const double yaw = std::fmod(i * 137.50776, 360.0);
+  const double pitch = n > 1 ? -70.0 + 140.0 * ((i * 7) % n) / (n - 1) : 0.0;
+  return camera_in(room, yaw, pitch);
+}
+
+// How many of n poses show magenta (the clear colour) anywhere; each is reported.
+int cracked_poses(Scene& scene, RenderOptions options, int n) {
+  options.clear_color = {1.0f, 0.0f, 1.0f};
+  int cracked = 0;
+  for (int i = 0; i < n; ++i) {
+    const Camera camera = pose(i, n);
+    const int magenta = scene.draw(camera, options).count(255, 0, 255);
+    if (magenta > 0) {
+      ++cracked;
+      ADD_FAILURE() << magenta << " magenta pixels at pose " << i << " yaw=" << camera.yaw
+                    << " pitch=" << camera.pitch << " (" << lod_heuristic_name(options.lod)
+                    << (options.surface == Surface::kPhong ? ", Phong)" : ", PN)");
+    }
+  }
+  return cracked;
+}
+
+int differing_pixels(const Image& a, const Image& b) {
+  int n = 0;
+  for (size_t i = 0; i + 2 < a.rgb.size() && i + 2 < b.rgb.size(); i += 3)
+    n += a.rgb[i] != b.rgb[i] || a.rgb[i + 1] != b.rgb[i + 1] || a.rgb[i + 2] != b.rgb[i + 2];
+  return n;
 }
 
 TEST(RoomVertices, carry_every_channel_and_mark_rims) {
@@ -220,11 +264,7 @@ TEST(Renderer, screenshots_are_lit_not_blank_and_change_with_tessellation) {
                           static_cast<unsigned char>(std::lround(on.fog_color.g * 255)),
                           static_cast<unsigned char>(std::lround(on.fog_color.b * 255)));
   EXPECT_LT(fog, kWidth * kHeight / 2) << "mostly fog: the camera sees no rock";
-  int differing = 0;
-  for (size_t i = 0; i < a.rgb.size(); i += 3)
-    differing +=
-        a.rgb[i] != b.rgb[i] || a.rgb[i + 1] != b.rgb[i + 1] || a.rgb[i + 2] != b.rgb[i + 2];
-  EXPECT_GT(differing, kWidth * kHeight / 20) << "tessellation on and off look alike";
+  EXPECT_GT(differing_pixels(a, b), kWidth * kHeight / 20) << "tessellation on and off look alike";
 }
 
 // The watertight-tessellation seed: clear to magenta, a colour the cave never has (its materials
@@ -248,24 +288,107 @@ TEST(Renderer, tessellated_displaced_rooms_have_no_cracks) {
     RenderOptions options;
     options.max_tess = 8;
     options.surface = surface;
-    options.clear_color = {1.0f, 0.0f, 1.0f};
-    int cracked_poses = 0;
+    EXPECT_EQ(cracked_poses(scene, options, kPoses), 0);
+  }
+}
+
+// The other LOD heuristics are as symmetric per edge as the distance one: 20 poses each (PN, the
+// default surface, whose edge control points depend on the normals too). Checked to fail with an
+// asymmetric variant (the screen-space level from the first endpoint's distance instead of the
+// midpoint's; the silhouette test on one endpoint's normal only).
+TEST(Renderer, every_lod_heuristic_is_crack_free) {
+  REQUIRE_GL();
+  Scene scene;
+  ASSERT_TRUE(scene.ok());
+#if defined(__SANITIZE_ADDRESS__)
+  constexpr int kPoses = 5;
+#else
+  constexpr int kPoses = 20;
+#endif
+  for (LodHeuristic lod : {LodHeuristic::kScreenSpace, LodHeuristic::kSilhouette}) {
+    RenderOptions options;
+    options.max_tess = 8;
+    options.lod = lod;
+    options.target_pixels = 4;  // levels from 1 to 8 at 320x240
+    EXPECT_EQ(cracked_poses(scene, options, kPoses), 0) << lod_heuristic_name(lod);
+  }
+}
+
+// Portal rendering (thesis §3.3.4) never drops a visible room: the same pixels as drawing every
+// loaded room, while drawing fewer rooms. Checked to fail when the clip rectangles are shrunk.
+TEST(Renderer, portal_culling_draws_fewer_rooms_and_the_same_pixels) {
+  REQUIRE_GL();
+  Scene scene;
+  ASSERT_TRUE(scene.ok());
+  constexpr int kPoses = 20;
+  RenderOptions on;
+  on.max_tess = 8;
+  RenderOptions off = on;
+  off.portal_culling = false;
+  int drawn_on = 0, drawn_off = 0, located = 0, fewer = 0;
+  for (int i = 0; i < kPoses; ++i) {
+    const Camera camera = pose(i, kPoses);
+    FrameStats a, b;
+    const Image with = scene.draw(camera, on, &a);
+    const Image without = scene.draw(camera, off, &b);
+    EXPECT_EQ(differing_pixels(with, without), 0) << "pose " << i;
+    located += a.camera_located;
+    drawn_on += a.rooms_drawn;
+    drawn_off += b.rooms_drawn;
+    fewer += a.rooms_drawn < b.rooms_drawn;
+    EXPECT_LE(a.rooms_reached, static_cast<int>(scene.cache().size()));
+    EXPECT_EQ(b.rooms_reached, static_cast<int>(scene.cache().size()));
+    EXPECT_EQ(b.portals_tested, 0);
+  }
+  EXPECT_EQ(located, kPoses) << "every pose is at a room's centre";
+  EXPECT_GT(fewer, kPoses / 2);
+  EXPECT_LT(drawn_on, drawn_off);
+  std::printf("portal culling: %d rooms drawn over %d poses (%d without)\n", drawn_on, kPoses,
+              drawn_off);
+}
+
+// A camera in no loaded room (here in the rock far outside the sector) sees every loaded room
+// that is in the frustum: portal culling falls back to drawing all.
+TEST(Renderer, portal_culling_outside_every_room_draws_everything) {
+  REQUIRE_GL();
+  Scene scene;
+  ASSERT_TRUE(scene.ok());
+  Camera camera;
+  camera.position = {48, 300, 48};
+  camera.pitch = -1.5;
+  FrameStats stats;
+  scene.draw(camera, RenderOptions{}, &stats);
+  EXPECT_FALSE(stats.camera_located);
+  EXPECT_EQ(stats.rooms_reached, static_cast<int>(scene.cache().size()));
+  EXPECT_EQ(stats.rooms_drawn + stats.rooms_culled, stats.rooms_reached);
+}
+
+// Patch culling in the TCS discards patches (fewer triangles out of the tessellator) and never a
+// visible one: the same pixels as without it, for both surfaces. Checked to fail without the
+// margins.
+TEST(Renderer, patch_culling_discards_patches_and_keeps_the_pixels) {
+  REQUIRE_GL();
+  Scene scene;
+  ASSERT_TRUE(scene.ok());
+  constexpr int kPoses = 20;
+  for (Surface surface : {Surface::kPnTriangles, Surface::kPhong}) {
+    RenderOptions on;
+    on.max_tess = 8;
+    on.surface = surface;
+    RenderOptions off = on;
+    off.patch_culling = false;
+    GLuint total_on = 0, total_off = 0;
     for (int i = 0; i < kPoses; ++i) {
-      const client::ReadyRoom& room = *rooms[static_cast<size_t>(i) % rooms.size()];
-      // Yaw by the golden angle, pitch sweeping floor to ceiling, so every direction gets looked
-      // at.
-      const double yaw = std::fmod(i * 137.50776, 360.0);
-      const double pitch = -70.0 + 140.0 * ((i * 7) % kPoses) / (kPoses - 1);
-      Image image = scene.draw(camera_in(room, yaw, pitch), options);
-      const int magenta = image.count(255, 0, 255);
-      if (magenta > 0) {
-        ++cracked_poses;
-        ADD_FAILURE() << magenta << " magenta pixels from room " << room.room.id.to_string()
-                      << " yaw=" << yaw << " pitch=" << pitch
-                      << (options.surface == Surface::kPhong ? " (Phong)" : " (PN)");
-      }
+      const Camera camera = pose(i, kPoses);
+      GLuint primitives_on = 0, primitives_off = 0;
+      const Image with = scene.draw(camera, on, nullptr, &primitives_on);
+      const Image without = scene.draw(camera, off, nullptr, &primitives_off);
+      EXPECT_EQ(differing_pixels(with, without), 0) << "pose " << i;
+      total_on += primitives_on;
+      total_off += primitives_off;
     }
-    EXPECT_EQ(cracked_poses, 0);
+    EXPECT_LT(total_on, total_off * 3 / 4) << "patch culling discards little";
+    std::printf("patch culling: %u triangles tessellated (%u without)\n", total_on, total_off);
   }
 }
 
