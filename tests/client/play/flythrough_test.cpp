@@ -6,7 +6,9 @@
 #include <set>
 
 #include "cave.hpp"
+#include "client/play/collision.hpp"
 #include "client/play/flythrough.hpp"
+#include "client/play/player.hpp"
 
 namespace grotto::play {
 namespace {
@@ -70,6 +72,24 @@ TEST(Flythrough, poses_move_continuously_there_and_back) {
   EXPECT_LT(distance(f.at(2 * f.length()).position, cave.spawn), 1e-6);
   const Vec3 end = f.waypoints().back();
   EXPECT_LT(distance(f.at(f.length()).position, end), 1e-6);
+}
+
+TEST(Flythrough, keeps_clear_of_the_walls) {
+  // Portal centres and room interior points: the path stays in open cave, at least the player's
+  // radius from every patch triangle (sector (0,0,0) of seed 7: 1.0 m at the closest).
+  const test::Cave& cave = test::sector_zero();
+  CollisionWorld world;
+  for (const auto& [id, room] : cave.rooms)
+    world.add(room);
+  Flythrough f = Flythrough::plan(cave.spawn, cave.spawn_room, lookup_in(cave), 6);
+  ASSERT_GT(f.length(), 10);
+  Neighbourhood near;
+  for (double s = 0; s <= f.length(); s += 0.25) {
+    const Vec3 p = f.at(s).position, reach{3, 3, 3};
+    world.gather(p - reach, p + reach, near);
+    for (const Triangle& t : near.triangles)
+      ASSERT_GE(distance(closest_point(t, p), p), PlayerParams{}.radius) << s;
+  }
 }
 
 }  // namespace

@@ -3,6 +3,8 @@
 // render tests; the screenshot test skips where the display gives no GL 4.1 context.
 #include <gtest/gtest.h>
 
+#include <nlohmann/json.hpp>
+
 #include <array>
 #include <cstdio>
 #include <cstdlib>
@@ -110,6 +112,85 @@ TEST(GrottoClient, screenshot_writes_a_picture_of_the_spawn_room) {
   for (size_t i = 3; i < rgb.size(); i += 3)
     differing += rgb[i] != rgb[0] || rgb[i + 1] != rgb[1];
   EXPECT_GT(differing, 320 * 240 / 4) << "the screenshot is nearly one colour";
+  std::filesystem::remove(path);
+}
+
+// The player and the scripted path (client/play): flags, --bench's statistics and JSON, and a
+// screenshot along the flythrough. Small frames and tess 4: llvmpipe is slow.
+TEST(GrottoClient, help_describes_the_player_and_bench_options) {
+  Outcome r = run(std::string(GROTTO_CLIENT_BIN) + " --help");
+  EXPECT_EQ(r.status, 0) << r.output;
+  for (const char* option : {"--mode", "--flythrough", "--bench", "--json", "--speed",
+                             "G: walk/fly", "N: noclip", "Space: jump"})
+    EXPECT_NE(r.output.find(option), std::string::npos) << option;
+}
+
+TEST(GrottoClient, an_invalid_mode_or_bench_time_is_refused_naming_the_flag) {
+  const std::string bin = GROTTO_CLIENT_BIN;
+  Outcome mode = run(bin + " --mode run");
+  EXPECT_EQ(mode.status, 2);
+  EXPECT_EQ(mode.output, "grotto-client: --mode must be walk or fly (got 'run')\n");
+  for (const char* bench : {" --bench -1", " --bench=-2.5", " --bench 0"}) {
+    Outcome r = run(bin + bench);
+    EXPECT_EQ(r.status, 2) << bench;
+    EXPECT_NE(r.output.find("--bench must be a number of seconds in (0, 3600]"), std::string::npos)
+        << r.output;
+  }
+  Outcome json = run(bin + " --json x.json");
+  EXPECT_EQ(json.status, 2);
+  EXPECT_NE(json.output.find("--json needs --bench"), std::string::npos) << json.output;
+  Outcome fly = run(bin + " --flythrough -1");
+  EXPECT_EQ(fly.status, 2);
+  EXPECT_NE(fly.output.find("--flythrough must be"), std::string::npos) << fly.output;
+}
+
+TEST(GrottoClient, bench_prints_frame_time_statistics_and_writes_them_as_json) {
+  const char* display = std::getenv("DISPLAY");
+  if (display == nullptr || *display == '\0') GTEST_SKIP() << "DISPLAY is not set";
+  const std::string path =
+      (std::filesystem::temp_directory_path() / "grotto_client_test_bench.json").string();
+  std::filesystem::remove(path);
+  Outcome r = run(std::string(GROTTO_CLIENT_BIN) +
+                  " --device none --seed 7 --width 320 --height 180 --tess-max 4 --wait 120" +
+                  " --bench 2 --json " + path);
+  if (r.output.find("no OpenGL 4.1") != std::string::npos) GTEST_SKIP() << r.output;
+  ASSERT_EQ(r.status, 0) << r.output;
+  for (const char* field :
+       {"grotto-client bench: ", " frames in ", "mean ", "median ", "p95 ", "p99 ", "max ", " fps"})
+    EXPECT_NE(r.output.find(field), std::string::npos) << field << " in " << r.output;
+  std::ifstream f(path);
+  const nlohmann::json j = nlohmann::json::parse(f, nullptr, false);
+  ASSERT_FALSE(j.is_discarded()) << "invalid JSON in " << path;
+  for (const char* key : {"frames", "seconds", "mean_ms", "median_ms", "p95_ms", "p99_ms", "max_ms",
+                          "fps", "rooms_loaded", "path_length_m"})
+    ASSERT_TRUE(j.contains(key) && j[key].is_number()) << key;
+  EXPECT_GT(j["frames"].get<int>(), 0);
+  EXPECT_GE(j["seconds"].get<double>(), 2.0);
+  EXPECT_LE(j["median_ms"].get<double>(), j["p95_ms"].get<double>());
+  EXPECT_LE(j["p95_ms"].get<double>(), j["p99_ms"].get<double>());
+  EXPECT_LE(j["p99_ms"].get<double>(), j["max_ms"].get<double>());
+  EXPECT_GT(j["path_length_m"].get<double>(), 5.0);
+  std::filesystem::remove(path);
+}
+
+TEST(GrottoClient, a_screenshot_along_the_flythrough_is_not_blank) {
+  const char* display = std::getenv("DISPLAY");
+  if (display == nullptr || *display == '\0') GTEST_SKIP() << "DISPLAY is not set";
+  const std::string path =
+      (std::filesystem::temp_directory_path() / "grotto_client_test_flythrough.png").string();
+  std::filesystem::remove(path);
+  Outcome r = run(std::string(GROTTO_CLIENT_BIN) +
+                  " --device none --seed 7 --width 320 --height 180 --tess-max 4 --frames 2" +
+                  " --wait 120 --flythrough 3 --screenshot " + path);
+  if (r.output.find("no OpenGL 4.1") != std::string::npos) GTEST_SKIP() << r.output;
+  ASSERT_EQ(r.status, 0) << r.output;
+  int width = 0, height = 0;
+  std::vector<unsigned char> rgb = read_stored_png(path, width, height);
+  ASSERT_EQ(rgb.size(), 320u * 180u * 3u);
+  int differing = 0;
+  for (size_t i = 3; i < rgb.size(); i += 3)
+    differing += rgb[i] != rgb[0] || rgb[i + 1] != rgb[1];
+  EXPECT_GT(differing, 320 * 180 / 4) << "the screenshot is nearly one colour";
   std::filesystem::remove(path);
 }
 

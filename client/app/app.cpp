@@ -1,0 +1,362 @@
+#include "client/app/app.hpp"
+
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "client/app/bench_report.hpp"
+#include "tools/png.hpp"
+
+namespace grotto::app {
+namespace {
+
+using namespace std::chrono_literals;
+using Clock = std::chrono::steady_clock;
+namespace client = grotto::client;
+
+constexpr double kPi = 3.14159265358979323846;
+constexpr double kPlanSpeed = 10;  // m/s told to the stream while waiting: a 40 m horizon
+
+int fail(const std::string& message) {
+  std::fprintf(stderr, "grotto-client: %s\n", message.c_str());
+  return 1;
+}
+
+double seconds_since(Clock::time_point t) {
+  return std::chrono::duration<double>(Clock::now() - t).count();
+}
+
+void look_along(render::Camera& camera, Vec3 f) {
+  const double horizontal = std::sqrt(f.x * f.x + f.z * f.z);
+  camera.yaw = std::atan2(f.x, -f.z);
+  camera.pitch = std::clamp(std::atan2(f.y, horizontal), -89 * kPi / 180, 89 * kPi / 180);
+}
+
+// The room whose sphere holds p most deeply, among the rooms on the GPU.
+std::optional<cave::RoomId> room_at(const render::GpuRoomCache& cache, Vec3 p) {
+  std::optional<cave::RoomId> best;
+  double best_depth = 0;
+  for (const auto& [id, room] : cache.rooms()) {
+    const double depth = room.room.sphere.radius - distance(p, room.room.sphere.centre);
+    if (depth > best_depth) best = id, best_depth = depth;
+  }
+  return best;
+}
+
+// Rooms around p are ready: its room and every neighbour through its portals are on the GPU, and
+// nothing is in flight.
+bool surroundings_ready(const Session& s, Vec3 p) {
+  auto id = room_at(s.cache, p);
+  if (!id) return false;
+  for (const auto& portal : s.cache.rooms().at(*id).room.portals)
+    if (!s.cache.contains(portal.neighbour)) return false;
+  return s.stream.stats().in_flight == 0;
+}
+
+// Pumps the stream until `ready` holds or the deadline passes (false, with a warning).
+template <typename Ready>
+bool wait_until(Session& s, Clock::time_point deadline, const char* what, Ready&& ready) {
+  while (!ready()) {
+    if (Clock::now() > deadline) {
+      // A pose in solid rock is located in no room, so nothing streams in.
+      spdlog::warn("event={}_timeout rooms={} placed={} hint=\"is the pose inside the cave?\"",
+                   what, s.cache.size(), s.placed);
+      return false;
+    }
+    pump(s, kPlanSpeed);
+    std::this_thread::sleep_for(20ms);
+  }
+  return true;
+}
+
+// One attempt at the scripted path from the start pose; while a descriptor it needs is missing
+// the stream is pointed at the path's end so that the room streams in. True once planned.
+bool try_plan_path(Session& s) {
+  if (s.path) return true;
+  if (!s.start) return false;
+  std::optional<cave::RoomId> room = s.start_room;
+  if (!room) room = room_at(s.cache, *s.start);
+  if (!room) return false;
+  auto lookup = [&](cave::RoomId id) { return s.stream.descriptor(id); };
+  play::Flythrough path = play::Flythrough::plan(*s.start, *room, lookup, kPathHops);
+  if (path.waiting_for()) {
+    s.stream_focus = path.waypoints().back();
+    return false;
+  }
+  spdlog::info("event=path rooms={} length_m={:.1f}", path.rooms().size(), path.length());
+  s.path = std::move(path);
+  s.stream_focus.reset();
+  return true;
+}
+
+// The camera at `seconds` along the scripted path.
+void follow_path(Session& s, double seconds) {
+  const play::PathPose pose = s.path->at(kPathSpeed * seconds);
+  s.camera.position = pose.position;
+  look_along(s.camera, pose.forward);
+}
+
+}  // namespace
+
+Session::Session(const Options& o, GLFWwindow* w, render::Renderer& r, render::GpuRoomCache& c,
+                 client::Stream& st)
+    : options(o), window(w), renderer(r), cache(c), stream(st), player(Vec3{}) {
+  play::PlayerParams params;
+  params.speed = o.speed;
+  player = play::Player(Vec3{}, params);
+  player.set_mode(o.mode);
+  if (o.pose) {
+    camera.position = o.pose->position;
+    camera.yaw = o.pose->yaw * kPi / 180;
+    camera.pitch = o.pose->pitch * kPi / 180;
+    placed = true;
+    start = camera.position;
+    player.place(camera.position);
+  }
+  render_options.tessellation = !o.no_tess;
+  render_options.max_tess = o.tess_max;
+  render_options.wireframe = o.wireframe;
+  render_options.surface =
+      o.surface == "phong" ? render::Surface::kPhong : render::Surface::kPnTriangles;
+}
+
+void pump(Session& s, double speed) {
+  for (auto& room : s.stream.take_new_rooms()) {
+    s.cache.upload(*room);
+    s.world.add(*room);
+  }
+  for (auto id : s.stream.take_evicted()) {
+    s.cache.evict(id);
+    s.world.evict(id);
+  }
+  // At the spawn point the camera looks through the spawn room's widest portal, into the cave
+  // rather than at the nearest wall, once the room's descriptor has arrived.
+  if (s.aim_room) {
+    if (auto room = s.stream.descriptor(*s.aim_room)) {
+      s.aim_room.reset();
+      const cave::Portal* widest = nullptr;
+      for (const auto& portal : room->portals)
+        if (widest == nullptr || portal.radius > widest->radius) widest = &portal;
+      if (widest != nullptr) {
+        look_along(s.camera, widest->centre - s.camera.position);
+        s.camera.pitch = std::clamp(s.camera.pitch, -kPi / 4, kPi / 4);
+      }
+    }
+  }
+  if (!s.placed) {
+    if (auto spawn = s.stream.spawn_point()) {
+      s.camera.position = spawn->position;
+      s.placed = true;
+      s.start = spawn->position;
+      s.start_room = spawn->room;
+      s.aim_room = spawn->room;
+      s.player.place(spawn->position);
+      spdlog::info("event=spawn room={} x={} y={} z={}", spawn->room.to_string(), spawn->position.x,
+                   spawn->position.y, spawn->position.z);
+    }
+  }
+  if (s.placed) {
+    client::Pose pose;
+    pose.position = s.stream_focus.value_or(s.camera.position);
+    pose.forward = render::camera_forward(s.camera);
+    pose.speed = speed;
+    s.stream.set_pose(pose);
+  }
+}
+
+render::FrameStats draw_frame(Session& s, int width, int height) {
+  render::FrameStats stats = s.renderer.draw(s.cache, s.camera, width, height, s.render_options);
+  // The overlay's text lines go here, drawn over the cave.
+  return stats;
+}
+
+int run_screenshot(Session& s) {
+  const Options& o = s.options;
+  auto fb_or = render::Framebuffer::create(o.width, o.height);
+  if (!fb_or) return fail(fb_or.error().message);
+  render::Framebuffer fb = std::move(fb_or).value();
+  const Clock::time_point deadline = Clock::now() + std::chrono::duration_cast<Clock::duration>(
+                                                        std::chrono::duration<double>(o.wait_s));
+  if (o.flythrough_s) {
+    if (wait_until(s, deadline, "path_wait", [&] { return try_plan_path(s); }))
+      follow_path(s, *o.flythrough_s);
+  }
+  wait_until(s, deadline, "screenshot_wait",
+             [&] { return s.placed && surroundings_ready(s, s.camera.position); });
+  for (int i = 0; i < o.frames; ++i) {
+    pump(s, o.speed);
+    fb.bind();
+    draw_frame(s, o.width, o.height);
+  }
+  glFinish();
+  std::vector<unsigned char> rgb = fb.read_rgb();
+  if (auto w = tools::write_png(o.screenshot, rgb, o.width, o.height); !w)
+    return fail(w.error().message);
+  std::printf("grotto-client: wrote %s (%dx%d, %zu rooms loaded)\n", o.screenshot.c_str(), o.width,
+              o.height, s.cache.size());
+  return 0;
+}
+
+int run_bench(Session& s) {
+  const Options& o = s.options;
+  auto fb_or = render::Framebuffer::create(o.width, o.height);
+  if (!fb_or) return fail(fb_or.error().message);
+  render::Framebuffer fb = std::move(fb_or).value();
+  const Clock::time_point deadline = Clock::now() + std::chrono::duration_cast<Clock::duration>(
+                                                        std::chrono::duration<double>(o.wait_s));
+  if (!wait_until(s, deadline, "path_wait", [&] { return try_plan_path(s); }))
+    return fail("--bench: the scripted path's rooms did not arrive within --wait " +
+                std::to_string(o.wait_s) + " s");
+  // Every room of the path on the GPU and the surroundings of its start, as --screenshot waits.
+  follow_path(s, 0);
+  wait_until(s, deadline, "bench_wait", [&] {
+    for (cave::RoomId id : s.path->rooms())
+      if (!s.cache.contains(id)) return false;
+    return surroundings_ready(s, s.camera.position);
+  });
+
+  std::vector<double> frame_ms;
+  double patches = 0;
+  const auto begin = Clock::now();
+  while (seconds_since(begin) < *o.bench_s) {
+    const auto frame_start = Clock::now();
+    follow_path(s, seconds_since(begin));
+    pump(s, kPathSpeed);
+    fb.bind();
+    patches += static_cast<double>(draw_frame(s, o.width, o.height).patches);
+    glFinish();  // the frame's GPU work belongs to its time (llvmpipe renders here)
+    frame_ms.push_back(1000 * seconds_since(frame_start));
+  }
+  BenchReport report;
+  summarize(frame_ms, seconds_since(begin), report);
+  report.width = o.width;
+  report.height = o.height;
+  report.tess_max = o.tess_max;
+  report.tessellation = s.render_options.tessellation;
+  report.surface = o.surface;
+  report.rooms_loaded = s.cache.size();
+  report.patches_mean = frame_ms.empty() ? 0 : patches / static_cast<double>(frame_ms.size());
+  report.path_length_m = s.path->length();
+  report.path_rooms = s.path->rooms().size();
+  std::printf("%s\n", bench_line(report).c_str());
+  if (!o.json.empty()) {
+    std::ofstream out(o.json);
+    out << bench_json(report);
+    out.close();
+    if (!out) return fail("--json: cannot write " + o.json);
+  }
+  return 0;
+}
+
+int run_window(Session& s) {
+  struct Mouse {
+    double last_x = 0, last_y = 0;
+    bool seen = false;
+    render::Camera* camera = nullptr;
+  } mouse;
+  mouse.camera = &s.camera;
+  glfwSetWindowUserPointer(s.window, &mouse);
+  glfwSetInputMode(s.window, GLFW_CURSOR, GLFW_CURSOR_DISABLED);
+  glfwSetCursorPosCallback(s.window, [](GLFWwindow* window, double x, double y) {
+    auto* m = static_cast<Mouse*>(glfwGetWindowUserPointer(window));
+    if (m->seen) {
+      constexpr double kRadiansPerPixel = 0.0025;
+      m->camera->yaw += (x - m->last_x) * kRadiansPerPixel;
+      m->camera->pitch = std::clamp(m->camera->pitch - (y - m->last_y) * kRadiansPerPixel,
+                                    -89 * kPi / 180, 89 * kPi / 180);
+    }
+    m->last_x = x, m->last_y = y, m->seen = true;
+  });
+
+  render::RenderOptions& ro = s.render_options;
+  bool following = s.options.flythrough_s.has_value();
+  const auto began = Clock::now();
+  std::optional<Clock::time_point> path_began;
+  auto last = Clock::now();
+  double title_timer = 0;
+  bool t_down = false, p_down = false, f_down = false, g_down = false, n_down = false;
+  auto key = [&](int k) { return glfwGetKey(s.window, k) == GLFW_PRESS; };
+  auto pressed = [&](int k, bool& was) {
+    const bool now = key(k);
+    const bool edge = now && !was;
+    was = now;
+    return edge;
+  };
+  while (!glfwWindowShouldClose(s.window)) {
+    glfwPollEvents();
+    const auto now = Clock::now();
+    const double dt = std::min(std::chrono::duration<double>(now - last).count(), 0.1);
+    last = now;
+    if (key(GLFW_KEY_ESCAPE)) glfwSetWindowShouldClose(s.window, 1);
+    if (pressed(GLFW_KEY_T, t_down)) ro.tessellation = !ro.tessellation;
+    if (pressed(GLFW_KEY_F, f_down)) ro.wireframe = !ro.wireframe;
+    if (pressed(GLFW_KEY_P, p_down))
+      ro.surface = ro.surface == render::Surface::kPhong ? render::Surface::kPnTriangles
+                                                         : render::Surface::kPhong;
+    if (pressed(GLFW_KEY_G, g_down))
+      s.player.set_mode(s.player.mode() == play::Mode::kWalk ? play::Mode::kFly
+                                                             : play::Mode::kWalk);
+    if (pressed(GLFW_KEY_N, n_down)) s.player.set_noclip(!s.player.noclip());
+
+    const Vec3 forward = render::camera_forward(s.camera);
+    const Vec3 right{std::cos(s.camera.yaw), 0, std::sin(s.camera.yaw)};
+    play::PlayerInput input;
+    if (key(GLFW_KEY_W)) input.move = input.move + forward;
+    if (key(GLFW_KEY_S)) input.move = input.move - forward;
+    if (key(GLFW_KEY_D)) input.move = input.move + right;
+    if (key(GLFW_KEY_A)) input.move = input.move - right;
+    input.up = key(GLFW_KEY_SPACE);
+    input.down = key(GLFW_KEY_C);
+    input.run = key(GLFW_KEY_LEFT_SHIFT) || key(GLFW_KEY_RIGHT_SHIFT);
+    const bool moving = length(input.move) > 0 || input.up || input.down;
+
+    if (following && moving && s.path) {
+      following = false;  // a movement key takes over where the path was
+      s.player.place(s.camera.position);
+    }
+    if (following) {
+      if (try_plan_path(s)) {
+        if (!path_began) path_began = now;
+        follow_path(s, *s.options.flythrough_s + seconds_since(*path_began));
+      }
+    } else if (s.placed && (s.player.noclip() || s.world.room_at(s.player.eye()) != nullptr)) {
+      // The player waits where it is until its room has streamed in (nothing to stand on yet).
+      s.player.advance(dt, input, s.world);
+      s.camera.position = s.player.eye();
+    }
+    const double speed = s.options.speed * (input.run ? s.player.params().run_factor : 1);
+    pump(s, moving ? speed : s.options.speed);
+
+    int w = 0, h = 0;
+    glfwGetFramebufferSize(s.window, &w, &h);
+    glBindFramebuffer(GL_FRAMEBUFFER, 0);
+    glViewport(0, 0, w, h);
+    const render::FrameStats fs = draw_frame(s, w, h);
+    glfwSwapBuffers(s.window);
+
+    title_timer += dt;
+    if (title_timer > 0.5) {
+      title_timer = 0;
+      const client::StreamStats st = s.stream.stats();
+      char title[256];
+      std::snprintf(
+          title, sizeof title,
+          "grotto-client  %.1f ms  rooms %zu drawn %d in flight %llu  %s%s  %s%s  %s  %.0f s",
+          dt * 1000, s.cache.size(), fs.rooms_drawn, static_cast<unsigned long long>(st.in_flight),
+          ro.tessellation ? (ro.surface == render::Surface::kPhong ? "phong" : "pn") : "flat",
+          ro.wireframe ? " wire" : "", following ? "path" : play::mode_name(s.player.mode()),
+          s.player.noclip() ? " noclip" : "", client::state_name(st.state), seconds_since(began));
+      glfwSetWindowTitle(s.window, title);
+    }
+  }
+  return 0;
+}
+
+}  // namespace grotto::app

@@ -1,0 +1,54 @@
+// grotto-client's running parts once the window, the GL context, the renderer and the stream
+// exist (main.cpp makes them): rooms flow from the stream into the GPU cache and the collision
+// world, the player or the scripted path moves the camera, and one of three loops runs: the
+// window, a headless --screenshot, or a headless --bench.
+#pragma once
+
+#include <GLFW/glfw3.h>
+
+#include <optional>
+
+#include "cave/room_id.hpp"
+#include "client/app/options.hpp"
+#include "client/play/collision.hpp"
+#include "client/play/flythrough.hpp"
+#include "client/play/player.hpp"
+#include "client/render/renderer.hpp"
+#include "client/render/room_cache.hpp"
+#include "client/stream/stream.hpp"
+
+namespace grotto::app {
+
+struct Session {
+  Session(const Options& options, GLFWwindow* window, render::Renderer& renderer,
+          render::GpuRoomCache& cache, client::Stream& stream);
+
+  const Options& options;
+  GLFWwindow* window;
+  render::Renderer& renderer;
+  render::GpuRoomCache& cache;
+  client::Stream& stream;
+  play::CollisionWorld world;
+  play::Player player;
+  render::Camera camera;
+  render::RenderOptions render_options;
+  bool placed = false;                     // the camera has a start pose
+  std::optional<cave::RoomId> start_room;  // the spawn room, when the server gave one
+  std::optional<cave::RoomId> aim_room;    // look through its widest portal once known
+  std::optional<play::Flythrough> path;    // --flythrough / --bench: planned once complete
+  std::optional<Vec3> start;               // where the camera was placed first
+  std::optional<Vec3> stream_focus;        // told to the stream instead of the camera
+};
+
+// Drains the stream (new rooms into the GPU cache and the collision world, evictions out of
+// both), takes the spawn point, and tells the stream the camera's pose at `speed` m/s.
+void pump(Session& s, double speed);
+
+// Draws one frame into the bound framebuffer: the cave, then (later) the overlay's text lines.
+render::FrameStats draw_frame(Session& s, int width, int height);
+
+int run_window(Session& s);
+int run_screenshot(Session& s);
+int run_bench(Session& s);
+
+}  // namespace grotto::app

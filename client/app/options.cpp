@@ -1,0 +1,136 @@
+#include "client/app/options.hpp"
+
+#include <CLI/CLI.hpp>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <sstream>
+#include <vector>
+
+namespace grotto::app {
+namespace {
+
+std::optional<Pose5> parse_pose(const std::string& text) {
+  std::vector<double> v;
+  std::stringstream in(text);
+  std::string item;
+  while (std::getline(in, item, ',')) {
+    char* end = nullptr;
+    double d = std::strtod(item.c_str(), &end);
+    if (item.empty() || end != item.c_str() + item.size() || !std::isfinite(d)) return {};
+    v.push_back(d);
+  }
+  if (v.size() != 3 && v.size() != 5) return {};
+  Pose5 p{{v[0], v[1], v[2]}, 0, 0};
+  if (v.size() == 5) p.yaw = v[3], p.pitch = v[4];
+  return p;
+}
+
+int fail(const std::string& message) {
+  std::fprintf(stderr, "grotto-client: %s\n", message.c_str());
+  return 2;
+}
+
+std::string number(double x) {
+  std::ostringstream s;
+  s << x;
+  return s.str();
+}
+
+}  // namespace
+
+std::optional<int> parse_options(int argc, char** argv, Options& o) {
+  CLI::App app{
+      "grotto-client: explore Grotto's endless cave. Streams rooms from --server (or from a "
+      "server started in-process) and renders them with hardware tessellation (OpenGL 4.1). "
+      "You walk with gravity and collide with the cave's walls.\n"
+      "Mouse: look; W/A/S/D: move; Shift: run; Space: jump (walk) or rise (fly); C: descend "
+      "(fly); G: walk/fly; N: noclip (debugging: through walls); T: tessellation on/off; P: PN "
+      "triangles/Phong; F: wireframe; Esc: quit."};
+  app.add_option("--server", o.server_url,
+                 "Server URL ws://host:port[/ws]; without it a server runs in-process");
+  app.add_option("--seed", o.seed,
+                 "World seed (unsigned 64-bit): the in-process server's world, or the world "
+                 "asked of --server (default: the server's)");
+  app.add_option("--device", o.device,
+                 "In-process server's OpenCL device: auto, gpu, accelerator, cpu, none (CPU "
+                 "reference)")
+      ->capture_default_str();
+  app.add_option("--width", o.width, "Window, screenshot or bench width in pixels")
+      ->capture_default_str()
+      ->check(CLI::Range(16, 16384));
+  app.add_option("--height", o.height, "Window, screenshot or bench height in pixels")
+      ->capture_default_str()
+      ->check(CLI::Range(16, 16384));
+  app.add_option("--tess-max", o.tess_max,
+                 "MaxTess: the tessellation level of the nearest edges (1-64)")
+      ->capture_default_str()
+      ->check(CLI::Range(1.0f, 64.0f));
+  app.add_flag("--no-tess", o.no_tess,
+               "Draw the patch mesh flat: no tessellation, no displacement");
+  app.add_flag("--wireframe", o.wireframe, "Draw edges only");
+  app.add_option("--surface", o.surface, "Tessellated surface: pn (PN triangles) or phong")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"pn", "phong"}));
+  app.add_option("--screenshot", o.screenshot,
+                 "Headless: render --frames frames, write this PNG and exit");
+  app.add_option("--frames", o.frames, "Frames rendered before the screenshot")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 100000));
+  app.add_option("--pose", o.pose_text,
+                 "Start pose x,y,z[,yaw,pitch] (metres, degrees; yaw 0 looks along -z, positive "
+                 "turns to +x); default: the server's spawn point");
+  app.add_option("--wait", o.wait_s,
+                 "Screenshot and bench: seconds to wait at most for the rooms they need")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 3600.0));
+  app.add_option("--speed", o.speed, "Walking and flying speed in m/s (Shift runs at 2.5x)")
+      ->capture_default_str()
+      ->check(CLI::Range(0.1, 1000.0));
+  app.add_option("--mode", o.mode_text,
+                 "Start in walk mode (gravity, jumps) or fly mode (no gravity); G toggles")
+      ->capture_default_str();
+  app.add_option("--flythrough", o.flythrough_s,
+                 "Follow the scripted path from the start pose through " +
+                     std::to_string(kPathHops) + " portals (widest unvisited first) at " +
+                     number(kPathSpeed) +
+                     " m/s, there and back, starting this many seconds along it; a movement "
+                     "key takes over. With --screenshot: the pose at that time");
+  app.add_option("--bench", o.bench_s,
+                 "Headless: render the scripted path (--flythrough's) for this many seconds at "
+                 "--width x --height once its rooms are loaded, print frame-time statistics "
+                 "(frames, mean, median, p95, p99, max ms, fps) and exit");
+  app.add_option("--json", o.json, "With --bench: also write the statistics to this JSON file");
+  app.add_option("--log-level", o.log_level, "Log level on stderr (trace ... off)")
+      ->capture_default_str();
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e);
+  }
+
+  if (!o.pose_text.empty()) {
+    o.pose = parse_pose(o.pose_text);
+    if (!o.pose)
+      return fail("--pose: expected x,y,z or x,y,z,yaw,pitch (got '" + o.pose_text + "')");
+  }
+  if (o.mode_text == "walk") {
+    o.mode = play::Mode::kWalk;
+  } else if (o.mode_text == "fly") {
+    o.mode = play::Mode::kFly;
+  } else {
+    return fail("--mode must be walk or fly (got '" + o.mode_text + "')");
+  }
+  if (o.flythrough_s && !(std::isfinite(*o.flythrough_s) && *o.flythrough_s >= 0))
+    return fail("--flythrough must be a time along the path of 0 seconds or more (got " +
+                number(*o.flythrough_s) + ")");
+  if (o.bench_s && !(std::isfinite(*o.bench_s) && *o.bench_s > 0 && *o.bench_s <= 3600))
+    return fail("--bench must be a number of seconds in (0, 3600] (got " + number(*o.bench_s) +
+                ")");
+  if (o.bench_s && !o.screenshot.empty())
+    return fail("--bench and --screenshot are separate runs: give one of them");
+  if (!o.json.empty() && !o.bench_s) return fail("--json needs --bench (it holds its statistics)");
+  return std::nullopt;
+}
+
+}  // namespace grotto::app

@@ -1,0 +1,51 @@
+// grotto-client's command line: every flag, its default and its --help text, and the checks that
+// flags make sense together. Errors name the flag and what was wrong.
+#pragma once
+
+#include <cstdint>
+#include <optional>
+#include <string>
+
+#include "client/play/player.hpp"
+#include "core/vec3.hpp"
+
+namespace grotto::app {
+
+struct Pose5 {
+  Vec3 position;
+  double yaw = 0, pitch = 0;  // degrees
+};
+
+struct Options {
+  std::string server_url;  // empty: an in-process server
+  std::optional<uint64_t> seed;
+  std::string device = "auto";
+  int width = 1280;
+  int height = 720;
+  float tess_max = 8;
+  bool no_tess = false;
+  bool wireframe = false;
+  std::string surface = "pn";
+  std::string screenshot;
+  int frames = 30;
+  std::string pose_text;
+  std::optional<Pose5> pose;  // parsed from pose_text
+  double wait_s = 60;
+  double speed = 4;
+  std::string mode_text = "walk";
+  play::Mode mode = play::Mode::kWalk;
+  std::optional<double> flythrough_s;  // time along the scripted path
+  std::optional<double> bench_s;       // seconds of frames to measure
+  std::string json;                    // --bench report
+  std::string log_level = "warn";
+};
+
+// Speed along the scripted path (m/s) and its length in portals.
+inline constexpr double kPathSpeed = 3.0;
+inline constexpr int kPathHops = 6;
+
+// Parses argv into `out`. Returns an exit code when the program should stop here (0 after
+// --help, non-zero after an error, printed to stderr naming the flag), nullopt to go on.
+std::optional<int> parse_options(int argc, char** argv, Options& out);
+
+}  // namespace grotto::app
