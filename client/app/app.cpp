@@ -177,13 +177,12 @@ render::FrameStats draw_frame(Session& s, int width, int height) {
   return stats;
 }
 
-int run_screenshot(Session& s) {
+namespace {
+
+// --screenshot and --bench: frames of --width x --height into an offscreen framebuffer, rooms
+// waited for until --wait seconds from now.
+int screenshot(Session& s, render::Framebuffer& fb, Clock::time_point deadline) {
   const Options& o = s.options;
-  auto fb_or = render::Framebuffer::create(o.width, o.height);
-  if (!fb_or) return fail(fb_or.error().message);
-  render::Framebuffer fb = std::move(fb_or).value();
-  const Clock::time_point deadline = Clock::now() + std::chrono::duration_cast<Clock::duration>(
-                                                        std::chrono::duration<double>(o.wait_s));
   if (o.flythrough_s) {
     if (wait_until(s, deadline, "path_wait", [&] { return try_plan_path(s); }))
       follow_path(s, *o.flythrough_s);
@@ -204,13 +203,8 @@ int run_screenshot(Session& s) {
   return 0;
 }
 
-int run_bench(Session& s) {
+int bench(Session& s, render::Framebuffer& fb, Clock::time_point deadline) {
   const Options& o = s.options;
-  auto fb_or = render::Framebuffer::create(o.width, o.height);
-  if (!fb_or) return fail(fb_or.error().message);
-  render::Framebuffer fb = std::move(fb_or).value();
-  const Clock::time_point deadline = Clock::now() + std::chrono::duration_cast<Clock::duration>(
-                                                        std::chrono::duration<double>(o.wait_s));
   if (!wait_until(s, deadline, "path_wait", [&] { return try_plan_path(s); }))
     return fail("--bench: the scripted path's rooms did not arrive within --wait " +
                 std::to_string(o.wait_s) + " s");
@@ -253,6 +247,17 @@ int run_bench(Session& s) {
     if (!out) return fail("--json: cannot write " + o.json);
   }
   return 0;
+}
+
+}  // namespace
+
+int run_headless(Session& s) {
+  const Options& o = s.options;
+  auto fb = render::Framebuffer::create(o.width, o.height);
+  if (!fb) return fail(fb.error().message);
+  const Clock::time_point deadline = Clock::now() + std::chrono::duration_cast<Clock::duration>(
+                                                        std::chrono::duration<double>(o.wait_s));
+  return o.bench_s ? bench(s, fb.value(), deadline) : screenshot(s, fb.value(), deadline);
 }
 
 int run_window(Session& s) {

@@ -47,8 +47,9 @@ void pump(Session& s, double speed);
 // Draws one frame into the bound framebuffer: the cave, then (later) the overlay's text lines.
 render::FrameStats draw_frame(Session& s, int width, int height);
 
+// The window until it is closed or Esc.
 int run_window(Session& s);
-int run_screenshot(Session& s);
-int run_bench(Session& s);
+// --bench when given, else --screenshot: offscreen frames, then the statistics or the PNG.
+int run_headless(Session& s);
 
 }  // namespace grotto::app

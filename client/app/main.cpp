@@ -106,12 +106,7 @@ int main(int argc, char** argv) {
   int status = 0;
   {
     app::Session session(o, window, *renderer, *cache, *stream);
-    if (o.bench_s)
-      status = app::run_bench(session);
-    else if (!o.screenshot.empty())
-      status = app::run_screenshot(session);
-    else
-      status = app::run_window(session);
+    status = headless ? app::run_headless(session) : app::run_window(session);
   }
 
   stream->stop();
