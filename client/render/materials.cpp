@@ -82,11 +82,14 @@ Texel mix(const Texel& a, const Texel& b, double t) {
 // Dry dirt with a scatter of rounded pebbles standing out of it.
 Texel floor_texel(double u, double v) {
   const double dirt = fbm(u, v, 8, 5, 0.55, 11);
-  const double pebble = smoothstep(0.42, 0.2, cell_distance(u, v, 14, 23));
+  // Pebbles of varied size, scattered unevenly: the noise thins them out in places.
+  const double size = 0.18 + 0.2 * fbm(u, v, 5, 2, 0.5, 19);
+  const double pebble = smoothstep(size, size - 0.12, cell_distance(u, v, 7, 23)) *
+                        smoothstep(0.35, 0.55, fbm(u, v, 3, 2, 0.5, 29));
   const double speckle = fbm(u, v, 64, 2, 0.5, 31);
   const Texel soil{0.30 + 0.16 * dirt, 0.24 + 0.13 * dirt, 0.17 + 0.09 * dirt, 0.35 * dirt, 0.08};
-  const Texel stone{0.42 + 0.12 * speckle, 0.40 + 0.11 * speckle, 0.37 + 0.10 * speckle,
-                    0.45 + 0.5 * pebble, 0.3};
+  const Texel stone{0.3 + 0.14 * speckle, 0.27 + 0.12 * speckle, 0.23 + 0.1 * speckle,
+                    0.35 + 0.3 * pebble, 0.3};
   return mix(soil, stone, pebble);
 }
 
@@ -95,12 +98,12 @@ Texel wall_texel(double u, double v) {
   const double warp = fbm(u, v, 4, 4, 0.5, 41);
   const double band = 0.5 + 0.5 * std::sin(kTau * (3 * v + 0.6 * warp));
   const double grain = fbm(u, v, 16, 4, 0.5, 53);
-  const double crack = smoothstep(0.035, 0.0, std::abs(fbm(u, v, 6, 3, 0.5, 67) - 0.5));
-  const double shade = 0.55 * band + 0.45 * grain;
-  Texel t{0.33 + 0.2 * shade, 0.29 + 0.17 * shade, 0.25 + 0.13 * shade,
-          0.25 + 0.35 * band + 0.4 * grain, 0.12 + 0.1 * band};
-  t.r *= 1 - 0.6 * crack, t.g *= 1 - 0.6 * crack, t.b *= 1 - 0.6 * crack;
-  t.height *= 1 - 0.7 * crack;
+  const double crack = smoothstep(0.012, 0.0, std::abs(fbm(u, v, 5, 5, 0.6, 67) - 0.5));
+  const double shade = 0.65 * band + 0.35 * grain;
+  Texel t{0.26 + 0.3 * shade, 0.23 + 0.25 * shade, 0.2 + 0.19 * shade,
+          0.3 + 0.3 * band + 0.4 * grain, 0.12 + 0.1 * band};
+  t.r *= 1 - 0.35 * crack, t.g *= 1 - 0.35 * crack, t.b *= 1 - 0.35 * crack;
+  t.height *= 1 - 0.4 * crack;
   return t;
 }
 
@@ -150,7 +153,7 @@ MaterialImages generate_materials(int size) {
     }
     // The normal of the height field (central differences, wrapping like the texture), with a
     // relief of `kRelief` height units per texel spacing.
-    constexpr double kRelief = 6.0;
+    constexpr double kRelief = 3.0;
     uint8_t* normal = out.normal.data() + layer * layer_texels * 4;
     auto h = [&](int x, int y) { return height[wrap(y, size) * size + wrap(x, size)]; };
     for (int y = 0; y < size; ++y) {

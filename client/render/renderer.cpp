@@ -19,6 +19,9 @@ constexpr double kMaxPitch = 89.0 * kPi / 180.0;
 // The anchor grid: a power of two, so anchor coordinates are exact and room offsets from it stay
 // below grid::kFrameSize (65536 m) for any room near the camera.
 constexpr double kAnchorStep = 1024.0;
+// Texture units of the room program's material arrays.
+constexpr GLuint kAlbedoUnit = 0;
+constexpr GLuint kNormalUnit = 1;
 constexpr int kCapSegments = 24;
 constexpr double kCapScale = 1.15;   // caps overlap the rim loop's wall
 constexpr double kCapOffset = 0.01;  // metres beyond the portal plane
@@ -245,7 +248,13 @@ Result<Renderer> Renderer::create() {
           p.uniform("u_noise_scale"), p.uniform("u_fog_color"),     p.uniform("u_fog_start"),
           p.uniform("u_fog_end"),     p.uniform("u_lamp_range"),    p.uniform("u_lod"),
           p.uniform("u_pixel_scale"), p.uniform("u_target_pixels"), p.uniform("u_patch_culling"),
-          p.uniform("u_frustum")};
+          p.uniform("u_frustum"),     p.uniform("u_texture_scale"), p.uniform("u_normal_strength")};
+  auto materials = Materials::create();
+  if (!materials.ok()) return materials.error();
+  r.materials_ = std::move(materials).value();
+  p.use();
+  glUniform1i(p.uniform("u_albedo"), kAlbedoUnit);
+  glUniform1i(p.uniform("u_normals"), kNormalUnit);
   r.cap_view_proj_ = r.cap_.uniform("u_view_proj");
   r.cap_fog_color_ = r.cap_.uniform("u_fog_color");
   r.cap_vertex_array_ = make_vertex_array();
@@ -292,6 +301,9 @@ FrameStats Renderer::draw(const GpuRoomCache& cache, const Camera& camera, int w
   glUniform1f(u_.fog_start, o.fog_start);
   glUniform1f(u_.fog_end, o.fog_end);
   glUniform1f(u_.lamp_range, o.lamp_range);
+  glUniform1f(u_.texture_scale, o.texture_scale);
+  glUniform1f(u_.normal_strength, o.normal_strength);
+  materials_.bind(kAlbedoUnit, kNormalUnit);
   glUniform1i(u_.lod, static_cast<int>(o.lod));
   glUniform1f(u_.pixel_scale,
               static_cast<float>(height) / (2.0f * std::tan(static_cast<float>(camera.fov_y) / 2)));

@@ -8,6 +8,7 @@
 #include <glm/glm.hpp>
 
 #include "client/render/gl.hpp"
+#include "client/render/materials.hpp"
 #include "client/render/room_cache.hpp"
 #include "core/result.hpp"
 #include "core/vec3.hpp"
@@ -58,6 +59,8 @@ struct RenderOptions {
   float near_plane = 0.05f;
   float far_plane = 60;
   float lamp_range = 14;
+  float texture_scale = 0.35f;   // material texture repeats per metre
+  float normal_strength = 1.0f;  // normal-map relief; 0: the mesh normal only
   glm::vec3 fog_color{0.045f, 0.05f, 0.06f};
   glm::vec3 clear_color{0.045f, 0.05f, 0.06f};  // tests clear to a colour the cave never has
 };
@@ -86,12 +89,13 @@ class Renderer {
  private:
   Program room_;
   Program cap_;
+  Materials materials_;  // bound to texture units 0 and 1 while rooms draw
   VertexArray cap_vertex_array_;
   Buffer cap_vertices_;
   struct RoomUniforms {
     GLint room_offset, camera, max_tess, max_dist, view_proj, anchor, surface, phong_alpha,
         displacement, noise_scale, fog_color, fog_start, fog_end, lamp_range, lod, pixel_scale,
-        target_pixels, patch_culling, frustum;
+        target_pixels, patch_culling, frustum, texture_scale, normal_strength;
   } u_{};
   GLint cap_view_proj_ = -1;
   GLint cap_fog_color_ = -1;
