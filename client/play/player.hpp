@@ -1,8 +1,9 @@
 // The player: a body of three spheres stacked from the feet to the eye, moved at a fixed timestep
 // against a CollisionWorld. Walk mode has gravity, ground detection, jumps, a walkable slope limit
 // and steps; fly mode has no gravity and still collides; noclip (off by default, for debugging)
-// moves through everything. Input is a plain struct, so tests drive it without a window. Pure
-// double arithmetic in a fixed order: the same inputs give the same position bit for bit.
+// flies through everything (no gravity, whatever the mode). Input is a plain struct, so tests
+// drive it without a window. Pure double arithmetic in a fixed order: the same inputs give the
+// same position bit for bit.
 //
 // Collision is a discrete slide: every fixed step is cut into substeps of at most half the
 // sphere radius, and after each substep the spheres are pushed out of the triangles (and portal
