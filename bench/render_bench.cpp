@@ -267,6 +267,8 @@ int main(int argc, char** argv) {
     no_portals.portal_culling = false;
     render::RenderOptions no_patch_culling = tessellated;
     no_patch_culling.patch_culling = false;
+    render::RenderOptions no_culling = no_patch_culling;
+    no_culling.portal_culling = false;
 
     std::vector<Measurement> runs;
     runs.push_back(bench.measure("patch_tessellated", patch_cache, path, tessellated));
@@ -274,6 +276,7 @@ int main(int argc, char** argv) {
     runs.push_back(bench.measure("patch_flat", patch_cache, path, flat));
     runs.push_back(bench.measure("portal_culling_off", patch_cache, path, no_portals));
     runs.push_back(bench.measure("patch_culling_off", patch_cache, path, no_patch_culling));
+    runs.push_back(bench.measure("both_culling_off", patch_cache, path, no_culling));
     for (render::LodHeuristic lod :
          {render::LodHeuristic::kScreenSpace, render::LodHeuristic::kSilhouette}) {
       render::RenderOptions o = tessellated;
@@ -305,7 +308,10 @@ int main(int argc, char** argv) {
     report["ratios"] = {
         {"tessellated_patch_over_flat_detail", ratio("patch_tessellated", "detail_flat")},
         {"portal_culling_speedup", ratio("portal_culling_off", "patch_tessellated")},
+        {"portal_culling_speedup_without_patch_culling",
+         ratio("both_culling_off", "patch_culling_off")},
         {"patch_culling_speedup", ratio("patch_culling_off", "patch_tessellated")},
+        {"both_culling_speedup", ratio("both_culling_off", "patch_tessellated")},
         {"screen_space_over_distance", ratio("lod_screen-space", "patch_tessellated")},
         {"silhouette_over_distance", ratio("lod_silhouette", "patch_tessellated")}};
     std::ofstream out(json_path);
