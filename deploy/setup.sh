@@ -13,6 +13,7 @@ packages=(
   libmeshoptimizer-dev
   xvfb xauth libgl1-mesa-dri  # grotto-client tests: Mesa llvmpipe under Xvfb (xvfb-run needs xauth)
   clang libclang-rt-14-dev  # libFuzzer (tests/fuzz); its runtime is in libclang-rt-14-dev
+  nginx  # tests/deploy: the load balancer in front of grotto-server replicas
 )
 
 if [[ "${1:-}" == "--list" ]]; then

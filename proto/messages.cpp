@@ -7,6 +7,7 @@
 #include <cstdio>
 
 #include "proto/json_reader.hpp"
+#include "proto/token.hpp"
 
 // Evaluates a Result-returning expression; on error returns it from the enclosing function,
 // otherwise moves the value into `target`.
@@ -158,6 +159,11 @@ Result<ClientMessage> parse_hello(const Fields& f, Ref ref) {
   if (text) {
     if (Status s = printable(*text, "name"); !s) return s.error();
     m.name = std::move(*text);
+  }
+  PROTO_TRY(m.token, f.optional_string("token", kMaxTokenBytes));
+  if (m.token) {
+    // The token is not quoted back: the message names only what is wrong.
+    if (Status s = check_token(*m.token); !s) return field_error("token", s.error().message);
   }
   return {std::move(m)};
 }
@@ -412,6 +418,7 @@ ojson to_json(const Hello& m) {
   if (m.seed) out["seed"] = seed_text(*m.seed);
   if (m.params) out["params"] = digest_text(*m.params);
   out["name"] = m.name;
+  if (m.token) out["token"] = *m.token;
   return out;
 }
 ojson to_json(const Locate& m) {

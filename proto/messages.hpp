@@ -70,6 +70,9 @@ struct Hello {
   // ≤ kMaxNameBytes, no control characters (C0, DEL, C1) or bidirectional formatting
   // characters (U+061C, U+200E, U+200F, U+202A-U+202E, U+2066-U+2069)
   std::string name;
+  // The deployment's shared secret (proto/token.hpp): ≤ kMaxTokenBytes of printable ASCII.
+  // Absent: none presented. A server without a token ignores it.
+  std::optional<std::string> token;
   friend bool operator==(const Hello&, const Hello&) = default;
 };
 

@@ -2,6 +2,7 @@
 
 #include <CLI/CLI.hpp>
 #include <charconv>
+#include <cstdlib>
 #include <functional>
 #include <limits>
 #include <map>
@@ -11,6 +12,7 @@
 
 #include "cave/layout.hpp"
 #include "proto/config_json.hpp"
+#include "proto/token.hpp"
 
 #ifndef GROTTO_VERSION
 #define GROTTO_VERSION "0.0.0"
@@ -185,6 +187,12 @@ const std::vector<Setting>& settings() {
         "log-level", "trace, debug, info, warn, error or off",
         {"trace", "debug", "info", "warn", "error", "off"},
         [](ServerConfig & c) -> auto& { return c.log_level; }));
+    t.push_back(string_setting(
+        "token-file",
+        "File whose first line (trimmed) is the shared-secret token every hello must carry "
+        "(1-256 bytes of printable ASCII). Without this setting $GROTTO_TOKEN is used; with "
+        "neither (or GROTTO_TOKEN empty) no token is required",
+        {}, [](ServerConfig & c) -> auto& { return c.token_file; }));
     return t;
   }();
   return table;
@@ -307,6 +315,11 @@ Status validate(const ServerConfig& config) {
   if (config.max_connections < 1) return invalid_argument("max-connections must be >= 1");
   if (config.send_queue_bytes < 1024) return invalid_argument("send-queue-bytes must be >= 1024");
   if (config.bind.empty()) return invalid_argument("bind must not be empty");
+  if (!config.token.empty()) {
+    if (auto st = proto::check_token(config.token); !st) {
+      return invalid_argument("token: " + st.error().message);
+    }
+  }
   return {};
 }
 
@@ -384,6 +397,13 @@ CommandLine parse_command_line(int argc, const char* const* argv) {
     }
     s.set(config, *v);
   }
+  auto token = proto::resolve_token(config.token_file, std::getenv(proto::kTokenEnvVariable));
+  if (!token) {
+    out.exit_code = 2;
+    out.text = "grotto-server: " + token.error().message;
+    return out;
+  }
+  config.token = std::move(token).value();
   if (auto st = validate(config); !st) {
     out.exit_code = 2;
     out.text = "grotto-server: invalid configuration: " + st.error().message;

@@ -31,6 +31,10 @@ struct ServerConfig {
   std::chrono::milliseconds drain_timeout{5'000};  // stop(): bound on the graceful close
   GeneratorConfig generator{};
   std::string log_level = "info";  // trace, debug, info, warn, error, off
+  // The shared secret every hello must carry (proto/token.hpp); empty: none required.
+  // parse_command_line reads it from token_file, else from $GROTTO_TOKEN. Never logged.
+  std::string token;
+  std::string token_file;  // where the token came from ("" for the environment or none)
 };
 
 // Range checks the settings cannot express alone (layout and mesh parameters, limit minimums).

@@ -28,6 +28,7 @@
 #include <vector>
 
 #include "cave/layout.hpp"
+#include "proto/token.hpp"
 #include "proto/world_digest.hpp"
 
 namespace grotto::server {
@@ -340,6 +341,14 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
       fail(Error{ErrorCode::kOutOfOrder, "a second hello"}, m.ref,
            websocket::close_code::policy_error);
       return;
+    }
+    // The token comes first: a client without it learns nothing about this server's worlds.
+    if (const std::string& token = server_.config.token; !token.empty()) {
+      if (!m.token || !proto::token_equals(token, *m.token)) {
+        fail(Error{ErrorCode::kUnauthorized, m.token ? "wrong token" : "missing token"}, m.ref,
+             websocket::close_code::policy_error);
+        return;
+      }
     }
     uint32_t chosen = 0;
     for (uint32_t v : m.versions) {
@@ -857,9 +866,11 @@ Result<std::unique_ptr<Server>> Server::start(const ServerConfig& config) {
     impl->threads.emplace_back([p = impl.get()] { p->ioc.run(); });
   }
   spdlog::info(
-      "event=listening address={}:{} io_threads={} compute=\"{}\" seed={} max_connections={}",
+      "event=listening address={}:{} io_threads={} compute=\"{}\" seed={} max_connections={} "
+      "token={}",
       impl->bound.address().to_string(), impl->bound.port(), threads,
-      impl->generator->compute_path(), config.seed, config.max_connections);
+      impl->generator->compute_path(), config.seed, config.max_connections,
+      config.token.empty() ? "off" : "required");
   return std::unique_ptr<Server>(new Server(std::move(impl)));
 }
 

@@ -3,9 +3,11 @@
 #include <CLI/CLI.hpp>
 #include <charconv>
 #include <cmath>
+#include <cstdlib>
 
 #include "client/load/load.hpp"
 #include "client/stream/stream.hpp"
+#include "proto/token.hpp"
 
 namespace grotto::client::load {
 namespace {
@@ -67,6 +69,13 @@ CommandLine parse_command_line(int argc, const char* const* argv) {
   app.add_option("--seed", seed_text,
                  "World seed (unsigned 64-bit). Embedded server: the world it serves (default "
                  "7); remote: the world asked for (default: the server's)");
+  std::string token_file;
+  app.add_option("--token-file", token_file,
+                 "File whose first line (trimmed) is the shared-secret token sent in hello "
+                 "(1-256 bytes of printable ASCII). Without it $GROTTO_TOKEN is used; with "
+                 "neither (or GROTTO_TOKEN empty) no token is sent. The embedded server then "
+                 "requires the same token")
+      ->type_name("FILE");
   app.add_option("--device", o.device,
                  "Embedded server's OpenCL device: auto, gpu, accelerator, cpu, none (CPU "
                  "reference) or a name substring; empty: $GROTTO_OPENCL_DEVICE, else auto");
@@ -144,6 +153,9 @@ CommandLine parse_command_line(int argc, const char* const* argv) {
     }
     o.seed = v;
   }
+  auto token = proto::resolve_token(token_file, std::getenv(proto::kTokenEnvVariable));
+  if (!token) return fail(token.error().message);
+  o.token = std::move(token).value();
   if (!o.url.empty()) {
     if (auto url = parse_url(o.url); !url) return fail("--server: " + url.error().message);
   }

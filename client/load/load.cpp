@@ -166,6 +166,7 @@ Result<LoadReport> run_load(const LoadOptions& options) {
     config.port = 0;
     config.bind = "127.0.0.1";
     if (options.seed) config.seed = *options.seed;
+    config.token = options.token;
     config.generator.builder.device.device = options.device;
     config.generator.workers = options.server_workers;
     config.drain_timeout = std::chrono::milliseconds(2'000);
@@ -207,6 +208,7 @@ Result<LoadReport> run_load(const LoadOptions& options) {
     so.url = url;
     so.seed = options.seed;
     so.name = "grotto-load";
+    so.token = options.token;
     so.plan = plan_options;
     so.spawn = !options.spread;
     auto stream = Stream::start(so, runtime);

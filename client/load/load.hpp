@@ -32,6 +32,9 @@ struct LoadOptions {
   // The world. Embedded: the seed it serves (absent: ServerConfig's default). Remote: the world
   // asked for in hello (absent: the server's); --spread needs it to lay out the start rooms.
   std::optional<uint64_t> seed;
+  // The shared secret sent in hello (proto/token.hpp); "": none. The embedded server requires
+  // it too when set.
+  std::string token;
   std::string device;      // embedded server: OpenCL device (server/config.hpp --opencl-device)
   int server_workers = 0;  // embedded server: generation threads (0: one per hardware thread)
   int io_threads = 1;      // the Runtime's I/O threads

@@ -33,6 +33,7 @@
 #include "codec/room_codec.hpp"
 #include "proto/lod.hpp"
 #include "proto/room_frame.hpp"
+#include "proto/token.hpp"
 
 namespace grotto::client {
 
@@ -242,7 +243,14 @@ struct Stream::Impl : std::enable_shared_from_this<Stream::Impl> {
     beast::get_lowest_layer(c->ws).socket().set_option(tcp::no_delay(true));
     c->ws.read_message_max(std::max(limits.max_frame_bytes, limits.max_message_bytes));
     std::string host = url.host + ":" + std::to_string(url.port);
-    c->ws.async_handshake(host, url.path, [self = shared_from_this(), c](beast::error_code e) {
+    // The seed as a query routing hint (PROTOCOL.md, Transport): a load balancer hashing on it
+    // sends every player of one world to the same replica.
+    std::string target = url.path;
+    if (options.seed) {
+      target += (target.find('?') == std::string::npos ? "?seed=" : "&seed=") +
+                std::to_string(*options.seed);
+    }
+    c->ws.async_handshake(host, target, [self = shared_from_this(), c](beast::error_code e) {
       self->on_handshake(c, e);
     });
   }
@@ -264,6 +272,7 @@ struct Stream::Impl : std::enable_shared_from_this<Stream::Impl> {
     hello.seed = options.seed;
     hello.params = options.params;
     hello.name = options.name;
+    if (!options.token.empty()) hello.token = options.token;
     send(proto::serialize(proto::ClientMessage{hello}));
     read(c);
     // The welcome must come within connect_timeout of the upgrade.
@@ -776,6 +785,10 @@ Result<std::unique_ptr<Stream>> Stream::start(const StreamOptions& options, Runt
     return invalid("backoff: need 1 ms <= initial <= max");
   }
   if (options.max_room_failures < 1) return invalid("max_room_failures must be at least 1");
+  if (!options.token.empty()) {
+    if (auto st = proto::check_token(options.token); !st)
+      return invalid("token " + st.error().message);
+  }
   auto impl = std::make_shared<Impl>(options, std::move(url).value(), runtime);
   net::post(impl->strand, [impl] { impl->connect(); });
   return std::unique_ptr<Stream>(new Stream(std::move(impl)));

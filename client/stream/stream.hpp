@@ -47,6 +47,7 @@ struct StreamOptions {
   std::optional<uint64_t> seed;            // the world wanted; absent: the server's
   std::optional<uint64_t> params;          // its parameter digest; absent: the server's
   std::string name = "grotto-stream";      // hello.name, for the server's logs
+  std::string token;                       // hello.token (proto/token.hpp); "": none
   uint32_t lod = 0;                        // wire lod requested (0: the streamed patch mesh)
   PlanOptions plan{};                      // horizon and view weighting
   double cancel_factor = 1.5;              // cancel a room in flight once its cost exceeds

@@ -7,6 +7,7 @@
 #include <atomic>
 #include <boost/asio/ip/tcp.hpp>
 #include <boost/beast/core.hpp>
+#include <boost/beast/http.hpp>
 #include <boost/beast/websocket.hpp>
 #include <chrono>
 #include <functional>
@@ -26,6 +27,7 @@ namespace {
 
 namespace beast = boost::beast;
 namespace websocket = beast::websocket;
+namespace http = beast::http;
 namespace net = boost::asio;
 using tcp = net::ip::tcp;
 using namespace std::chrono_literals;
@@ -409,6 +411,10 @@ class BadServer {
     std::lock_guard lock(mu_);
     return cancelled_;
   }
+  std::string target() const {  // the last upgrade request's target
+    std::lock_guard lock(mu_);
+    return target_;
+  }
 
  private:
   void run() {
@@ -429,7 +435,15 @@ class BadServer {
   void serve(tcp::socket socket) {
     websocket::stream<tcp::socket> ws(std::move(socket));
     beast::error_code ec;
-    ws.accept(ec);
+    beast::flat_buffer upgrade_buffer;
+    http::request<http::string_body> upgrade;
+    http::read(ws.next_layer(), upgrade_buffer, upgrade, ec);
+    if (ec) return;
+    {
+      std::lock_guard lock(mu_);
+      target_ = std::string(upgrade.target());
+    }
+    ws.accept(upgrade, ec);
     if (ec) return;
     beast::flat_buffer buffer;
     ws.read(buffer, ec);  // hello
@@ -531,6 +545,7 @@ class BadServer {
   mutable std::mutex mu_;
   std::map<RoomId, int> sent_;
   std::set<RoomId> cancelled_;
+  std::string target_;
   int requests_ = 0;
   std::thread thread_;
 };
@@ -596,6 +611,20 @@ TEST(StreamAgainstABadServer, stops_with_a_clear_error_when_the_server_picks_ano
   EXPECT_EQ(bad.connections(), 1) << "a refused version must not be retried";
 }
 
+TEST(StreamAgainstABadServer, the_upgrade_carries_the_seed_as_a_routing_hint) {
+  Runtime rt(1, 1);
+  for (std::optional<uint64_t> seed :
+       {std::optional<uint64_t>(18446744073709551615ull), std::optional<uint64_t>()}) {
+    BadServer bad(Misbehaviour::kRefuseVersion);
+    auto o = bad_server_options(bad.port());
+    o.seed = seed;
+    auto stream = start_stream(o, rt);
+    ASSERT_TRUE(wait_for([&] { return stream->state() == StreamState::kFailed; }))
+        << describe(stream->stats());
+    EXPECT_EQ(bad.target(), seed ? "/ws?seed=18446744073709551615" : "/ws");
+  }
+}
+
 TEST(StreamAgainstABadServer, stops_when_the_server_refuses_our_version) {
   BadServer bad(Misbehaviour::kRefuseVersion);
   Runtime rt(1, 1);
@@ -651,3 +680,47 @@ TEST(StreamAgainstABadServer, an_invalid_control_message_is_counted_and_the_stre
 }
 
 }  // namespace
+
+// ---- the shared-secret token ----
+
+namespace token_tests {
+
+TEST(StreamToken, the_right_token_streams_and_a_wrong_one_fails_for_good) {
+  auto c = test_config();
+  c.token = "stream-secret";
+  auto server = start_server(c);
+  ASSERT_TRUE(server);
+  Runtime rt(1, 2);
+  StreamOptions good;
+  good.url = url_of(server->port());
+  good.token = "stream-secret";
+  good.plan.horizon_s = 1.0;
+  auto stream = start_stream(good, rt);
+  ASSERT_TRUE(stream);
+  ASSERT_TRUE(wait_for([&] { return stream->stats().rooms_ready > 0; }))
+      << describe(stream->stats());
+  for (const std::string& token : {std::string("stream-secreT"), std::string()}) {
+    SCOPED_TRACE(token.empty() ? "no token" : "wrong token");
+    StreamOptions bad = good;
+    bad.token = token;
+    auto refused = start_stream(bad, rt);
+    ASSERT_TRUE(refused);
+    ASSERT_TRUE(wait_for([&] { return refused->state() == StreamState::kFailed; }))
+        << describe(refused->stats());
+    auto stats = refused->stats();
+    EXPECT_EQ(stats.errors["unauthorized"], 1u);
+    EXPECT_NE(stats.last_error.find(token.empty() ? "missing token" : "wrong token"),
+              std::string::npos)
+        << stats.last_error;
+    EXPECT_EQ(stats.connects, 0u);
+  }
+  EXPECT_EQ(stream->state(), StreamState::kReady) << describe(stream->stats());
+  StreamOptions invalid = good;
+  invalid.token = "tab\there";
+  auto refused = Stream::start(invalid, rt);
+  ASSERT_FALSE(refused.ok());
+  EXPECT_NE(refused.error().message.find("token must be printable ASCII"), std::string::npos)
+      << refused.error().message;
+}
+
+}  // namespace token_tests

@@ -7,6 +7,7 @@
 #include <limits>
 
 #include "proto/messages.hpp"
+#include "proto/token.hpp"
 
 namespace grotto::proto {
 namespace {
@@ -35,9 +36,16 @@ TEST(ProtoRoundTrip, every_client_message_round_trips) {
   Limits limits;
   limits.max_lod = 3;
   const ClientMessage messages[] = {
-      Hello{1, {1, 2, 65535}, 18446744073709551615ull, 0x0123456789abcdefull, "grotto-load 0.1"},
-      Hello{std::nullopt, {1}, std::nullopt, std::nullopt, ""},
-      Hello{0, {1}, 0, 0, "ünïcode ok"},
+      Hello{1,
+            {1, 2, 65535},
+            18446744073709551615ull,
+            0x0123456789abcdefull,
+            "grotto-load 0.1",
+            std::nullopt},
+      Hello{std::nullopt, {1}, std::nullopt, std::nullopt, "", std::nullopt},
+      Hello{0, {1}, 0, 0, "ünïcode ok", std::nullopt},
+      Hello{2, {1}, 7, std::nullopt, "fleet", "s3cret token ~!@#$%^&*()"},
+      Hello{3, {1}, std::nullopt, std::nullopt, "", std::string(kMaxTokenBytes, 't')},
       Locate{9007199254740991ull, {0.1, -0.0, -16777216.0}},
       Locate{std::nullopt, {1e-300, 123.456789012345678, 5e-324}},
       Spawn{3},
@@ -87,7 +95,7 @@ TEST(ProtoRoundTrip, text_matches_the_documented_shape) {
   Request r{12, {{id("0.0.0.r3"), 0, 250}}};
   EXPECT_EQ(serialize(ClientMessage(r)),
             R"({"type":"request","ref":12,"rooms":[{"id":"0.0.0.r3","lod":0,"priority":250}]})");
-  Hello h{1, {1}, 7, std::nullopt, "grotto-client"};
+  Hello h{1, {1}, 7, std::nullopt, "grotto-client", std::nullopt};
   EXPECT_EQ(serialize(ClientMessage(h)),
             R"({"type":"hello","ref":1,"versions":[1],"seed":"7","name":"grotto-client"})");
   ErrorMessage e{12, ErrorCode::kInvalidRoomId, "bad", std::nullopt, {}, false};
@@ -229,7 +237,8 @@ TEST(ProtoErrorReply, a_received_message_with_control_characters_is_masked) {
 }
 
 TEST(ProtoRoundTrip, names_with_printable_unicode_survive) {
-  Hello h{1, {1}, std::nullopt, std::nullopt, "caf\xc3\xa9 \xe2\x98\x83 \xd7\xa9\xd7\x9c"};
+  Hello h{1,           {1}, std::nullopt, std::nullopt, "caf\xc3\xa9 \xe2\x98\x83 \xd7\xa9\xd7\x9c",
+          std::nullopt};
   std::string text = serialize(ClientMessage(h));
   Result<ClientMessage> back = parse_client_message(text, Limits{});
   ASSERT_TRUE(back.ok()) << back.error().message;

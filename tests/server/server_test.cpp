@@ -1073,3 +1073,119 @@ TEST(ServerProgram, invalid_flag_exits_2_naming_it) {
 }
 
 }  // namespace
+
+// ---- the shared-secret token (PROTOCOL.md, hello.token) ----
+
+namespace token_tests {
+
+grotto::proto::Hello hello_with_token(std::optional<std::string> token) {
+  grotto::proto::Hello h;
+  h.ref = 1;
+  h.versions = {1};
+  h.name = "token-test";
+  h.token = std::move(token);
+  return h;
+}
+
+TEST(ServerToken, hello_without_the_right_token_is_unauthorized_and_closed) {
+  auto c = test_config();
+  c.token = "fleet secret 42";
+  auto server = start(c);
+  ASSERT_TRUE(server);
+  Client bystander(server->port());
+  ASSERT_FALSE(bystander.connect());
+  ASSERT_FALSE(bystander.send(hello_with_token(c.token)));
+  auto welcome = bystander.next_text();
+  ASSERT_TRUE(welcome && welcome->as<grotto::proto::Welcome>()) << welcome->data;
+
+  struct Case {
+    const char* name;
+    std::optional<std::string> token;
+    const char* message;
+  };
+  for (const Case& k : {Case{"missing", std::nullopt, "missing token"},
+                        Case{"wrong", "fleet secret 43", "wrong token"},
+                        Case{"a prefix", "fleet secret", "wrong token"},
+                        Case{"twice over", "fleet secret 42fleet secret 42", "wrong token"}}) {
+    SCOPED_TRACE(k.name);
+    Client client(server->port());
+    ASSERT_FALSE(client.connect());
+    ASSERT_FALSE(client.send(hello_with_token(k.token)));
+    auto e = client.next_error();
+    ASSERT_TRUE(e);
+    EXPECT_EQ(e->code, ErrorCode::kUnauthorized);
+    EXPECT_TRUE(e->fatal);
+    EXPECT_EQ(e->message, k.message);
+    EXPECT_EQ(e->ref, 1u);
+    auto reason = client.wait_close();
+    EXPECT_EQ(reason.code, 1008);
+    EXPECT_EQ(std::string(reason.reason.c_str()), "unauthorized");
+    EXPECT_TRUE(bystander.alive());
+  }
+  EXPECT_EQ(server->metrics().errors(ErrorCode::kUnauthorized), 4u);
+  // The right token: rooms arrive.
+  auto rooms = sector_rooms(c.seed, {0, 0, 0});
+  ASSERT_FALSE(bystander.send(request_of(rooms, 0, 2, 10)));
+  for (int i = 0; i < 2; ++i) {
+    auto [ec, in] = bystander.read();
+    ASSERT_FALSE(ec) << ec.message();
+    EXPECT_FALSE(in.text) << in.data;
+  }
+}
+
+TEST(ServerToken, without_a_token_configured_a_token_in_hello_is_ignored) {
+  auto server = start(test_config());
+  ASSERT_TRUE(server);
+  Client client(server->port());
+  ASSERT_FALSE(client.connect());
+  ASSERT_FALSE(client.send(hello_with_token("anything")));
+  auto welcome = client.next_text();
+  ASSERT_TRUE(welcome && welcome->as<grotto::proto::Welcome>()) << welcome->data;
+}
+
+TEST(ServerToken, token_comes_from_the_file_then_the_environment_and_bad_files_exit_2) {
+  auto file = write_temp("token.txt", "  file-token \nignored\n");
+  ::setenv("GROTTO_TOKEN", "env-token", 1);
+  auto from_file = parse({"--token-file", file});
+  auto from_env = parse({});
+  auto from_config =
+      parse({"--config", write_temp("token.json", "{\"token-file\": \"" + file + "\"}")});
+  ::unsetenv("GROTTO_TOKEN");
+  auto none = parse({});
+  ASSERT_TRUE(from_file.run) << from_file.text;
+  EXPECT_EQ(from_file.config.token, "file-token");
+  ASSERT_TRUE(from_env.run) << from_env.text;
+  EXPECT_EQ(from_env.config.token, "env-token");
+  ASSERT_TRUE(from_config.run) << from_config.text;
+  EXPECT_EQ(from_config.config.token, "file-token");
+  ASSERT_TRUE(none.run);
+  EXPECT_EQ(none.config.token, "");
+  for (const auto& [content, mention] : std::vector<std::pair<std::string, std::string>>{
+           {"\n", "the first line is empty"},
+           {std::string(300, 'k'), "at most 256 bytes"},
+           {"secret\x7f", "printable ASCII"}}) {
+    auto bad = parse({"--token-file", write_temp("bad_token.txt", content)});
+    EXPECT_FALSE(bad.run);
+    EXPECT_EQ(bad.exit_code, 2);
+    EXPECT_NE(bad.text.find("token-file"), std::string::npos) << bad.text;
+    EXPECT_NE(bad.text.find(mention), std::string::npos) << bad.text;
+  }
+  auto p = spawn({"--token-file", "/nonexistent/grotto-token", "--log-level", "off"});
+  EXPECT_EQ(wait_exit(p.pid, 10s), 2);
+  close(p.out);
+}
+
+}  // namespace token_tests
+
+// ---- the seed routing hint (PROTOCOL.md, Transport) ----
+
+TEST(ServerSession, a_query_string_on_ws_is_accepted_and_ignored) {
+  auto server = start(test_config());
+  ASSERT_TRUE(server);
+  Client client(server->port());
+  ASSERT_FALSE(client.connect("/ws?seed=12345&x=y"));
+  auto w = client.hello();
+  EXPECT_EQ(w.seed, server->config().seed);  // the hint does not choose the world
+  Client other(server->port());
+  EXPECT_TRUE(other.connect("/wsx?seed=1")) << "only the path before '?' is matched";
+}

@@ -12,6 +12,7 @@
 #include <string>
 
 #include "client/load/load.hpp"
+#include "server/server.hpp"
 
 namespace {
 
@@ -20,8 +21,8 @@ struct ProcessResult {
   std::string output;  // stdout and stderr together
 };
 
-ProcessResult run(const std::string& args) {
-  std::string cmd = std::string("'") + GROTTO_LOAD_BIN + "' " + args + " 2>&1";
+ProcessResult run_command(const std::string& command) {
+  std::string cmd = command + " 2>&1";
   FILE* p = popen(cmd.c_str(), "r");
   ProcessResult r{-1, {}};
   char buf[4096];
@@ -31,6 +32,15 @@ ProcessResult run(const std::string& args) {
   int status = pclose(p);
   r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
   return r;
+}
+
+ProcessResult run(const std::string& args) {
+  return run_command(std::string("'") + GROTTO_LOAD_BIN + "' " + args);
+}
+
+// As run(), with one VAR=value in the environment (and GROTTO_TOKEN otherwise unset).
+ProcessResult run_with_env(const std::string& assignment, const std::string& args) {
+  return run_command("env -u GROTTO_TOKEN " + assignment + " '" + GROTTO_LOAD_BIN + "' " + args);
 }
 
 std::filesystem::path temp_dir(const char* name) {
@@ -51,11 +61,11 @@ TEST(GrottoLoad, help_describes_every_option) {
   ProcessResult r = run("--help");
   EXPECT_EQ(r.exit_code, 0);
   for (const char* flag :
-       {"--server",     "--mode",           "--players",   "--duration",   "--speed",
-        "--horizon",    "--radius",         "--seed",      "--device",     "--server-workers",
-        "--io-threads", "--decode-workers", "--rng-seed",  "--spread",     "--verify",
-        "--max-stalls", "--tick-hz",        "--turn-back", "--burst-rate", "--json",
-        "--quiet",      "--log-level",      "Exit codes"}) {
+       {"--server",     "--mode",           "--players",    "--duration",   "--speed",
+        "--horizon",    "--radius",         "--seed",       "--device",     "--server-workers",
+        "--io-threads", "--decode-workers", "--rng-seed",   "--spread",     "--verify",
+        "--max-stalls", "--tick-hz",        "--turn-back",  "--burst-rate", "--json",
+        "--quiet",      "--log-level",      "--token-file", "GROTTO_TOKEN", "Exit codes"}) {
     EXPECT_NE(r.output.find(flag), std::string::npos) << flag;
   }
 }
@@ -75,6 +85,7 @@ TEST(GrottoLoad, bad_flags_exit_2_with_a_message_naming_the_flag) {
       {"--turn-back 2", "--turn-back"},
       {"--spread --server ws://127.0.0.1:1/ws", "--spread"},
       {"--no-such-flag", "--no-such-flag"},
+      {"--token-file /nonexistent/grotto-token", "token-file /nonexistent/grotto-token"},
   };
   for (const auto& [args, flag] : cases) {
     ProcessResult r = run(args);
@@ -181,6 +192,37 @@ TEST(GrottoLoad, a_server_that_is_not_there_is_an_error_not_a_hang) {
   ProcessResult r = run("--server ws://127.0.0.1:1/ws --players 1 --duration 1 --quiet");
   EXPECT_NE(r.exit_code, 0) << r.output;
   EXPECT_NE(r.exit_code, 2) << r.output;
+}
+
+// A server that wants a token: grotto-load with the right one (from --token-file, or from
+// GROTTO_TOKEN) passes; without it or with a wrong one every stream is refused (exit 1).
+TEST(GrottoLoad, sends_the_token_from_its_file_or_the_environment) {
+  grotto::server::ServerConfig c;
+  c.port = 0;
+  c.io_threads = 1;
+  c.generator.workers = 2;
+  c.generator.builder.device.device = "none";
+  c.log_level = "off";
+  c.token = "load-secret";
+  auto server = grotto::server::Server::start(c);
+  ASSERT_TRUE(server.ok()) << server.error().message;
+  auto dir = temp_dir("grotto-load-token");
+  auto file = dir / "token";
+  std::ofstream(file) << "load-secret\n";
+  std::string common = "--server ws://127.0.0.1:" + std::to_string((*server)->port()) +
+                       "/ws --players 1 --duration 2 --quiet ";
+  ProcessResult from_file =
+      run_with_env("GROTTO_TOKEN=ignored", "--token-file '" + file.string() + "' " + common);
+  EXPECT_EQ(from_file.exit_code, 0) << from_file.output;
+  ProcessResult from_env = run_with_env("GROTTO_TOKEN=load-secret", common);
+  EXPECT_EQ(from_env.exit_code, 0) << from_env.output;
+  ProcessResult none = run_with_env("GROTTO_TOKEN=", common);  // empty: no token sent
+  EXPECT_EQ(none.exit_code, 1) << none.output;
+  EXPECT_NE(none.output.find("unauthorized"), std::string::npos) << none.output;
+  ProcessResult wrong = run_with_env("GROTTO_TOKEN=load-secreT", common);
+  EXPECT_EQ(wrong.exit_code, 1) << wrong.output;
+  EXPECT_NE(wrong.output.find("unauthorized"), std::string::npos) << wrong.output;
+  std::filesystem::remove_all(dir);
 }
 
 }  // namespace
