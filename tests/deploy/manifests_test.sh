@@ -144,9 +144,14 @@ for var in ("GROTTO_CACHE_DIR", "POCL_CACHE_DIR"):
     under = [p for p in mounts if value.startswith(p + "/") and "emptyDir" in volumes[mounts[p]["name"]]]
     check(under, f"{var}={value!r} is not on an emptyDir volume")
 
-# The token: from a Secret, optional (off by default).
-ref = env.get("GROTTO_TOKEN", {}).get("valueFrom", {}).get("secretKeyRef", {})
-check(ref.get("optional") is True, "GROTTO_TOKEN must come from an optional Secret")
+# The token: from a Secret, optional (off by default), into the variable that the bash part
+# below shows grotto-server reading.
+secret_env = [n for n, e in env.items() if "secretKeyRef" in e.get("valueFrom", {})]
+check(len(secret_env) == 1, f"expected one variable from a Secret (the token), got {secret_env}")
+for name in secret_env:
+    check(env[name]["valueFrom"]["secretKeyRef"].get("optional") is True,
+          f"{name} must come from an optional Secret (the token is off by default)")
+    open(os.path.join(work, "token_env"), "w").write(name)
 
 # Selectors and references agree.
 def selects(sel):
@@ -182,8 +187,8 @@ http_status() {
 start_server() {
   local config=$1 log=$2
   port=
-  "$server" --config "$config" --bind 127.0.0.1 --port 0 --opencl-device none --workers 1 \
-    --io-threads 1 >"$log" 2>"$log.err" &
+  env "${server_env[@]}" "$server" --config "$config" --bind 127.0.0.1 --port 0 \
+    --opencl-device none --workers 1 --io-threads 1 >"$log" 2>"$log.err" &
   pid=$!
   for _ in $(seq 1 300); do
     port=$(sed -n 's|.*listening on http://127.0.0.1:\([0-9]*\).*|\1|p' "$log")
@@ -214,6 +219,10 @@ EOF
 )
 [[ "$healthcheck" == *"/healthz"* ]] || fail "deploy/Dockerfile: no HEALTHCHECK against /healthz"
 
+# The variable the Deployment fills from the token's Secret (written by the Python part).
+token_env=$(cat "$work/token_env" 2>/dev/null)
+token_env=${token_env:-GROTTO_TOKEN}
+server_env=(-u "$token_env")
 for config in "$work/configmap.json" "$src/deploy/systemd/grotto-server.json"; do
   [[ -f "$config" ]] || { fail "$config missing"; continue; }
   if ! start_server "$config" "$work/server.out"; then
@@ -233,8 +242,20 @@ for config in "$work/configmap.json" "$src/deploy/systemd/grotto-server.json"; d
       timeout 5 cat <&3) >"$work/metrics.txt" 2>/dev/null
     "$server" --help >"$work/help.txt"
   fi
+  grep -q "event=listening.* token=off" "$work/server.out.err" ||
+    fail "grotto-server with $config and no $token_env does not log token=off"
   stop_server || fail "grotto-server with $config did not exit 0 after SIGTERM"
 done
+
+# The Deployment's token variable turns the token on (what creating the Secret does).
+server_env=("$token_env=manifests-test-token")
+if start_server "$work/configmap.json" "$work/token.out"; then
+  grep -q "event=listening.* token=required" "$work/token.out.err" ||
+    fail "grotto-server with $token_env set does not require a token (log: $(cat "$work/token.out.err"))"
+  stop_server || fail "grotto-server with $token_env set did not exit 0 after SIGTERM"
+else
+  fail "grotto-server with $token_env set did not start: $(cat "$work/token.out.err")"
+fi
 
 # The check above can fail: a config file with an unknown key is refused (exit 2).
 printf '{"workerz": 2}\n' >"$work/bad.json"
@@ -299,7 +320,7 @@ elif [[ -s "$work/metrics.txt" ]]; then
   # grotto-server's flags from its --help; other Grotto programs' flags from their sources
   # (CLI11 options) and deploy/nginx/render.sh's usage text; the few flags of other tools the
   # guide uses are listed here.
-  others=" --now --from-file --rm --test-dir --build --target --offline "
+  others=" --now --from-literal --rm --test-dir --build --target --offline "
   for flag in $(grep -o -- '--[a-z][a-z0-9-]*' "$guide" | sort -u); do
     grep -q -- "${flag}[ ,=]" "$work/help.txt" && continue
     grep -rqF -- "\"$flag\"" "$src/client" "$src/bench" "$src/common" 2>/dev/null && continue
