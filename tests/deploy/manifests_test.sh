@@ -191,7 +191,7 @@ start_server() {
     --opencl-device none --workers 1 --io-threads 1 >"$log" 2>"$log.err" &
   pid=$!
   for _ in $(seq 1 300); do
-    port=$(sed -n 's|.*listening on http://127.0.0.1:\([0-9]*\).*|\1|p' "$log")
+    port=$(sed -n 's|.*listening on http://127.0.0.1:\([0-9]*\).*|\1|p' "$log" 2>/dev/null)  # the file may not exist yet
     [[ -n "$port" ]] && return 0
     kill -0 "$pid" 2>/dev/null || break
     sleep 0.1
