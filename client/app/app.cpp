@@ -105,9 +105,9 @@ void follow_path(Session& s, double seconds) {
 
 }  // namespace
 
-Session::Session(const Options& o, GLFWwindow* w, render::Renderer& r, render::GpuRoomCache& c,
-                 client::Stream& st)
-    : options(o), window(w), renderer(r), cache(c), stream(st), player(Vec3{}) {
+Session::Session(const Options& o, GLFWwindow* w, render::Renderer& r, render::Overlay& ov,
+                 render::GpuRoomCache& c, client::Stream& st)
+    : options(o), window(w), renderer(r), overlay(ov), cache(c), stream(st), player(Vec3{}) {
   play::PlayerParams params;
   params.speed = o.speed;
   player = play::Player(Vec3{}, params);
@@ -125,6 +125,10 @@ Session::Session(const Options& o, GLFWwindow* w, render::Renderer& r, render::G
   render_options.wireframe = o.wireframe;
   render_options.surface =
       o.surface == "phong" ? render::Surface::kPhong : render::Surface::kPnTriangles;
+  render_options.lod = o.lod;
+  render_options.portal_culling = !o.no_portal_culling;
+  if (o.no_displacement) render_options.displacement = 0;
+  show_overlay = o.overlay.value_or(o.screenshot.empty() && !o.bench_s);
 }
 
 void pump(Session& s, double speed) {
@@ -172,8 +176,28 @@ void pump(Session& s, double speed) {
 }
 
 render::FrameStats draw_frame(Session& s, int width, int height) {
+  const auto began = Clock::now();
   render::FrameStats stats = s.renderer.draw(s.cache, s.camera, width, height, s.render_options);
-  // The overlay's text lines go here, drawn over the cave.
+  const client::StreamStats st = s.stream.stats();
+  // The first frame's time would include the wait for rooms: unknown.
+  const double frame_ms = s.last_frame == s.began ? 0 : 1000 * seconds_since(s.last_frame);
+  s.meter.frame(frame_ms, seconds_since(s.began), st.bytes_received, s.stream.take_samples());
+  s.last_frame = began;
+  if (s.show_overlay) {
+    HudState hud;
+    hud.frame_ms = s.meter.frame_ms();
+    hud.latency_ms = s.meter.latency_ms();
+    hud.kbytes_per_s = s.meter.kbytes_per_s();
+    hud.rooms_on_gpu = s.cache.size();
+    hud.frame = stats;
+    hud.stream = st;
+    hud.render = s.render_options;
+    hud.mode = s.following         ? "PATH"
+               : s.player.noclip() ? "NOCLIP"
+                                   : play::mode_name(s.player.mode());
+    hud.help = s.show_keys;
+    s.overlay.draw(hud_lines(hud), width, height);
+  }
   return stats;
 }
 
@@ -281,12 +305,14 @@ int run_window(Session& s) {
   });
 
   render::RenderOptions& ro = s.render_options;
-  bool following = s.options.flythrough_s.has_value();
+  bool& following = s.following;
+  following = s.options.flythrough_s.has_value();
   const auto began = Clock::now();
   std::optional<Clock::time_point> path_began;
   auto last = Clock::now();
   double title_timer = 0;
   bool t_down = false, p_down = false, f_down = false, g_down = false, n_down = false;
+  bool x_down = false, o_down = false, l_down = false, h_down = false, v_down = false;
   auto key = [&](int k) { return glfwGetKey(s.window, k) == GLFW_PRESS; };
   auto pressed = [&](int k, bool& was) {
     const bool now = key(k);
@@ -309,6 +335,13 @@ int run_window(Session& s) {
       s.player.set_mode(s.player.mode() == play::Mode::kWalk ? play::Mode::kFly
                                                              : play::Mode::kWalk);
     if (pressed(GLFW_KEY_N, n_down)) s.player.set_noclip(!s.player.noclip());
+    if (pressed(GLFW_KEY_X, x_down))
+      ro.displacement = ro.displacement > 0 ? 0.0f : render::RenderOptions{}.displacement;
+    if (pressed(GLFW_KEY_O, o_down)) ro.portal_culling = !ro.portal_culling;
+    if (pressed(GLFW_KEY_L, l_down))
+      ro.lod = static_cast<render::LodHeuristic>((static_cast<int>(ro.lod) + 1) % 3);
+    if (pressed(GLFW_KEY_H, h_down)) s.show_keys = !s.show_keys;
+    if (pressed(GLFW_KEY_V, v_down)) s.show_overlay = !s.show_overlay;
 
     const Vec3 forward = render::camera_forward(s.camera);
     const Vec3 right{std::cos(s.camera.yaw), 0, std::sin(s.camera.yaw)};

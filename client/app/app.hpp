@@ -6,13 +6,16 @@
 
 #include <GLFW/glfw3.h>
 
+#include <chrono>
 #include <optional>
 
 #include "cave/room_id.hpp"
+#include "client/app/hud.hpp"
 #include "client/app/options.hpp"
 #include "client/play/collision.hpp"
 #include "client/play/flythrough.hpp"
 #include "client/play/player.hpp"
+#include "client/render/overlay.hpp"
 #include "client/render/renderer.hpp"
 #include "client/render/room_cache.hpp"
 #include "client/stream/stream.hpp"
@@ -21,11 +24,12 @@ namespace grotto::app {
 
 struct Session {
   Session(const Options& options, GLFWwindow* window, render::Renderer& renderer,
-          render::GpuRoomCache& cache, client::Stream& stream);
+          render::Overlay& overlay, render::GpuRoomCache& cache, client::Stream& stream);
 
   const Options& options;
   GLFWwindow* window;
   render::Renderer& renderer;
+  render::Overlay& overlay;
   render::GpuRoomCache& cache;
   client::Stream& stream;
   play::CollisionWorld world;
@@ -38,13 +42,19 @@ struct Session {
   std::optional<play::Flythrough> path;    // --flythrough / --bench: planned once complete
   std::optional<Vec3> start;               // where the camera was placed first
   std::optional<Vec3> stream_focus;        // told to the stream instead of the camera
+  bool show_overlay = false;
+  bool show_keys = false;  // the overlay's key list
+  bool following = false;  // the camera is on the scripted path
+  HudMeter meter;
+  std::chrono::steady_clock::time_point began = std::chrono::steady_clock::now();
+  std::chrono::steady_clock::time_point last_frame = began;
 };
 
 // Drains the stream (new rooms into the GPU cache and the collision world, evictions out of
 // both), takes the spawn point, and tells the stream the camera's pose at `speed` m/s.
 void pump(Session& s, double speed);
 
-// Draws one frame into the bound framebuffer: the cave, then (later) the overlay's text lines.
+// Draws one frame into the bound framebuffer: the cave, then the overlay when shown.
 render::FrameStats draw_frame(Session& s, int width, int height);
 
 // The window until it is closed or Esc.

@@ -75,6 +75,9 @@ int main(int argc, char** argv) {
   if (!renderer_or) return fail(renderer_or.error().message);
   // GL objects: released below while the context still exists.
   auto renderer = std::make_unique<render::Renderer>(std::move(renderer_or).value());
+  auto overlay_or = render::Overlay::create();
+  if (!overlay_or) return fail(overlay_or.error().message);
+  auto overlay = std::make_unique<render::Overlay>(std::move(overlay_or).value());
   auto cache = std::make_unique<render::GpuRoomCache>();
 
   // The in-process server when no --server was given.
@@ -85,6 +88,7 @@ int main(int argc, char** argv) {
     config.port = 0;
     config.bind = "127.0.0.1";
     if (o.seed) config.seed = *o.seed;
+    config.token = o.token;
     config.generator.builder.device.device = o.device;
     config.drain_timeout = 2000ms;
     config.log_level = o.log_level;
@@ -97,6 +101,7 @@ int main(int argc, char** argv) {
   client::StreamOptions so;
   so.url = url;
   so.seed = o.seed;
+  so.token = o.token;
   so.name = "grotto-client";
   so.spawn = !o.pose.has_value();
   auto stream_or = client::Stream::start(so, runtime);
@@ -105,13 +110,14 @@ int main(int argc, char** argv) {
 
   int status = 0;
   {
-    app::Session session(o, window, *renderer, *cache, *stream);
+    app::Session session(o, window, *renderer, *overlay, *cache, *stream);
     status = headless ? app::run_headless(session) : app::run_window(session);
   }
 
   stream->stop();
   stream.reset();
   cache.reset();
+  overlay.reset();
   renderer.reset();
   glfwDestroyWindow(window);
   if (server) server->stop(2000ms);

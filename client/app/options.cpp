@@ -1,5 +1,7 @@
 #include "client/app/options.hpp"
 
+#include "proto/token.hpp"
+
 #include <CLI/CLI.hpp>
 #include <cmath>
 #include <cstdio>
@@ -46,7 +48,8 @@ std::optional<int> parse_options(int argc, char** argv, Options& o) {
       "You walk with gravity and collide with the cave's walls.\n"
       "Mouse: look; W/A/S/D: move; Shift: run; Space: jump (walk) or rise (fly); C: descend "
       "(fly); G: walk/fly; N: noclip (debugging: through walls); T: tessellation on/off; P: PN "
-      "triangles/Phong; F: wireframe; Esc: quit."};
+      "triangles/Phong; X: displacement; O: portal culling; L: LOD heuristic; F: wireframe; "
+      "H: the overlay's key list; V: overlay on/off; Esc: quit."};
   app.add_option("--server", o.server_url,
                  "Server URL ws://host:port[/ws]; without it a server runs in-process");
   app.add_option("--seed", o.seed,
@@ -100,6 +103,22 @@ std::optional<int> parse_options(int argc, char** argv, Options& o) {
                  "Headless: render the scripted path (--flythrough's) for this many seconds at "
                  "--width x --height once its rooms are loaded, print frame-time statistics "
                  "(frames, mean, median, p95, p99, max ms, fps) and exit");
+  app.add_option("--token-file", o.token_file,
+                 "File whose first line (trimmed) is the deployment's shared-secret token, sent in "
+                 "hello; without it $GROTTO_TOKEN is used; with neither no token is sent")
+      ->type_name("FILE");
+  app.add_flag("--overlay,!--no-overlay", o.overlay,
+               "Status overlay (frame time, rooms, latency, bandwidth, toggles, connection): on "
+               "in the window, off in --screenshot unless asked for");
+  app.add_option("--lod", o.lod_text,
+                 "Tessellation level heuristic: distance (the thesis's), screen (edge length in "
+                 "pixels) or silhouette (finer on silhouette edges); L cycles")
+      ->capture_default_str();
+  app.add_flag("--no-portal-culling", o.no_portal_culling,
+               "Draw every loaded room in the view frustum instead of the rooms seen through "
+               "portals (O toggles)");
+  app.add_flag("--no-displacement", o.no_displacement,
+               "Tessellate without displacing the surface (X toggles)");
   app.add_option("--json", o.json, "With --bench: also write the statistics to this JSON file");
   app.add_option("--log-level", o.log_level, "Log level on stderr (trace ... off)")
       ->capture_default_str();
@@ -120,6 +139,18 @@ std::optional<int> parse_options(int argc, char** argv, Options& o) {
     o.mode = play::Mode::kFly;
   } else {
     return fail("--mode must be walk or fly (got '" + o.mode_text + "')");
+  }
+  auto token = proto::resolve_token(o.token_file, std::getenv(proto::kTokenEnvVariable));
+  if (!token) return fail(token.error().message);
+  o.token = std::move(token).value();
+  if (o.lod_text == "distance") {
+    o.lod = render::LodHeuristic::kDistance;
+  } else if (o.lod_text == "screen") {
+    o.lod = render::LodHeuristic::kScreenSpace;
+  } else if (o.lod_text == "silhouette") {
+    o.lod = render::LodHeuristic::kSilhouette;
+  } else {
+    return fail("--lod must be distance, screen or silhouette (got '" + o.lod_text + "')");
   }
   if (o.flythrough_s && !(std::isfinite(*o.flythrough_s) && *o.flythrough_s >= 0))
     return fail("--flythrough must be a time along the path of 0 seconds or more (got " +

@@ -7,6 +7,7 @@
 #include <string>
 
 #include "client/play/player.hpp"
+#include "client/render/renderer.hpp"
 #include "core/vec3.hpp"
 
 namespace grotto::app {
@@ -37,6 +38,13 @@ struct Options {
   std::optional<double> flythrough_s;  // time along the scripted path
   std::optional<double> bench_s;       // seconds of frames to measure
   std::string json;                    // --bench report
+  std::string token_file;
+  std::string token;            // from token_file or $GROTTO_TOKEN; empty: none
+  std::optional<bool> overlay;  // --overlay / --no-overlay; default: in the window only
+  std::string lod_text = "distance";
+  render::LodHeuristic lod = render::LodHeuristic::kDistance;
+  bool no_portal_culling = false;
+  bool no_displacement = false;
   std::string log_level = "warn";
 };
 

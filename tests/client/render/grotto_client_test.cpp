@@ -195,3 +195,40 @@ TEST(GrottoClient, a_screenshot_along_the_flythrough_is_not_blank) {
 }
 
 }  // namespace
+
+// The overlay in a real screenshot: pointed at a port where no server listens, grotto-client
+// keeps running and its overlay says so in the error colour, in the top-left panel only; without
+// --overlay no pixel has that colour.
+TEST(GrottoClient, the_overlay_says_plainly_when_the_server_cannot_be_reached) {
+  const char* display = std::getenv("DISPLAY");
+  if (display == nullptr || *display == '\0') GTEST_SKIP() << "DISPLAY is not set";
+  const auto dir = std::filesystem::temp_directory_path();
+  // Port 9 (discard) on loopback: nothing listens there on these machines.
+  const std::string base = std::string(GROTTO_CLIENT_BIN) +
+                           " --server ws://127.0.0.1:9/ws --pose 0,0,0 --wait 1 --frames 2"
+                           " --width 320 --height 180 --screenshot ";
+  auto error_pixels = [&](const std::string& flags, int& outside_panel) {
+    const std::string path = (dir / ("grotto_client_test_overlay" + flags + ".png")).string();
+    Outcome r = run(base + path + " " + flags);
+    EXPECT_EQ(r.status, 0) << r.output;
+    int width = 0, height = 0;
+    std::vector<unsigned char> rgb = read_stored_png(path, width, height);
+    std::filesystem::remove(path);
+    int count = 0;
+    outside_panel = 0;
+    for (int y = 0; y < height; ++y) {
+      for (int x = 0; x < width; ++x) {
+        const unsigned char* p = &rgb[(static_cast<size_t>(y) * width + x) * 3];
+        // kOverlayError is (1.0, 0.35, 0.3): red well above green and blue.
+        if (p[0] < 200 || p[1] > 120 || p[2] > 110) continue;
+        ++count;
+        outside_panel += y > height / 2;
+      }
+    }
+    return count;
+  };
+  int outside = 0;
+  EXPECT_GT(error_pixels("--overlay", outside), 100);
+  EXPECT_EQ(outside, 0);
+  EXPECT_EQ(error_pixels("", outside), 0);
+}

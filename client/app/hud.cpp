@@ -1,0 +1,97 @@
+#include "client/app/hud.hpp"
+
+#include <algorithm>
+#include <cstdio>
+
+namespace grotto::app {
+namespace {
+
+constexpr size_t kLatencyWindow = 64;
+
+template <typename... Args>
+std::string format(const char* pattern, Args... args) {
+  char text[160];
+  std::snprintf(text, sizeof text, pattern, args...);
+  return text;
+}
+
+const char* on_off(bool on) {
+  return on ? "ON" : "OFF";
+}
+
+}  // namespace
+
+void HudMeter::frame(double frame_ms, double now_s, uint64_t bytes_received,
+                     const std::vector<client::RoomSample>& samples) {
+  if (frame_ms > 0) frame_ms_ = frame_ms_ == 0 ? frame_ms : frame_ms_ + (frame_ms - frame_ms_) / 30;
+  for (const client::RoomSample& sample : samples) {
+    latencies_.push_back(sample.latency_ms);
+    if (latencies_.size() > kLatencyWindow) latencies_.pop_front();
+  }
+  if (window_start_s_ < 0) {
+    window_start_s_ = now_s, window_bytes_ = bytes_received;
+  } else if (now_s - window_start_s_ >= 1.0) {
+    kbytes_per_s_ =
+        static_cast<double>(bytes_received - window_bytes_) / 1024.0 / (now_s - window_start_s_);
+    window_start_s_ = now_s, window_bytes_ = bytes_received;
+  }
+}
+
+double HudMeter::latency_ms() const {
+  if (latencies_.empty()) return -1;
+  std::vector<double> sorted(latencies_.begin(), latencies_.end());
+  std::nth_element(sorted.begin(), sorted.begin() + static_cast<long>(sorted.size() / 2),
+                   sorted.end());
+  return sorted[sorted.size() / 2];
+}
+
+std::vector<render::OverlayLine> hud_lines(const HudState& s) {
+  std::vector<render::OverlayLine> lines;
+  const client::StreamStats& st = s.stream;
+  switch (st.state) {
+    case client::StreamState::kReady:
+      break;
+    case client::StreamState::kConnecting:
+      lines.push_back(
+          {st.connects == 0 ? "CONNECTING TO THE SERVER..." : "SERVER LOST: RECONNECTING...",
+           render::kOverlayWarning});
+      break;
+    case client::StreamState::kBackoff:
+      lines.push_back(
+          {st.connects == 0 ? "CANNOT REACH THE SERVER: RETRYING" : "SERVER LOST: RECONNECTING",
+           render::kOverlayError});
+      if (!st.last_error.empty()) lines.push_back({st.last_error, render::kOverlayError});
+      break;
+    case client::StreamState::kFailed:
+      lines.push_back({"SERVER REFUSED US: " + st.last_error, render::kOverlayError});
+      break;
+    case client::StreamState::kStopped:
+      lines.push_back({"STREAM STOPPED", render::kOverlayWarning});
+      break;
+  }
+  lines.push_back({format("%.1f MS  %.0f FPS   ROOMS %zu LOADED  %d DRAWN  %d CAPS", s.frame_ms,
+                          s.frame_ms > 0 ? 1000.0 / s.frame_ms : 0.0, s.rooms_on_gpu,
+                          s.frame.rooms_drawn, s.frame.caps)});
+  const std::string latency = s.latency_ms < 0 ? std::string("-") : format("%.0f MS", s.latency_ms);
+  lines.push_back({format("STREAM %llu IN FLIGHT  LATENCY %s  %.0f KB/S  RECONNECTS %llu",
+                          static_cast<unsigned long long>(st.in_flight), latency.c_str(),
+                          s.kbytes_per_s, static_cast<unsigned long long>(st.reconnects))});
+  const render::RenderOptions& r = s.render;
+  const char* surface = !r.tessellation                        ? "FLAT"
+                        : r.surface == render::Surface::kPhong ? "PHONG"
+                                                               : "PN";
+  lines.push_back({format("TESS %s %.0f  DISPLACE %s  PORTALS %s  LOD %s  %s", surface, r.max_tess,
+                          on_off(r.displacement > 0), on_off(r.portal_culling),
+                          render::lod_heuristic_name(r.lod), s.mode.c_str())});
+  if (s.help) {
+    lines.push_back(
+        {"MOUSE LOOK  WASD MOVE  SHIFT RUN  SPACE JUMP/UP  C DOWN  G WALK/FLY  N NOCLIP"});
+    lines.push_back(
+        {"T TESS  P PN/PHONG  X DISPLACE  O PORTALS  L LOD  F WIREFRAME  H HELP  ESC QUIT"});
+  } else {
+    lines.push_back({"H: KEYS"});
+  }
+  return lines;
+}
+
+}  // namespace grotto::app
