@@ -4,6 +4,8 @@
 #include <charconv>
 #include <cmath>
 #include <cstdlib>
+#include <optional>
+#include <string_view>
 
 #include "client/load/load.hpp"
 #include "client/stream/stream.hpp"
@@ -28,6 +30,15 @@ std::string check_number(const char* flag, double v, double lo, double hi) {
            CLI::detail::to_string(hi) + "] (got " + CLI::detail::to_string(v) + ")";
   }
   return {};
+}
+
+// A decimal unsigned 64-bit integer, the whole text.
+std::optional<uint64_t> parse_u64(std::string_view text) {
+  uint64_t v = 0;
+  const char* end = text.data() + text.size();
+  auto [p, ec] = std::from_chars(text.data(), end, v);
+  if (ec != std::errc() || p != end || text.empty()) return std::nullopt;
+  return v;
 }
 
 }  // namespace
@@ -70,6 +81,12 @@ CommandLine parse_command_line(int argc, const char* const* argv) {
                  "World seed (unsigned 64-bit). Embedded server: the world it serves (default "
                  "7); remote: the world asked for (default: the server's)");
   std::string token_file;
+  std::string seeds_text;
+  app.add_option("--seeds", seeds_text,
+                 "Several worlds: comma-separated seeds, player i asks for seed i mod count "
+                 "(round-robin); the report counts rooms received per seed. Conflicts with "
+                 "--seed; more than one seed needs --server (a server serving many worlds)")
+      ->type_name("LIST");
   app.add_option("--token-file", token_file,
                  "File whose first line (trimmed) is the shared-secret token sent in hello "
                  "(1-256 bytes of printable ASCII). Without it $GROTTO_TOKEN is used; with "
@@ -145,13 +162,25 @@ CommandLine parse_command_line(int argc, const char* const* argv) {
     if (!m.empty()) return fail(m);
   }
   if (!seed_text.empty()) {
-    uint64_t v = 0;
-    const char* end = seed_text.data() + seed_text.size();
-    auto [p, ec] = std::from_chars(seed_text.data(), end, v);
-    if (ec != std::errc() || p != end) {
+    o.seed = parse_u64(seed_text);
+    if (!o.seed) {
       return fail("--seed: must be an unsigned 64-bit integer (got '" + seed_text + "')");
     }
-    o.seed = v;
+  }
+  if (!seeds_text.empty()) {
+    if (o.seed) return fail("--seeds conflicts with --seed: give one or the other");
+    std::string_view rest = seeds_text;
+    while (true) {
+      std::string_view item = rest.substr(0, rest.find(','));
+      auto seed = parse_u64(item);
+      if (!seed) {
+        return fail("--seeds: '" + std::string(item) +
+                    "' is not an unsigned 64-bit integer (expected a list like 7,8,9)");
+      }
+      o.seeds.push_back(*seed);
+      if (item.size() == rest.size()) break;
+      rest.remove_prefix(item.size() + 1);
+    }
   }
   auto token = proto::resolve_token(token_file, std::getenv(proto::kTokenEnvVariable));
   if (!token) return fail(token.error().message);
@@ -159,7 +188,12 @@ CommandLine parse_command_line(int argc, const char* const* argv) {
   if (!o.url.empty()) {
     if (auto url = parse_url(o.url); !url) return fail("--server: " + url.error().message);
   }
-  if (o.spread && !o.url.empty() && !o.seed) {
+  if (o.seeds.size() > 1 && o.url.empty()) {
+    return fail(
+        "--seeds with more than one seed needs --server (the embedded server serves "
+        "one world)");
+  }
+  if (o.spread && !o.url.empty() && !o.seed && o.seeds.empty()) {
     return fail("--spread with --server needs --seed (start rooms are laid out locally)");
   }
   out.run = true;

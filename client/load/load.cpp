@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
+#include <map>
 #include <memory>
 #include <thread>
 #include <vector>
@@ -88,7 +89,13 @@ Status check(const LoadOptions& o) {
   if (!(o.radius_m > 0)) return invalid_argument("--radius must be > 0");
   if (!(o.duration_s >= 0)) return invalid_argument("--duration must be >= 0");
   if (!(o.tick_hz > 0)) return invalid_argument("tick_hz must be > 0");
-  if (o.spread && !o.url.empty() && !o.seed) {
+  if (o.seed && !o.seeds.empty()) return invalid_argument("--seeds conflicts with --seed");
+  if (o.seeds.size() > 1 && o.url.empty()) {
+    return invalid_argument(
+        "--seeds with more than one world needs --server (the embedded server serves one "
+        "world)");
+  }
+  if (o.spread && !o.url.empty() && !o.seed && o.seeds.empty()) {
     return invalid_argument(
         "--spread with --server needs --seed (the start rooms are laid out "
         "locally, so the world must be known)");
@@ -166,6 +173,7 @@ Result<LoadReport> run_load(const LoadOptions& options) {
     config.port = 0;
     config.bind = "127.0.0.1";
     if (options.seed) config.seed = *options.seed;
+    if (!options.seeds.empty()) config.seed = options.seeds.front();
     config.token = options.token;
     config.generator.builder.device.device = options.device;
     config.generator.workers = options.server_workers;
@@ -184,11 +192,20 @@ Result<LoadReport> run_load(const LoadOptions& options) {
   }
   report.url = url;
 
-  std::vector<std::pair<cave::RoomId, Vec3>> starts;
+  // The world of player i: round-robin over --seeds, else the one seed (or the server's).
+  auto seed_of = [&](int i) -> std::optional<uint64_t> {
+    if (options.seeds.empty()) return options.seed;
+    return options.seeds[static_cast<size_t>(i) % options.seeds.size()];
+  };
+  std::map<uint64_t, std::vector<std::pair<cave::RoomId, Vec3>>> starts;  // by seed
   if (options.spread) {
-    auto s = spread_starts(*report.seed, options.players);
-    if (!s) return s.error();
-    starts = std::move(s).value();
+    for (int i = 0; i < options.players; ++i) {
+      uint64_t seed = seed_of(i) ? *seed_of(i) : *report.seed;
+      if (starts.contains(seed)) continue;
+      auto s = spread_starts(seed, options.players);
+      if (!s) return s.error();
+      starts[seed] = std::move(s).value();
+    }
   }
 
   PlanOptions plan_options;
@@ -206,7 +223,7 @@ Result<LoadReport> run_load(const LoadOptions& options) {
     p.index = i;
     StreamOptions so;
     so.url = url;
-    so.seed = options.seed;
+    so.seed = seed_of(i);
     so.name = "grotto-load";
     so.token = options.token;
     so.plan = plan_options;
@@ -221,8 +238,10 @@ Result<LoadReport> run_load(const LoadOptions& options) {
     wo.speed = options.speed;
     p.walker = std::make_unique<Walker>(std::move(view), wo, options.rng_seed + i);
     if (options.spread) {
-      p.start = starts[static_cast<size_t>(i)].first;
-      p.walker->place(starts[static_cast<size_t>(i)].first, starts[static_cast<size_t>(i)].second);
+      const auto& [room, position] =
+          starts.at(seed_of(i) ? *seed_of(i) : *report.seed)[static_cast<size_t>(i)];
+      p.start = room;
+      p.walker->place(room, position);
       p.stream->set_pose(p.walker->pose());
     }
   }
@@ -323,6 +342,7 @@ Result<LoadReport> run_load(const LoadOptions& options) {
     const WalkerStats& w = p.walker->stats();
     PlayerReport pr;
     pr.index = p.index;
+    pr.seed = seed_of(p.index);
     if (p.start) pr.start_room = p.start->to_string();
     if (w.first_room_s) {
       pr.first_room_ms = *w.first_room_s * 1000.0;

@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "client/load/report.hpp"
 #include "client/load/walker.hpp"
@@ -32,6 +33,9 @@ struct LoadOptions {
   // The world. Embedded: the seed it serves (absent: ServerConfig's default). Remote: the world
   // asked for in hello (absent: the server's); --spread needs it to lay out the start rooms.
   std::optional<uint64_t> seed;
+  // Several worlds (--seeds): player i asks for seeds[i % seeds.size()]; empty: `seed` for all.
+  // Exclusive with `seed`; more than one needs a server that serves many worlds (--server).
+  std::vector<uint64_t> seeds;
   // The shared secret sent in hello (proto/token.hpp); "": none. The embedded server requires
   // it too when set.
   std::string token;

@@ -40,7 +40,9 @@ void total_players(LoadReport& r) {
   r.rooms_entered = r.turn_backs = 0;
   r.distance_m = 0;
   r.players_without_room = 0;
+  r.rooms_received_by_seed.clear();
   for (const auto& p : r.players_detail) {
+    if (p.seed) r.rooms_received_by_seed[*p.seed] += p.rooms_received;
     r.players_without_room += p.first_room_ms < 0 ? 1 : 0;
     r.rooms_ready += p.rooms_ready;
     r.rooms_received += p.rooms_received;
@@ -116,6 +118,9 @@ std::string format_table(const LoadReport& r) {
   appendf(out, "  bytes received    %10llu  (%.2f MB/s)\n", u(r.bytes), r.mb_per_s);
   appendf(out, "  rooms received    %10llu  rejected %llu, evicted %llu, given up %llu\n",
           u(r.rooms_received), u(r.rooms_rejected), u(r.rooms_evicted), u(r.rooms_given_up));
+  for (const auto& [seed, n] : r.rooms_received_by_seed) {
+    appendf(out, "    of seed %-8s %10llu\n", std::to_string(seed).c_str(), u(n));
+  }
   appendf(out, "  requested         %10llu  cancelled %llu\n", u(r.requests), u(r.cancels));
   appendf(out, "  stalls            %10llu  total %.2f s%s\n", u(r.stalls), r.stall_total_s,
           r.max_stalls >= 0 ? (" (limit " + std::to_string(r.max_stalls) + ")").c_str() : "");
@@ -161,25 +166,27 @@ std::string format_table(const LoadReport& r) {
 std::string to_json_text(const LoadReport& r) {
   nlohmann::json players = nlohmann::json::array();
   for (const auto& p : r.players_detail) {
-    players.push_back({{"index", p.index},
-                       {"start_room", p.start_room},
-                       {"first_room_ms", p.first_room_ms},
-                       {"rooms_ready", p.rooms_ready},
-                       {"rooms_received", p.rooms_received},
-                       {"bytes", p.bytes},
-                       {"requests", p.requests},
-                       {"cancels", p.cancels},
-                       {"rooms_entered", p.rooms_entered},
-                       {"turn_backs", p.turn_backs},
-                       {"distance_m", p.distance_m},
-                       {"stalls", p.stalls},
-                       {"stall_s", p.stall_s},
-                       {"reconnects", p.reconnects},
-                       {"errors", p.errors},
-                       {"state", p.state},
-                       {"last_error", p.last_error},
-                       {"burst_complete_s", p.burst_complete_s},
-                       {"burst_rooms", p.burst_rooms}});
+    players.push_back(
+        {{"index", p.index},
+         {"seed", p.seed ? nlohmann::json(std::to_string(*p.seed)) : nlohmann::json(nullptr)},
+         {"start_room", p.start_room},
+         {"first_room_ms", p.first_room_ms},
+         {"rooms_ready", p.rooms_ready},
+         {"rooms_received", p.rooms_received},
+         {"bytes", p.bytes},
+         {"requests", p.requests},
+         {"cancels", p.cancels},
+         {"rooms_entered", p.rooms_entered},
+         {"turn_backs", p.turn_backs},
+         {"distance_m", p.distance_m},
+         {"stalls", p.stalls},
+         {"stall_s", p.stall_s},
+         {"reconnects", p.reconnects},
+         {"errors", p.errors},
+         {"state", p.state},
+         {"last_error", p.last_error},
+         {"burst_complete_s", p.burst_complete_s},
+         {"burst_rooms", p.burst_rooms}});
   }
   nlohmann::json verify = {{"enabled", r.verify.enabled},
                            {"rooms_checked", r.verify.rooms_checked},
@@ -189,6 +196,10 @@ std::string to_json_text(const LoadReport& r) {
                            {"graph_failures", r.verify.graph_failures},
                            {"failures", r.verify.failures()},
                            {"first_failures", r.verify.first_failures}};
+  // Keys are decimal seeds (strings, as 64-bit seeds travel in JSON).
+  nlohmann::json by_seed = nlohmann::json::object();
+  for (const auto& [seed, n] : r.rooms_received_by_seed)
+    by_seed[std::to_string(seed)] = n;
   nlohmann::json doc = {
       {"tool", "grotto-load"},
       {"mode", r.mode},
@@ -218,6 +229,7 @@ std::string to_json_text(const LoadReport& r) {
         {"given_up", r.rooms_given_up},
         {"requested", r.requests},
         {"cancelled", r.cancels}}},
+      {"rooms_received_by_seed", by_seed},
       {"bytes", r.bytes},
       {"rooms_per_s", r.rooms_per_s},
       {"mb_per_s", r.mb_per_s},

@@ -23,14 +23,15 @@ Distribution summarize(std::vector<double> samples);
 // One simulated player.
 struct PlayerReport {
   int index = 0;
-  std::string start_room;       // text id; empty when the player never got a start
-  double first_room_ms = -1;    // start of the run → start room ready; -1: never
-  uint64_t rooms_ready = 0;     // rooms decoded and stored by its Stream
-  uint64_t rooms_received = 0;  // room frames accepted
-  uint64_t bytes = 0;           // bytes received
-  uint64_t requests = 0;        // rooms requested
-  uint64_t cancels = 0;         // rooms cancelled
-  uint64_t rooms_entered = 0;   // portals crossed by the walker
+  std::optional<uint64_t> seed;  // the world it asked for; absent: the server's
+  std::string start_room;        // text id; empty when the player never got a start
+  double first_room_ms = -1;     // start of the run → start room ready; -1: never
+  uint64_t rooms_ready = 0;      // rooms decoded and stored by its Stream
+  uint64_t rooms_received = 0;   // room frames accepted
+  uint64_t bytes = 0;            // bytes received
+  uint64_t requests = 0;         // rooms requested
+  uint64_t cancels = 0;          // rooms cancelled
+  uint64_t rooms_entered = 0;    // portals crossed by the walker
   uint64_t turn_backs = 0;
   double distance_m = 0;
   uint64_t stalls = 0;  // finished and open
@@ -85,6 +86,7 @@ struct LoadReport {
   uint64_t players_without_room = 0;       // never got their start room (counts as an error)
   std::map<std::string, uint64_t> errors;  // error messages by wire code
   uint64_t errors_total = 0;
+  std::map<uint64_t, uint64_t> rooms_received_by_seed;  // players that named a seed, by seed
   uint64_t rooms_entered = 0, turn_backs = 0;
   double distance_m = 0;
   double burst_s = -1;  // burst mode: time until every player had its radius ready; -1: not

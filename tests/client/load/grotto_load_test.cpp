@@ -65,7 +65,8 @@ TEST(GrottoLoad, help_describes_every_option) {
         "--horizon",    "--radius",         "--seed",       "--device",     "--server-workers",
         "--io-threads", "--decode-workers", "--rng-seed",   "--spread",     "--verify",
         "--max-stalls", "--tick-hz",        "--turn-back",  "--burst-rate", "--json",
-        "--quiet",      "--log-level",      "--token-file", "GROTTO_TOKEN", "Exit codes"}) {
+        "--quiet",      "--log-level",      "--token-file", "GROTTO_TOKEN", "--seeds",
+        "Exit codes"}) {
     EXPECT_NE(r.output.find(flag), std::string::npos) << flag;
   }
 }
@@ -86,6 +87,10 @@ TEST(GrottoLoad, bad_flags_exit_2_with_a_message_naming_the_flag) {
       {"--spread --server ws://127.0.0.1:1/ws", "--spread"},
       {"--no-such-flag", "--no-such-flag"},
       {"--token-file /nonexistent/grotto-token", "token-file /nonexistent/grotto-token"},
+      {"--seeds 7,x", "--seeds: 'x'"},
+      {"--seeds 7,,8 --server ws://127.0.0.1:1/ws", "--seeds: ''"},
+      {"--seeds 7 --seed 7", "--seeds conflicts with --seed"},
+      {"--seeds 7,8", "--seeds with more than one seed needs --server"},
   };
   for (const auto& [args, flag] : cases) {
     ProcessResult r = run(args);
@@ -194,17 +199,22 @@ TEST(GrottoLoad, a_server_that_is_not_there_is_an_error_not_a_hang) {
   EXPECT_NE(r.exit_code, 2) << r.output;
 }
 
-// A server that wants a token: grotto-load with the right one (from --token-file, or from
-// GROTTO_TOKEN) passes; without it or with a wrong one every stream is refused (exit 1).
-TEST(GrottoLoad, sends_the_token_from_its_file_or_the_environment) {
+// A server in this process on 127.0.0.1 (seed 7, CPU reference), requiring `token` if not empty.
+grotto::Result<std::unique_ptr<grotto::server::Server>> start_server(const std::string& token) {
   grotto::server::ServerConfig c;
   c.port = 0;
   c.io_threads = 1;
   c.generator.workers = 2;
   c.generator.builder.device.device = "none";
   c.log_level = "off";
-  c.token = "load-secret";
-  auto server = grotto::server::Server::start(c);
+  c.token = token;
+  return grotto::server::Server::start(c);
+}
+
+// A server that wants a token: grotto-load with the right one (from --token-file, or from
+// GROTTO_TOKEN) passes; without it or with a wrong one every stream is refused (exit 1).
+TEST(GrottoLoad, sends_the_token_from_its_file_or_the_environment) {
+  auto server = start_server("load-secret");
   ASSERT_TRUE(server.ok()) << server.error().message;
   auto dir = temp_dir("grotto-load-token");
   auto file = dir / "token";
@@ -222,6 +232,38 @@ TEST(GrottoLoad, sends_the_token_from_its_file_or_the_environment) {
   ProcessResult wrong = run_with_env("GROTTO_TOKEN=load-secreT", common);
   EXPECT_EQ(wrong.exit_code, 1) << wrong.output;
   EXPECT_NE(wrong.output.find("unauthorized"), std::string::npos) << wrong.output;
+  std::filesystem::remove_all(dir);
+}
+
+// --seeds: players take the seeds round-robin and the report counts rooms per seed. Against a
+// server of one world (seed 7), the players asking for seed 8 are refused (world_mismatch) and
+// receive nothing, those of seed 7 stream.
+TEST(GrottoLoad, seeds_are_assigned_round_robin_and_rooms_counted_per_seed) {
+  const char* argv[] = {"grotto-load", "--seeds", "7,8,18446744073709551615", "--server",
+                        "ws://127.0.0.1:1/ws"};
+  auto cli = grotto::client::load::parse_command_line(static_cast<int>(std::size(argv)), argv);
+  ASSERT_TRUE(cli.run) << cli.text;
+  EXPECT_EQ(cli.options.seeds, (std::vector<uint64_t>{7, 8, 18446744073709551615ull}));
+  EXPECT_FALSE(cli.options.seed.has_value());
+
+  auto server = start_server("");
+  ASSERT_TRUE(server.ok()) << server.error().message;
+  auto dir = temp_dir("grotto-load-seeds");
+  auto json = dir / "out.json";
+  ProcessResult r =
+      run("--server ws://127.0.0.1:" + std::to_string((*server)->port()) +
+          "/ws --seeds 7,8 --players 4 --duration 2 --quiet --json '" + json.string() + "'");
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  auto j = read_json(json);
+  ASSERT_TRUE(j.is_object()) << r.output;
+  ASSERT_EQ(j["per_player"].size(), 4u);
+  for (int i = 0; i < 4; ++i)
+    EXPECT_EQ(j["per_player"][i]["seed"], i % 2 == 0 ? "7" : "8") << i;
+  EXPECT_GT(j["rooms_received_by_seed"]["7"].get<uint64_t>(), 0u) << j.dump(2);
+  EXPECT_EQ(j["rooms_received_by_seed"]["8"].get<uint64_t>(), 0u) << j.dump(2);
+  EXPECT_EQ(j["rooms_received_by_seed"]["7"].get<uint64_t>(),
+            j["rooms"]["received"].get<uint64_t>());
+  EXPECT_EQ(j["errors"]["world_mismatch"].get<uint64_t>(), 2u) << j["errors"].dump();
   std::filesystem::remove_all(dir);
 }
 
