@@ -70,6 +70,19 @@ int main(int argc, char** argv) {
   glfwMakeContextCurrent(window);
   glfwSwapInterval(headless ? 0 : 1);
   spdlog::info("event=gl_context {}", render::describe_context());
+  // Mesa's llvmpipe (3D in software) drops triangles from patches tessellated at level 16 and
+  // above (levels up to 14 are whole; seen with Mesa 22.3): cap the level there rather than show
+  // holes in the cave.
+  constexpr float kLlvmpipeMaxTess = 14;
+  const auto* gl_renderer = reinterpret_cast<const char*>(glGetString(GL_RENDERER));
+  if (gl_renderer != nullptr && std::string(gl_renderer).find("llvmpipe") != std::string::npos &&
+      o.tess_max > kLlvmpipeMaxTess) {
+    std::fprintf(stderr,
+                 "grotto-client: --tess-max %.0f lowered to %.0f on llvmpipe (software GL drops "
+                 "triangles above it)\n",
+                 o.tess_max, kLlvmpipeMaxTess);
+    o.tess_max = kLlvmpipeMaxTess;
+  }
 
   auto renderer_or = render::Renderer::create();
   if (!renderer_or) return fail(renderer_or.error().message);
