@@ -14,7 +14,11 @@ packages=(
   xvfb xauth libgl1-mesa-dri  # grotto-client tests: Mesa llvmpipe under Xvfb (xvfb-run needs xauth)
   clang libclang-rt-14-dev  # libFuzzer (tests/fuzz); its runtime is in libclang-rt-14-dev
   nginx  # tests/deploy: the load balancer in front of grotto-server replicas
+  python3-yaml systemd  # tests/deploy/manifests_test.sh: YAML checks, systemd-analyze verify
 )
+# kubectl (kustomize builds of deploy/k8s in tests/deploy): Debian's kubernetes-client, unless a
+# kubectl is already installed (another package owning /usr/bin/kubectl would clash with it).
+command -v kubectl >/dev/null 2>&1 || packages+=(kubernetes-client)
 
 if [[ "${1:-}" == "--list" ]]; then
   printf '%s\n' "${packages[@]}"
