@@ -165,3 +165,26 @@ lb_json() {
       }
     }' "$file"
 }
+
+# lb_stop_all: stops nginx and every replica (SIGTERM, bounded) and forgets them, so a caller
+# can start a fresh set (bench/replicas_bench.sh: cold caches for every measurement).
+lb_stop_all() {
+  local i
+  if [[ -n "$lb_nginx_pid" ]]; then
+    kill -QUIT "$lb_nginx_pid" 2>/dev/null
+    lb_wait 10 lb_pid_gone "$lb_nginx_pid" || kill -KILL "$lb_nginx_pid" 2>/dev/null
+    wait "$lb_nginx_pid" 2>/dev/null
+    lb_nginx_pid=""
+  fi
+  for i in "${!lb_replica_pid[@]}"; do
+    [[ -n "${lb_replica_pid[$i]}" ]] && lb_stop_replica "$i" TERM
+  done
+  lb_replica_pid=()
+  lb_replica_port=()
+}
+
+# lb_all_players_connected FILE N: true when all N players of grotto-load's report ended
+# connected (per_player state "ready"), i.e. none was left reconnecting against 502s.
+lb_all_players_connected() {
+  [[ "$(grep -c '"state": "ready"' "$1")" -eq "$2" ]]
+}

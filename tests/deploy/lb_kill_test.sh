@@ -51,6 +51,8 @@ reconnects=$(lb_json "$json" reconnects)
 for key in errors_total streams_failed players_without_room rooms.given_up verify.failures; do
   [[ "$(lb_json "$json" "$key")" == 0 ]] || lb_fail "$key is $(lb_json "$json" "$key"), want 0"
 done
+lb_all_players_connected "$json" 12 ||
+  lb_fail "players still disconnected at the end: $(grep -o '"state": "[a-z_]*"' "$json" | sort | uniq -c | tr -s ' \n' ' ')"
 ready=$(lb_json "$json" rooms.ready)
 checked=$(lb_json "$json" verify.rooms_checked)
 ((ready > 0 && checked > 0)) || lb_fail "no rooms arrived ($ready) or none was verified ($checked)"

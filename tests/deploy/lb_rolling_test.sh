@@ -45,6 +45,8 @@ json="$lb_dir/load.json"
 for key in streams_failed players_without_room verify.failures; do
   [[ "$(lb_json "$json" "$key")" == 0 ]] || lb_fail "$key is $(lb_json "$json" "$key"), want 0"
 done
+lb_all_players_connected "$json" 12 ||
+  lb_fail "players still disconnected at the end: $(grep -o '"state": "[a-z_]*"' "$json" | sort | uniq -c | tr -s ' \n' ' ')"
 errors=$(lb_json "$json" errors_total)
 restart_notices=$(lb_json "$json" errors.service_restart)
 restart_notices=${restart_notices:-0}
