@@ -14,29 +14,14 @@
 #include "client/stream/verify.hpp"
 #include "core/grid.hpp"
 #include "mesh/room_mesh.hpp"
+#include "ready_room.hpp"
 
 namespace grotto::client {
 namespace {
 
 using cave::RoomId;
 
-// A room as a client holds it after its frame: the layout's descriptor, the mesh through
-// encode_room and decode_room with the frame's limits.
-ReadyRoom ready(const mesh::RoomMesh& m, const cave::Room& r) {
-  ReadyRoom out;
-  out.room = r;
-  out.lod = m.lod == mesh::Lod::kPatch ? 0 : 1;
-  out.origin = m.origin;
-  auto bytes = codec::encode_room(m);
-  EXPECT_TRUE(bytes.ok()) << r.id.to_string();
-  codec::DecodeLimits limits = out.lod == 0 ? codec::DecodeLimits{} : codec::kDetailLimits;
-  limits.portal_count = static_cast<int>(r.portals.size());
-  auto decoded = codec::decode_room(bytes.value(), limits);
-  EXPECT_TRUE(decoded.ok()) << r.id.to_string();
-  out.mesh = std::move(decoded).value();
-  out.payload_bytes = bytes.value().size();
-  return out;
-}
+constexpr auto ready = client::test::ready_room;
 
 using RoomMap = std::map<RoomId, ReadyRoom>;
 

@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include "../ready_room.hpp"
 #include "client/play/flythrough.hpp"
 #include "codec/room_codec.hpp"
 #include "mesh/room_mesh.hpp"
@@ -9,19 +10,7 @@
 namespace grotto::play::test {
 namespace {
 
-client::ReadyRoom ready(const mesh::RoomMesh& m, const cave::Room& r) {
-  client::ReadyRoom out;
-  out.room = r;
-  out.origin = m.origin;
-  auto bytes = codec::encode_room(m);
-  EXPECT_TRUE(bytes.ok()) << r.id.to_string();
-  codec::DecodeLimits limits;
-  limits.portal_count = static_cast<int>(r.portals.size());
-  auto decoded = codec::decode_room(bytes.value(), limits);
-  EXPECT_TRUE(decoded.ok()) << r.id.to_string();
-  out.mesh = std::move(decoded).value();
-  return out;
-}
+constexpr auto ready = client::test::ready_room;
 
 Cave build() {
   Cave c;

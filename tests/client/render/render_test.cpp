@@ -16,6 +16,7 @@
 #include <string>
 #include <vector>
 
+#include "../ready_room.hpp"
 #include "cave/layout.hpp"
 #include "client/render/gl.hpp"
 #include "client/render/renderer.hpp"
@@ -70,20 +71,7 @@ GlContext& gl() {
     if (gl().window == nullptr) GTEST_SKIP() << gl().why_not; \
   } while (0)
 
-// A room as a client holds it: the CPU reference's patch mesh through encode_room/decode_room.
-client::ReadyRoom ready(const mesh::RoomMesh& m, const cave::Room& r) {
-  client::ReadyRoom out;
-  out.room = r;
-  out.origin = m.origin;
-  auto bytes = codec::encode_room(m);
-  EXPECT_TRUE(bytes.ok()) << r.id.to_string();
-  codec::DecodeLimits limits;
-  limits.portal_count = static_cast<int>(r.portals.size());
-  auto decoded = codec::decode_room(bytes.value(), limits);
-  EXPECT_TRUE(decoded.ok()) << r.id.to_string();
-  out.mesh = std::move(decoded).value();
-  return out;
-}
+constexpr auto ready = client::test::ready_room;
 
 // Every room of sector (0,0,0) and its gates, built once for the binary.
 const std::vector<client::ReadyRoom>& sector_rooms() {
