@@ -367,6 +367,7 @@ Result<LoadReport> run_load(const LoadOptions& options) {
       ++pr.stalls;
     }
     pr.reconnects = s.reconnects;
+    pr.restart_notices = s.restart_notices;
     for (const auto& [code, n] : s.errors) {
       pr.errors += n;
       report.errors[code] += n;

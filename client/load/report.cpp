@@ -37,6 +37,7 @@ void total_players(LoadReport& r) {
   r.stalls = 0;
   r.stall_total_s = 0;
   r.reconnects = 0;
+  r.restart_notices = 0;
   r.rooms_entered = r.turn_backs = 0;
   r.distance_m = 0;
   r.players_without_room = 0;
@@ -52,6 +53,7 @@ void total_players(LoadReport& r) {
     r.stalls += p.stalls;
     r.stall_total_s += p.stall_s;
     r.reconnects += p.reconnects;
+    r.restart_notices += p.restart_notices;
     r.rooms_entered += p.rooms_entered;
     r.turn_backs += p.turn_backs;
     r.distance_m += p.distance_m;
@@ -126,8 +128,8 @@ std::string format_table(const LoadReport& r) {
           r.max_stalls >= 0 ? (" (limit " + std::to_string(r.max_stalls) + ")").c_str() : "");
   appendf(out, "  walked            %10.0f m, %llu portals, %llu turn-backs\n", r.distance_m,
           u(r.rooms_entered), u(r.turn_backs));
-  appendf(out, "  reconnects        %10llu  drops %llu, streams failed %llu\n", u(r.reconnects),
-          u(r.drops), u(r.streams_failed));
+  appendf(out, "  reconnects        %10llu  drops %llu, streams failed %llu, drain notices %llu\n",
+          u(r.reconnects), u(r.drops), u(r.streams_failed), u(r.restart_notices));
   if (r.players_without_room > 0) {
     appendf(out, "  players without a room %llu\n", u(r.players_without_room));
   }
@@ -182,6 +184,7 @@ std::string to_json_text(const LoadReport& r) {
          {"stalls", p.stalls},
          {"stall_s", p.stall_s},
          {"reconnects", p.reconnects},
+         {"restart_notices", p.restart_notices},
          {"errors", p.errors},
          {"state", p.state},
          {"last_error", p.last_error},
@@ -235,6 +238,7 @@ std::string to_json_text(const LoadReport& r) {
       {"mb_per_s", r.mb_per_s},
       {"stalls", {{"count", r.stalls}, {"total_s", r.stall_total_s}, {"max", r.max_stalls}}},
       {"reconnects", r.reconnects},
+      {"restart_notices", r.restart_notices},
       {"drops", r.drops},
       {"streams_failed", r.streams_failed},
       {"players_without_room", r.players_without_room},

@@ -37,6 +37,7 @@ struct PlayerReport {
   uint64_t stalls = 0;  // finished and open
   double stall_s = 0;   // their total time
   uint64_t reconnects = 0;
+  uint64_t restart_notices = 0;  // service_restart notices of draining servers (not errors)
   uint64_t errors = 0;           // error messages received
   std::string state;             // the Stream's state at the end
   std::string last_error;        // its last error at the end, for people (empty: none)
@@ -83,7 +84,8 @@ struct LoadReport {
   uint64_t stalls = 0;
   double stall_total_s = 0;
   uint64_t reconnects = 0, drops = 0, streams_failed = 0;
-  uint64_t players_without_room = 0;       // never got their start room (counts as an error)
+  uint64_t restart_notices = 0;       // servers that drained gracefully under a player (not errors)
+  uint64_t players_without_room = 0;  // never got their start room (counts as an error)
   std::map<std::string, uint64_t> errors;  // error messages by wire code
   uint64_t errors_total = 0;
   std::map<uint64_t, uint64_t> rooms_received_by_seed;  // players that named a seed, by seed

@@ -399,6 +399,15 @@ struct Stream::Impl : std::enable_shared_from_this<Stream::Impl> {
   }
 
   void on_message(const proto::ErrorMessage& e) {
+    if (e.code == ErrorCode::kServiceRestart) {
+      // A graceful drain (PROTOCOL.md): the close follows and drop() reconnects at once. A room
+      // it names is asked for again on the next connection, so it is no failure of that room.
+      ++stats.restart_notices;
+      if (e.room) in_flight.erase(*e.room);
+      spdlog::debug("event=stream_restart_notice url={}:{} detail=\"{}\"", url.host, url.port,
+                    e.message);
+      return;
+    }
     const char* code = proto::wire_code_name(e.code);
     ++stats.errors[code];
     note_error(std::string("server error ") + code + ": " + e.message);

@@ -89,6 +89,9 @@ struct StreamStats {
   uint64_t store_bytes = 0;     // RoomStore bytes (now)
   uint64_t store_rooms = 0;     // rooms in the store (now)
   std::map<std::string, uint64_t> errors;  // error messages received, by wire code
+  // `service_restart` messages: the server is draining and will close; we reconnect at once,
+  // possibly to another replica, and ask again. A notice, not counted in `errors`.
+  uint64_t restart_notices = 0;
   StreamState state = StreamState::kConnecting;
   std::string last_error;  // the last error, for people (empty when none)
   std::string server;      // welcome.server of the current or last connection

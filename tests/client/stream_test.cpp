@@ -266,6 +266,9 @@ TEST(Stream, reconnects_after_a_server_restart_and_every_wanted_room_arrives) {
   auto stats = stream->stats();
   EXPECT_GE(stats.reconnects, 1u);
   EXPECT_GE(stats.drops, 1u);
+  // The drain's service_restart is a notice (the server said it would go), not an error.
+  EXPECT_GE(stats.restart_notices, 1u);
+  EXPECT_TRUE(stats.errors.empty()) << describe(stats);
   EXPECT_EQ(stats.state, StreamState::kReady);
   EXPECT_EQ(stats.rooms_rejected, 0u);
   EXPECT_EQ(stats.rooms_given_up, 0u);

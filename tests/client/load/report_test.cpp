@@ -74,6 +74,7 @@ LoadReport sample_report() {
     p.stalls = 1 + i;
     p.stall_s = 1.0;
     p.reconnects = i;
+    p.restart_notices = 2 * i;
     r.players_detail.push_back(p);
   }
   grotto::client::load::total_players(r);
@@ -88,6 +89,7 @@ TEST(Report, totals_add_up_the_players_and_rates_use_elapsed_time) {
   EXPECT_EQ(r.stalls, 3u);
   EXPECT_DOUBLE_EQ(r.stall_total_s, 2.0);
   EXPECT_EQ(r.reconnects, 1u);
+  EXPECT_EQ(r.restart_notices, 2u);
   EXPECT_EQ(r.errors_total, 3u);
   EXPECT_DOUBLE_EQ(r.rooms_per_s, 20.1);
   EXPECT_DOUBLE_EQ(r.mb_per_s, 0.2);
@@ -99,7 +101,8 @@ TEST(Report, exit_code_is_1_for_errors_3_for_too_many_stalls_and_errors_win) {
   EXPECT_EQ(exit_code(r), 1);  // error messages
   r.errors.clear();
   grotto::client::load::total_players(r);
-  EXPECT_EQ(exit_code(r), 0);  // no limit on stalls by default
+  EXPECT_EQ(exit_code(r), 0);        // no limit on stalls by default
+  ASSERT_GT(r.restart_notices, 0u);  // drain notices are no errors
   r.max_stalls = 3;
   EXPECT_EQ(exit_code(r), 0);
   r.max_stalls = 2;
@@ -147,6 +150,8 @@ TEST(Report, json_holds_every_figure) {
   EXPECT_EQ(j["stalls"]["count"], 3);
   EXPECT_DOUBLE_EQ(j["stalls"]["total_s"].get<double>(), 2.0);
   EXPECT_EQ(j["reconnects"], 1);
+  EXPECT_EQ(j["restart_notices"], 2);
+  EXPECT_EQ(j["per_player"][1]["restart_notices"], 2);
   EXPECT_EQ(j["drops"], 1);
   EXPECT_EQ(j["errors"]["overloaded"], 2);
   EXPECT_EQ(j["errors"]["not_found"], 1);
