@@ -40,19 +40,16 @@ Result<DeformKernel> DeformKernel::create(ComputeContext& ctx, const mesh::MeshC
   GROTTO_CL_TRY(ctx.device().getInfo(CL_DEVICE_MAX_CONSTANT_BUFFER_SIZE, &max_constant));
   size_t max_group = 0;
   GROTTO_CL_TRY(kernel->getWorkGroupInfo(ctx.device(), CL_KERNEL_WORK_GROUP_SIZE, &max_group));
-  DeformKernel k(ctx, std::move(kernel).value(), mesh_ctx.noise_seed(),
-                 std::move(shape_buffer).value(), static_cast<size_t>(max_constant),
-                 program->origin(), lanes);
+  DeformKernel k(ctx, std::move(kernel).value(), std::move(shape_buffer).value(),
+                 static_cast<size_t>(max_constant), program->origin(), lanes);
   k.local_size_ = std::clamp<size_t>(max_group, 1, kPreferredGroupSize);
   return k;
 }
 
-DeformKernel::DeformKernel(ComputeContext& ctx, cl::Kernel kernel, uint32_t noise_seed,
-                           cl::Buffer shapes, size_t max_constant_bytes, BuildOrigin origin,
-                           int lanes)
+DeformKernel::DeformKernel(ComputeContext& ctx, cl::Kernel kernel, cl::Buffer shapes,
+                           size_t max_constant_bytes, BuildOrigin origin, int lanes)
     : ctx_(&ctx),
       kernel_(std::move(kernel)),
-      noise_seed_(noise_seed),
       shapes_(std::move(shapes)),
       max_constant_bytes_(max_constant_bytes),
       origin_(origin),
@@ -61,11 +58,12 @@ DeformKernel::DeformKernel(ComputeContext& ctx, cl::Kernel kernel, uint32_t nois
 Status DeformKernel::run(std::span<const mesh::DeformInput> batch,
                          std::vector<DeformOutput>& outputs, LaunchStats* stats) {
   outputs.assign(batch.size(), {});
-  // Split where the room or portal table would outgrow the device's constant memory.
+  // Split where the room or portal table would outgrow the device's constant memory, and where
+  // the world (its noise seed, one kernel argument) changes.
   size_t begin = 0;
   while (begin < batch.size()) {
     size_t end = begin, portals = 0;
-    while (end < batch.size()) {
+    while (end < batch.size() && batch[end].noise_seed == batch[begin].noise_seed) {
       size_t next_portals = portals + batch[end].portals.size();
       size_t rooms_bytes = (end - begin + 1) * sizeof(GrottoRoom);
       if (end > begin && (rooms_bytes > max_constant_bytes_ / 2 ||
@@ -133,8 +131,8 @@ Status DeformKernel::launch(std::span<const mesh::DeformInput> rooms,
   for (auto* b : {&room_buf, &portal_buf, &index_buf, &dir_buf, &pos_buf, &clear_buf}) {
     if (!*b) return b->error();
   }
-  if (Status s = set_kernel_args(kernel_, static_cast<cl_uint>(noise_seed_), shapes_, *room_buf,
-                                 *portal_buf, *index_buf, *dir_buf, *pos_buf, *clear_buf,
+  if (Status s = set_kernel_args(kernel_, static_cast<cl_uint>(rooms.front().noise_seed), shapes_,
+                                 *room_buf, *portal_buf, *index_buf, *dir_buf, *pos_buf, *clear_buf,
                                  static_cast<cl_uint>(groups));
       !s) {
     return s;

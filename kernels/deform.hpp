@@ -25,8 +25,10 @@ struct LaunchStats {
   size_t vertices = 0;
 };
 
-// The built kernel plus the world's constant tables on one device. Not thread-safe: use one per
-// thread (the ComputeContext may be shared).
+// The built kernel plus the level-of-detail shapes (mesh parameters) on one device. The world
+// comes with each room (DeformInput::noise_seed), so one kernel serves every world whose mesh
+// parameters it was built with. Not thread-safe: use one per thread (the ComputeContext may be
+// shared).
 class DeformKernel {
  public:
   // Builds (or loads from the caches) the program. Errors carry the build log. `lanes` is how many
@@ -36,7 +38,7 @@ class DeformKernel {
                                      int lanes = 0);
 
   // Deforms every room of `batch`; outputs[i] receives room i's result. Rooms go to the device in
-  // as few launches as its constant memory allows (usually one).
+  // as few launches as its constant memory allows (usually one), and one launch per world.
   Status run(std::span<const mesh::DeformInput> batch, std::vector<DeformOutput>& outputs,
              LaunchStats* stats = nullptr);
 
@@ -44,8 +46,8 @@ class DeformKernel {
   int lanes() const { return lanes_; }
 
  private:
-  DeformKernel(ComputeContext& ctx, cl::Kernel kernel, uint32_t noise_seed, cl::Buffer shapes,
-               size_t max_constant_bytes, BuildOrigin origin, int lanes);
+  DeformKernel(ComputeContext& ctx, cl::Kernel kernel, cl::Buffer shapes, size_t max_constant_bytes,
+               BuildOrigin origin, int lanes);
   Status launch(std::span<const mesh::DeformInput> rooms, std::span<DeformOutput> outputs);
 
   static constexpr size_t kPreferredGroupSize = 128;
@@ -53,7 +55,6 @@ class DeformKernel {
   ComputeContext* ctx_;
   cl::Kernel kernel_;
   size_t local_size_ = 1;
-  uint32_t noise_seed_;
   cl::Buffer shapes_;
   size_t max_constant_bytes_;
   BuildOrigin origin_;

@@ -2,6 +2,8 @@
 
 #include <spdlog/spdlog.h>
 
+#include <cstring>
+
 namespace grotto::kernels {
 
 RoomBuilder::RoomBuilder(const mesh::MeshContext& mesh_ctx) : mesh_ctx_(&mesh_ctx) {}
@@ -36,10 +38,25 @@ RoomBuilder RoomBuilder::create(const mesh::MeshContext& mesh_ctx, const Options
 
 std::vector<Result<mesh::RoomMesh>> RoomBuilder::build(std::span<const cave::Room> rooms,
                                                        mesh::Lod lod) {
+  return build(*mesh_ctx_, rooms, lod);
+}
+
+std::vector<Result<mesh::RoomMesh>> RoomBuilder::build(const mesh::MeshContext& world,
+                                                       std::span<const cave::Room> rooms,
+                                                       mesh::Lod lod) {
+  // The kernel holds the shapes of the builder's parameters (DeformKernel::create).
+  for (int l = 0; l < mesh::kLodCount; ++l) {
+    auto lod_l = static_cast<mesh::Lod>(l);
+    if (std::memcmp(&world.shape(lod_l), &mesh_ctx_->shape(lod_l), sizeof(world.shape(lod_l))) !=
+        0) {
+      return std::vector<Result<mesh::RoomMesh>>(
+          rooms.size(), invalid_argument("the world's mesh parameters differ from the builder's"));
+    }
+  }
   std::vector<mesh::DeformInput> inputs;
   inputs.reserve(rooms.size());
   for (const cave::Room& r : rooms)
-    inputs.push_back(mesh::prepare_room(*mesh_ctx_, r, lod));
+    inputs.push_back(mesh::prepare_room(world, r, lod));
 
   std::vector<DeformOutput> outputs;
   bool on_device = false;
@@ -57,14 +74,14 @@ std::vector<Result<mesh::RoomMesh>> RoomBuilder::build(std::span<const cave::Roo
       size_t n = inputs[i].donor->directions.size();
       outputs[i].positions.resize(n);
       outputs[i].clearance.resize(n);
-      mesh::deform_cpu(*mesh_ctx_, inputs[i], outputs[i].positions, outputs[i].clearance);
+      mesh::deform_cpu(world, inputs[i], outputs[i].positions, outputs[i].clearance);
     }
   }
   std::vector<Result<mesh::RoomMesh>> meshes;
   meshes.reserve(inputs.size());
   for (size_t i = 0; i < inputs.size(); ++i) {
     meshes.push_back(
-        mesh::assemble_room(*mesh_ctx_, inputs[i], outputs[i].positions, outputs[i].clearance));
+        mesh::assemble_room(world, inputs[i], outputs[i].positions, outputs[i].clearance));
   }
   return meshes;
 }

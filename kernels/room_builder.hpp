@@ -29,6 +29,10 @@ class RoomBuilder {
 
   // One mesh per room, in order; all rooms share one kernel launch where the device allows.
   std::vector<Result<mesh::RoomMesh>> build(std::span<const cave::Room> rooms, mesh::Lod lod);
+  // The same for the rooms of another world whose mesh parameters are the builder's (one builder
+  // serves every world of a server); a context with other parameters fails every room.
+  std::vector<Result<mesh::RoomMesh>> build(const mesh::MeshContext& world,
+                                            std::span<const cave::Room> rooms, mesh::Lod lod);
 
   bool uses_opencl() const { return kernel_.has_value(); }
   // "opencl: <device description>" or "cpu: <why not OpenCL>".

@@ -122,6 +122,7 @@ DeformInput prepare_room(const MeshContext& ctx, const cave::Room& room, Lod lod
   in.room = room;
   in.lod = lod;
   in.origin = grid::snap(room.sphere.centre);
+  in.noise_seed = ctx.noise_seed();
   in.donor = donor_sphere(donor_frequency(room.sphere.radius, ctx.edge_length(lod)));
   Vec3 o = room.sphere.centre - in.origin;
   core::float3 w = ctx.noise_position(in.origin);

@@ -132,6 +132,52 @@ TEST_F(DeformKernelTest, batched_and_single_room_launches_agree) {
   }
 }
 
+// One kernel serves every world with its mesh parameters: rooms of two worlds, interleaved in one
+// run, each match the CPU reference of their own world, in one launch per world.
+TEST_F(DeformKernelTest, a_batch_mixing_two_worlds_matches_each_worlds_cpu_reference) {
+  auto created = DeformKernel::create(*device_, *mesh_);
+  ASSERT_TRUE(created.ok()) << created.error().message;
+  DeformKernel kernel = std::move(created).value();
+  cave::World other_world = cave::World::create(43, cave::LayoutParams{}).value();
+  auto other = mesh::MeshContext::create(other_world, mesh::MeshParams{}).value();
+  ASSERT_NE(other.noise_seed(), mesh_->noise_seed());
+  cave::Region other_region = cave::generate_region(other_world, {0, 0, 0}, {0, 0, 0});
+  std::vector<mesh::DeformInput> batch;
+  std::vector<const mesh::MeshContext*> world_of;
+  for (size_t i = 0; i < 4; ++i) {
+    batch.push_back(mesh::prepare_room(*mesh_, region_->rooms[i], mesh::Lod::kPatch));
+    world_of.push_back(mesh_);
+    batch.push_back(mesh::prepare_room(other, other_region.rooms[i], mesh::Lod::kPatch));
+    world_of.push_back(&other);
+  }
+  // The same room of the same place in another world differs: the seed reached the kernel.
+  batch.push_back(mesh::prepare_room(other, region_->rooms[0], mesh::Lod::kPatch));
+  world_of.push_back(&other);
+  std::vector<DeformOutput> out;
+  LaunchStats stats;
+  ASSERT_TRUE(kernel.run(batch, out, &stats).ok());
+  // Worlds alternate but the last two rooms are both of world 43: one launch per run of a world.
+  EXPECT_EQ(stats.launches, batch.size() - 1);
+  for (size_t r = 0; r < batch.size(); ++r) {
+    size_t n = batch[r].donor->directions.size();
+    std::vector<mesh::core::float3> pos(n);
+    std::vector<float> clearance(n);
+    mesh::deform_cpu(*world_of[r], batch[r], pos, clearance);
+    ASSERT_EQ(out[r].positions.size(), n);
+    for (size_t v = 0; v < n; ++v) {
+      ASSERT_TRUE(same_bits(pos[v].x, out[r].positions[v].x) &&
+                  same_bits(pos[v].y, out[r].positions[v].y) &&
+                  same_bits(pos[v].z, out[r].positions[v].z) &&
+                  same_bits(clearance[v], out[r].clearance[v]))
+          << "room " << r << " vertex " << v;
+    }
+  }
+  size_t differing = 0;
+  for (size_t v = 0; v < out[0].positions.size(); ++v)
+    differing += !same_bits(out[0].positions[v].x, out.back().positions[v].x);
+  EXPECT_GT(differing, out[0].positions.size() / 2);
+}
+
 TEST_F(DeformKernelTest, room_builder_on_the_device_gives_the_cpu_meshes) {
   RoomBuilder builder = RoomBuilder::create(*mesh_, {DeviceConfig{.device = "auto"}});
   ASSERT_TRUE(builder.uses_opencl()) << builder.path();
