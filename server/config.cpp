@@ -111,10 +111,17 @@ const std::vector<Setting>& settings() {
     t.push_back(int_setting(
         "io-threads", "Asio I/O threads (0: one per hardware thread)", 0, 1024,
         [](ServerConfig & c) -> auto& { return c.io_threads; }));
-    Setting seed{"seed", "World seed (unsigned 64-bit)", Setting::Type::kUint64, 0, 0, {}, {}, {}};
+    Setting seed{"seed", "", Setting::Type::kUint64, 0, 0, {}, {}, {}};
+    seed.help = "World seed (unsigned 64-bit): the world of clients that name none";
     seed.get = [](const ServerConfig& c) { return Value{c.seed}; };
     seed.set = [](ServerConfig& c, const Value& v) { c.seed = std::get<uint64_t>(v); };
     t.push_back(seed);
+    t.push_back(int_setting(
+        "max-worlds",
+        "Worlds served at once: --seed plus up to N-1 others that hellos name, opened on demand "
+        "(an idle one is closed for a new one; with all in use a hello gets 'overloaded'). "
+        "1: --seed only",
+        1, 4096, [](ServerConfig & c) -> auto& { return c.generator.max_worlds; }));
     t.push_back(double_setting(
         "sector-size", "Layout: sector edge in metres",
         [](ServerConfig & c) -> auto& { return c.layout.sector_size; }));
@@ -167,8 +174,8 @@ const std::vector<Setting>& settings() {
         "cache-bytes", "Encoded-room LRU cache size in bytes (0: off)", 0, kMaxBytes,
         [](ServerConfig & c) -> auto& { return c.generator.cache_bytes; }));
     t.push_back(int_setting(
-        "sector-cache-entries", "Sector layouts kept (LRU)", 1, 1 << 24,
-        [](ServerConfig & c) -> auto& { return c.generator.sector_cache_entries; }));
+        "sector-cache-entries", "Sector layouts kept (LRU), shared evenly among the worlds", 1,
+        1 << 24, [](ServerConfig & c) -> auto& { return c.generator.sector_cache_entries; }));
     t.push_back(int_setting(
         "batch-rooms", "Rooms per build call (one kernel launch)", 1, 4096,
         [](ServerConfig & c) -> auto& { return c.generator.max_batch_rooms; }));

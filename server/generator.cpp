@@ -36,10 +36,24 @@ double seconds_between(Clock::time_point a, Clock::time_point b) {
   return std::chrono::duration<double>(b - a).count();
 }
 
+// One open world: its layout, its mesh context and its sector cache. Jobs and clients hold it,
+// so a world closed while one of its rooms builds lives until the build ends.
+struct WorldSlot {
+  WorldSlot(const cave::World& w, mesh::MeshContext ctx, size_t sector_entries)
+      : world(w), mesh_ctx(std::move(ctx)), sectors(w, sector_entries) {}
+  const cave::World world;
+  const mesh::MeshContext mesh_ctx;
+  SectorCache sectors;
+  size_t clients = 0;      // under the generator's lock
+  uint64_t last_used = 0;  // under the lock: when a client last came or went, for closing
+};
+using WorldPtr = std::shared_ptr<WorldSlot>;
+
 // One room at one lod, wanted by one or more clients: built at most once while it exists.
 struct Job {
   enum class Stage { kQueued, kBuilding };
   RoomKey key;
+  WorldPtr world;
   Stage stage = Stage::kQueued;
   std::vector<ClientId> waiters;
   Clock::time_point created;
@@ -65,6 +79,7 @@ struct Want {
 
 struct Client {
   ClientId id = 0;
+  WorldPtr world;
   Generator::DeliverFn deliver;
   std::map<RoomKey, Want, RoomKeyLess> wants;
   std::set<QueueEntry> queue;  // wants whose job is queued
@@ -77,6 +92,12 @@ struct Outgoing {
   Delivery delivery;
 };
 
+// Each open world's share of the sector cache.
+size_t sector_share(const GeneratorConfig& config) {
+  if (config.sector_cache_entries == 0) return 0;
+  return std::max<size_t>(config.sector_cache_entries / config.max_worlds, 1);
+}
+
 Delivery error_delivery(RoomKey key, Error error) {
   Delivery d;
   d.key = key;
@@ -87,19 +108,16 @@ Delivery error_delivery(RoomKey key, Error error) {
 }  // namespace
 
 struct Generator::State {
-  State(const cave::World& w, mesh::MeshContext ctx, const GeneratorConfig& c, Metrics& m)
-      : world(w),
-        mesh_ctx(std::move(ctx)),
-        config(c),
-        metrics(m),
-        sectors(w, c.sector_cache_entries),
-        cache(c.cache_bytes) {}
+  State(WorldPtr own, const mesh::MeshParams& p, const GeneratorConfig& c, Metrics& m)
+      : home(std::move(own)), mesh_params(p), config(c), metrics(m), cache(c.cache_bytes) {
+    worlds.emplace(home->world.seed(), home);
+    metrics.worlds_open.set(1);
+  }
 
-  const cave::World world;
-  const mesh::MeshContext mesh_ctx;  // builders keep a pointer to it
+  const WorldPtr home;  // the generator's own world; builders keep a pointer to its mesh context
+  const mesh::MeshParams mesh_params;
   const GeneratorConfig config;
   Metrics& metrics;
-  SectorCache sectors;
   std::string compute_path;
 
   std::mutex mutex;
@@ -111,6 +129,8 @@ struct Generator::State {
   uint64_t next_seq = 1;
   ClientId rr_cursor = 0;  // the client served last; the next batch starts after it
   std::map<ClientId, ClientPtr> clients;
+  std::map<uint64_t, WorldPtr> worlds;  // open worlds by seed, home included
+  uint64_t world_clock = 0;             // ticks at each client arrival and departure
   std::map<RoomKey, JobPtr, RoomKeyLess> jobs;
   size_t queued_jobs = 0;
   std::deque<std::weak_ptr<Job>> by_age;  // jobs in creation order, for the deadline sweep
@@ -126,6 +146,50 @@ struct Generator::State {
     metrics.queue_depth.set(static_cast<int64_t>(queued_jobs));
     metrics.cache_bytes.set(static_cast<int64_t>(cache.bytes()));
     metrics.cache_entries.set(static_cast<int64_t>(cache.entries()));
+  }
+
+  // The open world `seed`, or a newly opened one (closing the least recently used idle world
+  // when max_worlds are open).
+  Result<WorldPtr> open_world(uint64_t seed) {
+    if (auto it = worlds.find(seed); it != worlds.end()) return it->second;
+    if (config.max_worlds == 1) {
+      return Error{ErrorCode::kWorldMismatch, "this server serves seed " +
+                                                  std::to_string(home->world.seed()) + ", not " +
+                                                  std::to_string(seed)};
+    }
+    if (worlds.size() >= config.max_worlds) {
+      auto idle = worlds.end();
+      for (auto it = worlds.begin(); it != worlds.end(); ++it) {
+        const WorldSlot& w = *it->second;
+        if (it->second == home || w.clients > 0) continue;
+        if (idle == worlds.end() || w.last_used < idle->second->last_used) idle = it;
+      }
+      if (idle == worlds.end()) {
+        metrics.worlds_refused.add();
+        return Error{ErrorCode::kOverloaded,
+                     "this server has its " + std::to_string(config.max_worlds) +
+                         " worlds (max_worlds) open and players in each; world " +
+                         std::to_string(seed) + " cannot open now, retry later"};
+      }
+      spdlog::info("event=world_closed seed={} reason=idle", idle->first);
+      worlds.erase(idle);
+    }
+    auto world = cave::World::create(seed, home->world.params());
+    if (!world) return world.error();
+    auto ctx = mesh::MeshContext::create(*world, mesh_params);
+    if (!ctx) return ctx.error();
+    auto slot = std::make_shared<WorldSlot>(*world, std::move(ctx).value(), sector_share(config));
+    worlds.emplace(seed, slot);
+    metrics.worlds_opened.add();
+    metrics.worlds_open.set(static_cast<int64_t>(worlds.size()));
+    spdlog::info("event=world_opened seed={} worlds_open={}", seed, worlds.size());
+    return slot;
+  }
+
+  WorldPtr world_of(ClientId client) {
+    std::lock_guard lock(mutex);
+    auto it = clients.find(client);
+    return it != clients.end() ? it->second->world : home;
   }
 
   // Answers one want of `client`: forgets it and queues the callback.
@@ -194,7 +258,7 @@ struct Generator::State {
   }
 
   // Moves up to `limit` queued jobs into `batch`, one per client in turn, starting after the
-  // client served last. All jobs of a batch share the lod of its first job.
+  // client served last. All jobs of a batch share the world and the lod of its first job.
   void take(std::vector<JobPtr>& batch, size_t limit) {
     while (batch.size() < limit && queued_jobs > 0) {
       bool progress = false;
@@ -204,8 +268,8 @@ struct Generator::State {
         Client& c = *start->second;
         auto e = c.queue.begin();
         if (!batch.empty()) {
-          uint8_t lod = batch.front()->key.lod;
-          while (e != c.queue.end() && e->key.lod != lod)
+          const RoomKey& first = batch.front()->key;
+          while (e != c.queue.end() && (e->key.lod != first.lod || e->key.seed != first.seed))
             ++e;
         }
         if (e == c.queue.end()) continue;
@@ -251,8 +315,9 @@ struct Generator::State {
     std::vector<Result<RoomPtr>> results(batch.size(), Result<RoomPtr>(RoomPtr{}));
     std::vector<cave::Room> rooms;
     std::vector<size_t> slots;
+    WorldSlot& world = *batch.front()->world;
     for (size_t i = 0; i < batch.size(); ++i) {
-      Result<cave::Room> room = sectors.room(batch[i]->key.id);
+      Result<cave::Room> room = world.sectors.room(batch[i]->key.id);
       if (!room) {
         results[i] = room.error();
         continue;
@@ -263,7 +328,8 @@ struct Generator::State {
     if (rooms.empty()) return results;
     uint8_t lod = batch.front()->key.lod;
     auto t0 = Clock::now();
-    std::vector<Result<mesh::RoomMesh>> meshes = builder.build(rooms, *proto::mesh_lod(lod));
+    std::vector<Result<mesh::RoomMesh>> meshes =
+        builder.build(world.mesh_ctx, rooms, *proto::mesh_lod(lod));
     double build_each = seconds_between(t0, Clock::now()) / static_cast<double>(rooms.size());
     metrics.batches.add();
     for (size_t k = 0; k < rooms.size(); ++k) {
@@ -306,7 +372,7 @@ struct Generator::State {
       // threads at once made some of them report "no OpenCL device" (seen in server_bench).
       static std::mutex open_mutex;
       std::lock_guard open_lock(open_mutex);
-      builders[index].emplace(kernels::RoomBuilder::create(mesh_ctx, config.builder));
+      builders[index].emplace(kernels::RoomBuilder::create(home->mesh_ctx, config.builder));
     }
     kernels::RoomBuilder& builder = *builders[index];
     std::unique_lock lock(mutex);
@@ -381,6 +447,10 @@ Result<std::unique_ptr<Generator>> Generator::create(const cave::World& world,
     return invalid_argument("max_batch_wait must be in [0, 10000] ms, got " +
                             std::to_string(config.max_batch_wait.count()));
   }
+  if (config.max_worlds < 1 || config.max_worlds > 4096) {
+    return invalid_argument("max_worlds must be in [1, 4096], got " +
+                            std::to_string(config.max_worlds));
+  }
   if (config.job_deadline.count() < 1) {
     return invalid_argument("job_deadline must be at least 1 ms, got " +
                             std::to_string(config.job_deadline.count()));
@@ -388,7 +458,8 @@ Result<std::unique_ptr<Generator>> Generator::create(const cave::World& world,
   Result<mesh::MeshContext> ctx = mesh::MeshContext::create(world, mesh_params);
   if (!ctx) return Error{ctx.error().code, "mesh parameters: " + ctx.error().message};
 
-  auto state = std::make_unique<State>(world, std::move(ctx).value(), config, metrics);
+  auto home = std::make_shared<WorldSlot>(world, std::move(ctx).value(), sector_share(config));
+  auto state = std::make_unique<State>(std::move(home), mesh_params, config, metrics);
   size_t workers = config.workers > 0 ? static_cast<size_t>(config.workers)
                                       : std::max(1u, std::thread::hardware_concurrency());
   State* s = state.get();
@@ -410,8 +481,10 @@ Result<std::unique_ptr<Generator>> Generator::create(const cave::World& world,
     }
   }
   metrics.set_compute_path(s->compute_path);
-  spdlog::info("event=generator_started workers={} path=\"{}\" cache_bytes={} max_batch_rooms={}",
-               workers, s->compute_path, config.cache_bytes, config.max_batch_rooms);
+  spdlog::info(
+      "event=generator_started workers={} path=\"{}\" cache_bytes={} max_batch_rooms={} "
+      "max_worlds={}",
+      workers, s->compute_path, config.cache_bytes, config.max_batch_rooms, config.max_worlds);
   return std::unique_ptr<Generator>(new Generator(std::move(state)));
 }
 
@@ -425,10 +498,19 @@ Generator::~Generator() {
 }
 
 ClientId Generator::add_client(DeliverFn deliver) {
+  return *add_client(state_->home->world.seed(), std::move(deliver));  // its own world is open
+}
+
+Result<ClientId> Generator::add_client(uint64_t seed, DeliverFn deliver) {
   State& s = *state_;
   std::lock_guard lock(s.mutex);
+  Result<WorldPtr> world = s.open_world(seed);
+  if (!world) return world.error();
   auto client = std::make_shared<Client>();
   client->id = s.next_client++;
+  client->world = std::move(world).value();
+  ++client->world->clients;
+  client->world->last_used = ++s.world_clock;
   client->deliver = std::move(deliver);
   s.clients.emplace(client->id, client);
   return client->id;
@@ -442,6 +524,8 @@ void Generator::remove_client(ClientId id) {
   ClientPtr client = it->second;
   while (!client->wants.empty())
     s.drop_want(*client, client->wants.begin());
+  --client->world->clients;
+  client->world->last_used = ++s.world_clock;
   s.clients.erase(it);
   s.publish_gauges();
   // Callbacks already collected for this client finish before we return.
@@ -460,12 +544,13 @@ void Generator::request(ClientId id, std::span<const proto::RoomWant> wants) {
   for (const proto::RoomWant& w : wants) {
     if (!proto::mesh_lod(w.lod)) {
       ++client->delivering;
-      out.push_back({client, error_delivery({w.id, static_cast<uint8_t>(std::min(w.lod, 255u))},
+      out.push_back({client, error_delivery({w.id, static_cast<uint8_t>(std::min(w.lod, 255u)),
+                                             client->world->world.seed()},
                                             invalid_argument("lod " + std::to_string(w.lod) +
                                                              " is not served"))});
       continue;
     }
-    RoomKey key{w.id, static_cast<uint8_t>(w.lod)};
+    RoomKey key{w.id, static_cast<uint8_t>(w.lod), client->world->world.seed()};
     if (s.stopping) {
       ++client->delivering;
       out.push_back({client, error_delivery(key, Error{ErrorCode::kServiceRestart,
@@ -502,6 +587,7 @@ void Generator::request(ClientId id, std::span<const proto::RoomWant> wants) {
     } else {
       auto job = std::make_shared<Job>();
       job->key = key;
+      job->world = client->world;
       job->created = now;
       job->waiters.push_back(id);
       s.jobs.emplace(key, job);
@@ -526,8 +612,8 @@ void Generator::cancel(ClientId id, std::span<const cave::RoomId> rooms) {
   if (c == s.clients.end()) return;
   Client& client = *c->second;
   for (cave::RoomId room : rooms) {
-    // Every lod of the room: keys order by id first.
-    auto it = client.wants.lower_bound(RoomKey{room, 0});
+    // Every lod of the room: keys order by id first (and a client's wants are of one world).
+    auto it = client.wants.lower_bound(RoomKey{room, 0, 0});
     while (it != client.wants.end() && it->first.id == room) {
       auto next = std::next(it);
       s.drop_want(client, it);
@@ -537,12 +623,12 @@ void Generator::cancel(ClientId id, std::span<const cave::RoomId> rooms) {
   s.publish_gauges();
 }
 
-std::optional<cave::RoomId> Generator::locate(Vec3 point) {
-  return state_->sectors.locate(point);
+std::optional<cave::RoomId> Generator::locate(ClientId client, Vec3 point) {
+  return state_->world_of(client)->sectors.locate(point);
 }
 
-proto::SpawnPoint Generator::spawn() {
-  return state_->sectors.spawn();
+proto::SpawnPoint Generator::spawn(ClientId client) {
+  return state_->world_of(client)->sectors.spawn();
 }
 
 void Generator::shutdown(std::chrono::milliseconds timeout) {
@@ -570,7 +656,12 @@ void Generator::shutdown(std::chrono::milliseconds timeout) {
 }
 
 const cave::World& Generator::world() const {
-  return state_->world;
+  return state_->home->world;
+}
+
+size_t Generator::worlds_open() const {
+  std::lock_guard lock(state_->mutex);
+  return state_->worlds.size();
 }
 
 std::string Generator::compute_path() const {

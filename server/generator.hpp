@@ -2,8 +2,10 @@
 // clients are scheduled per client by priority and round-robin across clients, built once for
 // all who want them (single flight), dropped before they run when nobody wants them any more
 // (cancellation), built in batches that share one kernel launch, encoded into ready-to-send room
-// frames, and kept in an LRU cache bounded in bytes. No socket code here: sessions call in from
-// their strands and receive results through a callback.
+// frames, and kept in an LRU cache bounded in bytes. One generator serves up to max_worlds worlds
+// (seeds) with the same parameters: its own, and others that clients name, opened on demand;
+// workers, batches, cache and the round-robin are shared by all. No socket code here: sessions
+// call in from their strands and receive results through a callback.
 //
 // Thread safety: every public member function may be called from any thread at any time.
 #pragma once
@@ -35,10 +37,11 @@ using ClientId = uint64_t;
 // above this with invalid_argument.
 inline constexpr uint32_t kMaxServedLod = proto::kMaxWireLod;
 
-// A room at a level of detail: the unit of building, caching and single flight.
+// A room of a world at a level of detail: the unit of building, caching and single flight.
 struct RoomKey {
   cave::RoomId id = cave::RoomId::interior({}, 0);
   uint8_t lod = 0;
+  uint64_t seed = 0;  // the world
   friend bool operator==(const RoomKey&, const RoomKey&) = default;
 };
 
@@ -63,11 +66,16 @@ struct Delivery {
 };
 
 struct GeneratorConfig {
-  int workers = 0;                              // build threads; 0: one per hardware thread
-  size_t cache_bytes = size_t{256} << 20;       // encoded frames kept (LRU); 0 disables the cache
-  size_t sector_cache_entries = 4096;           // sector layouts kept (LRU) for room/locate
-  size_t max_batch_rooms = 32;                  // rooms per build call (one kernel launch)
-  std::chrono::milliseconds max_batch_wait{2};  // a worker waits at most this for a fuller batch
+  int workers = 0;                         // build threads; 0: one per hardware thread
+  size_t cache_bytes = size_t{256} << 20;  // encoded frames kept (LRU); 0 disables the cache
+  size_t sector_cache_entries =
+      4096;  // sector layouts kept (LRU) for room/locate, split among worlds
+  // Worlds served at once: the generator's own, which stays open, plus up to max_worlds - 1
+  // others opened for the clients that name them. An idle one (no clients) is closed, least
+  // recently used first, when another is wanted; with every one in use a new world is refused.
+  size_t max_worlds = 1;
+  size_t max_batch_rooms = 32;                     // rooms per build call (one kernel launch)
+  std::chrono::milliseconds max_batch_wait{2};     // a worker waits at most this for a fuller batch
   std::chrono::milliseconds job_deadline{30'000};  // queued longer than this: overloaded error
   kernels::RoomBuilder::Options builder{};  // OpenCL device choice (each worker has a builder)
 };
@@ -79,13 +87,19 @@ class Generator {
   // call back into the Generator synchronously (post to the session's strand instead).
   using DeliverFn = std::function<void(Delivery)>;
 
-  // Errors: invalid configuration (names the setting). Starts the workers.
+  // `world` is the generator's own, served to clients that name none. Errors: invalid
+  // configuration (names the setting). Starts the workers.
   static Result<std::unique_ptr<Generator>> create(const cave::World& world,
                                                    const mesh::MeshParams& mesh_params,
                                                    const GeneratorConfig& config, Metrics& metrics);
   ~Generator();  // shutdown() then join
 
+  // A client of the generator's own world.
   ClientId add_client(DeliverFn deliver);
+  // A client of the world `seed`, opened now if it is not open (same layout and mesh parameters
+  // as the generator's own). Errors: world_mismatch when max_worlds is 1 and the seed is not the
+  // generator's; overloaded when max_worlds worlds are open and each has clients.
+  Result<ClientId> add_client(uint64_t seed, DeliverFn deliver);
   // Forgets the client: its queued wants are dropped (jobs nobody else wants are never built) and
   // nothing more is delivered to it once this returns.
   void remove_client(ClientId client);
@@ -103,15 +117,17 @@ class Generator {
   // still arrive: sessions drop deliveries for rooms they no longer have in flight.
   void cancel(ClientId client, std::span<const cave::RoomId> rooms);
 
-  // The layout side, served from the sector cache.
-  std::optional<cave::RoomId> locate(Vec3 point);
-  proto::SpawnPoint spawn();
+  // The layout side of the client's world, served from its sector cache (an unknown client gets
+  // the generator's own world).
+  std::optional<cave::RoomId> locate(ClientId client, Vec3 point);
+  proto::SpawnPoint spawn(ClientId client);
 
   // Stops taking work: queued jobs fail with `service_restart`, building ones finish, workers exit.
   // Idempotent; waits at most `timeout` for the workers.
   void shutdown(std::chrono::milliseconds timeout = std::chrono::milliseconds{5000});
 
-  const cave::World& world() const;
+  const cave::World& world() const;  // the generator's own
+  size_t worlds_open() const;        // its own included
   // "opencl: <device>" or "cpu: <why>", as kernels::RoomBuilder::path() reports it.
   std::string compute_path() const;
   size_t queue_depth() const;  // jobs queued, not yet building

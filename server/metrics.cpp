@@ -162,6 +162,13 @@ std::string Metrics::render() const {
   gauge(out, "grotto_cache_bytes", "Bytes of encoded room frames in the cache.",
         cache_bytes.value());
   gauge(out, "grotto_cache_entries", "Encoded room frames in the cache.", cache_entries.value());
+  gauge(out, "grotto_worlds_open", "Worlds (seeds) open, the server's own included.",
+        worlds_open.value());
+  counter(out, "grotto_worlds_opened_total", "Worlds opened for clients that named them.",
+          worlds_opened.value());
+  counter(out, "grotto_worlds_refused_total",
+          "Hellos refused because max_worlds worlds were open and each had players.",
+          worlds_refused.value());
   histogram(out, "grotto_build_seconds", "Seconds to build one room (its share of its batch).",
             build_seconds);
   histogram(out, "grotto_encode_seconds", "Seconds to encode and frame one room.", encode_seconds);

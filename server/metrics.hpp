@@ -75,6 +75,9 @@ class Metrics {
   Gauge rooms_in_flight;           // grotto_rooms_in_flight (wants not yet answered, all clients)
   Gauge cache_bytes;               // grotto_cache_bytes
   Gauge cache_entries;             // grotto_cache_entries
+  Gauge worlds_open;               // grotto_worlds_open (the server's own included)
+  Counter worlds_opened;           // grotto_worlds_opened_total (for clients that named them)
+  Counter worlds_refused;          // grotto_worlds_refused_total (max_worlds open, each in use)
   Histogram build_seconds;         // grotto_build_seconds (per room)
   Histogram encode_seconds;        // grotto_encode_seconds (per room)
   Histogram room_latency_seconds;  // grotto_room_latency_seconds (want received -> frame queued)

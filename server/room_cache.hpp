@@ -12,7 +12,8 @@ namespace grotto::server {
 
 struct RoomKeyLess {
   bool operator()(const RoomKey& a, const RoomKey& b) const {
-    return a.id != b.id ? a.id < b.id : a.lod < b.lod;
+    if (a.id != b.id) return a.id < b.id;  // a room's keys are adjacent (cancel relies on it)
+    return a.lod != b.lod ? a.lod < b.lod : a.seed < b.seed;
   }
 };
 

@@ -364,41 +364,41 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
       fail_with(std::move(e), websocket::close_code::policy_error);
       return;
     }
-    const auto& world = server_.generator->world();
-    if (m.seed && *m.seed != world.seed()) {
-      fail(Error{ErrorCode::kWorldMismatch, "this server serves seed " +
-                                                std::to_string(world.seed()) + ", not " +
-                                                std::to_string(*m.seed)},
-           m.ref, websocket::close_code::policy_error);
-      return;
-    }
     if (m.params && *m.params != server_.params_digest) {
       fail(Error{ErrorCode::kWorldMismatch,
                  "this server's parameter digest differs from the one asked for"},
            m.ref, websocket::close_code::policy_error);
       return;
     }
-    hello_done_ = true;
-    name_ = proto::echo(m.name);
+    // The world: the one named, opened now if need be (--max-worlds), else the server's own.
+    const uint64_t seed = m.seed.value_or(server_.generator->world().seed());
     std::weak_ptr<WsSession> weak = weak_from_this();
     auto executor = ws_.get_executor();
     auto gate = server_.gate;
-    client_ = server_.generator->add_client([weak, executor, gate](Delivery d) {
+    auto client = server_.generator->add_client(seed, [weak, executor, gate](Delivery d) {
       std::lock_guard lock(gate->mutex);
       if (!gate->open) return;
       net::post(executor, [weak, d = std::move(d)]() mutable {
         if (auto self = weak.lock()) self->on_delivery(std::move(d));
       });
     });
+    if (!client) {
+      fail(client.error(), m.ref, websocket::close_code::policy_error);
+      return;
+    }
+    client_ = *client;
+    hello_done_ = true;
+    name_ = proto::echo(m.name);
     proto::Welcome w;
     w.ref = m.ref;
     w.version = chosen;
     w.server = product_version();
-    w.seed = world.seed();
+    w.seed = seed;
     w.params = server_.params_digest;
     w.limits = limits_;
     send_text(proto::serialize(proto::ServerMessage{w}));
-    spdlog::info("event=hello session={} name=\"{}\" version={}", registry_id_, name_, chosen);
+    spdlog::info("event=hello session={} name=\"{}\" version={} seed={}", registry_id_, name_,
+                 chosen, seed);
     arm_timer(std::chrono::milliseconds{limits_.idle_timeout_ms});
   }
 
@@ -407,13 +407,13 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
     proto::Located r;
     r.ref = m.ref;
     r.point = m.point;
-    r.room = server_.generator->locate(m.point);
+    r.room = server_.generator->locate(client_, m.point);
     send_text(proto::serialize(proto::ServerMessage{r}));
   }
 
   void on_message(const proto::Spawn& m) {
     if (!require_hello(m.ref, "spawn")) return;
-    proto::SpawnPoint r = server_.generator->spawn();
+    proto::SpawnPoint r = server_.generator->spawn(client_);
     r.ref = m.ref;
     send_text(proto::serialize(proto::ServerMessage{r}));
   }

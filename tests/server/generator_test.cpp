@@ -40,10 +40,10 @@ const cave::World& test_world() {
 }
 
 // Interior rooms that exist, sector by sector along +x, in order.
-std::vector<cave::RoomId> existing_rooms(size_t n) {
+std::vector<cave::RoomId> existing_rooms(size_t n, const cave::World& world = test_world()) {
   std::vector<cave::RoomId> out;
   for (int x = 0; out.size() < n; ++x) {
-    cave::SectorLayout s = cave::generate_sector(test_world(), {x, 0, 0});
+    cave::SectorLayout s = cave::generate_sector(world, {x, 0, 0});
     for (const cave::Room& r : s.rooms) {
       if (out.size() < n) out.push_back(r.id);
     }
@@ -674,10 +674,136 @@ TEST(SectorCacheTest, rooms_locate_and_spawn_match_the_layout_functions) {
 TEST(GeneratorTest, locate_and_spawn_agree) {
   Metrics metrics;
   auto gen = make_generator(cpu_config(), metrics);
-  proto::SpawnPoint spawn = gen->spawn();
-  EXPECT_EQ(gen->locate(spawn.position), spawn.room);
-  EXPECT_FALSE(gen->locate({1e30, 0, 0}));
+  ClientId c = gen->add_client([](Delivery) {});
+  proto::SpawnPoint spawn = gen->spawn(c);
+  EXPECT_EQ(gen->locate(c, spawn.position), spawn.room);
+  EXPECT_FALSE(gen->locate(c, {1e30, 0, 0}));
 }
 
 }  // namespace
+// ---- worlds ----
+
+// A generator with room for several worlds: its own (test_world, seed 42) and others opened for
+// the clients that name them.
+GeneratorConfig worlds_config(size_t max_worlds) {
+  GeneratorConfig c = cpu_config(2);
+  c.max_worlds = max_worlds;
+  return c;
+}
+
+// Frames by room, from one client of world `seed` asking for `ids` on `gen`.
+std::map<cave::RoomId, std::vector<uint8_t>> frames_from(Generator& gen, uint64_t seed,
+                                                         const std::vector<cave::RoomId>& ids) {
+  Inbox inbox;
+  auto c = gen.add_client(seed, inbox.fn());
+  EXPECT_TRUE(c.ok()) << (c.ok() ? "" : c.error().message);
+  if (!c.ok()) return {};
+  gen.request(*c, wants_of(ids));
+  EXPECT_TRUE(inbox.wait_for(ids.size()));
+  std::map<cave::RoomId, std::vector<uint8_t>> out;
+  for (const Delivery& d : inbox.got()) {
+    EXPECT_FALSE(d.error) << d.error->message;
+    EXPECT_EQ(d.key.seed, seed);
+    if (d.room) out[d.key.id] = d.room->frame;
+  }
+  gen.remove_client(*c);
+  return out;
+}
+
+// The rooms of world 43 from a generator whose own world is 42, asked for at the same time as the
+// same room ids of world 42 and in the other order, are those of a generator serving 43 alone:
+// same bytes, never taken from the other world's cache or job.
+TEST(GeneratorWorlds, another_worlds_rooms_equal_those_of_a_generator_of_that_world) {
+  const cave::World world43 = cave::World::create(43, cave::LayoutParams{}).value();
+  std::vector<cave::RoomId> ids = existing_rooms(6, world43);
+  std::vector<cave::RoomId> reversed(ids.rbegin(), ids.rend());
+  Metrics alone_metrics;
+  auto alone = Generator::create(world43, mesh::MeshParams{}, cpu_config(1), alone_metrics);
+  ASSERT_TRUE(alone.ok());
+  auto expected43 = frames_from(**alone, 43, ids);
+  ASSERT_EQ(expected43.size(), ids.size());
+
+  Metrics metrics;
+  auto gen = make_generator(worlds_config(2), metrics);
+  ASSERT_TRUE(gen);
+  std::map<cave::RoomId, std::vector<uint8_t>> got43, got42;
+  std::thread other([&] { got43 = frames_from(*gen, 43, reversed); });
+  got42 = frames_from(*gen, 42, ids);  // the same ids, where they exist in world 42
+  other.join();
+  EXPECT_EQ(got43, expected43);
+  EXPECT_EQ(metrics.worlds_opened.value(), 1u);
+  EXPECT_EQ(metrics.worlds_open.value(), 2);
+  size_t shared_ids = 0;
+  for (const auto& [id, frame] : got42) {
+    if (!expected43.contains(id)) continue;
+    ++shared_ids;
+    EXPECT_NE(frame, expected43.at(id)) << "room " << id.to_string() << " crossed worlds";
+  }
+  EXPECT_GT(shared_ids, 0u) << "the test wants ids that exist in both worlds";
+  // The home world's rooms are still its own: the same as from a one-world generator.
+  Metrics home_metrics;
+  auto home = make_generator(cpu_config(1), home_metrics);
+  EXPECT_EQ(got42, frames_from(*home, 42, ids));
+  // Layout questions are answered from the client's world.
+  auto c43 = gen->add_client(43, [](Delivery) {});
+  ASSERT_TRUE(c43.ok());
+  ClientId c42 = gen->add_client([](Delivery) {});
+  proto::SpawnPoint s43 = gen->spawn(*c43);
+  EXPECT_EQ(s43.room, cave::spawn_room(world43));
+  EXPECT_EQ(gen->spawn(c42).room, cave::spawn_room(test_world()));
+  EXPECT_EQ(gen->locate(*c43, s43.position), s43.room);
+}
+
+TEST(GeneratorWorlds, one_world_refuses_another_seed_with_world_mismatch) {
+  Metrics metrics;
+  auto gen = make_generator(cpu_config(), metrics);
+  auto refused = gen->add_client(43, [](Delivery) {});
+  ASSERT_FALSE(refused.ok());
+  EXPECT_EQ(refused.error().code, ErrorCode::kWorldMismatch);
+  EXPECT_NE(refused.error().message.find("serves seed 42, not 43"), std::string::npos)
+      << refused.error().message;
+  EXPECT_TRUE(gen->add_client(42, [](Delivery) {}).ok());
+  EXPECT_EQ(gen->worlds_open(), 1u);
+}
+
+// max_worlds 3: the own world (never closed) and two others. With both others in use a fourth
+// seed is refused (overloaded); once idle, the least recently used other world is closed for it.
+TEST(GeneratorWorlds, a_new_world_closes_the_least_recently_used_idle_one_or_is_refused) {
+  Metrics metrics;
+  auto gen = make_generator(worlds_config(3), metrics);
+  auto add = [&](uint64_t seed) { return gen->add_client(seed, [](Delivery) {}); };
+  auto a = add(43);
+  auto b = add(44);
+  ASSERT_TRUE(a.ok() && b.ok());
+  EXPECT_EQ(gen->worlds_open(), 3u);
+  auto refused = add(45);  // 42 is idle but is the server's own; 43 and 44 are in use
+  ASSERT_FALSE(refused.ok());
+  EXPECT_EQ(refused.error().code, ErrorCode::kOverloaded);
+  EXPECT_NE(refused.error().message.find("max_worlds"), std::string::npos)
+      << refused.error().message;
+  EXPECT_EQ(metrics.worlds_refused.value(), 1u);
+
+  gen->remove_client(*a);  // 43 idle first...
+  gen->remove_client(*b);  // ...then 44
+  auto c = add(45);        // closes 43, the least recently used
+  ASSERT_TRUE(c.ok()) << c.error().message;
+  EXPECT_EQ(gen->worlds_open(), 3u);
+  auto d = add(44);  // still open: joins it, closes nothing
+  ASSERT_TRUE(d.ok()) << d.error().message;
+  auto e = add(43);  // 44 and 45 in use, 42 pinned: 43 was the one closed
+  ASSERT_FALSE(e.ok());
+  EXPECT_EQ(e.error().code, ErrorCode::kOverloaded);
+  EXPECT_EQ(metrics.worlds_opened.value(), 3u);  // 43, 44, 45
+  EXPECT_EQ(metrics.worlds_open.value(), 3);
+}
+
+TEST(GeneratorWorlds, max_worlds_out_of_range_is_refused_by_name) {
+  Metrics metrics;
+  GeneratorConfig c = cpu_config();
+  c.max_worlds = 0;
+  auto g = Generator::create(test_world(), mesh::MeshParams{}, c, metrics);
+  ASSERT_FALSE(g.ok());
+  EXPECT_NE(g.error().message.find("max_worlds"), std::string::npos) << g.error().message;
+}
+
 }  // namespace grotto::server

@@ -958,6 +958,8 @@ TEST(ServerSettings, invalid_settings_are_refused_naming_the_setting) {
       {{"--port", "70000"}, "--port"},
       {{"--port", "http"}, "--port"},
       {{"--max-rooms-in-flight", "0"}, "--max-rooms-in-flight"},
+      {{"--max-worlds", "0"}, "--max-worlds"},
+      {{"--config", write_temp("worlds.json", R"({"max-worlds": 5000})")}, "max-worlds"},
       {{"--log-level", "loud"}, "--log-level"},
       {{"--no-such-flag"}, "no-such-flag"},
       {{"--sector-size", "1"}, "sector_size"},
@@ -1188,4 +1190,87 @@ TEST(ServerSession, a_query_string_on_ws_is_accepted_and_ignored) {
   EXPECT_EQ(w.seed, server->config().seed);  // the hint does not choose the world
   Client other(server->port());
   EXPECT_TRUE(other.connect("/wsx?seed=1")) << "only the path before '?' is matched";
+}
+
+// --max-worlds: a hello that names another seed opens that world (its rooms are the bytes a
+// server of that seed sends); with every world in use a new seed is refused with a fatal
+// `overloaded`, and the server's own world (no seed named) always answers.
+TEST(ServerWorlds, a_named_world_opens_and_with_all_in_use_another_is_overloaded) {
+  auto rooms_from = [](Client& client, const std::vector<grotto::cave::Room>& rooms) {
+    std::map<uint64_t, std::string> got;
+    EXPECT_FALSE(client.send(request_of(rooms, 0, 4, 10)));
+    while (got.size() < 4) {
+      auto [ec, in] = client.read();
+      if (ec || in.text) {
+        ADD_FAILURE() << (ec ? ec.message() : in.data);
+        break;
+      }
+      got[frame_id(in.data).packed()] = in.data;
+    }
+    return got;
+  };
+  const std::string hello8 = "{\"type\":\"hello\",\"ref\":1,\"versions\":[1],\"seed\":\"8\"}";
+  auto rooms8 = sector_rooms(8, {0, 0, 0});
+  ASSERT_GE(rooms8.size(), 4u);
+
+  auto c = test_config();
+  c.generator.max_worlds = 2;
+  auto server = start(c);
+  ASSERT_TRUE(server);
+  Client player8(server->port());
+  ASSERT_FALSE(player8.connect("/ws?seed=8"));
+  ASSERT_FALSE(player8.send(hello8));
+  auto welcome = player8.next_text();
+  ASSERT_TRUE(welcome && welcome->as<grotto::proto::Welcome>()) << welcome->data;
+  EXPECT_EQ(welcome->as<grotto::proto::Welcome>()->seed, 8u);
+  grotto::proto::Spawn sp;
+  sp.ref = 2;
+  ASSERT_FALSE(player8.send(sp));
+  auto spawn = player8.next_text();
+  ASSERT_TRUE(spawn && spawn->as<grotto::proto::SpawnPoint>());
+  EXPECT_EQ(spawn->as<grotto::proto::SpawnPoint>()->room,
+            grotto::cave::spawn_room(*grotto::cave::World::create(8, c.layout)));
+  auto got = rooms_from(player8, rooms8);
+
+  auto c8 = test_config();
+  c8.seed = 8;
+  auto server8 = start(c8);
+  ASSERT_TRUE(server8);
+  Client direct(server8->port());
+  ASSERT_FALSE(direct.connect());
+  direct.hello();
+  EXPECT_EQ(got, rooms_from(direct, rooms8)) << "world 8 differs from a server of seed 8";
+
+  Client player9(server->port());
+  ASSERT_FALSE(player9.connect());
+  ASSERT_FALSE(player9.send("{\"type\":\"hello\",\"ref\":1,\"versions\":[1],\"seed\":\"9\"}"));
+  auto e = player9.next_error();
+  ASSERT_TRUE(e);
+  EXPECT_EQ(e->code, ErrorCode::kOverloaded);
+  EXPECT_TRUE(e->fatal);
+  EXPECT_NE(e->message.find("max_worlds"), std::string::npos) << e->message;
+  auto reason = player9.wait_close();
+  EXPECT_EQ(reason.code, 1008);
+  EXPECT_EQ(std::string(reason.reason.c_str()), "overloaded");
+  EXPECT_TRUE(player8.alive());
+
+  Client home(server->port());
+  ASSERT_FALSE(home.connect());
+  EXPECT_EQ(home.hello().seed, c.seed);  // the server's own world is never closed
+  auto metrics = http_get(server->port(), "/metrics");
+  EXPECT_NE(metrics.body.find("grotto_worlds_open 2\n"), std::string::npos);
+  EXPECT_NE(metrics.body.find("grotto_worlds_refused_total 1\n"), std::string::npos);
+
+  // Once world 8's player leaves, world 9 opens in its place.
+  player8.close_tcp();
+  bool welcomed = false;
+  for (int attempt = 0; attempt < 100 && !welcomed; ++attempt) {
+    Client try9(server->port());
+    ASSERT_FALSE(try9.connect());
+    ASSERT_FALSE(try9.send("{\"type\":\"hello\",\"ref\":1,\"versions\":[1],\"seed\":\"9\"}"));
+    auto in = try9.next_text();
+    welcomed = in && in->as<grotto::proto::Welcome>();
+    if (!welcomed) std::this_thread::sleep_for(50ms);  // the server has not seen the close yet
+  }
+  EXPECT_TRUE(welcomed);
 }
