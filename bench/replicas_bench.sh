@@ -20,13 +20,10 @@ done
 source "$(dirname "$0")/../tests/deploy/lb_common.sh"
 lb_init replicas-bench
 
-# Worlds: with multi-world replicas and grotto-load --seeds, one world per player so the seed hash
-# has something to spread; otherwise one world and nginx spreads seedless players by request id.
-world_args=(--seed 7)
-if "$GROTTO_SERVER" --help | grep -q -- --max-worlds && "$GROTTO_LOAD" --help | grep -q -- --seeds; then
-  world_args=(--seeds "$(seq -s, 101 $((100 + players)))")
-  lb_replica_args=(--max-worlds "$players")
-fi
+# Worlds: one per player (grotto-load --seeds), so that nginx's hash on the seed has something to
+# spread; every replica has room for all of them besides its own (--max-worlds).
+world_args=(--seeds "$(seq -s, 101 $((100 + players)))")
+lb_replica_args=(--max-worlds "$((players + 1))")
 
 # measure NAME REPLICAS VIA: one grotto-load burst; prints "rooms_per_s p50 p90 p99 rooms".
 measure() {
