@@ -21,13 +21,15 @@ source "$(dirname "$0")/../tests/deploy/lb_common.sh"
 lb_init replicas-bench
 
 # Worlds: one per player (grotto-load --seeds), so that nginx's hash on the seed has something to
-# spread; every replica has room for all of them besides its own (--max-worlds).
+# spread; every replica has room for all of them besides its own (--max-worlds). One more set-up,
+# oneworld_1, is the direct single replica with every player in one world (--seed 101): what
+# serving many worlds costs a replica (batches are per world).
 world_args=(--seeds "$(seq -s, 101 $((100 + players)))")
 lb_replica_args=(--max-worlds "$((players + 1))")
 
 # measure NAME REPLICAS VIA: one grotto-load burst; prints "rooms_per_s p50 p90 p99 rooms".
 measure() {
-  local name=$1 n=$2 via=$3 url json="$lb_dir/$1.json"
+  local name=$1 n=$2 via=$3 url json="$lb_dir/$1.json" worlds=("${world_args[@]}")
   lb_start_replicas "$n"
   if [[ "$via" == nginx ]]; then
     lb_start_nginx
@@ -35,7 +37,8 @@ measure() {
   else
     url="ws://127.0.0.1:${lb_replica_port[0]}/ws"
   fi
-  timeout 120 "$GROTTO_LOAD" --server "$url" --mode burst --spread "${world_args[@]}" \
+  [[ "$via" == oneworld ]] && worlds=(--seed 101)
+  timeout 120 "$GROTTO_LOAD" --server "$url" --mode burst --spread "${worlds[@]}" \
     --players "$players" --radius "$radius" --quiet --json "$json" >"$lb_dir/$name.log" 2>&1 ||
     lb_fail "grotto-load ($name) exited $?: $(tail -n 5 "$lb_dir/$name.log")"
   lb_stop_all
@@ -44,7 +47,7 @@ measure() {
 
 median() { tr ' ' '\n' | sort -g | awk '{ v[NR] = $1 } END { print (NR % 2) ? v[(NR + 1) / 2] : (v[NR / 2] + v[NR / 2 + 1]) / 2 }'; }
 
-setups=(direct_1 nginx_1 nginx_2 nginx_3)
+setups=(direct_1 nginx_1 nginx_2 nginx_3 oneworld_1)
 declare -A rate p50 p90 p99 rooms ratio
 for ((r = 1; r <= rounds; r++)); do
   declare -A row=()
