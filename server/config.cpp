@@ -174,8 +174,8 @@ const std::vector<Setting>& settings() {
         "cache-bytes", "Encoded-room LRU cache size in bytes (0: off)", 0, kMaxBytes,
         [](ServerConfig & c) -> auto& { return c.generator.cache_bytes; }));
     t.push_back(int_setting(
-        "sector-cache-entries", "Sector layouts kept (LRU), shared evenly among the worlds", 1,
-        1 << 24, [](ServerConfig & c) -> auto& { return c.generator.sector_cache_entries; }));
+        "sector-cache-entries", "Sector layouts kept (LRU), all worlds together", 1, 1 << 24,
+        [](ServerConfig & c) -> auto& { return c.generator.sector_cache_entries; }));
     t.push_back(int_setting(
         "batch-rooms", "Rooms per build call (one kernel launch)", 1, 4096,
         [](ServerConfig & c) -> auto& { return c.generator.max_batch_rooms; }));

@@ -39,11 +39,11 @@ double seconds_between(Clock::time_point a, Clock::time_point b) {
 // One open world: its layout, its mesh context and its sector cache. Jobs and clients hold it,
 // so a world closed while one of its rooms builds lives until the build ends.
 struct WorldSlot {
-  WorldSlot(const cave::World& w, mesh::MeshContext ctx, size_t sector_entries)
-      : world(w), mesh_ctx(std::move(ctx)), sectors(w, sector_entries) {}
+  WorldSlot(const cave::World& w, mesh::MeshContext ctx, std::shared_ptr<SectorStore> store)
+      : world(w), mesh_ctx(std::move(ctx)), sectors(w, std::move(store)) {}
   const cave::World world;
   const mesh::MeshContext mesh_ctx;
-  SectorCache sectors;
+  SectorCache sectors;     // its layouts, in the store every world shares
   size_t clients = 0;      // under the generator's lock
   uint64_t last_used = 0;  // under the lock: when a client last came or went, for closing
 };
@@ -91,12 +91,6 @@ struct Outgoing {
   ClientPtr client;
   Delivery delivery;
 };
-
-// Each open world's share of the sector cache.
-size_t sector_share(const GeneratorConfig& config) {
-  if (config.sector_cache_entries == 0) return 0;
-  return std::max<size_t>(config.sector_cache_entries / config.max_worlds, 1);
-}
 
 Delivery error_delivery(RoomKey key, Error error) {
   Delivery d;
@@ -178,7 +172,7 @@ struct Generator::State {
     if (!world) return world.error();
     auto ctx = mesh::MeshContext::create(*world, mesh_params);
     if (!ctx) return ctx.error();
-    auto slot = std::make_shared<WorldSlot>(*world, std::move(ctx).value(), sector_share(config));
+    auto slot = std::make_shared<WorldSlot>(*world, std::move(ctx).value(), home->sectors.store());
     worlds.emplace(seed, slot);
     metrics.worlds_opened.add();
     metrics.worlds_open.set(static_cast<int64_t>(worlds.size()));
@@ -458,7 +452,8 @@ Result<std::unique_ptr<Generator>> Generator::create(const cave::World& world,
   Result<mesh::MeshContext> ctx = mesh::MeshContext::create(world, mesh_params);
   if (!ctx) return Error{ctx.error().code, "mesh parameters: " + ctx.error().message};
 
-  auto home = std::make_shared<WorldSlot>(world, std::move(ctx).value(), sector_share(config));
+  auto home = std::make_shared<WorldSlot>(
+      world, std::move(ctx).value(), std::make_shared<SectorStore>(config.sector_cache_entries));
   auto state = std::make_unique<State>(std::move(home), mesh_params, config, metrics);
   size_t workers = config.workers > 0 ? static_cast<size_t>(config.workers)
                                       : std::max(1u, std::thread::hardware_concurrency());

@@ -68,8 +68,7 @@ struct Delivery {
 struct GeneratorConfig {
   int workers = 0;                         // build threads; 0: one per hardware thread
   size_t cache_bytes = size_t{256} << 20;  // encoded frames kept (LRU); 0 disables the cache
-  size_t sector_cache_entries =
-      4096;  // sector layouts kept (LRU) for room/locate, split among worlds
+  size_t sector_cache_entries = 4096;      // sector layouts kept (LRU), all worlds together
   // Worlds served at once: the generator's own, which stays open, plus up to max_worlds - 1
   // others opened for the clients that name them. An idle one (no clients) is closed, least
   // recently used first, when another is wanted; with every one in use a new world is refused.

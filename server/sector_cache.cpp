@@ -43,29 +43,34 @@ bool in_space(const Room& r, Vec3 point) {
 }  // namespace
 
 SectorCache::SectorCache(const cave::World& world, size_t capacity)
-    : world_(world), capacity_(capacity) {}
+    : SectorCache(world, std::make_shared<SectorStore>(capacity)) {}
+
+SectorCache::SectorCache(const cave::World& world, std::shared_ptr<SectorStore> store)
+    : world_(world), store_(std::move(store)) {}
 
 std::shared_ptr<const SectorLayout> SectorCache::sector(cave::SectorCoord s) {
   assert(cave::in_range(s));
+  SectorStore& st = *store_;
+  const SectorStore::Key key{world_.seed(), s};
   {
-    std::lock_guard lock(mutex_);
-    auto it = index_.find(s);
-    if (it != index_.end()) {
-      ++hits_;
-      lru_.splice(lru_.begin(), lru_, it->second);
+    std::lock_guard lock(st.mutex_);
+    auto it = st.index_.find(key);
+    if (it != st.index_.end()) {
+      ++st.hits_;
+      st.lru_.splice(st.lru_.begin(), st.lru_, it->second);
       return it->second->second;
     }
-    ++misses_;
+    ++st.misses_;
   }
   auto layout = std::make_shared<const SectorLayout>(cave::generate_sector(world_, s));
-  if (capacity_ == 0) return layout;
-  std::lock_guard lock(mutex_);
-  if (auto it = index_.find(s); it != index_.end()) return it->second->second;
-  lru_.emplace_front(s, layout);
-  index_[s] = lru_.begin();
-  while (lru_.size() > capacity_) {
-    index_.erase(lru_.back().first);
-    lru_.pop_back();
+  if (st.capacity_ == 0) return layout;
+  std::lock_guard lock(st.mutex_);
+  if (auto it = st.index_.find(key); it != st.index_.end()) return it->second->second;
+  st.lru_.emplace_front(key, layout);
+  st.index_[key] = st.lru_.begin();
+  while (st.lru_.size() > st.capacity_) {
+    st.index_.erase(st.lru_.back().first);
+    st.lru_.pop_back();
   }
   return layout;
 }
@@ -143,15 +148,15 @@ proto::SpawnPoint SectorCache::spawn() {
   return out;
 }
 
-size_t SectorCache::hits() const {
+size_t SectorStore::hits() const {
   std::lock_guard lock(mutex_);
   return hits_;
 }
-size_t SectorCache::misses() const {
+size_t SectorStore::misses() const {
   std::lock_guard lock(mutex_);
   return misses_;
 }
-size_t SectorCache::size() const {
+size_t SectorStore::size() const {
   std::lock_guard lock(mutex_);
   return lru_.size();
 }

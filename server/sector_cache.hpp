@@ -3,16 +3,21 @@
 // the sector, ~0.5-1 ms, on every call). Answers are those of cave::room / cave::locate /
 // cave::spawn_room, computed from the cached layouts (tests pin the equality).
 //
+// The layouts live in a SectorStore, which several worlds' caches may share: one LRU bounded in
+// layouts, keyed by world and sector, so a busy world takes more of it than an idle one.
+//
 // Thread safety: every member may be called from any thread. Layouts are generated outside the
 // lock; two threads missing the same sector at once both generate it (same bytes), one is kept.
 #pragma once
 
 #include <cstddef>
+#include <cstdint>
 #include <list>
 #include <map>
 #include <memory>
 #include <mutex>
 #include <optional>
+#include <utility>
 
 #include "cave/layout.hpp"
 #include "core/result.hpp"
@@ -20,10 +25,34 @@
 
 namespace grotto::server {
 
+class SectorStore {
+ public:
+  // capacity: layouts kept, all worlds together; 0 keeps none (every call generates).
+  explicit SectorStore(size_t capacity) : capacity_(capacity) {}
+
+  size_t hits() const;
+  size_t misses() const;
+  size_t size() const;
+
+ private:
+  friend class SectorCache;
+  using Key = std::pair<uint64_t, cave::SectorCoord>;  // (world seed, sector)
+  using Entry = std::pair<Key, std::shared_ptr<const cave::SectorLayout>>;
+  size_t capacity_;
+  mutable std::mutex mutex_;
+  std::list<Entry> lru_;  // most recent first
+  std::map<Key, std::list<Entry>::iterator> index_;
+  size_t hits_ = 0;
+  size_t misses_ = 0;
+};
+
 class SectorCache {
  public:
-  // capacity: layouts kept; 0 keeps none (every call generates).
+  // A cache of its own: capacity layouts; 0 keeps none (every call generates).
   SectorCache(const cave::World& world, size_t capacity);
+  // A cache whose layouts live in `store`, beside other worlds'. Worlds sharing a store must
+  // differ in seed and share layout parameters.
+  SectorCache(const cave::World& world, std::shared_ptr<SectorStore> store);
 
   // cave::room(world, id). Errors: kNotFound for a well-formed id that names no room (also a
   // gate on the world's edge); kInternal for a sector that could not link its gates.
@@ -37,19 +66,15 @@ class SectorCache {
   // The layout of an in-range sector, from the cache or generated now.
   std::shared_ptr<const cave::SectorLayout> sector(cave::SectorCoord s);
 
-  size_t hits() const;
-  size_t misses() const;
-  size_t size() const;
+  // The store's counts (all worlds sharing it).
+  size_t hits() const { return store_->hits(); }
+  size_t misses() const { return store_->misses(); }
+  size_t size() const { return store_->size(); }
+  const std::shared_ptr<SectorStore>& store() const { return store_; }
 
  private:
-  using Entry = std::pair<cave::SectorCoord, std::shared_ptr<const cave::SectorLayout>>;
   cave::World world_;
-  size_t capacity_;
-  mutable std::mutex mutex_;
-  std::list<Entry> lru_;  // most recent first
-  std::map<cave::SectorCoord, std::list<Entry>::iterator> index_;
-  size_t hits_ = 0;
-  size_t misses_ = 0;
+  std::shared_ptr<SectorStore> store_;
 };
 
 }  // namespace grotto::server

@@ -671,6 +671,35 @@ TEST(SectorCacheTest, rooms_locate_and_spawn_match_the_layout_functions) {
   EXPECT_EQ(cave::locate(test_world(), spawn.position), spawn.room);
 }
 
+// Two worlds in one store: the same sector coordinates of each world stay apart, each answer is
+// its own world's, and the capacity bounds both together.
+TEST(SectorCacheTest, worlds_sharing_a_store_keep_their_own_layouts_within_one_bound) {
+  const cave::World other = cave::World::create(43, cave::LayoutParams{}).value();
+  auto store = std::make_shared<SectorStore>(6);
+  SectorCache a(test_world(), store);
+  SectorCache b(other, store);
+  for (int round = 0; round < 2; ++round) {
+    for (int x = 0; x < 3; ++x) {
+      for (const auto& [cache, world] :
+           {std::pair<SectorCache*, const cave::World*>{&a, &test_world()}, {&b, &other}}) {
+        cave::SectorLayout want = cave::generate_sector(*world, {x, 0, 0});
+        auto got = cache->sector({x, 0, 0});
+        ASSERT_EQ(got->rooms.size(), want.rooms.size());
+        std::vector<unsigned char> p, q;
+        for (size_t i = 0; i < want.rooms.size(); ++i) {
+          cave::append_bytes(want.rooms[i], p);
+          cave::append_bytes(got->rooms[i], q);
+        }
+        EXPECT_EQ(p, q) << "world " << world->seed() << " sector " << x;
+      }
+    }
+  }
+  EXPECT_EQ(store->size(), 6u);
+  EXPECT_EQ(store->misses(), 6u);  // the second round hits for both worlds
+  EXPECT_EQ(store->hits(), 6u);
+  EXPECT_NE(a.spawn().position, b.spawn().position);
+}
+
 TEST(GeneratorTest, locate_and_spawn_agree) {
   Metrics metrics;
   auto gen = make_generator(cpu_config(), metrics);
