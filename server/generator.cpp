@@ -151,6 +151,10 @@ struct Generator::State {
                                                   std::to_string(home->world.seed()) + ", not " +
                                                   std::to_string(seed)};
     }
+    auto world = cave::World::create(seed, home->world.params());
+    if (!world) return world.error();
+    auto ctx = mesh::MeshContext::create(*world, mesh_params);
+    if (!ctx) return ctx.error();
     if (worlds.size() >= config.max_worlds) {
       auto idle = worlds.end();
       for (auto it = worlds.begin(); it != worlds.end(); ++it) {
@@ -168,10 +172,6 @@ struct Generator::State {
       spdlog::info("event=world_closed seed={} reason=idle", idle->first);
       worlds.erase(idle);
     }
-    auto world = cave::World::create(seed, home->world.params());
-    if (!world) return world.error();
-    auto ctx = mesh::MeshContext::create(*world, mesh_params);
-    if (!ctx) return ctx.error();
     auto slot = std::make_shared<WorldSlot>(*world, std::move(ctx).value(), home->sectors.store());
     worlds.emplace(seed, slot);
     metrics.worlds_opened.add();
@@ -263,7 +263,8 @@ struct Generator::State {
         auto e = c.queue.begin();
         if (!batch.empty()) {
           const RoomKey& first = batch.front()->key;
-          while (e != c.queue.end() && (e->key.lod != first.lod || e->key.seed != first.seed))
+          if (c.world->world.seed() != first.seed) continue;  // its wants are all of its world
+          while (e != c.queue.end() && e->key.lod != first.lod)
             ++e;
         }
         if (e == c.queue.end()) continue;
@@ -385,8 +386,10 @@ struct Generator::State {
       }
       std::vector<JobPtr> batch;
       take(batch, max_batch);
+      // Work this batch cannot take (another world or lod): another worker's, now.
+      if (queued_jobs > 0) work_cv.notify_one();
       if (batch.size() < max_batch && !batch.empty() && config.max_batch_wait.count() > 0) {
-        // A fuller batch amortizes the launch; wait a little for more wants of this lod.
+        // A fuller batch amortizes the launch; wait a little for more wants of its world and lod.
         auto until = Clock::now() + config.max_batch_wait;
         while (batch.size() < max_batch && !stopping &&
                work_cv.wait_until(lock, until) == std::cv_status::no_timeout) {
@@ -499,6 +502,10 @@ ClientId Generator::add_client(DeliverFn deliver) {
 Result<ClientId> Generator::add_client(uint64_t seed, DeliverFn deliver) {
   State& s = *state_;
   std::lock_guard lock(s.mutex);
+  if (s.stopping && seed != s.home->world.seed()) {
+    // Opening a world (and closing another) for a client that gets nothing built is no use.
+    return Error{ErrorCode::kServiceRestart, "the generation service is stopping"};
+  }
   Result<WorldPtr> world = s.open_world(seed);
   if (!world) return world.error();
   auto client = std::make_shared<Client>();

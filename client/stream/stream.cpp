@@ -399,23 +399,24 @@ struct Stream::Impl : std::enable_shared_from_this<Stream::Impl> {
   }
 
   void on_message(const proto::ErrorMessage& e) {
-    if (e.code == ErrorCode::kServiceRestart) {
-      // A graceful drain (PROTOCOL.md): the close follows and drop() reconnects at once. A room
-      // it names is asked for again on the next connection, so it is no failure of that room.
+    const char* code = proto::wire_code_name(e.code);
+    // service_restart is a graceful drain (PROTOCOL.md), a notice rather than an error: the close
+    // follows and drop() reconnects at once. What it names is asked for again on the next
+    // connection, so it is no failure of a room.
+    const bool restart = e.code == ErrorCode::kServiceRestart;
+    if (restart) {
       ++stats.restart_notices;
-      if (e.room) in_flight.erase(*e.room);
       spdlog::debug("event=stream_restart_notice url={}:{} detail=\"{}\"", url.host, url.port,
                     e.message);
-      return;
+    } else {
+      ++stats.errors[code];
+      note_error(std::string("server error ") + code + ": " + e.message);
     }
-    const char* code = proto::wire_code_name(e.code);
-    ++stats.errors[code];
-    note_error(std::string("server error ") + code + ": " + e.message);
     if (e.room) {
       in_flight.erase(*e.room);
       if (e.code == ErrorCode::kNotFound) {
         give_up(*e.room);
-      } else {
+      } else if (!restart) {
         count_failure(*e.room);
       }
     } else if (e.ref) {

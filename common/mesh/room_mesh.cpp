@@ -1,6 +1,7 @@
 #include "mesh/room_mesh.hpp"
 
 #include <algorithm>
+#include <cassert>
 #include <chrono>
 #include <cmath>
 #include <map>
@@ -166,6 +167,7 @@ DeformInput prepare_room(const MeshContext& ctx, const cave::Room& room, Lod lod
 
 void deform_cpu(const MeshContext& ctx, const DeformInput& input, std::span<float3> positions,
                 std::span<float> clearance) {
+  assert(input.noise_seed == ctx.noise_seed());  // prepared for this world
   const auto& dirs = input.donor->directions;
   for (size_t i = 0; i < dirs.size(); ++i) {
     positions[i] =

@@ -197,6 +197,43 @@ TEST_F(DeformKernelTest, room_builder_on_the_device_gives_the_cpu_meshes) {
   EXPECT_EQ(builder.fallbacks(), 0u);
 }
 
+// A builder made for world 42 builds world 43's rooms as world 43's own CPU reference does (one
+// builder per worker serves every world of a server), and refuses a world whose mesh parameters
+// differ from its own (its kernel holds their shapes).
+TEST_F(DeformKernelTest, room_builder_serves_another_world_with_its_mesh_parameters_only) {
+  RoomBuilder builder = RoomBuilder::create(*mesh_, {DeviceConfig{.device = "auto"}});
+  ASSERT_TRUE(builder.uses_opencl()) << builder.path();
+  cave::World other_world = cave::World::create(43, cave::LayoutParams{}).value();
+  auto other = mesh::MeshContext::create(other_world, mesh::MeshParams{}).value();
+  cave::Region region = cave::generate_region(other_world, {0, 0, 0}, {0, 0, 0});
+  std::vector<cave::Room> rooms(region.rooms.begin(), region.rooms.begin() + 6);
+  auto meshes = builder.build(other, rooms, mesh::Lod::kPatch);
+  ASSERT_EQ(meshes.size(), rooms.size());
+  for (size_t i = 0; i < rooms.size(); ++i) {
+    ASSERT_TRUE(meshes[i].ok()) << meshes[i].error().message;
+    mesh::RoomMesh cpu = mesh::build_room_mesh(other, rooms[i], mesh::Lod::kPatch).value();
+    EXPECT_EQ(meshes[i]->indices, cpu.indices) << rooms[i].id.to_string();
+    ASSERT_EQ(meshes[i]->vertex_count(), cpu.vertex_count());
+    for (size_t v = 0; v < cpu.vertex_count(); ++v) {
+      ASSERT_TRUE(same_bits(meshes[i]->positions[v].x, cpu.positions[v].x) &&
+                  same_bits(meshes[i]->positions[v].y, cpu.positions[v].y) &&
+                  same_bits(meshes[i]->positions[v].z, cpu.positions[v].z))
+          << rooms[i].id.to_string() << " vertex " << v;
+    }
+  }
+  EXPECT_EQ(builder.fallbacks(), 0u);
+
+  mesh::MeshParams rougher;
+  rougher.octave_amplitude[0] = 0.5;
+  auto differs = mesh::MeshContext::create(other_world, rougher).value();
+  auto refused = builder.build(differs, rooms, mesh::Lod::kPatch);
+  ASSERT_EQ(refused.size(), rooms.size());
+  for (const auto& m : refused) {
+    ASSERT_FALSE(m.ok());
+    EXPECT_NE(m.error().message.find("mesh parameters"), std::string::npos) << m.error().message;
+  }
+}
+
 TEST_F(DeformKernelTest, room_builder_falls_back_to_the_cpu_when_told_to) {
   RoomBuilder builder = RoomBuilder::create(*mesh_, {DeviceConfig{.device = "none"}});
   EXPECT_FALSE(builder.uses_opencl());

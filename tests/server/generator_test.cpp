@@ -672,14 +672,15 @@ TEST(SectorCacheTest, rooms_locate_and_spawn_match_the_layout_functions) {
 }
 
 // Two worlds in one store: the same sector coordinates of each world stay apart, each answer is
-// its own world's, and the capacity bounds both together.
+// its own world's, and one capacity bounds both together (least recently used goes first).
 TEST(SectorCacheTest, worlds_sharing_a_store_keep_their_own_layouts_within_one_bound) {
   const cave::World other = cave::World::create(43, cave::LayoutParams{}).value();
-  auto store = std::make_shared<SectorStore>(6);
+  auto store = std::make_shared<SectorStore>(4);
   SectorCache a(test_world(), store);
   SectorCache b(other, store);
   for (int round = 0; round < 2; ++round) {
-    for (int x = 0; x < 3; ++x) {
+    for (int step = 0; step < 3; ++step) {
+      int x = round == 0 ? step : 2 - step;  // back again: the last four are kept
       for (const auto& [cache, world] :
            {std::pair<SectorCache*, const cave::World*>{&a, &test_world()}, {&b, &other}}) {
         cave::SectorLayout want = cave::generate_sector(*world, {x, 0, 0});
@@ -694,9 +695,11 @@ TEST(SectorCacheTest, worlds_sharing_a_store_keep_their_own_layouts_within_one_b
       }
     }
   }
-  EXPECT_EQ(store->size(), 6u);
-  EXPECT_EQ(store->misses(), 6u);  // the second round hits for both worlds
-  EXPECT_EQ(store->hits(), 6u);
+  // Round 1: six misses, sectors 1 and 2 of both worlds kept. Round 2 (2, 1, 0): four hits, then
+  // sector 0 of each world missed again.
+  EXPECT_EQ(store->size(), 4u);
+  EXPECT_EQ(store->hits(), 4u);
+  EXPECT_EQ(store->misses(), 8u);
   EXPECT_NE(a.spawn().position, b.spawn().position);
 }
 
@@ -709,7 +712,6 @@ TEST(GeneratorTest, locate_and_spawn_agree) {
   EXPECT_FALSE(gen->locate(c, {1e30, 0, 0}));
 }
 
-}  // namespace
 // ---- worlds ----
 
 // A generator with room for several worlds: its own (test_world, seed 42) and others opened for
@@ -757,7 +759,7 @@ TEST(GeneratorWorlds, another_worlds_rooms_equal_those_of_a_generator_of_that_wo
   ASSERT_TRUE(gen);
   std::map<cave::RoomId, std::vector<uint8_t>> got43, got42;
   std::thread other([&] { got43 = frames_from(*gen, 43, reversed); });
-  got42 = frames_from(*gen, 42, ids);  // the same ids, where they exist in world 42
+  got42 = frames_from(*gen, 42, ids);  // the same ids in world 42 (its sectors hold 20+ rooms)
   other.join();
   EXPECT_EQ(got43, expected43);
   EXPECT_EQ(metrics.worlds_opened.value(), 1u);
@@ -824,6 +826,13 @@ TEST(GeneratorWorlds, a_new_world_closes_the_least_recently_used_idle_one_or_is_
   EXPECT_EQ(e.error().code, ErrorCode::kOverloaded);
   EXPECT_EQ(metrics.worlds_opened.value(), 3u);  // 43, 44, 45
   EXPECT_EQ(metrics.worlds_open.value(), 3);
+  // A stopping generator opens no world (nothing would be built in it).
+  gen->remove_client(*c);
+  gen->shutdown();
+  auto late = add(46);
+  ASSERT_FALSE(late.ok());
+  EXPECT_EQ(late.error().code, ErrorCode::kServiceRestart);
+  EXPECT_EQ(gen->worlds_open(), 3u);
 }
 
 TEST(GeneratorWorlds, max_worlds_out_of_range_is_refused_by_name) {
@@ -835,4 +844,5 @@ TEST(GeneratorWorlds, max_worlds_out_of_range_is_refused_by_name) {
   EXPECT_NE(g.error().message.find("max_worlds"), std::string::npos) << g.error().message;
 }
 
+}  // namespace
 }  // namespace grotto::server
