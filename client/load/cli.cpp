@@ -17,11 +17,11 @@ namespace {
 constexpr const char* kDescription =
     "grotto-load: simulated players walking a Grotto cave over client/stream, measuring what "
     "players get: time to first room, request->room latency, rooms/s and MB/s, stalls (a player "
-    "at a portal whose room is not ready), errors, reconnects and decode time.\n"
+    "at a portal whose room is not ready), errors, reconnects, drain notices and decode time.\n"
     "Without --server it starts a server in-process on 127.0.0.1.\n"
     "Exit codes: 0 pass; 1 errors (error messages from the server, a stream refused for good, "
-    "--verify failures, or the run could not start); 2 invalid flags; 3 more stalls than "
-    "--max-stalls.";
+    "--verify failures, or the run could not start; a draining server's service_restart is a "
+    "notice, not an error); 2 invalid flags; 3 more stalls than --max-stalls.";
 
 // A finite double within [lo, hi] (CLI::Range lets NaN through).
 std::string check_number(const char* flag, double v, double lo, double hi) {
@@ -113,7 +113,7 @@ CommandLine parse_command_line(int argc, const char* const* argv) {
       ->capture_default_str();
   app.add_flag("--spread", o.spread,
                "Player i starts in room 0 of sector (3i, 0, 0) instead of the spawn point, so "
-               "players share no rooms (with --server, give --seed)");
+               "players share no rooms (with --server, give --seed or --seeds)");
   app.add_flag("--verify", o.verify,
                "Check every received room (mesh against descriptor), every seam with a received "
                "neighbour (bit-identical rims) and the portal graph; failures exit 1");
