@@ -23,7 +23,7 @@ lb_init replicas-bench
 # Worlds: one per player (grotto-load --seeds), so that nginx's hash on the seed has something to
 # spread; every replica has room for all of them besides its own (--max-worlds). One more set-up,
 # oneworld_1, is the direct single replica with every player in one world (--seed 101): what
-# serving many worlds costs a replica (batches are per world).
+# serving many worlds costs a replica.
 world_args=(--seeds "$(seq -s, 101 $((100 + players)))")
 lb_replica_args=(--max-worlds "$((players + 1))")
 

@@ -2,9 +2,10 @@
  * rooms expensive, so one launch deforms many rooms). One work item per group of GROTTO_LANES
  * donor vertices of one room (the host pads each room to whole groups); each group knows its
  * room. Room, portal and shape tables live in __constant memory, as in the thesis. Directions and
- * results are stored per group as x[LANES] y[LANES] z[LANES]. Built after deform_prelude.cl and
- * deform_core.h. */
-__kernel void grotto_deform_rooms(uint seed, __constant const GrottoShape* shapes,
+ * results are stored per group as x[LANES] y[LANES] z[LANES]. Each room record carries its
+ * world's noise seed, so one launch serves rooms of many worlds. Built after deform_prelude.cl
+ * and deform_core.h. */
+__kernel void grotto_deform_rooms(__constant const GrottoShape* shapes,
                                   __constant const GrottoRoom* rooms,
                                   __constant const GrottoPortal* portals,
                                   __global const uint* group_room, __global const float* directions,
@@ -19,8 +20,8 @@ __kernel void grotto_deform_rooms(uint seed, __constant const GrottoShape* shape
   dir.y = GROTTO_LOAD(d + GROTTO_LANES);
   dir.z = GROTTO_LOAD(d + 2 * GROTTO_LANES);
   gfloat least;
-  gfloat3 p = grotto_deform_vertex(seed, shapes + room->lod, room, portals + room->first_portal,
-                                   dir, &least);
+  gfloat3 p = grotto_deform_vertex(room->noise_seed, shapes + room->lod, room,
+                                   portals + room->first_portal, dir, &least);
   __global float* out = positions + 3 * GROTTO_LANES * g;
   GROTTO_STORE(p.x, out);
   GROTTO_STORE(p.y, out + GROTTO_LANES);

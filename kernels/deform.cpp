@@ -58,12 +58,11 @@ DeformKernel::DeformKernel(ComputeContext& ctx, cl::Kernel kernel, cl::Buffer sh
 Status DeformKernel::run(std::span<const mesh::DeformInput> batch,
                          std::vector<DeformOutput>& outputs, LaunchStats* stats) {
   outputs.assign(batch.size(), {});
-  // Split where the room or portal table would outgrow the device's constant memory, and where
-  // the world (its noise seed, one kernel argument) changes.
+  // Split where the room or portal table would outgrow the device's constant memory.
   size_t begin = 0;
   while (begin < batch.size()) {
     size_t end = begin, portals = 0;
-    while (end < batch.size() && batch[end].noise_seed == batch[begin].noise_seed) {
+    while (end < batch.size()) {
       size_t next_portals = portals + batch[end].portals.size();
       size_t rooms_bytes = (end - begin + 1) * sizeof(GrottoRoom);
       if (end > begin && (rooms_bytes > max_constant_bytes_ / 2 ||
@@ -131,9 +130,8 @@ Status DeformKernel::launch(std::span<const mesh::DeformInput> rooms,
   for (auto* b : {&room_buf, &portal_buf, &index_buf, &dir_buf, &pos_buf, &clear_buf}) {
     if (!*b) return b->error();
   }
-  if (Status s = set_kernel_args(kernel_, static_cast<cl_uint>(rooms.front().noise_seed), shapes_,
-                                 *room_buf, *portal_buf, *index_buf, *dir_buf, *pos_buf, *clear_buf,
-                                 static_cast<cl_uint>(groups));
+  if (Status s = set_kernel_args(kernel_, shapes_, *room_buf, *portal_buf, *index_buf, *dir_buf,
+                                 *pos_buf, *clear_buf, static_cast<cl_uint>(groups));
       !s) {
     return s;
   }

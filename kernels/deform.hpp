@@ -26,8 +26,8 @@ struct LaunchStats {
 };
 
 // The built kernel plus the level-of-detail shapes (mesh parameters) on one device. The world
-// comes with each room (DeformInput::noise_seed), so one kernel serves every world whose mesh
-// parameters it was built with. Not thread-safe: use one per thread (the ComputeContext may be
+// comes with each room (its record's noise_seed), so one kernel, and one launch, serves every
+// world whose mesh parameters it was built with. Not thread-safe: use one per thread (the ComputeContext may be
 // shared).
 class DeformKernel {
  public:
@@ -38,7 +38,7 @@ class DeformKernel {
                                      int lanes = 0);
 
   // Deforms every room of `batch`; outputs[i] receives room i's result. Rooms go to the device in
-  // as few launches as its constant memory allows (usually one), and one launch per world.
+  // as few launches as its constant memory allows (usually one), whatever their worlds.
   Status run(std::span<const mesh::DeformInput> batch, std::vector<DeformOutput>& outputs,
              LaunchStats* stats = nullptr);
 

@@ -2,6 +2,7 @@
 
 #include <spdlog/spdlog.h>
 
+#include <cassert>
 #include <cstring>
 
 namespace grotto::kernels {
@@ -44,19 +45,36 @@ std::vector<Result<mesh::RoomMesh>> RoomBuilder::build(std::span<const cave::Roo
 std::vector<Result<mesh::RoomMesh>> RoomBuilder::build(const mesh::MeshContext& world,
                                                        std::span<const cave::Room> rooms,
                                                        mesh::Lod lod) {
+  std::vector<const mesh::MeshContext*> worlds(rooms.size(), &world);
+  return build(worlds, rooms, lod);
+}
+
+bool RoomBuilder::serves(const mesh::MeshContext& world) const {
   // The kernel holds the shapes of the builder's parameters (DeformKernel::create).
   for (int l = 0; l < mesh::kLodCount; ++l) {
-    auto lod_l = static_cast<mesh::Lod>(l);
-    if (std::memcmp(&world.shape(lod_l), &mesh_ctx_->shape(lod_l), sizeof(world.shape(lod_l))) !=
-        0) {
-      return std::vector<Result<mesh::RoomMesh>>(
-          rooms.size(), invalid_argument("the world's mesh parameters differ from the builder's"));
+    auto lod = static_cast<mesh::Lod>(l);
+    if (std::memcmp(&world.shape(lod), &mesh_ctx_->shape(lod), sizeof(world.shape(lod))) != 0) {
+      return false;
     }
   }
+  return true;
+}
+
+std::vector<Result<mesh::RoomMesh>> RoomBuilder::build(
+    std::span<const mesh::MeshContext* const> worlds, std::span<const cave::Room> rooms,
+    mesh::Lod lod) {
+  assert(worlds.size() == rooms.size());
+  std::vector<Result<mesh::RoomMesh>> meshes(
+      rooms.size(), invalid_argument("the world's mesh parameters differ from the builder's"));
   std::vector<mesh::DeformInput> inputs;
+  std::vector<size_t> slots;  // inputs[k] is rooms[slots[k]]
   inputs.reserve(rooms.size());
-  for (const cave::Room& r : rooms)
-    inputs.push_back(mesh::prepare_room(world, r, lod));
+  for (size_t i = 0; i < rooms.size(); ++i) {
+    if (!serves(*worlds[i])) continue;
+    inputs.push_back(mesh::prepare_room(*worlds[i], rooms[i], lod));
+    slots.push_back(i);
+  }
+  if (inputs.empty()) return meshes;
 
   std::vector<DeformOutput> outputs;
   bool on_device = false;
@@ -65,23 +83,21 @@ std::vector<Result<mesh::RoomMesh>> RoomBuilder::build(const mesh::MeshContext& 
     on_device = s.ok();
     if (!s) {
       ++fallbacks_;
-      spdlog::warn("event=deform_fallback rooms={} error=\"{}\"", rooms.size(), s.error().message);
+      spdlog::warn("event=deform_fallback rooms={} error=\"{}\"", inputs.size(), s.error().message);
     }
   }
   if (!on_device) {
     outputs.assign(inputs.size(), {});
-    for (size_t i = 0; i < inputs.size(); ++i) {
-      size_t n = inputs[i].donor->directions.size();
-      outputs[i].positions.resize(n);
-      outputs[i].clearance.resize(n);
-      mesh::deform_cpu(world, inputs[i], outputs[i].positions, outputs[i].clearance);
+    for (size_t k = 0; k < inputs.size(); ++k) {
+      size_t n = inputs[k].donor->directions.size();
+      outputs[k].positions.resize(n);
+      outputs[k].clearance.resize(n);
+      mesh::deform_cpu(*worlds[slots[k]], inputs[k], outputs[k].positions, outputs[k].clearance);
     }
   }
-  std::vector<Result<mesh::RoomMesh>> meshes;
-  meshes.reserve(inputs.size());
-  for (size_t i = 0; i < inputs.size(); ++i) {
-    meshes.push_back(
-        mesh::assemble_room(world, inputs[i], outputs[i].positions, outputs[i].clearance));
+  for (size_t k = 0; k < inputs.size(); ++k) {
+    meshes[slots[k]] = mesh::assemble_room(*worlds[slots[k]], inputs[k], outputs[k].positions,
+                                           outputs[k].clearance);
   }
   return meshes;
 }

@@ -33,6 +33,12 @@ class RoomBuilder {
   // serves every world of a server); a context with other parameters fails every room.
   std::vector<Result<mesh::RoomMesh>> build(const mesh::MeshContext& world,
                                             std::span<const cave::Room> rooms, mesh::Lod lod);
+  // Rooms of several worlds in one launch: worlds[i] is rooms[i]'s world (same sizes). A room
+  // whose world has other mesh parameters than the builder's fails; the others are built.
+  std::vector<Result<mesh::RoomMesh>> build(std::span<const mesh::MeshContext* const> worlds,
+                                            std::span<const cave::Room> rooms, mesh::Lod lod);
+  // Whether `world`'s mesh parameters are the builder's (its kernel holds their shapes).
+  bool serves(const mesh::MeshContext& world) const;
 
   bool uses_opencl() const { return kernel_.has_value(); }
   // "opencl: <device description>" or "cpu: <why not OpenCL>".

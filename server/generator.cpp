@@ -252,7 +252,8 @@ struct Generator::State {
   }
 
   // Moves up to `limit` queued jobs into `batch`, one per client in turn, starting after the
-  // client served last. All jobs of a batch share the world and the lod of its first job.
+  // client served last. All jobs of a batch share the lod of its first job; worlds may mix (one
+  // launch serves them all).
   void take(std::vector<JobPtr>& batch, size_t limit) {
     while (batch.size() < limit && queued_jobs > 0) {
       bool progress = false;
@@ -262,9 +263,8 @@ struct Generator::State {
         Client& c = *start->second;
         auto e = c.queue.begin();
         if (!batch.empty()) {
-          const RoomKey& first = batch.front()->key;
-          if (c.world->world.seed() != first.seed) continue;  // its wants are all of its world
-          while (e != c.queue.end() && e->key.lod != first.lod)
+          uint8_t lod = batch.front()->key.lod;
+          while (e != c.queue.end() && e->key.lod != lod)
             ++e;
         }
         if (e == c.queue.end()) continue;
@@ -309,22 +309,24 @@ struct Generator::State {
                                      const std::vector<JobPtr>& batch) {
     std::vector<Result<RoomPtr>> results(batch.size(), Result<RoomPtr>(RoomPtr{}));
     std::vector<cave::Room> rooms;
+    std::vector<const mesh::MeshContext*> contexts;  // rooms[k]'s world's
     std::vector<size_t> slots;
-    WorldSlot& world = *batch.front()->world;
     for (size_t i = 0; i < batch.size(); ++i) {
+      WorldSlot& world = *batch[i]->world;
       Result<cave::Room> room = world.sectors.room(batch[i]->key.id);
       if (!room) {
         results[i] = room.error();
         continue;
       }
       rooms.push_back(std::move(room).value());
+      contexts.push_back(&world.mesh_ctx);
       slots.push_back(i);
     }
     if (rooms.empty()) return results;
     uint8_t lod = batch.front()->key.lod;
     auto t0 = Clock::now();
     std::vector<Result<mesh::RoomMesh>> meshes =
-        builder.build(world.mesh_ctx, rooms, *proto::mesh_lod(lod));
+        builder.build(contexts, rooms, *proto::mesh_lod(lod));
     double build_each = seconds_between(t0, Clock::now()) / static_cast<double>(rooms.size());
     metrics.batches.add();
     for (size_t k = 0; k < rooms.size(); ++k) {
@@ -386,10 +388,10 @@ struct Generator::State {
       }
       std::vector<JobPtr> batch;
       take(batch, max_batch);
-      // Work this batch cannot take (another world or lod): another worker's, now.
+      // Work this batch cannot take (another lod): another worker's, now.
       if (queued_jobs > 0) work_cv.notify_one();
       if (batch.size() < max_batch && !batch.empty() && config.max_batch_wait.count() > 0) {
-        // A fuller batch amortizes the launch; wait a little for more wants of its world and lod.
+        // A fuller batch amortizes the launch; wait a little for more wants of this lod.
         auto until = Clock::now() + config.max_batch_wait;
         while (batch.size() < max_batch && !stopping &&
                work_cv.wait_until(lock, until) == std::cv_status::no_timeout) {

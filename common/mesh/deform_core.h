@@ -47,8 +47,9 @@ typedef struct {
   uint portal_count;
   uint first_vertex; /* index of the room's first vertex in the batch */
   uint vertex_count;
-  uint lod; /* which GrottoShape of the batch's table (0 detail, 1 patch) */
-  float pad1, pad2, pad3;
+  uint lod;        /* which GrottoShape of the batch's table (0 detail, 1 patch) */
+  uint noise_seed; /* the room's world's noise seed: a batch may mix worlds */
+  float pad2, pad3;
 } GrottoRoom;
 
 /* Noise and shape parameters of one level of detail. 32 floats/uints. */

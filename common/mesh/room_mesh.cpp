@@ -123,7 +123,6 @@ DeformInput prepare_room(const MeshContext& ctx, const cave::Room& room, Lod lod
   in.room = room;
   in.lod = lod;
   in.origin = grid::snap(room.sphere.centre);
-  in.noise_seed = ctx.noise_seed();
   in.donor = donor_sphere(donor_frequency(room.sphere.radius, ctx.edge_length(lod)));
   Vec3 o = room.sphere.centre - in.origin;
   core::float3 w = ctx.noise_position(in.origin);
@@ -143,6 +142,7 @@ DeformInput prepare_room(const MeshContext& ctx, const cave::Room& room, Lod lod
   in.record.first_vertex = 0;
   in.record.vertex_count = static_cast<core::uint>(in.donor->directions.size());
   in.record.lod = static_cast<core::uint>(lod);
+  in.record.noise_seed = ctx.noise_seed();
   for (const cave::Portal& portal : room.portals) {
     RimLoop basis = rim_frame(room, portal);
     core::GrottoPortal g{};
@@ -167,11 +167,11 @@ DeformInput prepare_room(const MeshContext& ctx, const cave::Room& room, Lod lod
 
 void deform_cpu(const MeshContext& ctx, const DeformInput& input, std::span<float3> positions,
                 std::span<float> clearance) {
-  assert(input.noise_seed == ctx.noise_seed());  // prepared for this world
+  assert(input.record.noise_seed == ctx.noise_seed());  // prepared for this world
   const auto& dirs = input.donor->directions;
   for (size_t i = 0; i < dirs.size(); ++i) {
     positions[i] =
-        core::grotto_deform_vertex(ctx.noise_seed(), &ctx.shape(input.lod), &input.record,
+        core::grotto_deform_vertex(input.record.noise_seed, &ctx.shape(input.lod), &input.record,
                                    input.portals.data(), dirs[i], &clearance[i]);
   }
 }

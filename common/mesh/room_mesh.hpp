@@ -47,7 +47,6 @@ struct DeformInput {
   core::GrottoRoom record{};
   std::vector<core::GrottoPortal> portals;
   std::shared_ptr<const DonorSphere> donor;
-  uint32_t noise_seed = 0;  // the world's (MeshContext::noise_seed): rooms of many worlds can mix
 };
 
 DeformInput prepare_room(const MeshContext& ctx, const cave::Room& room, Lod lod);
