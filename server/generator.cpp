@@ -332,8 +332,8 @@ struct Generator::State {
     for (size_t k = 0; k < rooms.size(); ++k) {
       size_t i = slots[k];
       if (!meshes[k]) {
-        spdlog::warn("event=room_build_failed room={} lod={} error=\"{}\"", rooms[k].id.to_string(),
-                     lod, meshes[k].error().message);
+        spdlog::warn("event=room_build_failed seed={} room={} lod={} error=\"{}\"",
+                     batch[i]->key.seed, rooms[k].id.to_string(), lod, meshes[k].error().message);
         results[i] =
             Error{ErrorCode::kInternal, "room " + rooms[k].id.to_string() +
                                             " could not be built: " + meshes[k].error().message};
@@ -343,8 +343,8 @@ struct Generator::State {
       auto t1 = Clock::now();
       Result<std::vector<uint8_t>> payload = codec::encode_room(m);
       if (!payload) {
-        spdlog::warn("event=room_encode_failed room={} lod={} error=\"{}\"",
-                     rooms[k].id.to_string(), lod, payload.error().message);
+        spdlog::warn("event=room_encode_failed seed={} room={} lod={} error=\"{}\"",
+                     batch[i]->key.seed, rooms[k].id.to_string(), lod, payload.error().message);
         results[i] =
             Error{ErrorCode::kInternal, "room " + rooms[k].id.to_string() +
                                             " could not be encoded: " + payload.error().message};
