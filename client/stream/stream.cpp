@@ -130,6 +130,7 @@ struct Conn {
   std::deque<std::string> queue;  // text messages waiting for the one async_write in flight
   bool writing = false;
   bool welcomed = false;
+  std::string fatal;  // the fatal error the server sent before closing ("overloaded: ..."), if any
 };
 
 struct InFlight {
@@ -301,8 +302,10 @@ struct Stream::Impl : std::enable_shared_from_this<Stream::Impl> {
     if (ec) {
       if (ec != websocket::error::closed) return drop("reading: " + ec.message());
       const std::string reason(c->ws.reason().reason.c_str());
+      // The fatal error that came before the close says why better than its reason.
       return drop("server closed the connection (" + std::to_string(c->ws.reason().code) +
-                      (reason.empty() ? "" : " " + proto::echo(reason)) + ")",
+                      (reason.empty() ? "" : " " + proto::echo(reason)) + ")" +
+                      (c->fatal.empty() ? "" : ": " + c->fatal),
                   reason == "service_restart");
     }
     stats.bytes_received += c->buffer.size();
@@ -430,6 +433,7 @@ struct Stream::Impl : std::enable_shared_from_this<Stream::Impl> {
     if (e.code == ErrorCode::kOverloaded || e.code == ErrorCode::kLimitExceeded) {
       hold_until = Clock::now() + backoff_delay(1);
     }
+    if (e.fatal) conn->fatal = std::string(code) + ": " + e.message;  // checked by the parser
     if (e.fatal && is_final(e.code)) fail(std::string(code) + ": " + e.message);
     // Other fatal errors: the server closes next, and on_read reconnects.
   }

@@ -274,6 +274,42 @@ TEST(Stream, reconnects_after_a_server_restart_and_every_wanted_room_arrives) {
   EXPECT_EQ(stats.rooms_given_up, 0u);
 }
 
+// A multi-world server whose world slots all have players refuses a new world with a fatal
+// `overloaded`: the Stream keeps the server's reason, backs off and tries again (it is not a
+// refusal for good), and gets its world once a slot frees up.
+TEST(Stream, a_world_refused_for_want_of_a_slot_is_retried_until_one_frees_up) {
+  auto c = test_config();
+  c.generator.max_worlds = 2;  // the server's own (7) and one more
+  auto server = start_server(c);
+  ASSERT_TRUE(server);
+  Runtime rt(1, 2);
+  StreamOptions o;
+  o.url = url_of(server->port());
+  o.plan.horizon_s = 2.0;
+  o.backoff_initial = 20ms;
+  o.backoff_max = 100ms;
+  o.seed = 8;
+  auto first = start_stream(o, rt);
+  ASSERT_TRUE(first);
+  ASSERT_TRUE(wait_for([&] { return first->stats().rooms_ready > 0; })) << describe(first->stats());
+  o.seed = 9;
+  auto second = start_stream(o, rt);
+  ASSERT_TRUE(second);
+  ASSERT_TRUE(wait_for([&] {
+    auto s = second->stats();
+    return s.errors.contains("overloaded") && s.drops > 0;  // refused and closed
+  })) << describe(second->stats());
+  auto refused = second->stats();
+  EXPECT_NE(refused.last_error.find("max_worlds"), std::string::npos) << refused.last_error;
+  EXPECT_NE(refused.state, StreamState::kFailed);
+  EXPECT_EQ(refused.rooms_ready, 0u);
+  first->stop();
+  first.reset();
+  ASSERT_TRUE(wait_for([&] { return second->stats().rooms_ready > 0; }))
+      << describe(second->stats());
+  EXPECT_EQ(second->stats().state, StreamState::kReady);
+}
+
 TEST(Stream, a_server_back_with_another_world_clears_what_was_held_and_spawns_again) {
   auto server = start_server(test_config());
   ASSERT_TRUE(server);
