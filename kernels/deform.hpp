@@ -27,8 +27,8 @@ struct LaunchStats {
 
 // The built kernel plus the level-of-detail shapes (mesh parameters) on one device. The world
 // comes with each room (its record's noise_seed), so one kernel, and one launch, serves every
-// world whose mesh parameters it was built with. Not thread-safe: use one per thread (the ComputeContext may be
-// shared).
+// world whose mesh parameters it was built with. Not thread-safe: use one per thread (the
+// ComputeContext may be shared).
 class DeformKernel {
  public:
   // Builds (or loads from the caches) the program. Errors carry the build log. `lanes` is how many
