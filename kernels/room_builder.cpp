@@ -39,13 +39,7 @@ RoomBuilder RoomBuilder::create(const mesh::MeshContext& mesh_ctx, const Options
 
 std::vector<Result<mesh::RoomMesh>> RoomBuilder::build(std::span<const cave::Room> rooms,
                                                        mesh::Lod lod) {
-  return build(*mesh_ctx_, rooms, lod);
-}
-
-std::vector<Result<mesh::RoomMesh>> RoomBuilder::build(const mesh::MeshContext& world,
-                                                       std::span<const cave::Room> rooms,
-                                                       mesh::Lod lod) {
-  std::vector<const mesh::MeshContext*> worlds(rooms.size(), &world);
+  std::vector<const mesh::MeshContext*> worlds(rooms.size(), mesh_ctx_);
   return build(worlds, rooms, lod);
 }
 

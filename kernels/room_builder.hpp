@@ -29,12 +29,9 @@ class RoomBuilder {
 
   // One mesh per room, in order; all rooms share one kernel launch where the device allows.
   std::vector<Result<mesh::RoomMesh>> build(std::span<const cave::Room> rooms, mesh::Lod lod);
-  // The same for the rooms of another world whose mesh parameters are the builder's (one builder
-  // serves every world of a server); a context with other parameters fails every room.
-  std::vector<Result<mesh::RoomMesh>> build(const mesh::MeshContext& world,
-                                            std::span<const cave::Room> rooms, mesh::Lod lod);
-  // Rooms of several worlds in one launch: worlds[i] is rooms[i]'s world (same sizes). A room
-  // whose world has other mesh parameters than the builder's fails; the others are built.
+  // Rooms of any worlds whose mesh parameters are the builder's (one builder serves every world
+  // of a server), in one launch: worlds[i] is rooms[i]'s world (same sizes). A room whose world
+  // has other mesh parameters fails; the others are built.
   std::vector<Result<mesh::RoomMesh>> build(std::span<const mesh::MeshContext* const> worlds,
                                             std::span<const cave::Room> rooms, mesh::Lod lod);
   // Whether `world`'s mesh parameters are the builder's (its kernel holds their shapes).

@@ -206,7 +206,7 @@ TEST_F(DeformKernelTest, room_builder_serves_another_world_with_its_mesh_paramet
   auto other = mesh::MeshContext::create(other_world, mesh::MeshParams{}).value();
   cave::Region region = cave::generate_region(other_world, {0, 0, 0}, {0, 0, 0});
   std::vector<cave::Room> rooms(region.rooms.begin(), region.rooms.begin() + 6);
-  auto meshes = builder.build(other, rooms, mesh::Lod::kPatch);
+  auto meshes = builder.build(std::vector(rooms.size(), &other), rooms, mesh::Lod::kPatch);
   ASSERT_EQ(meshes.size(), rooms.size());
   for (size_t i = 0; i < rooms.size(); ++i) {
     ASSERT_TRUE(meshes[i].ok()) << meshes[i].error().message;
@@ -225,7 +225,7 @@ TEST_F(DeformKernelTest, room_builder_serves_another_world_with_its_mesh_paramet
   mesh::MeshParams rougher;
   rougher.octave_amplitude[0] = 0.5;
   auto differs = mesh::MeshContext::create(other_world, rougher).value();
-  auto refused = builder.build(differs, rooms, mesh::Lod::kPatch);
+  auto refused = builder.build(std::vector(rooms.size(), &differs), rooms, mesh::Lod::kPatch);
   ASSERT_EQ(refused.size(), rooms.size());
   for (const auto& m : refused) {
     ASSERT_FALSE(m.ok());
