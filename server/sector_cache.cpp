@@ -30,16 +30,6 @@ Error disconnected(cave::SectorCoord s) {
                                          " could not link its gates; its rooms are unavailable"};
 }
 
-// Inside the room's space: not beyond any portal plane (cave::locate's rule, ties included).
-bool in_space(const Room& r, Vec3 point) {
-  if (length_squared(point - r.sphere.centre) > r.sphere.radius * r.sphere.radius) return false;
-  for (const cave::Portal& p : r.portals) {
-    double side = dot(point - p.centre, p.normal);
-    if (side > 0 || (side == 0 && p.neighbour < r.id)) return false;
-  }
-  return true;
-}
-
 }  // namespace
 
 SectorCache::SectorCache(const cave::World& world, size_t capacity)
@@ -111,7 +101,7 @@ std::optional<RoomId> SectorCache::locate(Vec3 point) {
   // Only this sector's side of a gate matters: portals on the other side lie in the other sector.
   std::optional<RoomId> best;
   auto consider = [&](const Room& r) {
-    if (in_space(r, point) && (!best || r.id < *best)) best = r.id;
+    if (cave::in_space(r, point) && (!best || r.id < *best)) best = r.id;
   };
   for (const Room& r : layout->rooms)
     consider(r);
@@ -135,16 +125,7 @@ proto::SpawnPoint SectorCache::spawn() {
   if (!best) best = &layout->gates.front();
   proto::SpawnPoint out;
   out.room = best->id;
-  // Portal planes cut a sphere's cap off, and two overlapping spheres can leave the centre in
-  // the cap of a big neighbour: step back behind each such plane (a few passes settle it).
-  Vec3 p = best->sphere.centre;
-  for (int pass = 0; pass < 4 && !in_space(*best, p); ++pass) {
-    for (const cave::Portal& portal : best->portals) {
-      double side = dot(p - portal.centre, portal.normal);
-      if (side >= 0) p = p - portal.normal * (side + 0.25);
-    }
-  }
-  out.position = p;
+  out.position = cave::interior_point(*best);
   return out;
 }
 

@@ -6,5 +6,5 @@ out vec4 frag_color;
 uniform vec3 u_fog_color;
 
 void main() {
-  frag_color = vec4(u_fog_color, 1.0);
+  frag_color = vec4(u_fog_color, 0.0);  // alpha: no glow (the bloom pass)
 }

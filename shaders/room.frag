@@ -1,87 +1,112 @@
-// Room fragment shader: triplanar texturing (thesis §3.3.2) with the generated materials of
-// client/render/materials.hpp, a different one for floor, walls and ceiling chosen by the normal;
-// normal mapping in a tangent frame synthesized from the normal alone (§3.3.2: the tangent is the
-// normal crossed with an axis, the bitangent the tangent crossed with the normal); a lamp at the
-// player; and distance fog that is fully opaque at u_fog_end, before the far plane, so nothing
-// beyond the fog distance shows (tests rely on it: the clear colour never shows through a closed
-// cave).
+// Room fragment shader: procedural rock at world scale (no textures, so nothing mirrors, tiles or
+// blurs: 3-D noise evaluated where the fragment is), lit by the player's headlamp, tone mapped.
+//   material: floor (damp sediment), walls (limestone with strata of varying thickness),
+//             ceiling (darker), speleothem tips (pale calcite, wet and glossy,
+//             thesis §5.5's tint from displacement), fine bumps below the relief's 5 cm;
+//   light:    a headlamp a little above and right of the eye with a beam and 1/d^2-like falloff
+//             (so the relief casts shading the viewer can see), cavity occlusion from the relief,
+//             wet Blinn-Phong specular, a faint bounce;
+//   output:   ACES filmic tone mapping and gamma, then fog towards the display-space fog colour
+//             (near black: the dark beyond the lamp), fully opaque at u_fog_end before the far
+//             plane, so the clear colour never shows through a closed cave (tests rely on it).
+//             Alpha is the glow mask of emissive minerals, read by the bloom pass (renderer.cpp).
 #version 410 core
 
 in vec3 t_position;
 in vec3 t_normal;
 in float t_mineral;
-in float t_displacement;
+in float t_cavity;
+in float t_spike;
 
-out vec4 frag_color;
+layout(location = 0) out vec4 frag_color;
 
-uniform vec3 u_camera;  // anchor-relative
-uniform vec3 u_anchor;  // world position of the anchor (textures are world-space)
-uniform vec3 u_fog_color;
+uniform vec3 u_camera;   // anchor-relative
+uniform vec3 u_anchor;   // world position of the anchor (the rock is world-space)
+uniform vec3 u_lamp;     // anchor-relative headlamp position
+uniform vec3 u_forward;  // unit view direction: the beam's axis
+uniform vec3 u_fog_color;  // display space
 uniform float u_fog_start;
 uniform float u_fog_end;
-uniform float u_lamp_range;        // metres at which the lamp falls to about a fifth
-uniform sampler2DArray u_albedo;   // layers floor, wall, ceiling: rgb albedo, a height
-uniform sampler2DArray u_normals;  // the same layers: tangent-space normal, a gloss
-uniform float u_texture_scale;     // texture repeats per metre
-uniform float u_normal_strength;   // 0: the mesh normal only
+uniform float u_lamp_range;       // metres at which the lamp falls to about a tenth
+uniform float u_normal_strength;  // fine bumps; 0: the relief's normal only
+uniform float u_exposure;
+uniform float u_glow;  // emissive minerals' strength; 0: none
 
-const float kFloor = 0.0, kWall = 1.0, kCeiling = 2.0;
+#pragma grotto_include "relief.glsl"
 
-// One layer projected along the three axes and blended by the weights w.
-void triplanar(vec3 p, vec3 w, float layer, out vec4 albedo, out vec4 bump) {
-  vec3 uv_x = vec3(p.zy * u_texture_scale, layer);
-  vec3 uv_y = vec3(p.xz * u_texture_scale, layer);
-  vec3 uv_z = vec3(p.xy * u_texture_scale, layer);
-  albedo = texture(u_albedo, uv_x) * w.x + texture(u_albedo, uv_y) * w.y +
-           texture(u_albedo, uv_z) * w.z;
-  bump = texture(u_normals, uv_x) * w.x + texture(u_normals, uv_y) * w.y +
-         texture(u_normals, uv_z) * w.z;
+vec3 aces(vec3 x) {
+  // Narkowicz's fit of the ACES filmic curve.
+  return clamp((x * (2.51 * x + 0.03)) / (x * (2.43 * x + 0.59) + 0.14), 0.0, 1.0);
 }
 
 void main() {
   vec3 n = normalize(t_normal);
   vec3 to_eye = u_camera - t_position;
   float dist = length(to_eye);
-  vec3 l = to_eye / max(dist, 1e-4);
+  vec3 v = to_eye / max(dist, 1e-4);
   // Cave meshes face inward, but a thin wall can be seen from behind: light both sides.
-  if (dot(n, l) < 0.0) n = -n;
-
-  // Walls everywhere, blended into floor (normal up) or ceiling (normal down): two layers at most.
+  if (dot(n, v) < 0.0) n = -n;
   vec3 world = t_position + u_anchor;
-  vec3 w = pow(abs(n), vec3(4.0));
-  w /= (w.x + w.y + w.z);
-  float t_other = smoothstep(0.45, 0.8, abs(n.y));
-  vec4 albedo, bump;
-  triplanar(world, w, kWall, albedo, bump);
-  if (t_other > 0.0) {
-    vec4 other_albedo, other_bump;
-    triplanar(world, w, n.y > 0.0 ? kFloor : kCeiling, other_albedo, other_bump);
-    albedo = mix(albedo, other_albedo, t_other);
-    bump = mix(bump, other_bump, t_other);
-  }
 
-  // The synthesized tangent frame; the axis switches to z where the normal is close to x.
-  vec3 axis = abs(n.x) < 0.9 ? vec3(1.0, 0.0, 0.0) : vec3(0.0, 0.0, 1.0);
-  vec3 tangent = normalize(cross(n, axis));
-  vec3 bitangent = cross(tangent, n);
-  vec3 ts = bump.xyz * 2.0 - 1.0;
-  ts.xy *= u_normal_strength;
-  vec3 shading = normalize(tangent * ts.x + bitangent * ts.y + n * max(ts.z, 1e-3));
+  // Fine bumps (9 cm and 4 cm): the texture scale below the relief's.
+  vec4 b1 = relief_noise(world * 11.0 + vec3(7.0, 0.0, 0.0));
+  vec4 b2 = relief_noise(world * 27.0 + vec3(0.0, 13.0, 0.0));
+  vec3 bump = 0.010 * 11.0 * relief_gradient(b1) + 0.0035 * 27.0 * relief_gradient(b2);
+  vec3 s = relief_normal(n, bump * u_normal_strength);
 
-  // Minerals tint the rock; displaced tips are lighter and shinier (thesis §5.5's stalactites).
-  vec3 color_albedo = mix(albedo.rgb, vec3(0.45, 0.52, 0.58), 0.35 * t_mineral);
-  float tip = clamp(t_displacement * 1.5, -0.2, 0.35);
-  color_albedo *= 1.0 + tip;
-  float gloss = clamp(bump.a + 1.5 * max(tip, 0.0), 0.0, 1.0);
+  // Where the surface faces: floors blend into walls into ceilings.
+  float ground = smoothstep(0.35, 0.8, n.y);
+  float ceiling = smoothstep(0.35, 0.8, -n.y);
 
-  float lambert = max(dot(shading, l), 0.0);
-  float attenuation = 1.0 / (1.0 + 4.0 * (dist / u_lamp_range) * (dist / u_lamp_range));
-  // The lamp is at the eye: the half vector is the view vector.
-  float specular = pow(max(dot(shading, l), 0.0), 8.0 + 56.0 * gloss) * (0.04 + 0.4 * gloss);
-  vec3 lamp = vec3(1.0, 0.92, 0.8);
-  vec3 color = color_albedo * (0.07 + 1.15 * lambert * attenuation * lamp) +
-               specular * attenuation * lamp;
+  // Limestone walls: mottling at two scales, strata whose thickness wanders, bedding lines.
+  vec4 m1 = relief_noise(world * 0.8 + vec3(5.0, 1.0, 3.0));
+  vec4 m2 = relief_noise(world * 3.3 + vec3(-9.0, 4.0, 2.0));
+  float mottle = 0.5 + 0.3 * m1.x + 0.2 * m2.x;
+  float strata = relief_noise(vec3(world.x * 0.07, world.y * 2.6, world.z * 0.07) +
+                              0.35 * vec3(m1.x, m1.x, m1.x)).x;
+  vec3 buff = vec3(0.42, 0.34, 0.25), grey = vec3(0.30, 0.29, 0.27);
+  vec3 wall = mix(grey, buff, clamp(0.5 + 0.9 * strata, 0.0, 1.0)) * (0.75 + 0.5 * mottle);
 
+  // Sediment floors: damp brown mud with grit, wetter in the hollows.
+  float grit = relief_noise(world * 19.0).x;
+  vec3 mud = vec3(0.27, 0.21, 0.16) * (0.8 + 0.25 * mottle + 0.12 * grit);
+  // Ceilings: the same rock, darker and greyer.
+  vec3 roof = wall * vec3(0.62, 0.62, 0.66);
+  vec3 albedo = mix(mix(wall, mud, ground), roof, ceiling);
+
+  // Minerals stain the rock grey-blue; speleothem tips are pale calcite.
+  albedo = mix(albedo, vec3(0.36, 0.40, 0.44), 0.4 * t_mineral);
+  float tip = smoothstep(0.15, 0.9, t_spike);
+  albedo = mix(albedo, vec3(0.80, 0.76, 0.68), 0.8 * tip);
+
+  // Wetness: floors' hollows, running flowstone, every speleothem tip.
+  float wet = clamp(0.55 * ground * (1.0 - t_cavity) + 0.25 * smoothstep(0.2, 0.8, m1.x) + tip,
+                    0.0, 1.0);
+  albedo *= 1.0 - 0.3 * wet * ground;
+  float occlusion = mix(0.25, 1.0, smoothstep(0.05, 0.85, t_cavity));
+
+  // The headlamp.
+  vec3 to_lamp = u_lamp - t_position;
+  float lamp_dist = length(to_lamp);
+  vec3 l = to_lamp / max(lamp_dist, 1e-4);
+  float k = lamp_dist / (0.3 * u_lamp_range);
+  float attenuation = 1.0 / (1.0 + k * k);
+  float beam = mix(0.3, 1.0, smoothstep(0.72, 0.95, dot(-v, u_forward)));
+  float lambert = max(dot(s, l), 0.0);
+  vec3 h = normalize(l + v);
+  float shininess = mix(12.0, 90.0, wet);
+  float specular = pow(max(dot(s, h), 0.0), shininess) * mix(0.03, 0.6, wet) *
+                   (shininess + 8.0) / 25.0;
+  vec3 lamp = vec3(1.0, 0.9, 0.75) * 2.0 * attenuation * beam;
+  vec3 color = albedo * occlusion * (lambert * lamp + vec3(0.012, 0.014, 0.018)) +
+               specular * lambert * lamp * mix(0.5, 1.0, occlusion);
+
+  // Glowing mineral veins: thin ridges of noise where the mineral channel is high.
+  float vein = 1.0 - abs(relief_noise(world * 1.6 + vec3(0.0, 0.0, 29.0)).x);
+  float glow = u_glow * smoothstep(0.6, 0.9, t_mineral) * smoothstep(0.965, 0.995, vein);
+  color += glow * vec3(0.2, 0.85, 0.7) * 0.9;
+
+  vec3 display = pow(aces(color * u_exposure), vec3(1.0 / 2.2));
   float fog = smoothstep(u_fog_start, u_fog_end, dist);
-  frag_color = vec4(mix(color, u_fog_color, fog), 1.0);
+  frag_color = vec4(mix(display, u_fog_color, fog), glow * (1.0 - fog));
 }

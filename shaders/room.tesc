@@ -40,7 +40,7 @@ uniform float u_target_pixels;   // screen space: pixels per tessellated segment
 uniform bool u_patch_culling;    // discard patches that are provably invisible
 uniform vec4 u_frustum[6];       // unit-normal planes (anchor-relative), inside positive
 uniform int u_surface;           // 0 flat, 1 PN triangles, 2 Phong tessellation (room.tese)
-uniform float u_displacement;    // metres at roughness 1 on a ceiling (room.tese)
+uniform float u_relief_margin;   // metres the relief can move the surface (relief_bound)
 
 float distance_level(vec3 a, vec3 b) {
   // a + b is commutative bit for bit; `precise` keeps the compiler from contracting or
@@ -79,12 +79,11 @@ float edge_level(int i, int j) {
 // control point is within a third of an edge (edge points) or half the longest edge (the centre)
 // of the flat triangle, and the patch lies in their convex hull. Phong tessellation: a projection
 // onto a vertex's tangent plane moves a point by at most its distance to that vertex, at most the
-// longest edge. Displacement: |fbm| <= 0.875, sharpened to 2 * 0.875^2 = 1.53 on undersides, times
-// roughness <= 1 (room.tese); 1.6 rounds that up.
+// longest edge. The relief: relief.glsl's relief_bound for this room, from the renderer.
 float surface_margin(vec3 p0, vec3 p1, vec3 p2) {
   vec3 e0 = p1 - p0, e1 = p2 - p1, e2 = p0 - p2;
   float longest = sqrt(max(dot(e0, e0), max(dot(e1, e1), dot(e2, e2))));
-  return (u_surface == 0 ? 0.0 : longest) + 1.6 * abs(u_displacement) + 0.01;
+  return (u_surface == 0 ? 0.0 : longest) + u_relief_margin + 0.01;
 }
 
 bool outside_frustum(vec3 p0, vec3 p1, vec3 p2, float margin) {
@@ -107,6 +106,11 @@ bool outside_frustum(vec3 p0, vec3 p1, vec3 p2, float margin) {
 // `margin` behind every vertex's tangent plane: vertex normals average the faces around the
 // vertex, so no ridge that faces the camera meets the patch. A degenerate triangle gives NaN, and
 // NaN comparisons never cull.
+// Speleothems are steep cones up to ~2 m long: where one pokes through thin rock into a
+// neighbouring room, its sides face a camera behind the base plane at grazing angles. The
+// back-facing test therefore asks for kBackMargins margins (measured: 1 or 2 leave a pixel of
+// such tips in the patch-culling test, 3 none; it still culls ~58 % of the triangles).
+const float kBackMargins = 3.0;
 bool facing_away(vec3 p0, vec3 p1, vec3 p2, float margin) {
   vec3 n = normalize(cross(p1 - p0, p2 - p0));
   if (!(dot(u_camera - p0, n) < -margin)) return false;
@@ -125,7 +129,7 @@ void main() {
     vec3 p0 = v_position[0], p1 = v_position[1], p2 = v_position[2];
     if (u_patch_culling) {
       float margin = surface_margin(p0, p1, p2);
-      if (outside_frustum(p0, p1, p2, margin) || facing_away(p0, p1, p2, margin)) {
+      if (outside_frustum(p0, p1, p2, margin) || facing_away(p0, p1, p2, kBackMargins * margin)) {
         gl_TessLevelOuter[0] = 0.0;
         gl_TessLevelOuter[1] = 0.0;
         gl_TessLevelOuter[2] = 0.0;

@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include "shaders/relief.hpp"
+
 namespace grotto::play {
 namespace {
 
@@ -93,7 +95,22 @@ void CollisionWorld::add(const client::ReadyRoom& ready) {
     for (int i = 0; i < 3; ++i)
       lo[i] = std::min(lo[i], d[i]), hi[i] = std::max(hi[i], d[i]);
   }
+  r.normals.reserve(mesh.vertex_count() * 3);
+  for (const auto& n : mesh.normals)
+    r.normals.insert(r.normals.end(), {n.x, n.y, n.z});
+  // A decoded room has every channel (codec validation); anything short reads as 0.
+  r.normals.resize(mesh.vertex_count() * 3, 0.0f);
+  r.roughness = mesh.roughness;
+  r.roughness.resize(mesh.vertex_count(), 0.0f);
+  r.rim.reserve(mesh.vertex_count());
+  for (int8_t slot : mesh.rim_portal)
+    r.rim.push_back(slot >= 0 ? 1.0f : 0.0f);
+  r.rim.resize(mesh.vertex_count(), 0.0f);
   r.indices = mesh.indices;
+  r.relief_reach =
+      relief::relief_bound(relief_strength_, static_cast<float>(ready.room.sphere.radius));
+  r.refined_at.assign(r.indices.size() / 3, 0);
+  r.refined_count.assign(r.indices.size() / 3, 0);
   if (mesh.vertex_count() == 0) lo = hi = Vec3{};
   r.bound_centre = r.origin + (lo + hi) * 0.5;
   r.bound_radius = length(hi - lo) * 0.5;
@@ -137,12 +154,64 @@ void CollisionWorld::evict(cave::RoomId id) {
   rooms_.erase(id);
 }
 
-Triangle CollisionWorld::triangle(const Room& room, uint32_t t) const {
-  auto vertex = [&](int k) {
-    const float* v = &room.positions[3 * room.indices[3 * t + k]];
-    return room.origin + Vec3{v[0], v[1], v[2]};
-  };
-  return {vertex(0), vertex(1), vertex(2)};
+std::span<const Triangle> CollisionWorld::refined(const Room& room, uint32_t t) const {
+  if (room.refined_at[t] != 0)
+    return {&room.refined[room.refined_at[t] - 1], room.refined_count[t]};
+  glm::vec3 p[3], n[3];
+  float rough[3], rim[3];
+  for (int k = 0; k < 3; ++k) {
+    const uint32_t v = room.indices[3 * t + k];
+    p[k] = {room.positions[3 * v], room.positions[3 * v + 1], room.positions[3 * v + 2]};
+    n[k] = {room.normals[3 * v], room.normals[3 * v + 1], room.normals[3 * v + 2]};
+    rough[k] = room.roughness[v];
+    rim[k] = room.rim[v];
+  }
+  const glm::vec3 origin{static_cast<float>(room.origin.x), static_cast<float>(room.origin.y),
+                         static_cast<float>(room.origin.z)};
+  const float radius = static_cast<float>(room.room.sphere.radius);
+  const bool planar = n[0] == n[1] && n[1] == n[2];
+  room.refined_at[t] = static_cast<uint32_t>(room.refined.size() + 1);
+  if (planar && relief_strength_ == 0) {
+    // Flat and without relief: the patch triangle is the surface; pieces would only add edges.
+    room.refined.push_back({room.origin + Vec3{p[0].x, p[0].y, p[0].z},
+                            room.origin + Vec3{p[1].x, p[1].y, p[1].z},
+                            room.origin + Vec3{p[2].x, p[2].y, p[2].z}});
+    room.refined_count[t] = 1;
+    return {&room.refined.back(), 1};
+  }
+  // The drawn surface at barycentric (i, j, kRefine - i - j) / kRefine, as room.tese makes it
+  // with PN triangles: the patch point, then the relief along the interpolated normal.
+  Vec3 grid[kRefine + 1][kRefine + 1];
+  for (int i = 0; i <= kRefine; ++i) {
+    for (int j = 0; i + j <= kRefine; ++j) {
+      const glm::vec3 w{static_cast<float>(i) / kRefine, static_cast<float>(j) / kRefine,
+                        static_cast<float>(kRefine - i - j) / kRefine};
+      const glm::vec3 at = relief::relief_pn_point(p[0], p[1], p[2], n[0], n[1], n[2], w);
+      const glm::vec3 normal = glm::normalize(n[0] * w.x + n[1] * w.y + n[2] * w.z);
+      const float roughness = rough[0] * w.x + rough[1] * w.y + rough[2] * w.z;
+      const float rim_weight = rim[0] * w.x + rim[1] * w.y + rim[2] * w.z;
+      const relief::Relief r =
+          relief::relief_at(at + origin, normal, roughness, rim_weight, radius, relief_strength_);
+      // The flat interpolation in double, then the PN bulge and the relief as float offsets
+      // from it: a flat triangle far from the origin stays exact. (Equal normals make the PN
+      // patch the flat triangle; float rounding would only add noise.)
+      const glm::vec3 flat = p[0] * w.x + p[1] * w.y + p[2] * w.z;
+      const glm::vec3 bulge = planar ? glm::vec3(0.0f) : at - flat;
+      const glm::vec3 q = bulge + normal * r.height;
+      Vec3 base{};
+      for (int k = 0; k < 3; ++k)
+        base = base + Vec3{p[k].x, p[k].y, p[k].z} * static_cast<double>(w[k]);
+      grid[i][j] = room.origin + base + Vec3{q.x, q.y, q.z};
+    }
+  }
+  for (int i = 0; i < kRefine; ++i) {
+    for (int j = 0; i + j < kRefine; ++j) {
+      room.refined.push_back({grid[i][j], grid[i + 1][j], grid[i][j + 1]});
+      if (i + j + 1 < kRefine) room.refined.push_back({grid[i + 1][j], grid[i + 1][j + 1], grid[i][j + 1]});
+    }
+  }
+  room.refined_count[t] = kRefine * kRefine;
+  return {&room.refined[room.refined_at[t] - 1], room.refined_count[t]};
 }
 
 void CollisionWorld::gather(Vec3 lo, Vec3 hi, Neighbourhood& out) const {
@@ -156,15 +225,18 @@ void CollisionWorld::gather(Vec3 lo, Vec3 hi, Neighbourhood& out) const {
       if (boxes_overlap(lo, hi, portal.centre - extent, portal.centre + extent))
         out.walls.push_back({portal.centre, portal.normal, reach});
     }
-    const Vec3 extent{room.bound_radius, room.bound_radius, room.bound_radius};
+    // The relief moves the surface up to relief_reach from the patch triangles the grid holds.
+    const double reach = room.relief_reach;
+    const Vec3 extent{room.bound_radius + reach, room.bound_radius + reach,
+                      room.bound_radius + reach};
     if (!boxes_overlap(lo, hi, room.bound_centre - extent, room.bound_centre + extent)) continue;
     int c_lo[3], c_hi[3];
     for (int i = 0; i < 3; ++i) {
-      c_lo[i] = std::max(
-          0, static_cast<int>(std::floor((lo[i] - room.origin[i]) / kCell)) - room.grid_lo[i]);
+      c_lo[i] = std::max(0, static_cast<int>(std::floor((lo[i] - reach - room.origin[i]) / kCell)) -
+                                room.grid_lo[i]);
       c_hi[i] = std::min(
           room.dims[i] - 1,
-          static_cast<int>(std::floor((hi[i] - room.origin[i]) / kCell)) - room.grid_lo[i]);
+          static_cast<int>(std::floor((hi[i] + reach - room.origin[i]) / kCell)) - room.grid_lo[i]);
     }
     seen_.clear();
     for (int x = c_lo[0]; x <= c_hi[0]; ++x)
@@ -176,8 +248,15 @@ void CollisionWorld::gather(Vec3 lo, Vec3 hi, Neighbourhood& out) const {
         }
     std::sort(seen_.begin(), seen_.end());
     seen_.erase(std::unique(seen_.begin(), seen_.end()), seen_.end());
-    for (uint32_t t : seen_)
-      out.triangles.push_back(triangle(room, t));
+    for (uint32_t t : seen_) {
+      for (const Triangle& f : refined(room, t)) {
+        Vec3 f_lo = f.a, f_hi = f.a;
+        for (const Vec3& v : {f.b, f.c})
+          for (int i = 0; i < 3; ++i)
+            f_lo[i] = std::min(f_lo[i], v[i]), f_hi[i] = std::max(f_hi[i], v[i]);
+        if (boxes_overlap(lo, hi, f_lo, f_hi)) out.triangles.push_back(f);
+      }
+    }
   }
 }
 

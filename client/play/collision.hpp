@@ -1,6 +1,10 @@
-// What the player collides with: the patch meshes of the rooms the client holds, one triangle
-// set per room, added when client/stream delivers the room and removed when it is evicted, plus
-// a wall over every portal whose neighbour is not loaded, so nobody falls out of the streamed cave.
+// What the player collides with: the surface grotto-client draws, i.e. each room's patch mesh as
+// PN triangles with the rock's relief on top (shaders/relief.hpp, the shader's own source: rock,
+// flowstone, stalactites, stalagmites), added when client/stream delivers the room and removed
+// when it is evicted, plus a wall over every portal whose neighbour is not loaded, so nobody
+// falls out of the streamed cave. A patch triangle is refined into kRefine x kRefine triangles
+// of that surface the first time a query comes near it (about 14 cm apart: a stalagmite is a
+// solid cone, not a hole), and kept while its room is.
 //
 // Precision: a room keeps its decoded room-frame floats and its grid origin (as
 // client/render/room_cache does); triangles leave the world in double (origin + float offset), so
@@ -13,6 +17,7 @@
 
 #include <cstdint>
 #include <map>
+#include <span>
 #include <vector>
 
 #include "cave/layout.hpp"
@@ -45,6 +50,9 @@ bool segment_crosses(const Disc& d, Vec3 p, Vec3 q);
 // (rim vertices lie on the portal circle; the patch triangles between them cut inside it).
 inline constexpr double kPortalWallMargin = 0.15;
 
+// Refinement of a patch triangle for collision: kRefine segments per edge.
+inline constexpr int kRefine = 4;
+
 // The collision geometry near a box: the loaded rooms' triangles and the walls over portals to
 // rooms not loaded.
 struct Neighbourhood {
@@ -54,6 +62,9 @@ struct Neighbourhood {
 
 class CollisionWorld {
  public:
+  // relief_strength: RenderOptions::displacement of the surface to collide with (1: as drawn;
+  // 0: the PN patch surface alone, e.g. for flat test shapes).
+  explicit CollisionWorld(float relief_strength = 1.0f) : relief_strength_(relief_strength) {}
   // Adds the room's patch mesh, replacing a room with the same id.
   void add(const client::ReadyRoom& room);
   void evict(cave::RoomId id);
@@ -71,7 +82,16 @@ class CollisionWorld {
     cave::Room room;
     Vec3 origin;
     std::vector<float> positions;  // x, y, z per vertex, metres from origin
+    std::vector<float> normals;    // x, y, z per vertex
+    std::vector<float> roughness;
+    std::vector<float> rim;  // 1 on a portal rim, else 0
     std::vector<uint32_t> indices;
+    double relief_reach = 0;  // metres the relief can move the surface
+    // Patch triangle t's refined_count[t] triangles start at refined[refined_at[t] - 1] (0: not
+    // refined yet).
+    mutable std::vector<uint32_t> refined_at;
+    mutable std::vector<uint8_t> refined_count;
+    mutable std::vector<Triangle> refined;
     Vec3 bound_centre;  // world
     double bound_radius = 0;
     // The grid over [grid_lo, grid_lo + dims) cells of kCell metres in the room frame; cell c
@@ -81,8 +101,11 @@ class CollisionWorld {
     std::vector<uint32_t> cell_start;
     std::vector<uint32_t> cell_triangles;
   };
-  Triangle triangle(const Room& room, uint32_t t) const;
+  // The triangles of the drawn surface over patch triangle t: kRefine^2, or the triangle itself
+  // where it is flat and has no relief.
+  std::span<const Triangle> refined(const Room& room, uint32_t t) const;
 
+  float relief_strength_ = 1.0f;
   std::map<cave::RoomId, Room> rooms_;
   mutable std::vector<uint32_t> seen_;  // gather's dedup scratch
 };

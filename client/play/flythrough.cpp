@@ -27,19 +27,6 @@ Vec3 catmull_rom(Vec3 p0, Vec3 p1, Vec3 p2, Vec3 p3, double u) {
 
 }  // namespace
 
-Vec3 interior_point(const cave::Room& room) {
-  Vec3 p = room.sphere.centre;
-  for (int pass = 0; pass < 4; ++pass) {
-    bool moved = false;
-    for (const cave::Portal& portal : room.portals) {
-      const double side = dot(p - portal.centre, portal.normal);
-      if (side >= 0) p = p - portal.normal * (side + 0.25), moved = true;
-    }
-    if (!moved) break;
-  }
-  return p;
-}
-
 Flythrough Flythrough::plan(Vec3 start, cave::RoomId start_room, const Lookup& lookup,
                             int max_hops) {
   Flythrough f;
@@ -64,7 +51,7 @@ Flythrough Flythrough::plan(Vec3 start, cave::RoomId start_room, const Lookup& l
       break;
     }
     f.waypoints_.push_back(widest->centre);
-    f.waypoints_.push_back(interior_point(*next_room));
+    f.waypoints_.push_back(cave::interior_point(*next_room));
     f.rooms_.push_back(next);
     visited.insert(next);
     room = std::move(next_room);

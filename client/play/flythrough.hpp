@@ -14,10 +14,6 @@
 
 namespace grotto::play {
 
-// A point of the room's space: its sphere's centre, stepped back behind every portal plane it is
-// beyond (two overlapping spheres can leave a centre in the cap of a big neighbour).
-Vec3 interior_point(const cave::Room& room);
-
 struct PathPose {
   Vec3 position;
   Vec3 forward{0, 0, -1};  // unit

@@ -8,7 +8,7 @@ namespace grotto::play {
 namespace {
 
 constexpr double kPi = 3.14159265358979323846;
-constexpr int kResolveIterations = 4;
+constexpr int kResolveIterations = 8;  // the relief's small facets meet in crevices
 constexpr int kMaxStepsPerAdvance = 30;
 
 Vec3 horizontal(Vec3 v) {
@@ -66,14 +66,16 @@ bool Player::resolve(Body& body, bool walking) const {
   const double rest = r + params_.skin / 2, reach = r + params_.skin;
   const double min_ground_y = std::cos(params_.max_slope_deg * kPi / 180);
   bool ground = false;
-  // One contact: the sphere centre c against closest point q.
-  auto contact = [&](Vec3 c, Vec3 q, Vec3 fallback_normal) {
+  // One contact: the sphere centre c against closest point q of a face with unit normal `face`.
+  // Ground is a walkable face touched from above: an edge of a wall's facet is not ground, even
+  // where the sphere sits above it.
+  auto contact = [&](Vec3 c, Vec3 q, Vec3 face) {
     const Vec3 d = c - q;
     const double dist2 = length_squared(d);
     if (dist2 >= reach * reach) return false;
     const double dist = std::sqrt(dist2);
-    const Vec3 n = dist > 1e-9 ? d / dist : fallback_normal;
-    const bool walkable = walking && n.y >= min_ground_y;
+    const Vec3 n = dist > 1e-9 ? d / dist : face;
+    const bool walkable = walking && n.y >= min_ground_y && face.y >= min_ground_y;
     ground = ground || walkable;
     if (walkable) {
       // Straight up onto the ground (the plane through q with normal n), no sideways creep; a
@@ -103,7 +105,16 @@ bool Player::resolve(Body& body, bool walking) const {
         pushed = contact(c, closest_point(wall, c), -wall.normal) || pushed;
       }
     }
-    if (!pushed) break;
+    if (!pushed) return ground;
+  }
+  // Pushes still fighting. Where they leave a sphere deeper than the skin (a body wedged between
+  // a stalactite and the stalagmite beneath it, or in a crevice narrower than a sphere), say so:
+  // the caller keeps the last place the body fitted.
+  const double deepest = r - params_.skin;
+  for (const Vec3& offset : offsets) {
+    const Vec3 c = body.eye + offset;
+    for (const Triangle& t : near_.triangles)
+      if (length_squared(closest_point(t, c) - c) < deepest * deepest) body.wedged = true;
   }
   return ground;
 }
@@ -113,8 +124,16 @@ bool Player::move(Body& body, Vec3 d, bool walking) const {
   const int n = std::max(1, static_cast<int>(std::ceil(length(d) / max_substep)));
   bool ground = false;
   for (int i = 0; i < n; ++i) {
+    const Body settled = body;
     body.eye = body.eye + d / n;
+    body.wedged = false;
     ground = resolve(body, walking);
+    if (body.wedged) {
+      // No room there: stay where the body last fitted, stopped.
+      body = settled;
+      body.velocity = {};
+      return resolve(body, walking);
+    }
   }
   return ground;
 }

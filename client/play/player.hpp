@@ -80,6 +80,7 @@ class Player {
   struct Body {
     Vec3 eye;
     Vec3 velocity;
+    bool wedged = false;  // resolve() could not push every sphere clear
   };
   // Moves body by d in substeps, resolving after each; true when it touched walkable ground.
   bool move(Body& body, Vec3 d, bool walking) const;

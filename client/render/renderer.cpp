@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdio>
 #include <glm/gtc/matrix_transform.hpp>
 #include <glm/gtc/type_ptr.hpp>
 #include <map>
@@ -10,6 +11,7 @@
 
 #include "client/render/shaders.hpp"
 #include "client/stream/verify.hpp"
+#include "shaders/relief.hpp"
 
 namespace grotto::render {
 namespace {
@@ -19,9 +21,9 @@ constexpr double kMaxPitch = 89.0 * kPi / 180.0;
 // The anchor grid: a power of two, so anchor coordinates are exact and room offsets from it stay
 // below grid::kFrameSize (65536 m) for any room near the camera.
 constexpr double kAnchorStep = 1024.0;
-// Texture units of the room program's material arrays.
-constexpr GLuint kAlbedoUnit = 0;
-constexpr GLuint kNormalUnit = 1;
+// A camera that moved further than this between two frames jumped (a cut): no motion blur.
+constexpr double kCutDistance = 2.0;   // metres
+constexpr double kCutAngle = 0.6;      // radians of yaw or pitch
 constexpr int kCapSegments = 24;
 constexpr double kCapScale = 1.15;   // caps overlap the rim loop's wall
 constexpr double kCapOffset = 0.01;  // metres beyond the portal plane
@@ -242,19 +244,29 @@ Result<Renderer> Renderer::create() {
   if (!cap.ok()) return cap.error();
   r.cap_ = std::move(cap).value();
   const Program& p = r.room_;
-  r.u_ = {p.uniform("u_room_offset"), p.uniform("u_camera"),        p.uniform("u_max_tess"),
-          p.uniform("u_max_dist"),    p.uniform("u_view_proj"),     p.uniform("u_anchor"),
-          p.uniform("u_surface"),     p.uniform("u_phong_alpha"),   p.uniform("u_displacement"),
-          p.uniform("u_noise_scale"), p.uniform("u_fog_color"),     p.uniform("u_fog_start"),
-          p.uniform("u_fog_end"),     p.uniform("u_lamp_range"),    p.uniform("u_lod"),
-          p.uniform("u_pixel_scale"), p.uniform("u_target_pixels"), p.uniform("u_patch_culling"),
-          p.uniform("u_frustum"),     p.uniform("u_texture_scale"), p.uniform("u_normal_strength")};
-  auto materials = Materials::create();
-  if (!materials.ok()) return materials.error();
-  r.materials_ = std::move(materials).value();
-  p.use();
-  glUniform1i(p.uniform("u_albedo"), kAlbedoUnit);
-  glUniform1i(p.uniform("u_normals"), kNormalUnit);
+  r.u_ = {p.uniform("u_room_offset"),   p.uniform("u_room_radius"),   p.uniform("u_relief_margin"),
+          p.uniform("u_camera"),        p.uniform("u_max_tess"),      p.uniform("u_max_dist"),
+          p.uniform("u_view_proj"),     p.uniform("u_anchor"),        p.uniform("u_surface"),
+          p.uniform("u_phong_alpha"),   p.uniform("u_displacement"),  p.uniform("u_fog_color"),
+          p.uniform("u_fog_start"),     p.uniform("u_fog_end"),       p.uniform("u_lamp_range"),
+          p.uniform("u_lod"),           p.uniform("u_pixel_scale"),   p.uniform("u_target_pixels"),
+          p.uniform("u_patch_culling"), p.uniform("u_frustum"),       p.uniform("u_normal_strength"),
+          p.uniform("u_lamp"),          p.uniform("u_forward"),       p.uniform("u_exposure"),
+          p.uniform("u_glow")};
+  auto bloom = Program::build(bloom_stages());
+  if (!bloom.ok()) return bloom.error();
+  r.bloom_ = std::move(bloom).value();
+  r.ub_ = {r.bloom_.uniform("u_source"), r.bloom_.uniform("u_texel"),
+           r.bloom_.uniform("u_downsample"), r.bloom_.uniform("u_offset")};
+  auto composite = Program::build(composite_stages());
+  if (!composite.ok()) return composite.error();
+  r.composite_ = std::move(composite).value();
+  const Program& c = r.composite_;
+  r.uc_ = {c.uniform("u_scene"),           c.uniform("u_depth"),
+           c.uniform("u_bloom"),           c.uniform("u_bloom_strength"),
+           c.uniform("u_motion"),          c.uniform("u_max_blur"),
+           c.uniform("u_inverse_view_proj"), c.uniform("u_previous_view_proj")};
+  r.post_vertex_array_ = make_vertex_array();
   r.cap_view_proj_ = r.cap_.uniform("u_view_proj");
   r.cap_fog_color_ = r.cap_.uniform("u_fog_color");
   r.cap_vertex_array_ = make_vertex_array();
@@ -279,6 +291,22 @@ FrameStats Renderer::draw(const GpuRoomCache& cache, const Camera& camera, int w
       glm::perspective(static_cast<float>(camera.fov_y), aspect, o.near_plane, o.far_plane);
   const glm::mat4 view_proj = proj * view;
 
+  // Post passes draw the scene into textures first, then into the framebuffer bound on entry.
+  GLint target = 0;
+  glGetIntegerv(GL_DRAW_FRAMEBUFFER_BINDING, &target);
+  const bool post = (o.bloom || o.motion_blur) && width > 0 && height > 0;
+  if (post) {
+    if (Status made = ensure_post_targets(width, height); made.ok()) {
+      glBindFramebuffer(GL_FRAMEBUFFER, post_.scene.get());
+      glViewport(0, 0, width, height);
+    } else {
+      static bool told = false;  // once: the frame is drawn without post passes
+      if (!told) std::fprintf(stderr, "grotto-client: no post passes: %s\n", made.error().message.c_str());
+      told = true;
+    }
+  }
+  const bool posting = post && post_.width == width && post_.height == height;
+
   glClearColor(o.clear_color.r, o.clear_color.g, o.clear_color.b, 1.0f);
   glClearDepth(1.0);
   glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
@@ -295,15 +323,22 @@ FrameStats Renderer::draw(const GpuRoomCache& cache, const Camera& camera, int w
   glUniform1f(u_.max_dist, std::max(o.max_dist, 1e-3f));
   glUniform1i(u_.surface, o.tessellation ? static_cast<int>(o.surface) : 0);
   glUniform1f(u_.phong_alpha, o.phong_alpha);
-  glUniform1f(u_.displacement, o.tessellation ? o.displacement : 0.0f);
-  glUniform1f(u_.noise_scale, o.noise_scale);
+  const float relief = o.tessellation ? std::max(o.displacement, 0.0f) : 0.0f;
+  glUniform1f(u_.displacement, relief);
   glUniform3fv(u_.fog_color, 1, glm::value_ptr(o.fog_color));
   glUniform1f(u_.fog_start, o.fog_start);
   glUniform1f(u_.fog_end, o.fog_end);
   glUniform1f(u_.lamp_range, o.lamp_range);
-  glUniform1f(u_.texture_scale, o.texture_scale);
   glUniform1f(u_.normal_strength, o.normal_strength);
-  materials_.bind(kAlbedoUnit, kNormalUnit);
+  glUniform1f(u_.exposure, o.exposure);
+  glUniform1f(u_.glow, o.glow);
+  glUniform3fv(u_.forward, 1, glm::value_ptr(forward));
+  {
+    // The headlamp sits on the forehead, a little right of the eye: shading shows the relief.
+    const glm::vec3 right = glm::normalize(glm::cross(forward, glm::vec3(0, 1, 0)) + 1e-6f);
+    const glm::vec3 lamp = eye + 0.25f * right + glm::vec3(0, 0.3f, 0);
+    glUniform3fv(u_.lamp, 1, glm::value_ptr(lamp));
+  }
   glUniform1i(u_.lod, static_cast<int>(o.lod));
   glUniform1f(u_.pixel_scale,
               static_cast<float>(height) / (2.0f * std::tan(static_cast<float>(camera.fov_y) / 2)));
@@ -319,7 +354,8 @@ FrameStats Renderer::draw(const GpuRoomCache& cache, const Camera& camera, int w
   // Rooms whose sphere is outside the frustum are skipped. Every vertex of a room lies in its
   // sphere up to vertex_sphere_margin (client/stream/verify.hpp checks it on arrival); PN bulges
   // and displacement push surface points out by less than `margin` more.
-  const float margin = (o.tessellation ? std::abs(o.displacement) : 0.0f) + 0.5f;
+  const float margin =
+      relief::relief_bound(relief, 1e9f) + 0.5f;  // any room: the longest spikes
   std::map<cave::RoomId, ScreenRect> reached;
   if (o.portal_culling) {
     reached = reach_through_portals(cache, camera.position, anchor, view_proj, o.near_plane, margin,
@@ -356,6 +392,9 @@ FrameStats Renderer::draw(const GpuRoomCache& cache, const Camera& camera, int w
     }
     // Exact: origin and anchor are grid values within kFrameSize of each other.
     glUniform3fv(u_.room_offset, 1, glm::value_ptr(to_vec3(room.origin - anchor)));
+    const float room_radius = static_cast<float>(room.room.sphere.radius);
+    glUniform1f(u_.room_radius, room_radius);
+    glUniform1f(u_.relief_margin, relief::relief_bound(relief, room_radius));
     glBindVertexArray(room.vertex_array.get());
     glDrawElements(GL_PATCHES, room.index_count, GL_UNSIGNED_INT, nullptr);
     ++stats.rooms_drawn;
@@ -374,7 +413,131 @@ FrameStats Renderer::draw(const GpuRoomCache& cache, const Camera& camera, int w
   }
   glBindVertexArray(0);
   glPolygonMode(GL_FRONT_AND_BACK, GL_FILL);
+
+  // Motion blur follows the camera from the last frame, unless it jumped (a cut).
+  const Vec3 moved = camera.position - previous_camera_.position;
+  stats.motion_cut = !has_previous_ || length(moved) > kCutDistance ||
+                     std::abs(camera.yaw - previous_camera_.yaw) > kCutAngle ||
+                     std::abs(camera.pitch - previous_camera_.pitch) > kCutAngle;
+  // Last frame's view-projection moved into this frame's anchor-relative space.
+  const glm::mat4 previous =
+      stats.motion_cut ? view_proj
+                       : previous_view_proj_ *
+                             glm::translate(glm::mat4(1.0f), to_vec3(anchor - previous_anchor_));
+  if (posting) post_process(target, width, height, view_proj, previous, o);
+  has_previous_ = true;
+  previous_camera_ = camera;
+  previous_view_proj_ = view_proj;
+  previous_anchor_ = anchor;
   return stats;
+}
+
+Status Renderer::ensure_post_targets(int width, int height) {
+  if (post_.width == width && post_.height == height) return {};
+  post_ = PostTargets{};
+  auto texture = [](GLint internal, int w, int h, GLenum format, GLenum type) {
+    Texture t = make_texture();
+    glBindTexture(GL_TEXTURE_2D, t.get());
+    glTexImage2D(GL_TEXTURE_2D, 0, internal, w, h, 0, format, type, nullptr);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
+    return t;
+  };
+  auto framebuffer = [](GLuint color, GLuint depth) -> Result<FramebufferName> {
+    GLuint n = 0;
+    glGenFramebuffers(1, &n);
+    FramebufferName f(n);
+    glBindFramebuffer(GL_FRAMEBUFFER, n);
+    glFramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, color, 0);
+    if (depth != 0)
+      glFramebufferTexture2D(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_TEXTURE_2D, depth, 0);
+    const GLenum status = glCheckFramebufferStatus(GL_FRAMEBUFFER);
+    glBindFramebuffer(GL_FRAMEBUFFER, 0);
+    if (status != GL_FRAMEBUFFER_COMPLETE)
+      return Error{ErrorCode::kUnavailable,
+                   "post-pass framebuffer incomplete (status 0x" + std::to_string(status) + ")"};
+    return f;
+  };
+  PostTargets t;
+  t.scene_color = texture(GL_RGBA8, width, height, GL_RGBA, GL_UNSIGNED_BYTE);
+  t.scene_depth =
+      texture(GL_DEPTH_COMPONENT24, width, height, GL_DEPTH_COMPONENT, GL_UNSIGNED_INT);
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
+  auto scene = framebuffer(t.scene_color.get(), t.scene_depth.get());
+  if (!scene.ok()) return scene.error();
+  t.scene = std::move(scene).value();
+  const int bw = std::max(1, width / 4), bh = std::max(1, height / 4);
+  for (int i = 0; i < 2; ++i) {
+    t.bloom_color[i] = texture(GL_RGBA8, bw, bh, GL_RGBA, GL_UNSIGNED_BYTE);
+    auto f = framebuffer(t.bloom_color[i].get(), 0);
+    if (!f.ok()) return f.error();
+    t.bloom[i] = std::move(f).value();
+  }
+  glBindTexture(GL_TEXTURE_2D, 0);
+  t.width = width;
+  t.height = height;
+  post_ = std::move(t);
+  return {};
+}
+
+void Renderer::post_process(GLint target, int width, int height, const glm::mat4& view_proj,
+                            const glm::mat4& previous_view_proj, const RenderOptions& o) {
+  glDisable(GL_DEPTH_TEST);
+  glBindVertexArray(post_vertex_array_.get());
+  const int bw = std::max(1, width / 4), bh = std::max(1, height / 4);
+  // Bloom: the glow downsampled to a quarter, then Kawase passes ping-ponging between two targets.
+  int last = 0;
+  const bool bloom = o.bloom && o.bloom_strength > 0;
+  if (bloom) {
+    bloom_.use();
+    glUniform1i(ub_.source, 0);
+    glActiveTexture(GL_TEXTURE0);
+    glViewport(0, 0, bw, bh);
+    glBindFramebuffer(GL_FRAMEBUFFER, post_.bloom[0].get());
+    glBindTexture(GL_TEXTURE_2D, post_.scene_color.get());
+    glUniform2f(ub_.texel, 1.0f / static_cast<float>(width), 1.0f / static_cast<float>(height));
+    glUniform1i(ub_.downsample, 1);
+    glDrawArrays(GL_TRIANGLES, 0, 3);
+    glUniform1i(ub_.downsample, 0);
+    glUniform2f(ub_.texel, 1.0f / static_cast<float>(bw), 1.0f / static_cast<float>(bh));
+    static constexpr float kOffsets[] = {0, 1, 2, 2, 3, 4, 5};
+    const int passes = std::clamp(o.bloom_passes, 1, 7);
+    for (int i = 0; i < passes; ++i) {
+      glBindFramebuffer(GL_FRAMEBUFFER, post_.bloom[1 - last].get());
+      glBindTexture(GL_TEXTURE_2D, post_.bloom_color[last].get());
+      glUniform1f(ub_.offset, kOffsets[i]);
+      glDrawArrays(GL_TRIANGLES, 0, 3);
+      last = 1 - last;
+    }
+  }
+  // The composite into the caller's framebuffer.
+  glBindFramebuffer(GL_FRAMEBUFFER, static_cast<GLuint>(target));
+  glViewport(0, 0, width, height);
+  composite_.use();
+  glUniform1i(uc_.scene, 0);
+  glUniform1i(uc_.depth, 1);
+  glUniform1i(uc_.bloom, 2);
+  glActiveTexture(GL_TEXTURE0);
+  glBindTexture(GL_TEXTURE_2D, post_.scene_color.get());
+  glActiveTexture(GL_TEXTURE1);
+  glBindTexture(GL_TEXTURE_2D, post_.scene_depth.get());
+  glActiveTexture(GL_TEXTURE2);
+  glBindTexture(GL_TEXTURE_2D, post_.bloom_color[last].get());
+  glUniform1f(uc_.bloom_strength, bloom ? o.bloom_strength : 0.0f);
+  glUniform1f(uc_.motion, o.motion_blur ? o.motion_blur_strength : 0.0f);
+  glUniform2f(uc_.max_blur, o.motion_blur_max, o.motion_blur_max * static_cast<float>(width) /
+                                                    static_cast<float>(height));
+  const glm::mat4 inverse = glm::inverse(view_proj);
+  glUniformMatrix4fv(uc_.inverse_view_proj, 1, GL_FALSE, glm::value_ptr(inverse));
+  glUniformMatrix4fv(uc_.previous_view_proj, 1, GL_FALSE, glm::value_ptr(previous_view_proj));
+  glDrawArrays(GL_TRIANGLES, 0, 3);
+  glActiveTexture(GL_TEXTURE0);
+  glBindTexture(GL_TEXTURE_2D, 0);
+  glBindVertexArray(0);
+  glEnable(GL_DEPTH_TEST);
 }
 
 }  // namespace grotto::render

@@ -1,14 +1,15 @@
 // The cave renderer: the rooms of a GpuRoomCache that the camera can see through portals (thesis
 // §3.3.4) drawn as GL_PATCHES of 3 control points through shaders/room.{vert,tesc,tese,frag}
 // (per-edge LOD by one of three heuristics, patch culling, PN triangles or Phong tessellation,
-// displacement, triplanar materials, a lamp at the player, fog), plus fog caps over portals whose
-// room is not loaded. Needs a GL 4.1 core context current for its whole life.
+// the rock's relief of shaders/relief.glsl with stalactites and stalagmites, procedural rock, a
+// headlamp, filmic tone mapping, fog into darkness), plus fog caps over portals whose room is not
+// loaded; then, when on, Kawase bloom of glowing minerals and camera motion blur as post passes
+// (shaders/post_*.frag). Needs a GL 4.1 core context current for its whole life.
 #pragma once
 
 #include <glm/glm.hpp>
 
 #include "client/render/gl.hpp"
-#include "client/render/materials.hpp"
 #include "client/render/room_cache.hpp"
 #include "core/result.hpp"
 #include "core/vec3.hpp"
@@ -43,8 +44,9 @@ struct RenderOptions {
   float max_dist = 40;       // MaxDist: metres where the level falls to 1
   Surface surface = Surface::kPnTriangles;
   float phong_alpha = 0.75f;
-  float displacement = 0.35f;  // metres at roughness 1 on a ceiling; 0: off
-  float noise_scale = 0.7f;    // 1/metres
+  // Strength of the rock's relief (shaders/relief.glsl: rock, flowstone, speleothems): 1 as
+  // designed, 0 off. Collision (client/play) uses the designed relief.
+  float displacement = 1.0f;
   bool wireframe = false;
   bool fog_caps = true;  // discs over portals to rooms not loaded
   // Draw only rooms seen through portals from the camera's room (thesis §3.3.4); every room
@@ -58,11 +60,19 @@ struct RenderOptions {
   float fog_end = 40;       // fully fogged here; must be below far_plane
   float near_plane = 0.05f;
   float far_plane = 60;
-  float lamp_range = 14;
-  float texture_scale = 0.35f;   // material texture repeats per metre
-  float normal_strength = 1.0f;  // normal-map relief; 0: the mesh normal only
-  glm::vec3 fog_color{0.045f, 0.05f, 0.06f};
-  glm::vec3 clear_color{0.045f, 0.05f, 0.06f};  // tests clear to a colour the cave never has
+  float lamp_range = 14;          // metres at which the headlamp falls to about a tenth
+  float normal_strength = 1.0f;   // the rock's fine bumps (< 5 cm); 0: none
+  float exposure = 1.0f;          // before the filmic tone curve
+  float glow = 1.0f;              // glowing mineral veins; 0: none
+  bool bloom = true;              // Kawase bloom of the glow (post pass)
+  float bloom_strength = 1.0f;
+  int bloom_passes = 5;           // Kawase passes at a quarter of the resolution
+  bool motion_blur = true;        // camera motion blur (post pass)
+  float motion_blur_strength = 0.5f;  // fraction of a frame's motion smeared (a 180° shutter)
+  float motion_blur_max = 0.03f;      // the longest smear, fraction of the screen
+  // Display-space colour of the dark beyond the lamp.
+  glm::vec3 fog_color{0.010f, 0.011f, 0.013f};
+  glm::vec3 clear_color{0.010f, 0.011f, 0.013f};  // tests clear to a colour the cave never has
 };
 
 struct FrameStats {
@@ -73,6 +83,7 @@ struct FrameStats {
   bool camera_located = false;  // the camera is in a loaded room (portal culling applies)
   size_t patches = 0;           // triangles submitted as patches
   int caps = 0;                 // fog caps drawn
+  bool motion_cut = false;      // no motion blur: first frame, or the camera jumped
 };
 
 // A power-of-two grid point near the camera: room offsets from it are exact in float32.
@@ -87,18 +98,46 @@ class Renderer {
                   const RenderOptions& options);
 
  private:
+  // The post passes' targets, made for one size and remade when it changes.
+  struct PostTargets {
+    int width = 0, height = 0;
+    FramebufferName scene;  // colour (rgb + glow alpha) and depth textures
+    Texture scene_color, scene_depth;
+    FramebufferName bloom[2];  // quarter size, ping-pong
+    Texture bloom_color[2];
+  };
+  Status ensure_post_targets(int width, int height);
+  void post_process(GLint target, int width, int height, const glm::mat4& view_proj,
+                    const glm::mat4& previous_view_proj, const RenderOptions& options);
+
   Program room_;
   Program cap_;
-  Materials materials_;  // bound to texture units 0 and 1 while rooms draw
+  Program bloom_;
+  Program composite_;
   VertexArray cap_vertex_array_;
   Buffer cap_vertices_;
+  VertexArray post_vertex_array_;  // empty: post.vert makes its triangle from gl_VertexID
+  PostTargets post_;
   struct RoomUniforms {
-    GLint room_offset, camera, max_tess, max_dist, view_proj, anchor, surface, phong_alpha,
-        displacement, noise_scale, fog_color, fog_start, fog_end, lamp_range, lod, pixel_scale,
-        target_pixels, patch_culling, frustum, texture_scale, normal_strength;
+    GLint room_offset, room_radius, relief_margin, camera, max_tess, max_dist, view_proj, anchor,
+        surface, phong_alpha, displacement, fog_color, fog_start, fog_end, lamp_range, lod,
+        pixel_scale, target_pixels, patch_culling, frustum, normal_strength, lamp, forward,
+        exposure, glow;
   } u_{};
+  struct BloomUniforms {
+    GLint source, texel, downsample, offset;
+  } ub_{};
+  struct CompositeUniforms {
+    GLint scene, depth, bloom, bloom_strength, motion, max_blur, inverse_view_proj,
+        previous_view_proj;
+  } uc_{};
   GLint cap_view_proj_ = -1;
   GLint cap_fog_color_ = -1;
+  // Last frame's camera, for motion blur.
+  bool has_previous_ = false;
+  Camera previous_camera_;
+  glm::mat4 previous_view_proj_{1.0f};  // anchor-relative to previous_anchor_
+  Vec3 previous_anchor_;
 };
 
 }  // namespace grotto::render

@@ -1,7 +1,13 @@
 #include "client/render/shaders.hpp"
 
+#include <string>
+
 #include "embedded_cl/cap_frag.hpp"
 #include "embedded_cl/cap_vert.hpp"
+#include "embedded_cl/post_bloom_frag.hpp"
+#include "embedded_cl/post_composite_frag.hpp"
+#include "embedded_cl/post_vert.hpp"
+#include "embedded_cl/relief_glsl.hpp"
 #include "embedded_cl/room_frag.hpp"
 #include "embedded_cl/room_tesc.hpp"
 #include "embedded_cl/room_tese.hpp"
@@ -10,12 +16,27 @@
 #include "embedded_cl/text_vert.hpp"
 
 namespace grotto::render {
+namespace {
+
+// GLSL has no #include: the line `#pragma grotto_include "relief.glsl"` is replaced by that file,
+// so the relief is written once for every stage that needs it (and for the CPU, relief.hpp).
+std::string with_relief(std::string_view source) {
+  constexpr std::string_view kLine = "#pragma grotto_include \"relief.glsl\"";
+  std::string out(source);
+  const size_t at = out.find(kLine);
+  if (at != std::string::npos) out.replace(at, kLine.size(), kernels::source_relief_glsl());
+  return out;
+}
+
+}  // namespace
 
 std::vector<ShaderStage> room_stages() {
+  static const std::string tese = with_relief(kernels::source_room_tese());
+  static const std::string frag = with_relief(kernels::source_room_frag());
   return {{GL_VERTEX_SHADER, kernels::source_room_vert(), "room.vert"},
           {GL_TESS_CONTROL_SHADER, kernels::source_room_tesc(), "room.tesc"},
-          {GL_TESS_EVALUATION_SHADER, kernels::source_room_tese(), "room.tese"},
-          {GL_FRAGMENT_SHADER, kernels::source_room_frag(), "room.frag"}};
+          {GL_TESS_EVALUATION_SHADER, tese, "room.tese"},
+          {GL_FRAGMENT_SHADER, frag, "room.frag"}};
 }
 
 std::vector<ShaderStage> cap_stages() {
@@ -26,6 +47,16 @@ std::vector<ShaderStage> cap_stages() {
 std::vector<ShaderStage> text_stages() {
   return {{GL_VERTEX_SHADER, kernels::source_text_vert(), "text.vert"},
           {GL_FRAGMENT_SHADER, kernels::source_text_frag(), "text.frag"}};
+}
+
+std::vector<ShaderStage> bloom_stages() {
+  return {{GL_VERTEX_SHADER, kernels::source_post_vert(), "post.vert"},
+          {GL_FRAGMENT_SHADER, kernels::source_post_bloom_frag(), "post_bloom.frag"}};
+}
+
+std::vector<ShaderStage> composite_stages() {
+  return {{GL_VERTEX_SHADER, kernels::source_post_vert(), "post.vert"},
+          {GL_FRAGMENT_SHADER, kernels::source_post_composite_frag(), "post_composite.frag"}};
 }
 
 }  // namespace grotto::render

@@ -90,6 +90,27 @@ SectorCoord sector_of(const World& world, Vec3 point) {
   return s;
 }
 
+bool in_space(const Room& room, Vec3 point) {
+  if (length_squared(point - room.sphere.centre) > room.sphere.radius * room.sphere.radius)
+    return false;
+  for (const Portal& p : room.portals) {
+    double side = dot(point - p.centre, p.normal);
+    if (side > 0 || (side == 0 && p.neighbour < room.id)) return false;
+  }
+  return true;
+}
+
+Vec3 interior_point(const Room& room) {
+  Vec3 p = room.sphere.centre;
+  for (int pass = 0; pass < 4 && !in_space(room, p); ++pass) {
+    for (const Portal& portal : room.portals) {
+      double side = dot(p - portal.centre, portal.normal);
+      if (side >= 0) p = p - portal.normal * (side + 0.25);
+    }
+  }
+  return p;
+}
+
 std::optional<RoomId> locate(const World& world, Vec3 point) {
   if (!is_finite(point)) return std::nullopt;
   SectorCoord s = sector_of(world, point);
@@ -98,12 +119,7 @@ std::optional<RoomId> locate(const World& world, Vec3 point) {
   // Only this sector's side of a gate matters: portals on the other side lie in the other sector.
   std::optional<RoomId> best;
   auto consider = [&](const Room& r) {
-    if (length_squared(point - r.sphere.centre) > r.sphere.radius * r.sphere.radius) return;
-    for (const Portal& p : r.portals) {
-      double side = dot(point - p.centre, p.normal);
-      if (side > 0 || (side == 0 && p.neighbour < r.id)) return;
-    }
-    if (!best || r.id < *best) best = r.id;
+    if (in_space(r, point) && (!best || r.id < *best)) best = r.id;
   };
   for (const Room& r : layout.rooms)
     consider(r);

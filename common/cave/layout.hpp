@@ -82,6 +82,13 @@ Result<Room> room(const World& world, RoomId id);
 // the sector range.
 std::optional<RoomId> locate(const World& world, Vec3 point);
 
+// Whether the point is in the room's space: inside its sphere and on its own side of every
+// portal plane (a point on a plane belongs to the room with the smaller id). locate's rule.
+bool in_space(const Room& room, Vec3 point);
+// A point well inside the room's space: the sphere's centre, stepped back behind any portal plane
+// whose cap holds it (overlapping spheres can put it there). Where a player starts in the room.
+Vec3 interior_point(const Room& room);
+
 // The deterministic place a new player starts: the interior room of sector (0,0,0) closest to
 // the sector's centre.
 RoomId spawn_room(const World& world);

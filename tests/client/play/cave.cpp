@@ -31,7 +31,7 @@ Cave build() {
         length_squared(r.sphere.centre - centre) < length_squared(best->sphere.centre - centre))
       best = &r;
   c.spawn_room = best->id;
-  c.spawn = interior_point(*best);
+  c.spawn = cave::interior_point(*best);
   return c;
 }
 

@@ -198,7 +198,7 @@ TEST(CaveWalk, portals_to_rooms_not_loaded_hold_the_player_back) {
     for (const cave::Portal& portal : room.room.portals) {
       if (cave.rooms.count(portal.neighbour)) continue;
       // Fly from inside the room at the portal's centre for 10 s, running.
-      Player p(interior_point(room.room));
+      Player p(cave::interior_point(room.room));
       p.set_mode(Mode::kFly);
       PlayerInput in;
       in.run = true;

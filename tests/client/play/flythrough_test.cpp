@@ -78,7 +78,7 @@ TEST(Flythrough, keeps_clear_of_the_walls) {
   // Portal centres and room interior points: the path stays in open cave, at least the player's
   // radius from every patch triangle (sector (0,0,0) of seed 7: 1.0 m at the closest).
   const test::Cave& cave = test::sector_zero();
-  CollisionWorld world;
+  CollisionWorld world(0);  // flat shapes: no relief
   for (const auto& [id, room] : cave.rooms)
     world.add(room);
   Flythrough f = Flythrough::plan(cave.spawn, cave.spawn_room, lookup_in(cave), 6);

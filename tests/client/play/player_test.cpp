@@ -31,7 +31,7 @@ double rest_eye(const PlayerParams& params, double floor_y) {
 }
 
 TEST(Player, gravity_brings_a_player_in_mid_air_to_the_floor) {
-  CollisionWorld world;
+  CollisionWorld world(0);  // flat shapes: no relief
   world.add(shape_room(0, {floor_quad(0)}));
   Player p({1, 6, 2});
   p.step({}, world);
@@ -48,7 +48,7 @@ TEST(Player, gravity_brings_a_player_in_mid_air_to_the_floor) {
 }
 
 TEST(Player, a_jump_leaves_the_ground_and_lands_again) {
-  CollisionWorld world;
+  CollisionWorld world(0);  // flat shapes: no relief
   world.add(shape_room(0, {floor_quad(0)}));
   Player p({0, 1.6, 0});
   run(p, world, 1);
@@ -68,7 +68,7 @@ TEST(Player, a_jump_leaves_the_ground_and_lands_again) {
 }
 
 TEST(Player, walking_into_a_wall_stops_there_and_slides_along_it) {
-  CollisionWorld world;
+  CollisionWorld world(0);  // flat shapes: no relief
   world.add(shape_room(0, {floor_quad(0), wall_x(3)}));
   Player p({0, 1.6, 0});
   PlayerInput in;
@@ -81,7 +81,7 @@ TEST(Player, walking_into_a_wall_stops_there_and_slides_along_it) {
 }
 
 TEST(Player, running_never_tunnels_through_a_thin_wall) {
-  CollisionWorld world;
+  CollisionWorld world(0);  // flat shapes: no relief
   world.add(shape_room(0, {floor_quad(0), wall_x(3)}));
   PlayerParams fast;
   fast.speed = 60;  // 150 m/s with run: 1.25 m per step, more than twice the radius
@@ -95,7 +95,7 @@ TEST(Player, running_never_tunnels_through_a_thin_wall) {
 
 // A ledge of height h from x = 2 on.
 CollisionWorld ledge(double h) {
-  CollisionWorld world;
+  CollisionWorld world(0);  // flat shapes: no relief
   world.add(shape_room(0, {floor_quad(0),
                            {{2, 0, -50}, {2, h, -50}, {2, h, 50}, {2, 0, 50}},
                            {{2, h, -50}, {2, h, 50}, {60, h, 50}, {60, h, -50}}}));
@@ -121,7 +121,7 @@ TEST(Player, walking_steps_onto_a_low_ledge_but_not_onto_a_high_one) {
 // A ramp rising along +x at `degrees` from x = 1.
 CollisionWorld ramp(double degrees) {
   const double rise = std::tan(degrees * 3.14159265358979323846 / 180) * 20;
-  CollisionWorld world;
+  CollisionWorld world(0);  // flat shapes: no relief
   world.add(shape_room(
       0, {floor_quad(0, 50, -49), {{1, 0, -50}, {1, 0, 50}, {21, rise, 50}, {21, rise, -50}}}));
   return world;
@@ -147,7 +147,7 @@ TEST(Player, walks_up_a_gentle_slope_but_not_up_a_steep_one) {
 }
 
 TEST(Player, fly_mode_does_not_fall_and_still_collides) {
-  CollisionWorld world;
+  CollisionWorld world(0);  // flat shapes: no relief
   world.add(shape_room(0, {floor_quad(0), wall_x(3)}));
   Player p({0, 5, 0});
   p.set_mode(Mode::kFly);
@@ -164,7 +164,7 @@ TEST(Player, fly_mode_does_not_fall_and_still_collides) {
 }
 
 TEST(Player, noclip_passes_through_walls) {
-  CollisionWorld world;
+  CollisionWorld world(0);  // flat shapes: no relief
   world.add(shape_room(0, {floor_quad(0), wall_x(3)}));
   Player p({0, 1.6, 0});
   p.set_noclip(true);
@@ -177,7 +177,7 @@ TEST(Player, noclip_passes_through_walls) {
 TEST(Player, a_portal_to_a_room_not_loaded_is_a_wall_until_the_room_arrives) {
   const cave::RoomId next = cave::RoomId::interior({0, 0, 0}, 1);
   cave::Portal portal{{3, 1.5, 0}, {1, 0, 0}, 2.0, next};
-  CollisionWorld world;
+  CollisionWorld world(0);  // flat shapes: no relief
   world.add(shape_room(0, {floor_quad(0)}, {}, {portal}));
   Player p({0, 1.6, 0});
   PlayerInput in;
@@ -195,7 +195,7 @@ TEST(Player, a_portal_to_a_room_not_loaded_is_a_wall_until_the_room_arrives) {
 TEST(Player, collides_as_exactly_ten_kilometres_from_the_origin) {
   // Room-frame floats plus a grid origin: the resting height is as exact far away as at 0.
   const Vec3 origin{10240.5, -7168.25, 20480.75};
-  CollisionWorld world;
+  CollisionWorld world(0);  // flat shapes: no relief
   world.add(shape_room(0, {floor_quad(0), wall_x(3)}, origin));
   Player p(origin + Vec3{0, 1.6, 0});
   PlayerInput in;
@@ -206,7 +206,7 @@ TEST(Player, collides_as_exactly_ten_kilometres_from_the_origin) {
 }
 
 TEST(Player, advance_runs_fixed_steps_and_keeps_the_remainder) {
-  CollisionWorld world;
+  CollisionWorld world(0);  // flat shapes: no relief
   world.add(shape_room(0, {floor_quad(0)}));
   Player p({0, 1.6, 0});
   EXPECT_EQ(p.advance(0.6 / 120, {}, world), 0);

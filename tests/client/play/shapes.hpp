@@ -23,14 +23,23 @@ inline client::ReadyRoom shape_room(int index, const std::vector<Quad>& quads, V
   r.room.sphere = {origin, 100};
   r.room.portals = std::move(portals);
   r.origin = origin;
-  auto vertex = [&](Vec3 p) {
+  // Each quad's face normal at its corners: a flat quad stays flat as a PN patch.
+  auto vertex = [&](Vec3 p, Vec3 n) {
     r.mesh.positions.push_back(
         {static_cast<float>(p.x), static_cast<float>(p.y), static_cast<float>(p.z)});
-    r.mesh.normals.push_back({0, 1, 0});
+    r.mesh.normals.push_back(
+        {static_cast<float>(n.x), static_cast<float>(n.y), static_cast<float>(n.z)});
+    r.mesh.roughness.push_back(0);
+    r.mesh.mineral.push_back(0);
+    r.mesh.rim_portal.push_back(-1);
+    r.mesh.rim_index.push_back(0);
     return static_cast<uint32_t>(r.mesh.positions.size() - 1);
   };
   for (const Quad& q : quads) {
-    const uint32_t a = vertex(q.a), b = vertex(q.b), c = vertex(q.c), d = vertex(q.d);
+    const Vec3 e1 = q.b - q.a, e2 = q.c - q.a;
+    Vec3 n{e1.y * e2.z - e1.z * e2.y, e1.z * e2.x - e1.x * e2.z, e1.x * e2.y - e1.y * e2.x};
+    n = n / length(n);
+    const uint32_t a = vertex(q.a, n), b = vertex(q.b, n), c = vertex(q.c, n), d = vertex(q.d, n);
     r.mesh.indices.insert(r.mesh.indices.end(), {a, b, c, a, c, d});
   }
   return r;

@@ -128,8 +128,11 @@ class Scene {
 
   // Draws one frame; `stats` gets the renderer's counts, `primitives` the triangles the
   // tessellator emitted (GL_PRIMITIVES_GENERATED).
-  Image draw(const Camera& camera, const RenderOptions& options, FrameStats* stats = nullptr,
+  // Frames are single pictures here: no motion blur (it would smear one pose's picture by the
+  // jump from the pose drawn before it).
+  Image draw(const Camera& camera, RenderOptions options, FrameStats* stats = nullptr,
              GLuint* primitives = nullptr) {
+    options.motion_blur = false;
     framebuffer_->bind();
     GLuint query = 0;
     glGenQueries(1, &query);
@@ -180,6 +183,7 @@ Camera pose(int i, int n) {
 // How many of n poses show magenta (the clear colour) anywhere; each is reported.
 int cracked_poses(Scene& scene, RenderOptions options, int n) {
   options.clear_color = {1.0f, 0.0f, 1.0f};
+  options.bloom = false;  // glow spilling over a crack would hide it
   int cracked = 0;
   for (int i = 0; i < n; ++i) {
     const Camera camera = pose(i, n);

@@ -1,0 +1,10 @@
+// Post passes: one triangle that covers the screen, its texture coordinates in [0, 1] on screen.
+#version 410 core
+
+out vec2 v_uv;
+
+void main() {
+  vec2 corner = vec2(float((gl_VertexID << 1) & 2), float(gl_VertexID & 2));
+  v_uv = corner;
+  gl_Position = vec4(corner * 2.0 - 1.0, 0.0, 1.0);
+}

@@ -1,0 +1,230 @@
+// The rock's relief: what the GPU adds to the streamed patch mesh (DESIGN "the detail stage").
+// Written once, in the subset of GLSL 4.10 and C++/GLM that both read, and used by
+//   - shaders/room.tese (spliced in by client/render/shaders.cpp): displacement and normals,
+//   - shaders/room.frag: the same noise for the rock's texture,
+//   - client/play (through shaders/relief.hpp): collision with the displaced surface,
+// so the player walks on what is drawn. Rules of the subset: float literals with an f, no
+// swizzles, no out parameters, functions marked RELIEF_FN (inline in C++).
+//
+// Scales (the relief owns 5 cm to 1.5 m; the server's patch owns 1-10 m):
+//   rock:        domain-warped fBm (1.4 m, 0.31 m, 0.15 m) plus one ridged octave (0.65 m),
+//                amplitude from the roughness channel and a slow world-space variety field;
+//   flowstone:   vertical curtains on walls (anisotropic ridged noise, 2.6 m tall, 0.4 m wide);
+//   speleothems: stalactites on undersides and stalagmites on the floors beneath them, spikes
+//                centred on one jittered point per 1.5 m cell of the horizontal plane, so a
+//                stalagmite stands under every stalactite (thesis §5.5: underside bias from the
+//                world-space normal), longer in bigger rooms.
+// Zero on portal rims (rim weight 1), so the seams between rooms stay where the server put them.
+#ifndef RELIEF_FN
+#define RELIEF_FN
+#endif
+
+const float kReliefRock = 0.30f;        // metres of rock relief at roughness 1, strength 1
+const float kReliefFlowstone = 0.14f;   // metres of flowstone curtain at strength 1
+const float kReliefCell = 1.5f;         // metres: speleothem cell in the horizontal plane
+const float kReliefSpikeMax = 1.9f;     // metres: the longest stalactite at strength 1
+const float kReliefSpikeMin = 0.35f;    // metres: the longest stalactite of the smallest rooms
+const float kReliefSpikePerRadius = 0.2f;  // spike length per metre of room radius
+
+// An integer lattice point to [0, 1).
+RELIEF_FN float relief_hash(ivec3 c) {
+  uvec3 q = uvec3(c) * uvec3(1597334673u, 3812015801u, 2798796415u);
+  uint n = (q.x ^ q.y ^ q.z) * 1597334673u;
+  n ^= n >> 16;
+  n *= 2246822519u;
+  n ^= n >> 13;
+  return float(n >> 8) * (1.0f / 16777216.0f);
+}
+
+// 3-D value noise with a quintic fade: .x in [-1, 1], .yzw its analytic gradient.
+RELIEF_FN vec4 relief_noise(vec3 x) {
+  vec3 cell = floor(x);
+  ivec3 i = ivec3(cell);
+  vec3 f = x - cell;
+  vec3 u = f * f * f * (f * (f * 6.0f - 15.0f) + 10.0f);
+  vec3 du = 30.0f * f * f * (f * (f - 2.0f) + 1.0f);
+  float a = relief_hash(i + ivec3(0, 0, 0));
+  float b = relief_hash(i + ivec3(1, 0, 0));
+  float c = relief_hash(i + ivec3(0, 1, 0));
+  float d = relief_hash(i + ivec3(1, 1, 0));
+  float e = relief_hash(i + ivec3(0, 0, 1));
+  float g = relief_hash(i + ivec3(1, 0, 1));
+  float h = relief_hash(i + ivec3(0, 1, 1));
+  float k = relief_hash(i + ivec3(1, 1, 1));
+  float k1 = b - a, k2 = c - a, k3 = e - a, k4 = a - b - c + d, k5 = a - c - e + h,
+        k6 = a - b - e + g, k7 = -a + b + c - d + e - g - h + k;
+  float v = a + k1 * u.x + k2 * u.y + k3 * u.z + k4 * u.x * u.y + k5 * u.y * u.z +
+            k6 * u.z * u.x + k7 * u.x * u.y * u.z;
+  vec3 dv = du * vec3(k1 + k4 * u.y + k6 * u.z + k7 * u.y * u.z,
+                      k2 + k5 * u.z + k4 * u.x + k7 * u.z * u.x,
+                      k3 + k6 * u.x + k5 * u.y + k7 * u.x * u.y);
+  return vec4(2.0f * v - 1.0f, 2.0f * dv);
+}
+
+RELIEF_FN vec3 relief_gradient(vec4 n) {
+  return vec3(n.y, n.z, n.w);
+}
+
+// The slow world-space variety field in [0, 1] (one cycle per ~24 m): bare rock against rough,
+// decorated rock.
+RELIEF_FN float relief_variety(vec3 p) {
+  return 0.5f + 0.5f * relief_noise(p * (1.0f / 24.0f) + vec3(17.3f, 5.1f, -9.7f)).x;
+}
+
+// The longest speleothem of a room of this radius, at strength 1.
+RELIEF_FN float relief_spike_length(float room_radius) {
+  return clamp(kReliefSpikePerRadius * room_radius, kReliefSpikeMin, kReliefSpikeMax);
+}
+
+// How far the relief can move a point along its normal, either way: a bound for culling. The
+// rock's octaves sum to at most 0.97 in size, times its largest amplitude (variety 1.35, ceilings
+// 1.2); flowstone and spikes add their full heights.
+RELIEF_FN float relief_bound(float strength, float room_radius) {
+  return strength *
+         (kReliefRock * 1.35f * 1.2f + kReliefFlowstone + relief_spike_length(room_radius));
+}
+
+struct Relief {
+  float height;   // metres along the normal (into the cave when positive)
+  vec3 gradient;  // of height with respect to world position (for the displaced normal)
+  float cavity;   // 0 in the rock's hollows, 1 on its crests (occlusion, tint)
+  float spike;    // 0-1: how far up a speleothem the point is (pale, glossy tips)
+};
+
+// The relief at world point p on a surface with unit normal n. roughness (0-1) is the patch's
+// channel, rim the rim weight (1 on a portal rim), room_radius the room's sphere radius and
+// strength scales everything (0: off).
+RELIEF_FN Relief relief_at(vec3 p, vec3 n, float roughness, float rim, float room_radius,
+                           float strength) {
+  Relief r;
+  r.height = 0.0f;
+  r.gradient = vec3(0.0f);
+  r.cavity = 0.5f;
+  r.spike = 0.0f;
+  float keep = 1.0f - clamp(rim, 0.0f, 1.0f);
+  // Exactly zero on rims and when off, whatever rounding did to the rim weight.
+  if (!(strength > 0.0f) || keep < 1e-4f) return r;
+  keep = keep * keep * (3.0f - 2.0f * keep);
+  float variety = relief_variety(p);
+  float up = n.y;
+  float under = smoothstep(0.3f, 0.8f, -up);
+  float ground = smoothstep(0.55f, 0.9f, up);
+  float wall = 1.0f - smoothstep(0.45f, 0.85f, abs(up));
+
+  // Rock: fBm and one ridged octave over a domain-warped position. The warp's own Jacobian is
+  // left out of the gradient (it bends the lighting of the rock slightly, not its shape).
+  vec3 w = p * 0.37f;
+  vec3 warp = vec3(relief_noise(w + vec3(3.1f, 7.7f, 1.3f)).x,
+                   relief_noise(w + vec3(-5.2f, 2.4f, 8.8f)).x,
+                   relief_noise(w + vec3(9.4f, -3.3f, 4.6f)).x);
+  vec3 q = p + 0.45f * warp;
+  vec4 o0 = relief_noise(q * 0.7f);
+  vec4 o1 = relief_noise(q * 1.55f + vec3(31.0f, 0.0f, 0.0f));
+  vec4 o2 = relief_noise(q * 3.2f + vec3(-17.0f, 5.0f, 0.0f));
+  vec4 o3 = relief_noise(q * 6.7f + vec3(0.0f, 47.0f, 11.0f));
+  // A ridge softened by a few centimetres (|x| as sqrt(x^2 + e)): sharp in shape, no seam in light.
+  float soft = sqrt(o1.x * o1.x + 0.01f);
+  float ridge = 1.0f - soft;
+  float ridge_sign = o1.x / soft;
+  float rock = 0.45f * o0.x + 0.28f * (2.0f * ridge * ridge - 1.0f) + 0.16f * o2.x + 0.08f * o3.x;
+  vec3 rock_gradient = (0.45f * 0.7f) * relief_gradient(o0) +
+                       (0.28f * 4.0f * 1.55f) * ridge * -ridge_sign * relief_gradient(o1) +
+                       (0.16f * 3.2f) * relief_gradient(o2) + (0.08f * 6.7f) * relief_gradient(o3);
+  // Floors are sediment (smoother), ceilings the roughest.
+  float rock_amplitude = strength * kReliefRock * mix(0.35f, 1.0f, clamp(roughness, 0.0f, 1.0f)) *
+                         mix(0.5f, 1.35f, variety) * mix(1.0f, 0.45f, ground) *
+                         mix(1.0f, 1.2f, under) * keep;
+  r.height = rock_amplitude * rock;
+  r.gradient = rock_amplitude * rock_gradient;
+  r.cavity = clamp(0.5f + 0.6f * rock, 0.0f, 1.0f);
+
+  // Flowstone: curtains hanging down walls where the variety field is high.
+  float flow_zone = smoothstep(0.35f, 0.65f, variety) * wall * keep;
+  if (flow_zone > 0.0f) {
+    vec3 scale = vec3(2.4f, 0.38f, 2.4f);
+    vec4 f = relief_noise(p * scale + vec3(0.0f, 0.0f, 73.0f));
+    float c = 1.0f - abs(f.x);
+    float f_sign = f.x >= 0.0f ? 1.0f : -1.0f;
+    float amplitude = strength * kReliefFlowstone * flow_zone;
+    r.height += amplitude * c * c * c;
+    r.gradient += amplitude * 3.0f * c * c * -f_sign * relief_gradient(f) * scale;
+  }
+
+  // Speleothems: the tallest spike of the 3 x 3 cells around p wins.
+  if (under > 0.0f || ground > 0.0f) {
+    // Bare zones have fewer and shorter spikes. Which cells hold one is the hash's alone: a
+    // threshold on a field that varies along the surface would cut spikes off at a cliff.
+    float longest = strength * relief_spike_length(room_radius) * keep *
+                    mix(0.45f, 1.0f, smoothstep(0.3f, 0.75f, variety));
+    float density = 0.55f;
+    vec2 here = vec2(p.x, p.z);
+    ivec2 base = ivec2(floor(here / kReliefCell));
+    float best = 0.0f;
+    vec2 best_gradient = vec2(0.0f);
+    for (int dz = -1; dz <= 1; ++dz) {
+      for (int dx = -1; dx <= 1; ++dx) {
+        ivec2 c = base + ivec2(dx, dz);
+        if (relief_hash(ivec3(c.x, 7919, c.y)) > density) continue;
+        float jx = relief_hash(ivec3(c.x, 104729, c.y));
+        float jz = relief_hash(ivec3(c.x, 1299709, c.y));
+        float size = relief_hash(ivec3(c.x, 15485863, c.y));
+        vec2 centre = (vec2(c) + vec2(0.15f + 0.7f * jx, 0.15f + 0.7f * jz)) * kReliefCell;
+        vec2 d = here - centre;
+        float dist = length(d);
+        float radius = mix(0.13f, 0.32f, size);
+        float len = longest * mix(0.4f, 1.0f, fract(size * 7.13f + jx));
+        // Stalactite: a concave cone, sharp at its tip.
+        float t = 1.0f - dist / radius;
+        if (under > 0.0f && t > 0.0f) {
+          float h = under * len * t * t;
+          if (h > best) {
+            best = h;
+            best_gradient = dist > 1e-5f ? (-2.0f * under * len * t / (radius * dist)) * d
+                                         : vec2(0.0f);
+          }
+        }
+        // Stalagmite beneath it: half as tall, wider, rounded on top.
+        float rf = 1.6f * radius;
+        float s = dist / rf;
+        if (ground > 0.0f && s < 1.0f) {
+          float lf = 0.5f * len * ground;
+          float h = lf * (1.0f - s * s) * (1.0f - s * s);
+          if (h > best) {
+            best = h;
+            best_gradient = (-4.0f * lf * (1.0f - s * s) / (rf * rf)) * d;
+          }
+        }
+      }
+    }
+    r.height += best;
+    r.gradient += vec3(best_gradient.x, 0.0f, best_gradient.y);
+    r.spike = longest > 0.0f ? clamp(best / (0.6f * longest), 0.0f, 1.0f) : 0.0f;
+  }
+  return r;
+}
+
+// The unit normal of the surface after relief: the patch normal tilted against the height's
+// tangential gradient.
+RELIEF_FN vec3 relief_normal(vec3 n, vec3 gradient) {
+  vec3 tangential = gradient - dot(gradient, n) * n;
+  return normalize(n - tangential);
+}
+
+// A PN triangle (Vlachos et al. 2001) at barycentric w over corners p and normals n: the curved
+// surface the relief sits on.
+RELIEF_FN vec3 relief_pn_control(vec3 a, vec3 na, vec3 b) {
+  return (2.0f * a + b - dot(b - a, na) * na) * (1.0f / 3.0f);
+}
+
+RELIEF_FN vec3 relief_pn_point(vec3 p0, vec3 p1, vec3 p2, vec3 n0, vec3 n1, vec3 n2, vec3 w) {
+  vec3 b210 = relief_pn_control(p0, n0, p1), b120 = relief_pn_control(p1, n1, p0);
+  vec3 b021 = relief_pn_control(p1, n1, p2), b012 = relief_pn_control(p2, n2, p1);
+  vec3 b102 = relief_pn_control(p2, n2, p0), b201 = relief_pn_control(p0, n0, p2);
+  vec3 e = (b210 + b120 + b021 + b012 + b102 + b201) * (1.0f / 6.0f);
+  vec3 v = (p0 + p1 + p2) * (1.0f / 3.0f);
+  vec3 b111 = e + (e - v) * 0.5f;
+  float u = w.x, vv = w.y, t = w.z;
+  return p0 * (u * u * u) + p1 * (vv * vv * vv) + p2 * (t * t * t) + b210 * (3.0f * u * u * vv) +
+         b120 * (3.0f * u * vv * vv) + b201 * (3.0f * u * u * t) + b021 * (3.0f * vv * vv * t) +
+         b102 * (3.0f * u * t * t) + b012 * (3.0f * vv * t * t) + b111 * (6.0f * u * vv * t);
+}
