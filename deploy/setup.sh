@@ -11,6 +11,7 @@ packages=(
   pocl-opencl-icd ocl-icd-opencl-dev opencl-headers opencl-clhpp-headers
   libepoxy-dev libgtest-dev libgmock-dev libbenchmark-dev libspdlog-dev libcli11-dev
   libmeshoptimizer-dev
+  zlib1g-dev  # PNG compression (screenshots, layout previews)
   xvfb xauth libgl1-mesa-dri  # grotto-client tests: Mesa llvmpipe under Xvfb (xvfb-run needs xauth)
   clang libclang-rt-14-dev  # libFuzzer (tests/fuzz); its runtime is in libclang-rt-14-dev
   nginx  # tests/deploy: the load balancer in front of grotto-server replicas

@@ -21,7 +21,7 @@ struct ServerConfig {
   std::string bind = "127.0.0.1";  // listen address; "0.0.0.0" or "::" to open it up
   uint16_t port = kDefaultPort;    // 0: an ephemeral port (Server::port() tells which)
   int io_threads = 0;              // Asio threads; 0: one per hardware thread
-  uint64_t seed = 7;               // the world served
+  uint64_t seed = cave::kDefaultSeed;  // the world served
   cave::LayoutParams layout{};     // its layout parameters (a few are settings)
   mesh::MeshParams mesh{};
   proto::Limits limits{};                          // announced in welcome and enforced

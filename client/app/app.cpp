@@ -64,6 +64,7 @@ bool surroundings_ready(const Session& s, Vec3 p) {
 template <typename Ready>
 bool wait_until(Session& s, Clock::time_point deadline, const char* what, Ready&& ready) {
   while (!ready()) {
+    if (s.stream.state() == client::StreamState::kFailed) return false;  // refused for good
     if (Clock::now() > deadline) {
       // A pose in solid rock is located in no room, so nothing streams in.
       spdlog::warn("event={}_timeout rooms={} placed={} hint=\"is the pose inside the cave?\"",
@@ -112,7 +113,9 @@ Session::Session(const Options& o, GLFWwindow* w, render::Renderer& r, render::O
   params.speed = o.speed;
   player = play::Player(Vec3{}, params);
   player.set_mode(o.mode);
-  if (o.pose) {
+  if (o.pose && o.pose->room) {
+    pose_room = o.pose->room;
+  } else if (o.pose) {
     camera.position = o.pose->position;
     camera.yaw = o.pose->yaw * kPi / 180;
     camera.pitch = o.pose->pitch * kPi / 180;
@@ -128,6 +131,9 @@ Session::Session(const Options& o, GLFWwindow* w, render::Renderer& r, render::O
   render_options.lod = o.lod;
   render_options.portal_culling = !o.no_portal_culling;
   if (o.no_displacement) render_options.displacement = 0;
+  render_options.bloom = !o.no_bloom;
+  render_options.motion_blur = !o.no_motion_blur;
+  render_options.exposure = static_cast<float>(o.exposure);
   show_overlay = o.overlay.value_or(o.screenshot.empty() && !o.bench_s);
 }
 
@@ -154,7 +160,24 @@ void pump(Session& s, double speed) {
       }
     }
   }
-  if (!s.placed) {
+  if (!s.placed && s.pose_room) {
+    // --pose room:<id>: the stream plans from that room until its descriptor is here, then the
+    // camera starts inside it, looking through its widest portal.
+    if (auto room = s.stream.descriptor(*s.pose_room)) {
+      s.camera.position = cave::interior_point(*room);
+      s.placed = true;
+      s.start = s.camera.position;
+      s.start_room = room->id;
+      s.aim_room = room->id;
+      s.player.place(s.camera.position);
+      spdlog::info("event=pose_room room={} x={} y={} z={}", room->id.to_string(),
+                   s.camera.position.x, s.camera.position.y, s.camera.position.z);
+    } else {
+      client::Pose pose;
+      pose.room = s.pose_room;
+      s.stream.set_pose(pose);
+    }
+  } else if (!s.placed) {
     if (auto spawn = s.stream.spawn_point()) {
       s.camera.position = spawn->position;
       s.placed = true;
@@ -196,6 +219,9 @@ render::FrameStats draw_frame(Session& s, int width, int height) {
                : s.player.noclip() ? "NOCLIP"
                                    : play::mode_name(s.player.mode());
     hud.help = s.show_keys;
+    hud.position = s.camera.position;
+    if (auto room = room_at(s.cache, s.camera.position)) hud.room = room->to_string();
+    if (st.seed) hud.seed = std::to_string(*st.seed);
     s.overlay.draw(hud_lines(hud), width, height);
   }
   return stats;
@@ -205,21 +231,98 @@ namespace {
 
 // --screenshot and --bench: frames of --width x --height into an offscreen framebuffer, rooms
 // waited for until --wait seconds from now.
-int screenshot(Session& s, render::Framebuffer& fb, Clock::time_point deadline) {
+// Why the stream cannot deliver, when it has stopped for good (the server refused the world,
+// the version or the token); empty while it may still.
+std::string stream_refusal(const Session& s) {
+  if (s.stream.state() != client::StreamState::kFailed) return {};
+  return "the server refused the stream: " + s.stream.stats().last_error;
+}
+
+// The share of pixels brighter than the dark beyond the lamp: a picture of the cave has many.
+double lit_fraction(const std::vector<unsigned char>& rgb) {
+  size_t lit = 0;
+  for (size_t i = 0; i + 2 < rgb.size(); i += 3)
+    if (std::max({rgb[i], rgb[i + 1], rgb[i + 2]}) > 12) ++lit;
+  return rgb.empty() ? 0 : static_cast<double>(lit) / static_cast<double>(rgb.size() / 3);
+}
+
+std::string position_text(Vec3 p) {
+  char text[96];
+  std::snprintf(text, sizeof text, "(%.2f, %.2f, %.2f)", p.x, p.y, p.z);
+  return text;
+}
+
+std::string seconds_text(double s) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%g", s);
+  return text;
+}
+
+// Renders --frames frames of the current pose into fb and returns their pixels and the last
+// frame's statistics.
+std::vector<unsigned char> render_frames(Session& s, render::Framebuffer& fb,
+                                         render::FrameStats& stats) {
   const Options& o = s.options;
-  if (o.flythrough_s) {
-    if (wait_until(s, deadline, "path_wait", [&] { return try_plan_path(s); }))
-      follow_path(s, *o.flythrough_s);
-  }
-  wait_until(s, deadline, "screenshot_wait",
-             [&] { return s.placed && surroundings_ready(s, s.camera.position); });
   for (int i = 0; i < o.frames; ++i) {
     pump(s, o.speed);
     fb.bind();
-    draw_frame(s, o.width, o.height);
+    stats = draw_frame(s, o.width, o.height);
   }
   glFinish();
-  std::vector<unsigned char> rgb = fb.read_rgb();
+  return fb.read_rgb();
+}
+
+// Why the screenshot cannot show the cave (empty when it can): the stream refused, rooms missing,
+// the camera in rock.
+std::string screenshot_wait(Session& s, Clock::time_point deadline) {
+  const Options& o = s.options;
+  const std::string wait = "within --wait " + seconds_text(o.wait_s) + " s";
+  if (o.flythrough_s) {
+    if (!wait_until(s, deadline, "path_wait", [&] { return try_plan_path(s); })) {
+      if (auto why = stream_refusal(s); !why.empty()) return why;
+      return "the rooms of the scripted path did not arrive " + wait;
+    }
+    follow_path(s, *o.flythrough_s);
+  }
+  if (wait_until(s, deadline, "screenshot_wait",
+                 [&] { return s.placed && surroundings_ready(s, s.camera.position); }))
+    return {};
+  if (auto why = stream_refusal(s); !why.empty()) return why;
+  if (const client::StreamStats st = s.stream.stats(); st.connects == 0)
+    return "no connection to the server " + wait +
+           (st.last_error.empty() ? std::string() : " (" + st.last_error + ")");
+  if (!s.placed)
+    return "no start pose " + wait +
+           (s.pose_room ? " (room " + s.pose_room->to_string() + " did not arrive)"
+                        : std::string(" (no spawn point from the server)"));
+  if (s.cache.size() > 0 && !room_at(s.cache, s.camera.position))
+    return "the camera is in solid rock: no room of the cave holds " +
+           position_text(s.camera.position) +
+           " (start in a room with --pose room:<id>, or leave --pose out for the spawn point)";
+  return "the rooms around the camera did not arrive " + wait;
+}
+
+int screenshot(Session& s, render::Framebuffer& fb, Clock::time_point deadline) {
+  const Options& o = s.options;
+  std::string why = screenshot_wait(s, deadline);
+  render::FrameStats stats;
+  std::vector<unsigned char> rgb = render_frames(s, fb, stats);
+  // A picture that shows nothing is a failure, not a black PNG.
+  if (why.empty() && stats.rooms_drawn == 0)
+    why = "no room of the cave is in view from " + position_text(s.camera.position);
+  if (const double lit = lit_fraction(rgb); why.empty() && lit < 0.02)
+    why = "the picture is dark (" + seconds_text(100 * lit) +
+          " % of pixels lit): the camera faces rock at arm's length or sees nothing";
+  if (!why.empty()) {
+    // With the overlay asked for, the picture shows what went wrong: write it, still failing.
+    if (s.show_overlay) {
+      if (auto w = tools::write_png(o.screenshot, rgb, o.width, o.height); !w)
+        return fail(w.error().message);
+      return fail("--screenshot: " + why + " (wrote the overlay's picture of it to " +
+                  o.screenshot + ")");
+    }
+    return fail("--screenshot: " + why + "; no picture written");
+  }
   if (auto w = tools::write_png(o.screenshot, rgb, o.width, o.height); !w)
     return fail(w.error().message);
   std::printf("grotto-client: wrote %s (%dx%d, %zu rooms loaded)\n", o.screenshot.c_str(), o.width,
@@ -243,7 +346,16 @@ int bench(Session& s, render::Framebuffer& fb, Clock::time_point deadline) {
   std::vector<double> frame_ms;
   double patches = 0;
   const auto begin = Clock::now();
+  std::fprintf(stderr, "grotto-client: bench: %zu rooms loaded; measuring %g s of frames\n",
+               s.cache.size(), *o.bench_s);
+  int reported = 0;
   while (seconds_since(begin) < *o.bench_s) {
+    // Progress every 5 s on stderr (stdout carries the result line).
+    if (const int now = static_cast<int>(seconds_since(begin) / 5); now > reported) {
+      reported = now;
+      std::fprintf(stderr, "grotto-client: bench: %.0f / %g s, %zu frames\n", seconds_since(begin),
+                   *o.bench_s, frame_ms.size());
+    }
     const auto frame_start = Clock::now();
     follow_path(s, seconds_since(begin));
     pump(s, kPathSpeed);
@@ -260,6 +372,15 @@ int bench(Session& s, render::Framebuffer& fb, Clock::time_point deadline) {
   report.tessellation = s.render_options.tessellation;
   report.surface = o.surface;
   report.rooms_loaded = s.cache.size();
+  report.relief = s.render_options.tessellation && s.render_options.displacement > 0;
+  report.bloom = s.render_options.bloom;
+  report.motion_blur = s.render_options.motion_blur;
+  auto gl_string = [](GLenum name) {
+    const auto* text = reinterpret_cast<const char*>(glGetString(name));
+    return std::string(text != nullptr ? text : "unknown");
+  };
+  report.gl_renderer = gl_string(GL_RENDERER);
+  report.gl_version = gl_string(GL_VERSION);
   report.patches_mean = frame_ms.empty() ? 0 : patches / static_cast<double>(frame_ms.size());
   report.path_length_m = s.path->length();
   report.path_rooms = s.path->rooms().size();
@@ -313,6 +434,7 @@ int run_window(Session& s) {
   double title_timer = 0;
   bool t_down = false, p_down = false, f_down = false, g_down = false, n_down = false;
   bool x_down = false, o_down = false, l_down = false, h_down = false, v_down = false;
+  bool b_down = false, m_down = false;
   auto key = [&](int k) { return glfwGetKey(s.window, k) == GLFW_PRESS; };
   auto pressed = [&](int k, bool& was) {
     const bool now = key(k);
@@ -338,6 +460,8 @@ int run_window(Session& s) {
     if (pressed(GLFW_KEY_X, x_down))
       ro.displacement = ro.displacement > 0 ? 0.0f : render::RenderOptions{}.displacement;
     if (pressed(GLFW_KEY_O, o_down)) ro.portal_culling = !ro.portal_culling;
+    if (pressed(GLFW_KEY_B, b_down)) ro.bloom = !ro.bloom;
+    if (pressed(GLFW_KEY_M, m_down)) ro.motion_blur = !ro.motion_blur;
     if (pressed(GLFW_KEY_L, l_down))
       ro.lod = static_cast<render::LodHeuristic>((static_cast<int>(ro.lod) + 1) % 3);
     if (pressed(GLFW_KEY_H, h_down)) s.show_keys = !s.show_keys;

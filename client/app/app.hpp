@@ -39,6 +39,7 @@ struct Session {
   bool placed = false;                     // the camera has a start pose
   std::optional<cave::RoomId> start_room;  // the spawn room, when the server gave one
   std::optional<cave::RoomId> aim_room;    // look through its widest portal once known
+  std::optional<cave::RoomId> pose_room;   // --pose room:<id>: placed inside once it arrives
   std::optional<play::Flythrough> path;    // --flythrough / --bench: planned once complete
   std::optional<Vec3> start;               // where the camera was placed first
   std::optional<Vec3> stream_focus;        // told to the stream instead of the camera

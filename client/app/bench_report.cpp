@@ -1,5 +1,7 @@
 #include "client/app/bench_report.hpp"
 
+#include <nlohmann/json.hpp>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -36,28 +38,40 @@ std::string bench_line(const BenchReport& r) {
   std::snprintf(text, sizeof text,
                 "grotto-client bench: %zu frames in %.2f s: mean %.2f ms, median %.2f ms, p95 "
                 "%.2f ms, p99 %.2f ms, max %.2f ms, %.1f fps (%dx%d, %s, tess-max %g, %zu rooms, "
-                "%.0f patches per frame, path %.1f m through %zu rooms)",
+                "%.0f patches per frame, path %.1f m through %zu rooms, %s)",
                 r.frames, r.seconds, r.mean_ms, r.median_ms, r.p95_ms, r.p99_ms, r.max_ms, r.fps,
                 r.width, r.height, r.tessellation ? r.surface.c_str() : "flat",
                 static_cast<double>(r.tess_max), r.rooms_loaded, r.patches_mean, r.path_length_m,
-                r.path_rooms);
+                r.path_rooms, r.gl_renderer.c_str());
   return text;
 }
 
 std::string bench_json(const BenchReport& r) {
-  char text[1024];
-  std::snprintf(text, sizeof text,
-                "{\n  \"frames\": %zu,\n  \"seconds\": %.6f,\n  \"mean_ms\": %.6f,\n"
-                "  \"median_ms\": %.6f,\n  \"p95_ms\": %.6f,\n  \"p99_ms\": %.6f,\n"
-                "  \"max_ms\": %.6f,\n  \"fps\": %.6f,\n  \"width\": %d,\n  \"height\": %d,\n"
-                "  \"tessellation\": %s,\n  \"surface\": \"%s\",\n  \"tess_max\": %g,\n"
-                "  \"rooms_loaded\": %zu,\n  \"patches_mean\": %.3f,\n  \"path_length_m\": %.3f,\n"
-                "  \"path_rooms\": %zu\n}\n",
-                r.frames, r.seconds, r.mean_ms, r.median_ms, r.p95_ms, r.p99_ms, r.max_ms, r.fps,
-                r.width, r.height, r.tessellation ? "true" : "false", r.surface.c_str(),
-                static_cast<double>(r.tess_max), r.rooms_loaded, r.patches_mean, r.path_length_m,
-                r.path_rooms);
-  return text;
+  const nlohmann::json j = {
+      {"frames", r.frames},
+      {"seconds", r.seconds},
+      {"mean_ms", r.mean_ms},
+      {"median_ms", r.median_ms},
+      {"p95_ms", r.p95_ms},
+      {"p99_ms", r.p99_ms},
+      {"max_ms", r.max_ms},
+      {"fps", r.fps},
+      {"width", r.width},
+      {"height", r.height},
+      {"tessellation", r.tessellation},
+      {"surface", r.surface},
+      {"tess_max", r.tess_max},
+      {"relief", r.relief},
+      {"bloom", r.bloom},
+      {"motion_blur", r.motion_blur},
+      {"gl_renderer", r.gl_renderer},
+      {"gl_version", r.gl_version},
+      {"rooms_loaded", r.rooms_loaded},
+      {"patches_mean", r.patches_mean},
+      {"path_length_m", r.path_length_m},
+      {"path_rooms", r.path_rooms},
+  };
+  return j.dump(2) + "\n";
 }
 
 }  // namespace grotto::app

@@ -19,6 +19,9 @@ struct BenchReport {
   float tess_max = 0;
   bool tessellation = true;
   std::string surface;
+  bool relief = true, bloom = true, motion_blur = true;
+  std::string gl_renderer;  // GL_RENDERER, e.g. "llvmpipe (LLVM 15.0.6, 256 bits)"
+  std::string gl_version;   // GL_VERSION
   size_t rooms_loaded = 0;
   double patches_mean = 0;  // triangles submitted per frame
   double path_length_m = 0;

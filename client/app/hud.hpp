@@ -12,6 +12,7 @@
 #include "client/render/overlay.hpp"
 #include "client/render/renderer.hpp"
 #include "client/stream/stream.hpp"
+#include "core/vec3.hpp"
 
 namespace grotto::app {
 
@@ -43,11 +44,14 @@ struct HudState {
   client::StreamStats stream;
   render::RenderOptions render;
   std::string mode;   // "walk", "fly" or "noclip"
+  Vec3 position;      // the camera, world metres
+  std::string room;   // the room the camera is in ("" when none is loaded there)
+  std::string seed;   // the world's seed ("" before the server has said)
   bool help = false;  // the key list
 };
 
 // The lines, top to bottom. The connection line comes first, in warning or error colours, when
-// the stream is not ready.
+// the stream is not ready. The overlay wraps lines wider than the window.
 std::vector<render::OverlayLine> hud_lines(const HudState& state);
 
 }  // namespace grotto::app

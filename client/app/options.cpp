@@ -1,5 +1,6 @@
 #include "client/app/options.hpp"
 
+#include "cave/room_id.hpp"
 #include "proto/token.hpp"
 
 #include <CLI/CLI.hpp>
@@ -13,6 +14,13 @@ namespace grotto::app {
 namespace {
 
 std::optional<Pose5> parse_pose(const std::string& text) {
+  if (text.rfind("room:", 0) == 0) {
+    auto id = cave::RoomId::parse(std::string_view(text).substr(5));
+    if (!id) return {};
+    Pose5 p;
+    p.room = id.value();
+    return p;
+  }
   std::vector<double> v;
   std::stringstream in(text);
   std::string item;
@@ -23,7 +31,8 @@ std::optional<Pose5> parse_pose(const std::string& text) {
     v.push_back(d);
   }
   if (v.size() != 3 && v.size() != 5) return {};
-  Pose5 p{{v[0], v[1], v[2]}, 0, 0};
+  Pose5 p;
+  p.position = {v[0], v[1], v[2]};
   if (v.size() == 5) p.yaw = v[3], p.pitch = v[4];
   return p;
 }
@@ -48,8 +57,8 @@ std::optional<int> parse_options(int argc, char** argv, Options& o) {
       "You walk with gravity and collide with the cave's walls.\n"
       "Mouse: look; W/A/S/D: move; Shift: run; Space: jump (walk) or rise (fly); C: descend "
       "(fly); G: walk/fly; N: noclip (debugging: through walls); T: tessellation on/off; P: PN "
-      "triangles/Phong; X: displacement; O: portal culling; L: LOD heuristic; F: wireframe; "
-      "H: the overlay's key list; V: overlay on/off; Esc: quit."};
+      "triangles/Phong; X: relief (displacement); B: bloom; M: motion blur; O: portal culling; "
+      "L: LOD heuristic; F: wireframe; H: the overlay's key list; V: overlay on/off; Esc: quit."};
   app.add_option("--server", o.server_url,
                  "Server URL ws://host:port[/ws]; without it a server runs in-process");
   app.add_option("--seed", o.seed,
@@ -82,7 +91,8 @@ std::optional<int> parse_options(int argc, char** argv, Options& o) {
       ->check(CLI::Range(1, 100000));
   app.add_option("--pose", o.pose_text,
                  "Start pose x,y,z[,yaw,pitch] (metres, degrees; yaw 0 looks along -z, positive "
-                 "turns to +x); default: the server's spawn point");
+                 "turns to +x), or room:<id> (e.g. room:0.0.0.r3) to start inside that room "
+                 "looking through its widest portal; default: the server's spawn point");
   app.add_option("--wait", o.wait_s,
                  "Screenshot and bench: seconds to wait at most for the rooms they need")
       ->capture_default_str()
@@ -118,20 +128,30 @@ std::optional<int> parse_options(int argc, char** argv, Options& o) {
                "Draw every loaded room in the view frustum instead of the rooms seen through "
                "portals (O toggles)");
   app.add_flag("--no-displacement", o.no_displacement,
-               "Tessellate without displacing the surface (X toggles)");
+               "Tessellate without the rock's relief (no displacement, stalactites or "
+               "stalagmites; X toggles)");
+  app.add_flag("--no-bloom", o.no_bloom, "No glow around the mineral veins (B toggles)");
+  app.add_flag("--no-motion-blur", o.no_motion_blur,
+               "No blur along the camera's motion (M toggles)");
+  app.add_option("--exposure", o.exposure,
+                 "Brightness before tone mapping (1 is the default exposure)")
+      ->capture_default_str()
+      ->check(CLI::Range(0.05, 20.0));
   app.add_option("--json", o.json, "With --bench: also write the statistics to this JSON file");
   app.add_option("--log-level", o.log_level, "Log level on stderr (trace ... off)")
       ->capture_default_str();
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
-    return app.exit(e);
+    // --help prints and exits 0; every bad flag exits 2, as in every Grotto binary.
+    return app.exit(e) == 0 ? 0 : 2;
   }
 
   if (!o.pose_text.empty()) {
     o.pose = parse_pose(o.pose_text);
     if (!o.pose)
-      return fail("--pose: expected x,y,z or x,y,z,yaw,pitch (got '" + o.pose_text + "')");
+      return fail("--pose: expected x,y,z, x,y,z,yaw,pitch or room:<room id> such as room:0.0.0.r3 "
+                  "(got '" + o.pose_text + "')");
   }
   if (o.mode_text == "walk") {
     o.mode = play::Mode::kWalk;

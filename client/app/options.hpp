@@ -6,15 +6,18 @@
 #include <optional>
 #include <string>
 
+#include "cave/room_id.hpp"
 #include "client/play/player.hpp"
 #include "client/render/renderer.hpp"
 #include "core/vec3.hpp"
 
 namespace grotto::app {
 
+// --pose: a place and a view, or a room to start in.
 struct Pose5 {
   Vec3 position;
-  double yaw = 0, pitch = 0;  // degrees
+  double yaw = 0, pitch = 0;          // degrees
+  std::optional<cave::RoomId> room;   // room:<id>: inside this room, position unknown until then
 };
 
 struct Options {
@@ -45,6 +48,9 @@ struct Options {
   render::LodHeuristic lod = render::LodHeuristic::kDistance;
   bool no_portal_culling = false;
   bool no_displacement = false;
+  bool no_bloom = false;
+  bool no_motion_blur = false;
+  double exposure = 1.0;
   std::string log_level = "warn";
 };
 

@@ -343,6 +343,7 @@ Result<LoadReport> run_load(const LoadOptions& options) {
     PlayerReport pr;
     pr.index = p.index;
     pr.seed = seed_of(p.index);
+    if (!pr.seed) pr.seed = s.seed;  // the world the server said it serves
     if (p.start) pr.start_room = p.start->to_string();
     if (w.first_room_s) {
       pr.first_room_ms = *w.first_room_s * 1000.0;
@@ -388,6 +389,11 @@ Result<LoadReport> run_load(const LoadOptions& options) {
   report.latency_ms = summarize(std::move(latencies));
   report.decode_ms = summarize(std::move(decodes));
   report.stall_ms = summarize(std::move(stalls));
+  // Without --seed the report names the world the server served (welcome.seed).
+  if (!report.seed) {
+    for (const PlayerReport& pr : report.players_detail)
+      if (pr.seed) report.seed = pr.seed;
+  }
   total_players(report);
 
   players.clear();  // the Streams go before the Runtime and the server

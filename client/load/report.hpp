@@ -23,7 +23,7 @@ Distribution summarize(std::vector<double> samples);
 // One simulated player.
 struct PlayerReport {
   int index = 0;
-  std::optional<uint64_t> seed;  // the world it asked for; absent: the server's
+  std::optional<uint64_t> seed;  // the world it asked for, else the one the server served
   std::string start_room;        // text id; empty when the player never got a start
   double first_room_ms = -1;     // start of the run → start room ready; -1: never
   uint64_t rooms_ready = 0;      // rooms decoded and stored by its Stream

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cstddef>
+#include <string_view>
 
 #include "client/render/font.hpp"
 #include "client/render/shaders.hpp"
@@ -17,11 +18,37 @@ void append_quad(std::vector<OverlayVertex>& out, float x0, float y0, float x1, 
 
 }  // namespace
 
-std::vector<OverlayVertex> layout_overlay(const std::vector<OverlayLine>& lines,
+std::vector<OverlayLine> wrap_lines(const std::vector<OverlayLine>& lines, size_t columns) {
+  columns = std::max<size_t>(columns, 1);
+  std::vector<OverlayLine> out;
+  for (const OverlayLine& line : lines) {
+    std::string_view rest = line.text;
+    do {
+      size_t cut = rest.size();
+      if (rest.size() > columns) {
+        cut = rest.rfind(' ', columns);
+        if (cut == std::string_view::npos || cut == 0) cut = columns;
+      }
+      out.push_back({std::string(rest.substr(0, cut)), line.color});
+      rest.remove_prefix(cut);
+      while (!rest.empty() && rest.front() == ' ')
+        rest.remove_prefix(1);
+    } while (!rest.empty());
+  }
+  return out;
+}
+
+std::vector<OverlayVertex> layout_overlay(const std::vector<OverlayLine>& unwrapped,
                                           const OverlayLayout& layout) {
   std::vector<OverlayVertex> out;
-  if (lines.empty()) return out;
+  if (unwrapped.empty()) return out;
   const int s = std::max(layout.scale, 1);
+  const int text_width = layout.max_width - 2 * layout.padding;
+  const std::vector<OverlayLine> lines =
+      layout.max_width > 0
+          ? wrap_lines(unwrapped, static_cast<size_t>(std::max(text_width + s, 0) /
+                                                      (font::kCellWidth * s)))
+          : unwrapped;
   size_t columns = 0;
   for (const OverlayLine& line : lines)
     columns = std::max(columns, line.text.size());
@@ -70,8 +97,12 @@ Result<Overlay> Overlay::create() {
 
 void Overlay::draw(const std::vector<OverlayLine>& lines, int width, int height,
                    const OverlayLayout& layout) {
-  const std::vector<OverlayVertex> vertices = layout_overlay(lines, layout);
-  if (vertices.empty() || width <= 0 || height <= 0) return;
+  if (width <= 0 || height <= 0) return;
+  OverlayLayout fitted = layout;
+  if (fitted.max_width == 0) fitted.max_width = std::max(width - 2 * fitted.left, 1);
+  if (width < 640) fitted.scale = 1;  // small windows: small letters, fewer wrapped lines
+  const std::vector<OverlayVertex> vertices = layout_overlay(lines, fitted);
+  if (vertices.empty()) return;
   glDisable(GL_DEPTH_TEST);
   glEnable(GL_BLEND);
   glBlendFunc(GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA);

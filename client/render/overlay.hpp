@@ -33,11 +33,17 @@ struct OverlayLayout {
   int left = 8;
   int top = 8;
   int padding = 6;  // pixels between the panel's edge and the text
+  int max_width = 0;  // pixels the panel may span from `left`; longer lines wrap; 0: no limit
   glm::vec4 panel{0.0f, 0.0f, 0.0f, 0.55f};
 };
 
-// The triangles of the panel (first six vertices) and of every inked dot of the text. Pure: the
-// tests check it without a GPU. Nothing (not even the panel) for no lines.
+// Lines wider than `columns` characters broken at spaces (at the limit inside a word longer than
+// that), each piece in its line's colour.
+std::vector<OverlayLine> wrap_lines(const std::vector<OverlayLine>& lines, size_t columns);
+
+// The triangles of the panel (first six vertices) and of every inked dot of the text, lines
+// wrapped to layout.max_width. Pure: the tests check it without a GPU. Nothing (not even the
+// panel) for no lines.
 std::vector<OverlayVertex> layout_overlay(const std::vector<OverlayLine>& lines,
                                           const OverlayLayout& layout = {});
 
@@ -45,7 +51,8 @@ class Overlay {
  public:
   static Result<Overlay> create();
   // Draws over whatever the bound framebuffer holds (viewport width x height pixels), with depth
-  // testing off and alpha blending on; both are restored to off afterwards.
+  // testing off and alpha blending on; both are restored to off afterwards. Lines wrap at the
+  // viewport's right edge (layout.max_width, when 0).
   void draw(const std::vector<OverlayLine>& lines, int width, int height,
             const OverlayLayout& layout = {});
 

@@ -369,6 +369,7 @@ struct Stream::Impl : std::enable_shared_from_this<Stream::Impl> {
     conn->ws.read_message_max(std::max(limits.max_frame_bytes, limits.max_message_bytes));
     stats.limits = limits;
     stats.server = w.server;
+    stats.seed = w.seed;
     stats.state = StreamState::kReady;
     if (stats.connects++ > 0) ++stats.reconnects;
     attempts = 0;

@@ -95,6 +95,7 @@ struct StreamStats {
   StreamState state = StreamState::kConnecting;
   std::string last_error;  // the last error, for people (empty when none)
   std::string server;      // welcome.server of the current or last connection
+  std::optional<uint64_t> seed;  // welcome.seed: the world served (none before a welcome)
   proto::Limits limits;    // welcome.limits of the current or last connection
 };
 

@@ -26,6 +26,9 @@ struct Character {
   int loops = 4;               // extra bridges between rooms near in space, far in the graph
 };
 
+// The world every Grotto tool serves or shows when given no seed.
+inline constexpr uint64_t kDefaultSeed = 7;
+
 inline constexpr int kCharacterCount = 3;
 
 struct LayoutParams {

@@ -82,7 +82,7 @@ Result<RoomId> RoomId::unpack(uint64_t packed) {
   }
   if (!in_range(s)) {
     return invalid_argument("room id " + std::to_string(packed) + " names sector " +
-                            cave::to_string(s) + ", outside ±" + std::to_string(kSectorCoordLimit));
+                            cave::to_string(s) + ", outside +/-" + std::to_string(kSectorCoordLimit));
   }
   return RoomId(s, static_cast<uint16_t>(slot));
 }
@@ -107,7 +107,7 @@ Result<RoomId> RoomId::parse(std::string_view text) {
     int64_t v = 0;
     if (!parse_int(parts[a], v)) return bad_id(text, "sector coordinate is not an integer");
     if (v < -kSectorCoordLimit || v > kSectorCoordLimit) {
-      return bad_id(text, "sector coordinate outside ±" + std::to_string(kSectorCoordLimit));
+      return bad_id(text, "sector coordinate outside +/-" + std::to_string(kSectorCoordLimit));
     }
     s[a] = static_cast<int32_t>(v);
   }

@@ -34,7 +34,7 @@ Result<SectorCoord> parse_sector(const std::string& flag, const std::string& tex
     p = next + 1;
   }
   if (!grotto::cave::in_range(s)) {
-    return grotto::invalid_argument(flag + " is outside the sector range ±" +
+    return grotto::invalid_argument(flag + " is outside the sector range +/-" +
                                     std::to_string(grotto::cave::kSectorCoordLimit));
   }
   return s;
@@ -134,7 +134,7 @@ int main(int argc, char** argv) {
       "grotto-layout: generate a block of sectors of an unbounded Grotto cave, print its rooms "
       "and portals as JSON and draw it as SVG (top and side views, coloured by region).\n"
       "Example: grotto-layout --seed 7 --sectors 2 --svg cave.svg --json cave.json"};
-  std::string seed_text = "1";
+  std::string seed_text = std::to_string(grotto::cave::kDefaultSeed);
   std::string from_text = "0,0,0", to_text;
   int sectors = 2;
   std::string svg_path, json_path, obj_path, png_path, room_text, character;
@@ -180,7 +180,11 @@ int main(int argc, char** argv) {
   app.add_option("--bias", bias, "Displacement bias x,y,z for every character, e.g. 1,0.1,1")
       ->delimiter(',')
       ->expected(3);
-  CLI11_PARSE(app, argc, argv);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e) == 0 ? 0 : 2;  // --help: 0; a bad flag: 2, as in every Grotto binary
+  }
   // stdout carries JSON; logs go to stderr.
   spdlog::set_default_logger(spdlog::stderr_color_mt("grotto-layout"));
 
@@ -234,7 +238,7 @@ int main(int argc, char** argv) {
   }
   if (!grotto::cave::in_range(hi)) {
     return fail("the block's last sector " + grotto::cave::to_string(hi) +
-                " is outside the sector range ±" + std::to_string(grotto::cave::kSectorCoordLimit));
+                " is outside the sector range +/-" + std::to_string(grotto::cave::kSectorCoordLimit));
   }
   if (count > kMaxSectors) {
     return fail("the block has " + std::to_string(count) + " sectors; at most " +

@@ -3,36 +3,19 @@
 #include <algorithm>
 #include <array>
 #include <cstdint>
+#include <cstdlib>
 #include <fstream>
+#include <iterator>
+#include <string>
+
+#include <zlib.h>
 
 namespace grotto::tools {
 namespace {
 
-// PNG's CRC-32 (ISO 3309) and zlib's Adler-32, both small enough to own.
-uint32_t crc32(const unsigned char* data, size_t n, uint32_t crc = 0) {
-  static const std::array<uint32_t, 256> table = [] {
-    std::array<uint32_t, 256> t{};
-    for (uint32_t i = 0; i < 256; ++i) {
-      uint32_t c = i;
-      for (int k = 0; k < 8; ++k)
-        c = (c & 1) ? 0xedb88320u ^ (c >> 1) : c >> 1;
-      t[i] = c;
-    }
-    return t;
-  }();
-  crc = ~crc;
-  for (size_t i = 0; i < n; ++i)
-    crc = table[(crc ^ data[i]) & 0xff] ^ (crc >> 8);
-  return ~crc;
-}
-
-uint32_t adler32(const std::vector<unsigned char>& data) {
-  uint32_t a = 1, b = 0;
-  for (unsigned char c : data) {
-    a = (a + c) % 65521;
-    b = (b + a) % 65521;
-  }
-  return (b << 16) | a;
+uint32_t crc32_of(const std::vector<unsigned char>& data) {
+  return static_cast<uint32_t>(
+      ::crc32(::crc32(0L, Z_NULL, 0), data.data(), static_cast<uInt>(data.size())));
 }
 
 void put_be32(std::vector<unsigned char>& out, uint32_t v) {
@@ -46,7 +29,7 @@ void chunk(std::ofstream& f, const char* type, const std::vector<unsigned char>&
   std::vector<unsigned char> head;
   put_be32(head, static_cast<uint32_t>(data.size()));
   std::vector<unsigned char> tail;
-  put_be32(tail, crc32(body.data(), body.size()));
+  put_be32(tail, crc32_of(body));
   f.write(reinterpret_cast<const char*>(head.data()), 4);
   f.write(reinterpret_cast<const char*>(body.data()), static_cast<std::streamsize>(body.size()));
   f.write(reinterpret_cast<const char*>(tail.data()), 4);
@@ -59,38 +42,112 @@ Status write_png(const std::string& path, const std::vector<unsigned char>& rgb,
   if (rgb.size() != static_cast<size_t>(width) * height * 3) {
     return invalid_argument("write_png: image size does not match width x height x 3");
   }
-  // Scanlines with filter byte 0, in stored (uncompressed) deflate blocks of up to 65535 bytes.
+  // Scanlines with the Sub filter (each byte less its left neighbour: smooth rock and dark fog
+  // become runs of small numbers), compressed by zlib.
   std::vector<unsigned char> raw;
   raw.reserve(rgb.size() + height);
+  const size_t stride = static_cast<size_t>(width) * 3;
   for (int y = 0; y < height; ++y) {
-    raw.push_back(0);
-    raw.insert(raw.end(), rgb.begin() + static_cast<size_t>(y) * width * 3,
-               rgb.begin() + static_cast<size_t>(y + 1) * width * 3);
+    const unsigned char* row = rgb.data() + static_cast<size_t>(y) * stride;
+    raw.push_back(1);
+    for (size_t i = 0; i < stride; ++i)
+      raw.push_back(static_cast<unsigned char>(row[i] - (i >= 3 ? row[i - 3] : 0)));
   }
-  std::vector<unsigned char> z{0x78, 0x01};
-  for (size_t at = 0; at < raw.size(); at += 65535) {
-    size_t n = std::min<size_t>(65535, raw.size() - at);
-    z.push_back(at + n == raw.size() ? 1 : 0);
-    z.push_back(static_cast<unsigned char>(n & 0xff));
-    z.push_back(static_cast<unsigned char>(n >> 8));
-    z.push_back(static_cast<unsigned char>(~n & 0xff));
-    z.push_back(static_cast<unsigned char>((~n >> 8) & 0xff));
-    z.insert(z.end(), raw.begin() + at, raw.begin() + at + n);
-  }
-  put_be32(z, adler32(raw));
+  uLongf z_size = compressBound(static_cast<uLong>(raw.size()));
+  std::vector<unsigned char> z(z_size);
+  if (compress2(z.data(), &z_size, raw.data(), static_cast<uLong>(raw.size()), 6) != Z_OK)
+    return Error{ErrorCode::kInternal, "write_png: zlib could not compress the image"};
+  z.resize(z_size);
   std::ofstream f(path, std::ios::binary);
   const unsigned char signature[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n'};
   f.write(reinterpret_cast<const char*>(signature), 8);
   std::vector<unsigned char> ihdr;
   put_be32(ihdr, static_cast<uint32_t>(width));
   put_be32(ihdr, static_cast<uint32_t>(height));
-  ihdr.insert(ihdr.end(), {8, 2, 0, 0, 0});  // 8-bit RGB, deflate, no filter, no interlace
+  ihdr.insert(ihdr.end(), {8, 2, 0, 0, 0});  // 8-bit RGB, deflate, adaptive filters, no interlace
   chunk(f, "IHDR", ihdr);
   chunk(f, "IDAT", z);
   chunk(f, "IEND", {});
   f.close();
   if (!f) return Error{ErrorCode::kUnavailable, "cannot write " + path};
   return {};
+}
+
+namespace {
+
+uint32_t be32(const std::vector<unsigned char>& b, size_t at) {
+  return static_cast<uint32_t>(b[at]) << 24 | static_cast<uint32_t>(b[at + 1]) << 16 |
+         static_cast<uint32_t>(b[at + 2]) << 8 | b[at + 3];
+}
+
+int paeth(int a, int b, int c) {
+  const int p = a + b - c, pa = std::abs(p - a), pb = std::abs(p - b), pc = std::abs(p - c);
+  return pa <= pb && pa <= pc ? a : (pb <= pc ? b : c);
+}
+
+}  // namespace
+
+Result<RgbImage> read_png(const std::string& path) {
+  auto bad = [&](const std::string& why) {
+    return Error{ErrorCode::kInvalidArgument, path + ": " + why};
+  };
+  std::ifstream f(path, std::ios::binary);
+  if (!f) return Error{ErrorCode::kNotFound, path + ": cannot open"};
+  const std::vector<unsigned char> b((std::istreambuf_iterator<char>(f)), {});
+  static const unsigned char kSignature[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n'};
+  if (b.size() < 33 || !std::equal(kSignature, kSignature + 8, b.begin()))
+    return bad("not a PNG file");
+  RgbImage image;
+  std::vector<unsigned char> z;
+  bool header = false;
+  for (size_t at = 8; at + 12 <= b.size();) {
+    const uint32_t length = be32(b, at);
+    if (length > b.size() - at - 12) return bad("chunk runs past the end of the file");
+    const std::string type(b.begin() + static_cast<long>(at) + 4,
+                           b.begin() + static_cast<long>(at) + 8);
+    const size_t data = at + 8;
+    if (type == "IHDR") {
+      if (length != 13) return bad("IHDR is not 13 bytes");
+      image.width = static_cast<int>(be32(b, data));
+      image.height = static_cast<int>(be32(b, data + 4));
+      if (b[data + 8] != 8 || b[data + 9] != 2 || b[data + 12] != 0)
+        return bad("not 8-bit RGB without interlacing");
+      if (image.width <= 0 || image.height <= 0 || image.width > 65536 || image.height > 65536)
+        return bad("size out of range");
+      header = true;
+    } else if (type == "IDAT") {
+      z.insert(z.end(), b.begin() + static_cast<long>(data),
+               b.begin() + static_cast<long>(data + length));
+    }
+    at = data + length + 4;
+  }
+  if (!header) return bad("no IHDR chunk");
+  const size_t stride = static_cast<size_t>(image.width) * 3;
+  std::vector<unsigned char> raw((stride + 1) * static_cast<size_t>(image.height));
+  uLongf raw_size = static_cast<uLongf>(raw.size());
+  if (uncompress(raw.data(), &raw_size, z.data(), static_cast<uLong>(z.size())) != Z_OK ||
+      raw_size != raw.size())
+    return bad("image data does not inflate to width x height pixels");
+  image.rgb.resize(stride * static_cast<size_t>(image.height));
+  for (int y = 0; y < image.height; ++y) {
+    const unsigned char* in = &raw[static_cast<size_t>(y) * (stride + 1)];
+    unsigned char* out = &image.rgb[static_cast<size_t>(y) * stride];
+    const unsigned char* up = y > 0 ? out - stride : nullptr;
+    for (size_t i = 0; i < stride; ++i) {
+      const int a = i >= 3 ? out[i - 3] : 0, u = up ? up[i] : 0, c = up && i >= 3 ? up[i - 3] : 0;
+      int predicted = 0;
+      switch (in[0]) {
+        case 0: predicted = 0; break;
+        case 1: predicted = a; break;
+        case 2: predicted = u; break;
+        case 3: predicted = (a + u) / 2; break;
+        case 4: predicted = paeth(a, u, c); break;
+        default: return bad("unknown filter " + std::to_string(in[0]) + " in row " + std::to_string(y));
+      }
+      out[i] = static_cast<unsigned char>(in[1 + i] + predicted);
+    }
+  }
+  return image;
 }
 
 }  // namespace grotto::tools

@@ -1,5 +1,5 @@
-// A minimal PNG writer (8-bit RGB, stored deflate blocks): no dependency, enough for previews and
-// screenshots (grotto-layout --png, grotto-client --screenshot).
+// A small PNG writer and reader (8-bit RGB, zlib-compressed): enough for previews and screenshots
+// (grotto-layout --png, grotto-client --screenshot) and for tests that look at them.
 #pragma once
 
 #include <string>
@@ -9,8 +9,16 @@
 
 namespace grotto::tools {
 
-// An RGB image (width * height * 3 bytes, top row first) as an uncompressed-deflate PNG file.
+// An RGB image (width * height * 3 bytes, top row first) as a PNG file.
 Status write_png(const std::string& path, const std::vector<unsigned char>& rgb, int width,
                  int height);
+
+struct RgbImage {
+  int width = 0, height = 0;
+  std::vector<unsigned char> rgb;  // width * height * 3 bytes, top row first
+};
+// Reads an 8-bit RGB, non-interlaced PNG (what write_png writes; any filter). Errors name the
+// file and what is wrong with it.
+Result<RgbImage> read_png(const std::string& path);
 
 }  // namespace grotto::tools

@@ -261,8 +261,13 @@ TEST(Stream, reconnects_after_a_server_restart_and_every_wanted_room_arrives) {
   ASSERT_TRUE(server);
   auto spawn = *stream->spawn_point();
   auto expected = expected_rooms(7, spawn, o.plan.horizon_s);
-  ASSERT_TRUE(wait_for([&] { return all_ready(*stream, expected); }))
-      << "rooms ready: " << stream->stats().rooms_ready << " of " << expected.size();
+  // The rooms may all have arrived before the drain: wait for the reconnect as well.
+  ASSERT_TRUE(wait_for([&] {
+    return all_ready(*stream, expected) && stream->stats().reconnects >= 1 &&
+           stream->state() == StreamState::kReady;
+  })) << "rooms ready: "
+      << stream->stats().rooms_ready << " of " << expected.size() << "; "
+      << describe(stream->stats());
   auto stats = stream->stats();
   EXPECT_GE(stats.reconnects, 1u);
   EXPECT_GE(stats.drops, 1u);

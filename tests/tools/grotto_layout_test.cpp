@@ -8,6 +8,8 @@
 #include <sstream>
 #include <string>
 
+#include "tools/png.hpp"
+
 namespace {
 
 struct ProcessResult {
@@ -89,44 +91,21 @@ TEST(GrottoLayout, exports_room_meshes_as_obj_on_either_compute_path) {
   std::filesystem::remove_all(dir);
 }
 
-// Reassembles the scanlines of a PNG written with stored (uncompressed) deflate blocks.
-std::vector<unsigned char> png_scanlines(const std::string& png) {
-  std::vector<unsigned char> raw;
-  size_t at = png.find("IDAT");
-  if (at == std::string::npos || at < 4) return raw;
-  size_t len = (static_cast<unsigned char>(png[at - 4]) << 24) |
-               (static_cast<unsigned char>(png[at - 3]) << 16) |
-               (static_cast<unsigned char>(png[at - 2]) << 8) |
-               static_cast<unsigned char>(png[at - 1]);
-  size_t p = at + 4 + 2, end = at + 4 + len - 4;  // skip the zlib header, stop at Adler-32
-  while (p + 5 <= end) {
-    size_t n =
-        static_cast<unsigned char>(png[p + 1]) | (static_cast<unsigned char>(png[p + 2]) << 8);
-    raw.insert(raw.end(), png.begin() + p + 5, png.begin() + p + 5 + n);
-    p += 5 + n;
-  }
-  return raw;
-}
-
 TEST(GrottoLayout, renders_a_lit_picture_without_a_gpu) {
   auto path = std::filesystem::temp_directory_path() /
               ("grotto-png-test-" + std::to_string(getpid()) + ".png");
   ProcessResult r = run("--seed 3 --sectors 1 --png '" + path.string() + "'", "none");
   ASSERT_EQ(r.exit_code, 0) << r.output;
-  std::string png = read(path);
+  auto image = grotto::tools::read_png(path.string());
   std::filesystem::remove(path);
-  ASSERT_GT(png.size(), 8u);
-  EXPECT_EQ(png.substr(1, 3), "PNG");
-  std::vector<unsigned char> raw = png_scanlines(png);
+  ASSERT_TRUE(image.ok()) << image.error().message;
   const size_t w = 1200, h = 800;
-  ASSERT_EQ(raw.size(), h * (1 + 3 * w));
+  ASSERT_EQ(image.value().width, static_cast<int>(w));
+  ASSERT_EQ(image.value().height, static_cast<int>(h));
+  const std::vector<unsigned char>& rgb = image.value().rgb;
   size_t lit = 0;
-  for (size_t y = 0; y < h; ++y) {
-    for (size_t x = 0; x < w; ++x) {
-      const unsigned char* px = &raw[y * (1 + 3 * w) + 1 + 3 * x];
-      lit += px[0] > 40 || px[1] > 40 || px[2] > 40;  // brighter than the background
-    }
-  }
+  for (size_t i = 0; i + 2 < rgb.size(); i += 3)
+    lit += rgb[i] > 40 || rgb[i + 1] > 40 || rgb[i + 2] > 40;  // brighter than the background
   EXPECT_GT(lit, w * h / 20) << "the cave covers part of the picture";
   EXPECT_LT(lit, w * h * 9 / 10) << "and leaves background around it";
 }
@@ -161,6 +140,22 @@ TEST(GrottoLayout, bad_input_gets_a_clear_error) {
     EXPECT_NE(r.exit_code, 0) << c.args;
     EXPECT_NE(r.output.find(c.says), std::string::npos) << c.args << " said: " << r.output;
   }
+}
+
+// The command-line conventions every Grotto binary keeps: a flag it does not know or a value
+// its check refuses exits 2; the world is seed 7 unless told otherwise.
+TEST(GrottoLayout, a_bad_flag_exits_2_and_the_default_world_is_seed_7) {
+  for (const char* args : {"--no-such-flag", "--sectors 9", "--character lava", "--seed"}) {
+    ProcessResult r = run(args);
+    EXPECT_EQ(r.exit_code, 2) << args << " said: " << r.output;
+  }
+  EXPECT_EQ(run("--help").exit_code, 0);
+  ProcessResult plain = run("--room 0.0.0.r0");
+  ProcessResult seven = run("--seed 7 --room 0.0.0.r0");
+  ASSERT_EQ(plain.exit_code, 0) << plain.output;
+  EXPECT_EQ(plain.output, seven.output);
+  EXPECT_NE(plain.output, run("--seed 1 --room 0.0.0.r0").output);
+  EXPECT_NE(run("--help").output.find("--seed TEXT=7 "), std::string::npos) << run("--help").output;
 }
 
 }  // namespace

@@ -14,6 +14,8 @@
 #include <string>
 #include <vector>
 
+#include "tools/png.hpp"
+
 namespace {
 
 struct Outcome {
@@ -34,45 +36,13 @@ Outcome run(const std::string& command) {
   return r;
 }
 
-uint32_t be32(const std::vector<unsigned char>& b, size_t at) {
-  return (uint32_t{b[at]} << 24) | (uint32_t{b[at + 1]} << 16) | (uint32_t{b[at + 2]} << 8) |
-         b[at + 3];
-}
-
-// The pixels of a PNG written by tools::write_png (one IDAT of stored deflate blocks, filter 0).
-std::vector<unsigned char> read_stored_png(const std::string& path, int& width, int& height) {
-  std::ifstream f(path, std::ios::binary);
-  std::vector<unsigned char> b((std::istreambuf_iterator<char>(f)), {});
-  std::vector<unsigned char> pixels;
-  if (b.size() < 33 || b[1] != 'P') return pixels;
-  width = static_cast<int>(be32(b, 16));
-  height = static_cast<int>(be32(b, 20));
-  size_t at = 33;  // signature + IHDR
-  std::vector<unsigned char> z;
-  while (at + 12 <= b.size()) {
-    uint32_t length = be32(b, at);
-    std::string type(b.begin() + static_cast<long>(at) + 4, b.begin() + static_cast<long>(at) + 8);
-    if (type == "IDAT")
-      z.insert(z.end(), b.begin() + static_cast<long>(at) + 8,
-               b.begin() + static_cast<long>(at + 8 + length));
-    at += 12 + length;
-  }
-  std::vector<unsigned char> raw;
-  for (size_t p = 2; p + 5 <= z.size();) {
-    size_t n = z[p + 1] | (z[p + 2] << 8);
-    raw.insert(raw.end(), z.begin() + static_cast<long>(p) + 5,
-               z.begin() + static_cast<long>(p + 5 + n));
-    bool last = z[p] & 1;
-    p += 5 + n;
-    if (last) break;
-  }
-  for (int y = 0; y < height; ++y) {
-    size_t row = static_cast<size_t>(y) * (static_cast<size_t>(width) * 3 + 1) + 1;
-    if (row + static_cast<size_t>(width) * 3 > raw.size()) return {};
-    pixels.insert(pixels.end(), raw.begin() + static_cast<long>(row),
-                  raw.begin() + static_cast<long>(row + static_cast<size_t>(width) * 3));
-  }
-  return pixels;
+// The pixels of a PNG grotto-client wrote (empty when it is missing or unreadable).
+std::vector<unsigned char> read_picture(const std::string& path, int& width, int& height) {
+  auto image = grotto::tools::read_png(path);
+  if (!image) return {};
+  width = image.value().width;
+  height = image.value().height;
+  return std::move(image).value().rgb;
 }
 
 TEST(GrottoClient, help_describes_every_option) {
@@ -80,8 +50,19 @@ TEST(GrottoClient, help_describes_every_option) {
   EXPECT_EQ(r.status, 0) << r.output;
   for (const char* option :
        {"--server", "--seed", "--device", "--width", "--height", "--tess-max", "--no-tess",
-        "--wireframe", "--surface", "--screenshot", "--frames", "--pose", "--wait"})
+        "--wireframe", "--surface", "--screenshot", "--frames", "--pose", "--wait", "room:<id>",
+        "--no-bloom", "--no-motion-blur", "--exposure", "B: bloom", "M: motion blur"})
     EXPECT_NE(r.output.find(option), std::string::npos) << option;
+}
+
+TEST(GrottoClient, a_bad_flag_exits_2_naming_it) {
+  for (const char* args : {"--no-such-flag", "--width 3", "--surface bumpy", "--pose 1,2",
+                           "--pose room:1.2.banana", "--exposure 0", "--mode swim"}) {
+    Outcome r = run(std::string(GROTTO_CLIENT_BIN) + " " + args);
+    EXPECT_EQ(r.status, 2) << args << " said: " << r.output;
+    const std::string flag = std::string(args).substr(0, std::string(args).find(' '));
+    EXPECT_NE(r.output.find(flag), std::string::npos) << args << " said: " << r.output;
+  }
 }
 
 TEST(GrottoClient, without_a_display_says_so_plainly) {
@@ -104,7 +85,7 @@ TEST(GrottoClient, screenshot_writes_a_picture_of_the_spawn_room) {
   if (r.output.find("no OpenGL 4.1") != std::string::npos) GTEST_SKIP() << r.output;
   ASSERT_EQ(r.status, 0) << r.output;
   int width = 0, height = 0;
-  std::vector<unsigned char> rgb = read_stored_png(path, width, height);
+  std::vector<unsigned char> rgb = read_picture(path, width, height);
   ASSERT_EQ(width, 320);
   ASSERT_EQ(height, 240);
   ASSERT_EQ(rgb.size(), 320u * 240u * 3u);
@@ -170,7 +151,39 @@ TEST(GrottoClient, bench_prints_frame_time_statistics_and_writes_them_as_json) {
   EXPECT_LE(j["p95_ms"].get<double>(), j["p99_ms"].get<double>());
   EXPECT_LE(j["p99_ms"].get<double>(), j["max_ms"].get<double>());
   EXPECT_GT(j["path_length_m"].get<double>(), 5.0);
+  // The report says what drew the frames.
+  ASSERT_TRUE(j.contains("gl_renderer") && j["gl_renderer"].is_string());
+  EXPECT_NE(j["gl_renderer"].get<std::string>(), "unknown");
+  EXPECT_TRUE(j.contains("gl_version") && j["gl_version"].is_string());
+  EXPECT_TRUE(j.value("relief", false));
   std::filesystem::remove(path);
+}
+
+// --pose room:<id> starts inside that room; a pose in solid rock fails with the reason, writing
+// no picture.
+TEST(GrottoClient, a_room_pose_starts_inside_the_room_and_a_pose_in_rock_fails_plainly) {
+  const char* display = std::getenv("DISPLAY");
+  if (display == nullptr || *display == '\0') GTEST_SKIP() << "DISPLAY is not set";
+  const std::string path =
+      (std::filesystem::temp_directory_path() / "grotto_client_test_room_pose.png").string();
+  std::filesystem::remove(path);
+  const std::string base = std::string(GROTTO_CLIENT_BIN) +
+                           " --device none --width 240 --height 160 --tess-max 4 --frames 2"
+                           " --screenshot " + path;
+  Outcome r = run(base + " --wait 120 --pose room:0.0.0.r2");
+  if (r.output.find("no OpenGL 4.1") != std::string::npos) GTEST_SKIP() << r.output;
+  ASSERT_EQ(r.status, 0) << r.output;
+  int width = 0, height = 0;
+  std::vector<unsigned char> rgb = read_picture(path, width, height);
+  ASSERT_EQ(rgb.size(), 240u * 160u * 3u);
+  std::filesystem::remove(path);
+
+  // Far below the cave's sectors' rooms: solid rock.
+  Outcome rock = run(base + " --wait 5 --pose 0.5,-3000.5,0.5");
+  EXPECT_EQ(rock.status, 1) << rock.output;
+  EXPECT_NE(rock.output.find("grotto-client: --screenshot: "), std::string::npos) << rock.output;
+  EXPECT_NE(rock.output.find("no picture written"), std::string::npos) << rock.output;
+  EXPECT_FALSE(std::filesystem::exists(path));
 }
 
 TEST(GrottoClient, a_screenshot_along_the_flythrough_is_not_blank) {
@@ -185,7 +198,7 @@ TEST(GrottoClient, a_screenshot_along_the_flythrough_is_not_blank) {
   if (r.output.find("no OpenGL 4.1") != std::string::npos) GTEST_SKIP() << r.output;
   ASSERT_EQ(r.status, 0) << r.output;
   int width = 0, height = 0;
-  std::vector<unsigned char> rgb = read_stored_png(path, width, height);
+  std::vector<unsigned char> rgb = read_picture(path, width, height);
   ASSERT_EQ(rgb.size(), 320u * 180u * 3u);
   int differing = 0;
   for (size_t i = 3; i < rgb.size(); i += 3)
@@ -197,8 +210,8 @@ TEST(GrottoClient, a_screenshot_along_the_flythrough_is_not_blank) {
 }  // namespace
 
 // The overlay in a real screenshot: pointed at a port where no server listens, grotto-client
-// keeps running and its overlay says so in the error colour, in the top-left panel only; without
-// --overlay no pixel has that colour.
+// keeps running and its overlay says so in the error colour, in the top-left panel only; the
+// screenshot still fails (exit 1, the reason on stderr). Without --overlay no picture is written.
 TEST(GrottoClient, the_overlay_says_plainly_when_the_server_cannot_be_reached) {
   const char* display = std::getenv("DISPLAY");
   if (display == nullptr || *display == '\0') GTEST_SKIP() << "DISPLAY is not set";
@@ -209,10 +222,16 @@ TEST(GrottoClient, the_overlay_says_plainly_when_the_server_cannot_be_reached) {
                            " --width 320 --height 180 --screenshot ";
   auto error_pixels = [&](const std::string& flags, int& outside_panel) {
     const std::string path = (dir / ("grotto_client_test_overlay" + flags + ".png")).string();
+    std::filesystem::remove(path);
     Outcome r = run(base + path + " " + flags);
-    EXPECT_EQ(r.status, 0) << r.output;
+    // The screenshot failed (no rooms): exit 1 with the reason; with the overlay the picture of
+    // it is written, without it none is.
+    EXPECT_EQ(r.status, 1) << r.output;
+    EXPECT_NE(r.output.find("--screenshot: no connection to the server within --wait 1 s"), std::string::npos)
+        << r.output;
+    EXPECT_EQ(std::filesystem::exists(path), flags == "--overlay") << r.output;
     int width = 0, height = 0;
-    std::vector<unsigned char> rgb = read_stored_png(path, width, height);
+    std::vector<unsigned char> rgb = read_picture(path, width, height);
     std::filesystem::remove(path);
     int count = 0;
     outside_panel = 0;

@@ -21,14 +21,21 @@ TEST(Hud, a_ready_stream_shows_figures_and_toggles_without_a_connection_line) {
   s.stream.state = client::StreamState::kReady;
   s.stream.in_flight = 3;
   s.mode = "walk";
+  s.seed = "7";
+  s.room = "0.0.0.r3";
+  s.position = {12.25, -3.5, 40};
   const auto lines = hud_lines(s);
-  EXPECT_EQ(lines.front().text.rfind("16.7 MS  60 FPS", 0), 0u) << lines.front().text;
+  ASSERT_GE(lines.size(), 2u);
+  EXPECT_EQ(lines[0].text, "SEED 7  ROOM 0.0.0.r3  AT 12.2, -3.5, 40.0");
+  EXPECT_EQ(lines[1].text.rfind("16.7 MS  60 FPS", 0), 0u) << lines[1].text;
   for (const auto& line : lines)
     EXPECT_EQ(line.color, render::kOverlayText) << line.text;
   bool latency = false, toggles = false;
   for (const auto& line : lines) {
     latency |= line.text.find("3 IN FLIGHT  LATENCY 42 MS") != std::string::npos;
-    toggles |= line.text.find("TESS PN 8  DISPLACE ON  PORTALS ON") != std::string::npos;
+    toggles |= line.text.find("TESS PN 8  RELIEF ON  BLOOM ON  BLUR ON  PORTALS ON") !=
+               std::string::npos;
+    EXPECT_EQ(line.text.find("CAPS"), std::string::npos) << "no jargon: " << line.text;
   }
   EXPECT_TRUE(latency);
   EXPECT_TRUE(toggles);

@@ -84,5 +84,28 @@ TEST(OverlayLayout, text_stays_inside_the_panel_and_scales) {
   }
 }
 
+TEST(OverlayLayout, long_lines_wrap_at_spaces_inside_the_width) {
+  const std::vector<OverlayLine> lines{{"SERVER REFUSED US: world_mismatch this server serves seed 7",
+                                        kOverlayError},
+                                       {"OK"}};
+  const auto wrapped = wrap_lines(lines, 20);
+  ASSERT_EQ(wrapped.size(), 4u);
+  EXPECT_EQ(wrapped[0].text, "SERVER REFUSED US:");
+  EXPECT_EQ(wrapped[1].text, "world_mismatch this");
+  EXPECT_EQ(wrapped[2].text, "server serves seed 7");
+  EXPECT_EQ(wrapped[2].color, kOverlayError) << "pieces keep their line's colour";
+  EXPECT_EQ(wrapped[3].text, "OK");
+  // A word longer than the width is cut.
+  EXPECT_EQ(wrap_lines({{"ABCDEFGHIJ"}}, 4).size(), 3u);
+
+  OverlayLayout layout;
+  layout.max_width = 200;
+  const auto v = layout_overlay(lines, layout);
+  ASSERT_FALSE(v.empty());
+  EXPECT_LE(v[2].x - v[0].x, 200.0f) << "the panel fits the width";
+  for (size_t i = 6; i < v.size(); ++i)
+    EXPECT_LE(v[i].x, static_cast<float>(layout.left + 200));
+}
+
 }  // namespace
 }  // namespace grotto::render
