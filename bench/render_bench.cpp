@@ -261,6 +261,8 @@ int main(int argc, char** argv) {
 
     render::RenderOptions tessellated;
     tessellated.max_tess = max_tess;
+    // The thesis's heuristic as the baseline; the client's default (screen) is lod_screen-space.
+    tessellated.lod = render::LodHeuristic::kDistance;
     render::RenderOptions flat = tessellated;
     flat.tessellation = false;
     render::RenderOptions no_portals = tessellated;

@@ -17,7 +17,9 @@ RoomBuilder RoomBuilder::create(const mesh::MeshContext& mesh_ctx, const Options
   auto ctx = ComputeContext::create(options.device);
   if (!ctx) {
     b.path_ = "cpu: " + ctx.error().message;
-    spdlog::warn("event=compute_path path=cpu reason=\"{}\"", ctx.error().message);
+    // Asked for (--device none) is not worth a warning, once per builder; a failure is.
+    spdlog::log(options.device.device == "none" ? spdlog::level::info : spdlog::level::warn,
+                "event=compute_path path=cpu reason=\"{}\"", ctx.error().message);
     return b;
   }
   b.device_ = std::make_unique<ComputeContext>(std::move(ctx).value());

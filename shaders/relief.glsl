@@ -122,8 +122,9 @@ RELIEF_FN Relief relief_at(vec3 p, vec3 n, float roughness, float rim, float roo
   vec4 o1 = relief_noise(q * 1.55f + vec3(31.0f, 0.0f, 0.0f));
   vec4 o2 = relief_noise(q * 3.2f + vec3(-17.0f, 5.0f, 0.0f));
   vec4 o3 = relief_noise(q * 6.7f + vec3(0.0f, 47.0f, 11.0f));
-  // A ridge softened by a few centimetres (|x| as sqrt(x^2 + e)): sharp in shape, no seam in light.
-  float soft = sqrt(o1.x * o1.x + 0.01f);
+  // A ridge softened (|x| as sqrt(x^2 + e)): crested, yet smooth enough that tessellation at
+  // level 8 does not saw its crest into teeth.
+  float soft = sqrt(o1.x * o1.x + 0.05f);
   float ridge = 1.0f - soft;
   float ridge_sign = o1.x / soft;
   float rock = 0.45f * o0.x + 0.28f * (2.0f * ridge * ridge - 1.0f) + 0.16f * o2.x + 0.08f * o3.x;
@@ -143,8 +144,10 @@ RELIEF_FN Relief relief_at(vec3 p, vec3 n, float roughness, float rim, float roo
   if (flow_zone > 0.0f) {
     vec3 scale = vec3(2.4f, 0.38f, 2.4f);
     vec4 f = relief_noise(p * scale + vec3(0.0f, 0.0f, 73.0f));
-    float c = 1.0f - abs(f.x);
-    float f_sign = f.x >= 0.0f ? 1.0f : -1.0f;
+    // A crest softened like the rock's ridge: curtains, not saw teeth.
+    float f_soft = sqrt(f.x * f.x + 0.02f);
+    float c = 1.0f - f_soft;
+    float f_sign = f.x / f_soft;
     float amplitude = strength * kReliefFlowstone * flow_zone;
     r.height += amplitude * c * c * c;
     r.gradient += amplitude * 3.0f * c * c * -f_sign * relief_gradient(f) * scale;

@@ -44,8 +44,8 @@ struct Options {
   std::string token_file;
   std::string token;            // from token_file or $GROTTO_TOKEN; empty: none
   std::optional<bool> overlay;  // --overlay / --no-overlay; default: in the window only
-  std::string lod_text = "distance";
-  render::LodHeuristic lod = render::LodHeuristic::kDistance;
+  std::string lod_text = "screen";
+  render::LodHeuristic lod = render::LodHeuristic::kScreenSpace;
   bool no_portal_culling = false;
   bool no_displacement = false;
   bool no_bloom = false;

@@ -54,7 +54,7 @@ struct RenderOptions {
   bool portal_culling = true;
   // The TCS discards patches provably outside the frustum or facing away from the camera.
   bool patch_culling = true;
-  LodHeuristic lod = LodHeuristic::kDistance;
+  LodHeuristic lod = LodHeuristic::kScreenSpace;  // near relief dense, far relief cheap
   float target_pixels = 6;  // kScreenSpace: pixels per tessellated segment
   float fog_start = 18;     // metres
   float fog_end = 40;       // fully fogged here; must be below far_plane
