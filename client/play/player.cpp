@@ -105,10 +105,10 @@ bool Player::resolve(Body& body, bool walking) const {
         pushed = contact(c, closest_point(wall, c), -wall.normal) || pushed;
       }
     }
-    if (!pushed) return ground;
+    if (!pushed) break;
   }
-  // Pushes still fighting. Where they leave a sphere deeper than the skin (a body wedged between
-  // a stalactite and the stalagmite beneath it, or in a crevice narrower than a sphere), say so:
+  // Where the pushes leave a sphere deeper than the skin (a body wedged between a stalactite and
+  // the stalagmite beneath it, a crevice narrower than a sphere, pushes still fighting), say so:
   // the caller keeps the last place the body fitted.
   const double deepest = r - params_.skin;
   for (const Vec3& offset : offsets) {

@@ -23,7 +23,7 @@ shoot() {  # name seed extra-args...
     local flags=()
     [[ $relief == off ]] && flags=(--no-displacement)
     xvfb-run -a -s "-screen 0 1280x1024x24" "$client" --device none --seed "$seed" \
-      --width 480 --height 270 --tess-max 8 --frames 3 --wait 120 --no-motion-blur \
+      --width 480 --height 270 --tess-max 8 --lod distance --frames 3 --wait 120 --no-motion-blur \
       --screenshot "$out/$name-$relief.png" "${flags[@]}" "$@" >/dev/null
   done
   echo "gallery: $name"
