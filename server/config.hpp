@@ -18,11 +18,11 @@ namespace grotto::server {
 inline constexpr uint16_t kDefaultPort = 7878;
 
 struct ServerConfig {
-  std::string bind = "127.0.0.1";  // listen address; "0.0.0.0" or "::" to open it up
-  uint16_t port = kDefaultPort;    // 0: an ephemeral port (Server::port() tells which)
-  int io_threads = 0;              // Asio threads; 0: one per hardware thread
+  std::string bind = "127.0.0.1";      // listen address; "0.0.0.0" or "::" to open it up
+  uint16_t port = kDefaultPort;        // 0: an ephemeral port (Server::port() tells which)
+  int io_threads = 0;                  // Asio threads; 0: one per hardware thread
   uint64_t seed = cave::kDefaultSeed;  // the world served
-  cave::LayoutParams layout{};     // its layout parameters (a few are settings)
+  cave::LayoutParams layout{};         // its layout parameters (a few are settings)
   mesh::MeshParams mesh{};
   proto::Limits limits{};                          // announced in welcome and enforced
   int max_connections = 1024;                      // WebSocket sessions at once; more are refused

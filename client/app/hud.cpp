@@ -69,12 +69,12 @@ std::vector<render::OverlayLine> hud_lines(const HudState& s) {
       lines.push_back({"STREAM STOPPED", render::kOverlayWarning});
       break;
   }
-  lines.push_back({format("SEED %s  ROOM %s  AT %.1f, %.1f, %.1f", s.seed.empty() ? "-" : s.seed.c_str(),
-                          s.room.empty() ? "-" : s.room.c_str(), s.position.x, s.position.y,
-                          s.position.z)});
-  lines.push_back({format("%.1f MS  %.0f FPS   ROOMS %zu LOADED  %d DRAWN", s.frame_ms,
-                          s.frame_ms > 0 ? 1000.0 / s.frame_ms : 0.0, s.rooms_on_gpu,
-                          s.frame.rooms_drawn)});
+  lines.push_back(
+      {format("SEED %s  ROOM %s  AT %.1f, %.1f, %.1f", s.seed.empty() ? "-" : s.seed.c_str(),
+              s.room.empty() ? "-" : s.room.c_str(), s.position.x, s.position.y, s.position.z)});
+  lines.push_back(
+      {format("%.1f MS  %.0f FPS   ROOMS %zu LOADED  %d DRAWN", s.frame_ms,
+              s.frame_ms > 0 ? 1000.0 / s.frame_ms : 0.0, s.rooms_on_gpu, s.frame.rooms_drawn)});
   const std::string latency = s.latency_ms < 0 ? std::string("-") : format("%.0f MS", s.latency_ms);
   lines.push_back({format("STREAM %llu IN FLIGHT  LATENCY %s  %.0f KB/S  RECONNECTS %llu",
                           static_cast<unsigned long long>(st.in_flight), latency.c_str(),
@@ -83,10 +83,10 @@ std::vector<render::OverlayLine> hud_lines(const HudState& s) {
   const char* surface = !r.tessellation                        ? "FLAT"
                         : r.surface == render::Surface::kPhong ? "PHONG"
                                                                : "PN";
-  lines.push_back({format("TESS %s %.0f  RELIEF %s  BLOOM %s  BLUR %s  PORTALS %s  LOD %s  %s",
-                          surface, r.max_tess, on_off(r.displacement > 0), on_off(r.bloom),
-                          on_off(r.motion_blur), on_off(r.portal_culling),
-                          render::lod_heuristic_name(r.lod), s.mode.c_str())});
+  lines.push_back(
+      {format("TESS %s %.0f  RELIEF %s  BLOOM %s  BLUR %s  PORTALS %s  LOD %s  %s", surface,
+              r.max_tess, on_off(r.displacement > 0), on_off(r.bloom), on_off(r.motion_blur),
+              on_off(r.portal_culling), render::lod_heuristic_name(r.lod), s.mode.c_str())});
   if (s.help) {
     lines.push_back(
         {"MOUSE LOOK  WASD MOVE  SHIFT RUN  SPACE JUMP/UP  C DOWN  G WALK/FLY  N NOCLIP"});

@@ -150,8 +150,10 @@ std::optional<int> parse_options(int argc, char** argv, Options& o) {
   if (!o.pose_text.empty()) {
     o.pose = parse_pose(o.pose_text);
     if (!o.pose)
-      return fail("--pose: expected x,y,z, x,y,z,yaw,pitch or room:<room id> such as room:0.0.0.r3 "
-                  "(got '" + o.pose_text + "')");
+      return fail(
+          "--pose: expected x,y,z, x,y,z,yaw,pitch or room:<room id> such as room:0.0.0.r3 "
+          "(got '" +
+          o.pose_text + "')");
   }
   if (o.mode_text == "walk") {
     o.mode = play::Mode::kWalk;

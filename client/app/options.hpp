@@ -16,8 +16,8 @@ namespace grotto::app {
 // --pose: a place and a view, or a room to start in.
 struct Pose5 {
   Vec3 position;
-  double yaw = 0, pitch = 0;          // degrees
-  std::optional<cave::RoomId> room;   // room:<id>: inside this room, position unknown until then
+  double yaw = 0, pitch = 0;         // degrees
+  std::optional<cave::RoomId> room;  // room:<id>: inside this room, position unknown until then
 };
 
 struct Options {

@@ -207,7 +207,8 @@ std::span<const Triangle> CollisionWorld::refined(const Room& room, uint32_t t) 
   for (int i = 0; i < kRefine; ++i) {
     for (int j = 0; i + j < kRefine; ++j) {
       room.refined.push_back({grid[i][j], grid[i + 1][j], grid[i][j + 1]});
-      if (i + j + 1 < kRefine) room.refined.push_back({grid[i + 1][j], grid[i + 1][j + 1], grid[i][j + 1]});
+      if (i + j + 1 < kRefine)
+        room.refined.push_back({grid[i + 1][j], grid[i + 1][j + 1], grid[i][j + 1]});
     }
   }
   room.refined_count[t] = kRefine * kRefine;

@@ -46,8 +46,8 @@ std::vector<OverlayVertex> layout_overlay(const std::vector<OverlayLine>& unwrap
   const int text_width = layout.max_width - 2 * layout.padding;
   const std::vector<OverlayLine> lines =
       layout.max_width > 0
-          ? wrap_lines(unwrapped, static_cast<size_t>(std::max(text_width + s, 0) /
-                                                      (font::kCellWidth * s)))
+          ? wrap_lines(unwrapped,
+                       static_cast<size_t>(std::max(text_width + s, 0) / (font::kCellWidth * s)))
           : unwrapped;
   size_t columns = 0;
   for (const OverlayLine& line : lines)

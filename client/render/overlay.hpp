@@ -32,7 +32,7 @@ struct OverlayLayout {
   int scale = 2;
   int left = 8;
   int top = 8;
-  int padding = 6;  // pixels between the panel's edge and the text
+  int padding = 6;    // pixels between the panel's edge and the text
   int max_width = 0;  // pixels the panel may span from `left`; longer lines wrap; 0: no limit
   glm::vec4 panel{0.0f, 0.0f, 0.0f, 0.55f};
 };

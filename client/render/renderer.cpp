@@ -22,8 +22,8 @@ constexpr double kMaxPitch = 89.0 * kPi / 180.0;
 // below grid::kFrameSize (65536 m) for any room near the camera.
 constexpr double kAnchorStep = 1024.0;
 // A camera that moved further than this between two frames jumped (a cut): no motion blur.
-constexpr double kCutDistance = 2.0;   // metres
-constexpr double kCutAngle = 0.6;      // radians of yaw or pitch
+constexpr double kCutDistance = 2.0;  // metres
+constexpr double kCutAngle = 0.6;     // radians of yaw or pitch
 constexpr int kCapSegments = 24;
 constexpr double kCapScale = 1.15;   // caps overlap the rim loop's wall
 constexpr double kCapOffset = 0.01;  // metres beyond the portal plane
@@ -244,14 +244,14 @@ Result<Renderer> Renderer::create() {
   if (!cap.ok()) return cap.error();
   r.cap_ = std::move(cap).value();
   const Program& p = r.room_;
-  r.u_ = {p.uniform("u_room_offset"),   p.uniform("u_room_radius"),   p.uniform("u_relief_margin"),
-          p.uniform("u_camera"),        p.uniform("u_max_tess"),      p.uniform("u_max_dist"),
-          p.uniform("u_view_proj"),     p.uniform("u_anchor"),        p.uniform("u_surface"),
-          p.uniform("u_phong_alpha"),   p.uniform("u_displacement"),  p.uniform("u_fog_color"),
-          p.uniform("u_fog_start"),     p.uniform("u_fog_end"),       p.uniform("u_lamp_range"),
-          p.uniform("u_lod"),           p.uniform("u_pixel_scale"),   p.uniform("u_target_pixels"),
-          p.uniform("u_patch_culling"), p.uniform("u_frustum"),       p.uniform("u_normal_strength"),
-          p.uniform("u_lamp"),          p.uniform("u_forward"),       p.uniform("u_exposure"),
+  r.u_ = {p.uniform("u_room_offset"),   p.uniform("u_room_radius"),  p.uniform("u_relief_margin"),
+          p.uniform("u_camera"),        p.uniform("u_max_tess"),     p.uniform("u_max_dist"),
+          p.uniform("u_view_proj"),     p.uniform("u_anchor"),       p.uniform("u_surface"),
+          p.uniform("u_phong_alpha"),   p.uniform("u_displacement"), p.uniform("u_fog_color"),
+          p.uniform("u_fog_start"),     p.uniform("u_fog_end"),      p.uniform("u_lamp_range"),
+          p.uniform("u_lod"),           p.uniform("u_pixel_scale"),  p.uniform("u_target_pixels"),
+          p.uniform("u_patch_culling"), p.uniform("u_frustum"),      p.uniform("u_normal_strength"),
+          p.uniform("u_lamp"),          p.uniform("u_forward"),      p.uniform("u_exposure"),
           p.uniform("u_glow")};
   auto bloom = Program::build(bloom_stages());
   if (!bloom.ok()) return bloom.error();
@@ -262,10 +262,14 @@ Result<Renderer> Renderer::create() {
   if (!composite.ok()) return composite.error();
   r.composite_ = std::move(composite).value();
   const Program& c = r.composite_;
-  r.uc_ = {c.uniform("u_scene"),           c.uniform("u_depth"),
-           c.uniform("u_bloom"),           c.uniform("u_bloom_strength"),
-           c.uniform("u_motion"),          c.uniform("u_max_blur"),
-           c.uniform("u_inverse_view_proj"), c.uniform("u_previous_view_proj")};
+  r.uc_ = {c.uniform("u_scene"),
+           c.uniform("u_depth"),
+           c.uniform("u_bloom"),
+           c.uniform("u_bloom_strength"),
+           c.uniform("u_motion"),
+           c.uniform("u_max_blur"),
+           c.uniform("u_inverse_view_proj"),
+           c.uniform("u_previous_view_proj")};
   r.post_vertex_array_ = make_vertex_array();
   r.cap_view_proj_ = r.cap_.uniform("u_view_proj");
   r.cap_fog_color_ = r.cap_.uniform("u_fog_color");
@@ -301,7 +305,8 @@ FrameStats Renderer::draw(const GpuRoomCache& cache, const Camera& camera, int w
       glViewport(0, 0, width, height);
     } else {
       static bool told = false;  // once: the frame is drawn without post passes
-      if (!told) std::fprintf(stderr, "grotto-client: no post passes: %s\n", made.error().message.c_str());
+      if (!told)
+        std::fprintf(stderr, "grotto-client: no post passes: %s\n", made.error().message.c_str());
       told = true;
     }
   }
@@ -354,8 +359,7 @@ FrameStats Renderer::draw(const GpuRoomCache& cache, const Camera& camera, int w
   // Rooms whose sphere is outside the frustum are skipped. Every vertex of a room lies in its
   // sphere up to vertex_sphere_margin (client/stream/verify.hpp checks it on arrival); PN bulges
   // and displacement push surface points out by less than `margin` more.
-  const float margin =
-      relief::relief_bound(relief, 1e9f) + 0.5f;  // any room: the longest spikes
+  const float margin = relief::relief_bound(relief, 1e9f) + 0.5f;  // any room: the longest spikes
   std::map<cave::RoomId, ScreenRect> reached;
   if (o.portal_culling) {
     reached = reach_through_portals(cache, camera.position, anchor, view_proj, o.near_plane, margin,
@@ -462,8 +466,7 @@ Status Renderer::ensure_post_targets(int width, int height) {
   };
   PostTargets t;
   t.scene_color = texture(GL_RGBA8, width, height, GL_RGBA, GL_UNSIGNED_BYTE);
-  t.scene_depth =
-      texture(GL_DEPTH_COMPONENT24, width, height, GL_DEPTH_COMPONENT, GL_UNSIGNED_INT);
+  t.scene_depth = texture(GL_DEPTH_COMPONENT24, width, height, GL_DEPTH_COMPONENT, GL_UNSIGNED_INT);
   glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
   glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
   auto scene = framebuffer(t.scene_color.get(), t.scene_depth.get());
@@ -528,8 +531,8 @@ void Renderer::post_process(GLint target, int width, int height, const glm::mat4
   glBindTexture(GL_TEXTURE_2D, post_.bloom_color[last].get());
   glUniform1f(uc_.bloom_strength, bloom ? o.bloom_strength : 0.0f);
   glUniform1f(uc_.motion, o.motion_blur ? o.motion_blur_strength : 0.0f);
-  glUniform2f(uc_.max_blur, o.motion_blur_max, o.motion_blur_max * static_cast<float>(width) /
-                                                    static_cast<float>(height));
+  glUniform2f(uc_.max_blur, o.motion_blur_max,
+              o.motion_blur_max * static_cast<float>(width) / static_cast<float>(height));
   const glm::mat4 inverse = glm::inverse(view_proj);
   glUniformMatrix4fv(uc_.inverse_view_proj, 1, GL_FALSE, glm::value_ptr(inverse));
   glUniformMatrix4fv(uc_.previous_view_proj, 1, GL_FALSE, glm::value_ptr(previous_view_proj));

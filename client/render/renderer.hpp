@@ -55,19 +55,19 @@ struct RenderOptions {
   // The TCS discards patches provably outside the frustum or facing away from the camera.
   bool patch_culling = true;
   LodHeuristic lod = LodHeuristic::kScreenSpace;  // near relief dense, far relief cheap
-  float target_pixels = 6;  // kScreenSpace: pixels per tessellated segment
-  float fog_start = 18;     // metres
-  float fog_end = 40;       // fully fogged here; must be below far_plane
+  float target_pixels = 6;                        // kScreenSpace: pixels per tessellated segment
+  float fog_start = 18;                           // metres
+  float fog_end = 40;                             // fully fogged here; must be below far_plane
   float near_plane = 0.05f;
   float far_plane = 60;
-  float lamp_range = 14;          // metres at which the headlamp falls to about a tenth
-  float normal_strength = 1.0f;   // the rock's fine bumps (< 5 cm); 0: none
-  float exposure = 1.0f;          // before the filmic tone curve
-  float glow = 1.0f;              // glowing mineral veins; 0: none
-  bool bloom = true;              // Kawase bloom of the glow (post pass)
+  float lamp_range = 14;         // metres at which the headlamp falls to about a tenth
+  float normal_strength = 1.0f;  // the rock's fine bumps (< 5 cm); 0: none
+  float exposure = 1.0f;         // before the filmic tone curve
+  float glow = 1.0f;             // glowing mineral veins; 0: none
+  bool bloom = true;             // Kawase bloom of the glow (post pass)
   float bloom_strength = 1.0f;
-  int bloom_passes = 5;           // Kawase passes at a quarter of the resolution
-  bool motion_blur = true;        // camera motion blur (post pass)
+  int bloom_passes = 5;               // Kawase passes at a quarter of the resolution
+  bool motion_blur = true;            // camera motion blur (post pass)
   float motion_blur_strength = 0.5f;  // fraction of a frame's motion smeared (a 180° shutter)
   float motion_blur_max = 0.03f;      // the longest smear, fraction of the screen
   // Display-space colour of the dark beyond the lamp.

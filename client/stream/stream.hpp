@@ -93,10 +93,10 @@ struct StreamStats {
   // possibly to another replica, and ask again. A notice, not counted in `errors`.
   uint64_t restart_notices = 0;
   StreamState state = StreamState::kConnecting;
-  std::string last_error;  // the last error, for people (empty when none)
-  std::string server;      // welcome.server of the current or last connection
+  std::string last_error;        // the last error, for people (empty when none)
+  std::string server;            // welcome.server of the current or last connection
   std::optional<uint64_t> seed;  // welcome.seed: the world served (none before a welcome)
-  proto::Limits limits;    // welcome.limits of the current or last connection
+  proto::Limits limits;          // welcome.limits of the current or last connection
 };
 
 // Per-room measurements, for grotto-load's percentiles; drained by take_samples().

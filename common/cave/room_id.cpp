@@ -82,7 +82,8 @@ Result<RoomId> RoomId::unpack(uint64_t packed) {
   }
   if (!in_range(s)) {
     return invalid_argument("room id " + std::to_string(packed) + " names sector " +
-                            cave::to_string(s) + ", outside +/-" + std::to_string(kSectorCoordLimit));
+                            cave::to_string(s) + ", outside +/-" +
+                            std::to_string(kSectorCoordLimit));
   }
   return RoomId(s, static_cast<uint16_t>(slot));
 }

@@ -238,7 +238,8 @@ int main(int argc, char** argv) {
   }
   if (!grotto::cave::in_range(hi)) {
     return fail("the block's last sector " + grotto::cave::to_string(hi) +
-                " is outside the sector range +/-" + std::to_string(grotto::cave::kSectorCoordLimit));
+                " is outside the sector range +/-" +
+                std::to_string(grotto::cave::kSectorCoordLimit));
   }
   if (count > kMaxSectors) {
     return fail("the block has " + std::to_string(count) + " sectors; at most " +

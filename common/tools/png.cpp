@@ -137,12 +137,23 @@ Result<RgbImage> read_png(const std::string& path) {
       const int a = i >= 3 ? out[i - 3] : 0, u = up ? up[i] : 0, c = up && i >= 3 ? up[i - 3] : 0;
       int predicted = 0;
       switch (in[0]) {
-        case 0: predicted = 0; break;
-        case 1: predicted = a; break;
-        case 2: predicted = u; break;
-        case 3: predicted = (a + u) / 2; break;
-        case 4: predicted = paeth(a, u, c); break;
-        default: return bad("unknown filter " + std::to_string(in[0]) + " in row " + std::to_string(y));
+        case 0:
+          predicted = 0;
+          break;
+        case 1:
+          predicted = a;
+          break;
+        case 2:
+          predicted = u;
+          break;
+        case 3:
+          predicted = (a + u) / 2;
+          break;
+        case 4:
+          predicted = paeth(a, u, c);
+          break;
+        default:
+          return bad("unknown filter " + std::to_string(in[0]) + " in row " + std::to_string(y));
       }
       out[i] = static_cast<unsigned char>(in[1 + i] + predicted);
     }

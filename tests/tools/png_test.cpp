@@ -39,7 +39,8 @@ TEST(Png, round_trips_an_image_and_compresses_it) {
 }
 
 TEST(Png, refuses_a_size_that_does_not_match_the_pixels) {
-  EXPECT_FALSE(grotto::tools::write_png(temp_path("x.png"), std::vector<unsigned char>(5), 2, 2).ok());
+  EXPECT_FALSE(
+      grotto::tools::write_png(temp_path("x.png"), std::vector<unsigned char>(5), 2, 2).ok());
 }
 
 TEST(Png, a_file_that_is_not_a_png_gets_an_error_naming_it) {

@@ -169,7 +169,8 @@ TEST(GrottoClient, a_room_pose_starts_inside_the_room_and_a_pose_in_rock_fails_p
   std::filesystem::remove(path);
   const std::string base = std::string(GROTTO_CLIENT_BIN) +
                            " --device none --width 240 --height 160 --tess-max 4 --frames 2"
-                           " --screenshot " + path;
+                           " --screenshot " +
+                           path;
   Outcome r = run(base + " --wait 120 --pose room:0.0.0.r2");
   if (r.output.find("no OpenGL 4.1") != std::string::npos) GTEST_SKIP() << r.output;
   ASSERT_EQ(r.status, 0) << r.output;
@@ -227,7 +228,8 @@ TEST(GrottoClient, the_overlay_says_plainly_when_the_server_cannot_be_reached) {
     // The screenshot failed (no rooms): exit 1 with the reason; with the overlay the picture of
     // it is written, without it none is.
     EXPECT_EQ(r.status, 1) << r.output;
-    EXPECT_NE(r.output.find("--screenshot: no connection to the server within --wait 1 s"), std::string::npos)
+    EXPECT_NE(r.output.find("--screenshot: no connection to the server within --wait 1 s"),
+              std::string::npos)
         << r.output;
     EXPECT_EQ(std::filesystem::exists(path), flags == "--overlay") << r.output;
     int width = 0, height = 0;

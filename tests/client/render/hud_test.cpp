@@ -33,8 +33,8 @@ TEST(Hud, a_ready_stream_shows_figures_and_toggles_without_a_connection_line) {
   bool latency = false, toggles = false;
   for (const auto& line : lines) {
     latency |= line.text.find("3 IN FLIGHT  LATENCY 42 MS") != std::string::npos;
-    toggles |= line.text.find("TESS PN 8  RELIEF ON  BLOOM ON  BLUR ON  PORTALS ON") !=
-               std::string::npos;
+    toggles |=
+        line.text.find("TESS PN 8  RELIEF ON  BLOOM ON  BLUR ON  PORTALS ON") != std::string::npos;
     EXPECT_EQ(line.text.find("CAPS"), std::string::npos) << "no jargon: " << line.text;
   }
   EXPECT_TRUE(latency);

@@ -85,9 +85,8 @@ TEST(OverlayLayout, text_stays_inside_the_panel_and_scales) {
 }
 
 TEST(OverlayLayout, long_lines_wrap_at_spaces_inside_the_width) {
-  const std::vector<OverlayLine> lines{{"SERVER REFUSED US: world_mismatch this server serves seed 7",
-                                        kOverlayError},
-                                       {"OK"}};
+  const std::vector<OverlayLine> lines{
+      {"SERVER REFUSED US: world_mismatch this server serves seed 7", kOverlayError}, {"OK"}};
   const auto wrapped = wrap_lines(lines, 20);
   ASSERT_EQ(wrapped.size(), 4u);
   EXPECT_EQ(wrapped[0].text, "SERVER REFUSED US:");

@@ -299,14 +299,16 @@ TEST(Renderer, the_relief_changes_a_tenth_of_the_pixels_at_every_pose) {
     for (const client::ReadyRoom& r : sector_rooms(seed))
       if (!r.room.id.is_gate()) rooms.push_back(&r);
     ASSERT_GE(rooms.size(), 2u);
-    std::sort(rooms.begin(), rooms.end(), [](auto* a, auto* b) {
-      return a->room.sphere.radius > b->room.sphere.radius;
-    });
+    std::sort(rooms.begin(), rooms.end(),
+              [](auto* a, auto* b) { return a->room.sphere.radius > b->room.sphere.radius; });
     const struct {
       const client::ReadyRoom* room;
       double yaw, pitch;
-    } views[] = {{rooms[1], 20, -15}, {rooms.front(), 200, 55}, {rooms.back(), 80, 0},
-                 {rooms.back(), 300, -45}, {rooms[rooms.size() / 2], 140, 80}};
+    } views[] = {{rooms[1], 20, -15},
+                 {rooms.front(), 200, 55},
+                 {rooms.back(), 80, 0},
+                 {rooms.back(), 300, -45},
+                 {rooms[rooms.size() / 2], 140, 80}};
     for (const auto& v : views) {
       RenderOptions on;
       on.max_tess = 8;
@@ -318,11 +320,11 @@ TEST(Renderer, the_relief_changes_a_tenth_of_the_pixels_at_every_pose) {
       const Image b = scene.draw(camera, off);
       const int changed = pixels_differing_by_more_than(a, b, 8);
       const double share = static_cast<double>(changed) / (kWidth * kHeight);
-      std::printf("relief: seed %llu room %s (radius %.1f m) yaw %.0f pitch %.0f: %.1f %% of "
-                  "pixels changed, mean luma %.1f on, %.1f off\n",
-                  static_cast<unsigned long long>(seed), v.room->room.id.to_string().c_str(),
-                  v.room->room.sphere.radius, v.yaw,
-                  v.pitch, 100 * share, a.mean_luma(), b.mean_luma());
+      std::printf(
+          "relief: seed %llu room %s (radius %.1f m) yaw %.0f pitch %.0f: %.1f %% of "
+          "pixels changed, mean luma %.1f on, %.1f off\n",
+          static_cast<unsigned long long>(seed), v.room->room.id.to_string().c_str(),
+          v.room->room.sphere.radius, v.yaw, v.pitch, 100 * share, a.mean_luma(), b.mean_luma());
       EXPECT_GE(share, 0.10) << "seed " << seed << " room " << v.room->room.id.to_string()
                              << " yaw " << v.yaw << " pitch " << v.pitch;
       EXPECT_LT(std::abs(a.mean_luma() - b.mean_luma()), 0.2 * b.mean_luma() + 2)
