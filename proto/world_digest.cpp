@@ -68,4 +68,22 @@ uint64_t fold_digest(uint64_t digest, std::span<const uint8_t> bytes) {
   return fnv1a64(bytes.data(), bytes.size(), digest);
 }
 
+uint64_t world_params_digest(const cave::LayoutParams& layout, const mesh::MeshParams& m) {
+  Canonical c;
+  for (const auto& l : m.lods) {
+    c.f64(l.edge_length);
+    c.f64(static_cast<double>(l.octaves));
+  }
+  for (double f : m.octave_frequency)
+    c.f64(f);
+  for (double a : m.octave_amplitude)
+    c.f64(a);
+  for (double v : {m.rim_frequency, m.rim_amplitude, m.fade_distance, m.big_room_radius,
+                   m.big_frequency, m.big_amplitude, m.big_fade_distance, m.roundness, m.tension,
+                   m.roughness_frequency, m.mineral_frequency}) {
+    c.f64(v);
+  }
+  return fold_digest(layout_params_digest(layout), c.bytes());
+}
+
 }  // namespace grotto::proto

@@ -8,6 +8,7 @@
 #include <span>
 
 #include "cave/params.hpp"
+#include "mesh/params.hpp"
 
 namespace grotto::proto {
 
@@ -17,5 +18,10 @@ uint64_t layout_params_digest(const cave::LayoutParams& params);
 // Folds more bytes into a digest: a server adds the mesh and codec settings that also shape the
 // rooms it sends, each serialized canonically (fixed order, little-endian, doubles as IEEE bits).
 uint64_t fold_digest(uint64_t digest, std::span<const uint8_t> bytes);
+
+// The digest a server announces in welcome.params: the layout's, folded with every mesh setting
+// that also shapes the rooms (lods, octaves, rim, big-room and channel settings), doubles as IEEE
+// bits, little-endian.
+uint64_t world_params_digest(const cave::LayoutParams& layout, const mesh::MeshParams& mesh);
 
 }  // namespace grotto::proto

@@ -18,7 +18,6 @@
 #include <boost/beast/http.hpp>
 #include <boost/beast/websocket.hpp>
 #include <condition_variable>
-#include <cstring>
 #include <deque>
 #include <future>
 #include <mutex>
@@ -30,6 +29,7 @@
 #include "cave/layout.hpp"
 #include "proto/token.hpp"
 #include "proto/world_digest.hpp"
+#include "server/conversation.hpp"
 
 namespace grotto::server {
 namespace {
@@ -45,38 +45,8 @@ constexpr std::size_t kHttpHeaderLimit = 8 * 1024;  // request line and headers
 constexpr std::size_t kHttpBodyLimit = 8 * 1024;    // no endpoint takes a body
 // A dropped client gets this long to take its close frame before the socket is cut.
 constexpr auto kCloseGrace = std::chrono::milliseconds{1000};
-
-// The parameter digest announced in welcome: the layout's, folded with the mesh settings that
-// also shape the rooms (PROTOCOL.md, welcome.params). Doubles as IEEE bits, little-endian.
-uint64_t world_params_digest(const cave::LayoutParams& layout, const mesh::MeshParams& m) {
-  std::vector<uint8_t> bytes;
-  auto put = [&](double v) {
-    uint64_t bits = 0;
-    std::memcpy(&bits, &v, sizeof bits);
-    for (int i = 0; i < 8; ++i)
-      bytes.push_back(static_cast<uint8_t>(bits >> (8 * i)));
-  };
-  for (const auto& l : m.lods) {
-    put(l.edge_length);
-    put(static_cast<double>(l.octaves));
-  }
-  for (double f : m.octave_frequency)
-    put(f);
-  for (double a : m.octave_amplitude)
-    put(a);
-  for (double v : {m.rim_frequency, m.rim_amplitude, m.fade_distance, m.big_room_radius,
-                   m.big_frequency, m.big_amplitude, m.big_fade_distance, m.roundness, m.tension,
-                   m.roughness_frequency, m.mineral_frequency}) {
-    put(v);
-  }
-  return proto::fold_digest(proto::layout_params_digest(layout), bytes);
-}
-
-uint64_t unix_millis() {
-  return static_cast<uint64_t>(std::chrono::duration_cast<std::chrono::milliseconds>(
-                                   std::chrono::system_clock::now().time_since_epoch())
-                                   .count());
-}
+// How much of a message is read at a time (bounds what a message over the limit costs).
+constexpr std::size_t kReadPiece = 16 * 1024;
 
 class WsSession;
 
@@ -139,7 +109,7 @@ namespace {
 
 // ---- WebSocket session ----
 
-class WsSession : public std::enable_shared_from_this<WsSession> {
+class WsSession : public std::enable_shared_from_this<WsSession>, private WorldPort {
  public:
   WsSession(Server::Impl& server, beast::tcp_stream&& stream)
       : server_(server),
@@ -160,17 +130,16 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
     beast::get_lowest_layer(ws_).expires_never();
     websocket::stream_base::timeout t{};
     // The close handshake is bounded by handshake_timeout too; the protocol's own handshake and
-    // idle timeouts are timers below, so the client hears `timeout` before the close.
+    // idle timeouts are the conversation's timer, so the client hears `timeout` before the close.
     t.handshake_timeout = server_.config.http_timeout;
     t.idle_timeout = websocket::stream_base::none();
     t.keep_alive_pings = false;
     ws_.set_option(t);
     ws_.set_option(websocket::stream_base::decorator(
         [](websocket::response_type& res) { res.set(http::field::server, product_version()); }));
-    // Twice the limit: a message up to that size is read whole and refused with our own error
-    // (too_large, fatal, close 1009); only bigger ones are cut by Beast, which fails the
-    // connection without telling the client why.
-    ws_.read_message_max(uint64_t{2} * limits_.max_message_bytes);
+    // No limit in Beast: messages are read in pieces, and one that grows past max_message_bytes
+    // is refused by the conversation (too_large, close 1009) without being read whole.
+    ws_.read_message_max(0);
     peer_ = endpoint_text();
     ws_.async_accept(req, beast::bind_front_handler(&WsSession::on_accept, shared_from_this()));
   }
@@ -178,8 +147,9 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
   // From stop(), on any thread.
   void shutdown() {
     net::dispatch(ws_.get_executor(), [self = shared_from_this()] {
-      self->fail(Error{ErrorCode::kServiceRestart, "the server is shutting down"}, std::nullopt,
-                 websocket::close_code::going_away);
+      if (!self->conversation_) return;
+      self->conversation_->shutdown();
+      self->apply();
     });
   }
 
@@ -193,10 +163,6 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
     std::string text;  // a control message, or
     RoomPtr room;      // a room frame (shared with the cache, not copied)
     size_t size() const { return room ? room->frame.size() : text.size(); }
-  };
-  struct InFlight {
-    uint32_t lod = 0;
-    Clock::time_point since;  // when first requested
   };
 
   std::string endpoint_text() {
@@ -212,166 +178,37 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
       return;
     }
     registry_id_ = server_.admit(shared_from_this());
+    ConversationConfig c;
+    c.limits = limits_;
+    c.token = server_.config.token;
+    c.params_digest = server_.params_digest;
+    c.server_name = product_version();
+    c.max_connections = server_.config.max_connections;
+    c.session = registry_id_;
+    c.peer = peer_;
+    conversation_.emplace(std::move(c), static_cast<WorldPort&>(*this), &server_.metrics);
     if (registry_id_ == 0) {
+      bool stopping = server_.stopping.load();
       server_.metrics.connections_rejected.add();
       spdlog::warn("event=connection_rejected peer={} reason={}", peer_,
-                   server_.stopping.load() ? "stopping" : "max_connections");
-      if (server_.stopping.load()) {
-        fail(Error{ErrorCode::kServiceRestart, "the server is shutting down"}, std::nullopt,
-             websocket::close_code::going_away);
-      } else {
-        fail(Error{ErrorCode::kOverloaded, "too many connections (max_connections " +
-                                               std::to_string(server_.config.max_connections) +
-                                               "); retry later"},
-             std::nullopt, websocket::close_code::policy_error);
-      }
+                   stopping ? "stopping" : "max_connections");
+      conversation_->admit(stopping ? Admission::kStopping : Admission::kFull);
+      apply();
       return;
     }
     server_.metrics.connections_total.add();
     server_.metrics.connections_open.add(1);
     spdlog::info("event=connected session={} peer={}", registry_id_, peer_);
-    arm_timer(std::chrono::milliseconds{limits_.handshake_timeout_ms});
+    conversation_->admit(Admission::kAdmitted);
+    apply();
     do_read();
   }
 
-  // ---- timers: the handshake deadline until hello, then the idle deadline ----
+  // ---- the conversation's world questions, answered by the generator ----
 
-  void arm_timer(std::chrono::milliseconds after) {
-    timer_.expires_after(after);
-    timer_.async_wait(beast::bind_front_handler(&WsSession::on_timer, shared_from_this()));
-  }
+  uint64_t own_seed() const override { return server_.generator->world().seed(); }
 
-  void on_timer(beast::error_code ec) {
-    if (ec || closing_) return;  // cancelled or re-armed
-    if (timer_.expiry() > Clock::now()) return;
-    if (!hello_done_) {
-      fail(Error{ErrorCode::kTimeout, "no hello within handshake_timeout_ms (" +
-                                          std::to_string(limits_.handshake_timeout_ms) + " ms)"},
-           std::nullopt, websocket::close_code::policy_error);
-    } else {
-      fail(Error{ErrorCode::kTimeout, "no message within idle_timeout_ms (" +
-                                          std::to_string(limits_.idle_timeout_ms) + " ms)"},
-           std::nullopt, websocket::close_code::policy_error);
-    }
-  }
-
-  // ---- reading ----
-
-  void do_read() {
-    if (closing_) return;
-    ws_.async_read(buffer_, beast::bind_front_handler(&WsSession::on_read, shared_from_this()));
-  }
-
-  void on_read(beast::error_code ec, std::size_t) {
-    if (ec) {
-      if (ec == websocket::error::message_too_big) {
-        // Beast has failed the connection with close code 1009 (PROTOCOL.md allows it).
-        server_.metrics.count_error(ErrorCode::kTooLarge);
-        spdlog::info("event=closed session={} reason=too_large detail=\"message over {} bytes\"",
-                     registry_id_, limits_.max_message_bytes);
-      } else if (!closing_ && ec != websocket::error::closed &&
-                 ec != net::error::operation_aborted) {
-        spdlog::debug("event=read_failed session={} error=\"{}\"", registry_id_, ec.message());
-      } else if (ec == websocket::error::closed) {
-        spdlog::info("event=closed session={} reason=client_closed", registry_id_);
-      }
-      closing_ = true;
-      timer_.cancel();
-      release();
-      return;
-    }
-    if (closing_) return;
-    server_.metrics.messages_total.add();
-    if (!ws_.got_text()) {
-      buffer_.consume(buffer_.size());
-      fail(Error{ErrorCode::kBadFrame, "clients must not send binary frames"}, std::nullopt,
-           websocket::close_code::policy_error);
-      return;
-    }
-    std::string text = beast::buffers_to_string(buffer_.data());
-    buffer_.consume(buffer_.size());
-    if (hello_done_) arm_timer(std::chrono::milliseconds{limits_.idle_timeout_ms});
-    handle(text);
-    do_read();
-  }
-
-  // PROTOCOL.md, "Which error a message gets": size, JSON, type, then order (hello first and
-  // only once), then fields, then what the message asks; every error before welcome is fatal.
-  void handle(const std::string& text) {
-    proto::Ref ref;
-    std::string type;
-    auto parsed = proto::parse_client_message(text, limits_, &ref, &type);
-    if (!parsed) {
-      if (!type.empty()) {
-        bool is_hello = type == "hello";
-        if (!hello_done_ && !is_hello) {
-          fail(Error{ErrorCode::kOutOfOrder, "'" + type + "' before hello"}, ref,
-               websocket::close_code::policy_error);
-          return;
-        }
-        if (hello_done_ && is_hello) {
-          fail(Error{ErrorCode::kOutOfOrder, "a second hello"}, ref,
-               websocket::close_code::policy_error);
-          return;
-        }
-      }
-      bool whole_too_large = text.size() > limits_.max_message_bytes;
-      Error e{parsed.error().code, parsed.error().message};
-      if (whole_too_large || !hello_done_) {
-        fail(
-            e, ref,
-            whole_too_large ? websocket::close_code::too_big : websocket::close_code::policy_error);
-      } else {
-        send_error(proto::error_reply(e, ref));
-      }
-      return;
-    }
-    std::visit([&](auto& m) { on_message(m); }, parsed.value());
-  }
-
-  bool require_hello(const proto::Ref& ref, const char* type) {
-    if (hello_done_) return true;
-    fail(Error{ErrorCode::kOutOfOrder, std::string("'") + type + "' before hello"}, ref,
-         websocket::close_code::policy_error);
-    return false;
-  }
-
-  void on_message(const proto::Hello& m) {
-    if (hello_done_) {
-      fail(Error{ErrorCode::kOutOfOrder, "a second hello"}, m.ref,
-           websocket::close_code::policy_error);
-      return;
-    }
-    // The token comes first: a client without it learns nothing about this server's worlds.
-    if (const std::string& token = server_.config.token; !token.empty()) {
-      if (!m.token || !proto::token_equals(token, *m.token)) {
-        fail(Error{ErrorCode::kUnauthorized, m.token ? "wrong token" : "missing token"}, m.ref,
-             websocket::close_code::policy_error);
-        return;
-      }
-    }
-    uint32_t chosen = 0;
-    for (uint32_t v : m.versions) {
-      if (v == proto::kProtocolVersion) chosen = v;
-    }
-    if (chosen == 0) {
-      auto e = proto::error_reply(Error{ErrorCode::kUnsupportedVersion,
-                                        "no protocol version in common; this server speaks " +
-                                            std::to_string(proto::kProtocolVersion)},
-                                  m.ref);
-      e.versions = {proto::kProtocolVersion};
-      e.fatal = true;
-      fail_with(std::move(e), websocket::close_code::policy_error);
-      return;
-    }
-    if (m.params && *m.params != server_.params_digest) {
-      fail(Error{ErrorCode::kWorldMismatch,
-                 "this server's parameter digest differs from the one asked for"},
-           m.ref, websocket::close_code::policy_error);
-      return;
-    }
-    // The world: the one named, opened now if need be (--max-worlds), else the server's own.
-    const uint64_t seed = m.seed.value_or(server_.generator->world().seed());
+  Result<ClientId> open(uint64_t seed) override {
     std::weak_ptr<WsSession> weak = weak_from_this();
     auto executor = ws_.get_executor();
     auto gate = server_.gate;
@@ -382,141 +219,96 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
         if (auto self = weak.lock()) self->on_delivery(std::move(d));
       });
     });
-    if (!client) {
-      fail(client.error(), m.ref, websocket::close_code::policy_error);
-      return;
-    }
-    client_ = *client;
-    hello_done_ = true;
-    name_ = proto::echo(m.name);
-    proto::Welcome w;
-    w.ref = m.ref;
-    w.version = chosen;
-    w.server = product_version();
-    w.seed = seed;
-    w.params = server_.params_digest;
-    w.limits = limits_;
-    send_text(proto::serialize(proto::ServerMessage{w}));
-    spdlog::info("event=hello session={} name=\"{}\" version={} seed={}", registry_id_, name_,
-                 chosen, seed);
-    arm_timer(std::chrono::milliseconds{limits_.idle_timeout_ms});
+    if (client) client_ = *client;
+    return client;
   }
 
-  void on_message(const proto::Locate& m) {
-    if (!require_hello(m.ref, "locate")) return;
-    proto::Located r;
-    r.ref = m.ref;
-    r.point = m.point;
-    r.room = server_.generator->locate(client_, m.point);
-    send_text(proto::serialize(proto::ServerMessage{r}));
+  std::optional<cave::RoomId> locate(ClientId client, Vec3 point) override {
+    return server_.generator->locate(client, point);
   }
 
-  void on_message(const proto::Spawn& m) {
-    if (!require_hello(m.ref, "spawn")) return;
-    proto::SpawnPoint r = server_.generator->spawn(client_);
-    r.ref = m.ref;
-    send_text(proto::serialize(proto::ServerMessage{r}));
-  }
-
-  void on_message(const proto::Request& m) {
-    if (!require_hello(m.ref, "request")) return;
-    size_t added = 0;
-    for (const auto& w : m.rooms) {
-      if (!in_flight_.contains(w.id.packed())) ++added;
-    }
-    if (in_flight_.size() + added > limits_.max_rooms_in_flight) {
-      send_error(proto::error_reply(
-          Error{ErrorCode::kLimitExceeded,
-                "request would take rooms in flight to " +
-                    std::to_string(in_flight_.size() + added) + " (max_rooms_in_flight " +
-                    std::to_string(limits_.max_rooms_in_flight) + "); nothing in it was queued"},
-          m.ref));
-      return;
-    }
-    auto now = Clock::now();
-    std::vector<cave::RoomId> relod;
-    for (const auto& w : m.rooms) {
-      auto [it, inserted] = in_flight_.try_emplace(w.id.packed(), InFlight{w.lod, now});
-      // Re-requested: its priority is replaced (the generator does that); a new lod replaces the
-      // old one, so the old lod's want goes.
-      if (!inserted && it->second.lod != w.lod) {
-        it->second.lod = w.lod;
-        relod.push_back(w.id);
-      }
-    }
-    if (!relod.empty()) server_.generator->cancel(client_, relod);
-    server_.metrics.rooms_requested.add(m.rooms.size());
-    // Cache hits are delivered inside request(): sorted first so they go out by priority too
-    // (stable: ties keep the order requested).
-    std::vector<proto::RoomWant> wants = m.rooms;
-    std::stable_sort(wants.begin(), wants.end(),
-                     [](const auto& a, const auto& b) { return a.priority < b.priority; });
-    server_.generator->request(client_, wants);
-  }
-
-  void on_message(const proto::Cancel& m) {
-    if (!require_hello(m.ref, "cancel")) return;
-    std::vector<cave::RoomId> ids;
-    for (const auto& id : m.rooms) {
-      if (in_flight_.erase(id.packed()) > 0) ids.push_back(id);
-    }
-    if (!ids.empty()) server_.generator->cancel(client_, ids);
-  }
-
-  void on_message(const proto::Ping& m) {
-    if (!require_hello(m.ref, "ping")) return;
-    proto::Pong p;
-    p.ref = m.ref;
-    p.t = m.t;
-    p.time_ms = unix_millis();
-    send_text(proto::serialize(proto::ServerMessage{p}));
-  }
-
-  void on_message(const proto::StatsQuery& m) {
-    if (!require_hello(m.ref, "stats")) return;
-    proto::Stats s;
-    s.ref = m.ref;
-    s.in_flight = in_flight_.size();
-    s.rooms_sent = rooms_sent_;
-    s.bytes_sent = bytes_sent_;
-    s.errors = errors_sent_;
-    send_text(proto::serialize(proto::ServerMessage{s}));
-  }
-
-  // ---- deliveries from the generator (posted to this strand) ----
+  proto::SpawnPoint spawn(ClientId client) override { return server_.generator->spawn(client); }
 
   void on_delivery(Delivery d) {
     if (closing_) return;
-    auto it = in_flight_.find(d.key.id.packed());
-    if (it == in_flight_.end()) return;       // cancelled meanwhile: not sent
-    if (it->second.lod != d.key.lod) return;  // a lod the client replaced since
-    in_flight_.erase(it);
-    if (d.error) {
-      if (d.error->code == ErrorCode::kServiceRestart) {
-        fail(*d.error, std::nullopt, websocket::close_code::going_away);
-        return;
+    conversation_->delivery(std::move(d));
+    apply();
+  }
+
+  // ---- carrying out the conversation's actions ----
+
+  void apply() {
+    for (Action& a : conversation_->take()) {
+      std::visit([this](auto& x) { carry_out(x); }, a);
+    }
+  }
+
+  void carry_out(act::SendText& a) { enqueue(Outgoing{std::move(a.text), nullptr}); }
+  void carry_out(act::SendRoom& a) { enqueue(Outgoing{{}, std::move(a.room)}); }
+  void carry_out(act::Want& a) { server_.generator->request(a.client, a.rooms); }
+  void carry_out(act::Drop& a) { server_.generator->cancel(a.client, a.rooms); }
+  void carry_out(act::Release& a) {
+    server_.generator->remove_client(a.client);
+    if (client_ == a.client) client_ = 0;
+  }
+  void carry_out(act::Timer& a) {
+    timer_.expires_after(a.after);
+    timer_.async_wait(beast::bind_front_handler(&WsSession::on_timer, shared_from_this()));
+  }
+  void carry_out(act::Close& a) {
+    if (closing_) return;
+    close_code_ = websocket::close_reason(static_cast<websocket::close_code>(a.code), a.reason);
+    close_after_flush_ = true;
+    begin_closing(dropped_ ? kCloseGrace : server_.config.http_timeout);
+    if (!writing_) do_write();
+  }
+
+  void on_timer(beast::error_code ec) {
+    if (ec || closing_) return;  // cancelled or re-armed
+    if (timer_.expiry() > Clock::now()) return;
+    conversation_->deadline();
+    apply();
+  }
+
+  // ---- reading: in pieces, so a message over the limit is refused before it is held whole ----
+
+  void do_read() {
+    if (closing_) return;
+    ws_.async_read_some(buffer_, kReadPiece,
+                        beast::bind_front_handler(&WsSession::on_read, shared_from_this()));
+  }
+
+  void on_read(beast::error_code ec, std::size_t) {
+    if (ec) {
+      if (!closing_ && ec != websocket::error::closed && ec != net::error::operation_aborted) {
+        spdlog::debug("event=read_failed session={} error=\"{}\"", registry_id_, ec.message());
+      } else if (ec == websocket::error::closed) {
+        spdlog::info("event=closed session={} reason=client_closed", registry_id_);
       }
-      auto e = proto::error_reply(*d.error, std::nullopt, d.key.id);
-      e.fatal = false;  // a room's failure refuses that room only
-      send_error(std::move(e));
+      closing_ = true;
+      timer_.cancel();
+      release();
       return;
     }
-    ++rooms_sent_;
-    server_.metrics.rooms_served.add();
-    enqueue(Outgoing{{}, std::move(d.room)});
+    if (closing_) return;
+    if (!ws_.got_text()) {
+      buffer_.consume(buffer_.size());
+      conversation_->binary();
+    } else if (buffer_.size() > limits_.max_message_bytes) {
+      buffer_.consume(buffer_.size());
+      conversation_->oversized();
+    } else if (!ws_.is_message_done()) {
+      return do_read();
+    } else {
+      std::string text = beast::buffers_to_string(buffer_.data());
+      buffer_.consume(buffer_.size());
+      conversation_->text(text);
+    }
+    apply();
+    do_read();
   }
 
   // ---- writing: one async_write in flight, the rest queued up to send_queue_bytes ----
-
-  void send_text(std::string text) { enqueue(Outgoing{std::move(text), nullptr}); }
-
-  void send_error(proto::ErrorMessage e) {
-    ++errors_sent_;
-    server_.metrics.count_error(e.code);
-    spdlog::info("event=error_sent session={} code={} fatal={} detail=\"{}\"", registry_id_,
-                 proto::wire_code_name(e.code), e.fatal, proto::echo(e.message));
-    send_text(proto::serialize(proto::ServerMessage{std::move(e)}));
-  }
 
   void enqueue(Outgoing out) {
     if (dropped_) return;
@@ -557,7 +349,7 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
       release();
       return;
     }
-    bytes_sent_ += bytes;
+    conversation_->sent(bytes);
     server_.metrics.bytes_sent.add(bytes);
     queued_bytes_ -= queue_.front().size();
     queue_.pop_front();
@@ -568,44 +360,19 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
   // behind the write in flight, so the socket is cut if that does not finish within kCloseGrace.
   void drop_slow_client() {
     dropped_ = true;
-    server_.metrics.slow_clients_dropped.add();
-    spdlog::warn("event=slow_client_dropped session={} peer={} queued_bytes={} limit={}",
-                 registry_id_, peer_, queued_bytes_, server_.config.send_queue_bytes);
+    spdlog::warn("event=slow_client_queue session={} queued_bytes={} limit={}", registry_id_,
+                 queued_bytes_, server_.config.send_queue_bytes);
     // The front is being written (Beast holds its buffer); everything behind it goes now.
     while (queue_.size() > 1) {
       queued_bytes_ -= queue_.back().size();
       queue_.pop_back();
     }
-    close_code_ = websocket::close_reason(websocket::close_code::policy_error, "slow_client");
-    close_after_flush_ = true;
-    begin_closing(kCloseGrace);
-    if (!writing_) do_write();
-  }
-
-  // A fatal error: the error message, then the close (PROTOCOL.md: the close reason is the code).
-  void fail(const Error& error, proto::Ref ref, websocket::close_code code) {
-    auto e = proto::error_reply(error, ref);
-    e.fatal = true;
-    fail_with(std::move(e), code);
-  }
-
-  void fail_with(proto::ErrorMessage e, websocket::close_code code) {
-    if (closing_ || dropped_) return;
-    close_code_ = websocket::close_reason(code, proto::wire_code_name(e.code));
-    send_error(std::move(e));
-    close_after_flush_ = true;
-    begin_closing(server_.config.http_timeout);
-    if (!writing_) do_write();
+    conversation_->slow_client();
+    apply();
   }
 
   void begin_closing(std::chrono::milliseconds grace) {
     closing_ = true;
-    // Nothing this client asked for is wanted any more.
-    if (client_ != 0) {
-      server_.generator->remove_client(client_);
-      client_ = 0;
-    }
-    in_flight_.clear();
     timer_.expires_after(grace);
     timer_.async_wait([self = shared_from_this()](beast::error_code ec) {
       if (!ec) self->cut_socket();
@@ -615,8 +382,6 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
   void do_close() {
     if (close_started_) return;
     close_started_ = true;
-    spdlog::info("event=closing session={} code={} reason={}", registry_id_,
-                 static_cast<int>(close_code_.code), std::string(close_code_.reason.c_str()));
     ws_.async_close(close_code_, [self = shared_from_this()](beast::error_code) {
       self->timer_.cancel();
       self->cut_socket();
@@ -636,14 +401,20 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
 
   // Memory this session holds for the client, released as soon as it is closing.
   void release() {
-    if (client_ != 0) {
-      server_.generator->remove_client(client_);
-      client_ = 0;
+    if (conversation_) {
+      conversation_->transport_closed();
+      apply_releases();
     }
-    in_flight_.clear();
     if (!writing_) {
       queue_.clear();
       queued_bytes_ = 0;
+    }
+  }
+
+  // After the transport is gone only releases are carried out; nothing more is sent.
+  void apply_releases() {
+    for (Action& a : conversation_->take()) {
+      if (auto* r = std::get_if<act::Release>(&a)) carry_out(*r);
     }
   }
 
@@ -653,10 +424,9 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
   beast::flat_buffer buffer_;
   net::steady_timer timer_;
   std::string peer_;
-  std::string name_;
   uint64_t registry_id_ = 0;
-  ClientId client_ = 0;
-  bool hello_done_ = false;
+  std::optional<Conversation> conversation_;  // from the upgrade on
+  ClientId client_ = 0;  // the generator's client, until the conversation releases it
   bool closing_ = false;
   bool dropped_ = false;
   bool writing_ = false;
@@ -665,10 +435,6 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
   websocket::close_reason close_code_;
   std::deque<Outgoing> queue_;
   size_t queued_bytes_ = 0;
-  std::unordered_map<uint64_t, InFlight> in_flight_;  // by packed room id
-  uint64_t rooms_sent_ = 0;
-  uint64_t bytes_sent_ = 0;
-  uint64_t errors_sent_ = 0;
 };
 
 // ---- HTTP session: health, metrics, version, and the upgrade to /ws ----
@@ -833,7 +599,7 @@ Result<std::unique_ptr<Server>> Server::start(const ServerConfig& config) {
                     : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
   auto impl = std::make_unique<Impl>(threads);
   impl->config = config;
-  impl->params_digest = world_params_digest(config.layout, config.mesh);
+  impl->params_digest = proto::world_params_digest(config.layout, config.mesh);
   auto generator = Generator::create(*world, config.mesh, config.generator, impl->metrics);
   if (!generator) return generator.error();
   impl->generator = std::move(generator).value();

@@ -39,5 +39,28 @@ TEST(WorldDigest, folding_more_settings_changes_it) {
   EXPECT_EQ(fold_digest(d, mesh_settings), fold_digest(d, mesh_settings));
 }
 
+TEST(WorldDigest, the_servers_digest_is_pinned_and_sees_the_mesh_settings) {
+  // welcome.params of a server with default settings: a change here changes every deployed
+  // world's digest, so make it only with a change to the parameters or their canonical form.
+  const cave::LayoutParams layout;
+  const mesh::MeshParams mesh;
+  const uint64_t d = world_params_digest(layout, mesh);
+  EXPECT_EQ(d, 0x8c1590316be321e3ull);
+  EXPECT_NE(d, layout_params_digest(layout));
+  std::vector<mesh::MeshParams> variants(6, mesh);
+  variants[0].lods[0].edge_length += 0.125;
+  variants[1].lods[1].octaves += 1;
+  variants[2].octave_frequency[0] *= 2;
+  variants[3].rim_amplitude += 0.01;
+  variants[4].tension += 0.125;
+  variants[5].mineral_frequency *= 2;
+  for (std::size_t i = 0; i < variants.size(); ++i) {
+    EXPECT_NE(world_params_digest(layout, variants[i]), d) << "mesh variant " << i;
+  }
+  cave::LayoutParams other = layout;
+  other.sector_size += 1;
+  EXPECT_NE(world_params_digest(other, mesh), d);
+}
+
 }  // namespace
 }  // namespace grotto::proto

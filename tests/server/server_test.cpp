@@ -585,6 +585,7 @@ TEST(ServerBadInput, non_fatal_errors_leave_the_connection_working) {
   ASSERT_TRUE(e);
   EXPECT_EQ(e->code, ErrorCode::kNotFound) << e->message;
   EXPECT_EQ(e->room, missing);
+  EXPECT_EQ(e->ref, 20u);  // PROTOCOL.md: an error about a message carries its ref
   EXPECT_FALSE(e->fatal);
   // A request flood: over max_rooms_in_flight refuses the whole request; nothing is queued.
   ASSERT_FALSE(client.send(request_of(rooms, 0, 4, 22, 1)));
@@ -693,15 +694,32 @@ TEST(ServerBadInput, fatal_errors_close_only_that_connection) {
   EXPECT_EQ(e->code, ErrorCode::kTooLarge);
   EXPECT_TRUE(e->fatal);
   EXPECT_EQ(big.wait_close().code, 1009) << big.last_error_.message();
-  // A far bigger one is cut by the WebSocket layer; the connection ends either way.
-  Client huge(server->port());
-  ASSERT_FALSE(huge.connect());
-  huge.hello();
-  huge.send("{\"type\":\"ping\",\"t\":1,\"pad\":\"" + std::string(100000, 'x') + "\"}");
-  auto [ec, in] = huge.read();
-  EXPECT_TRUE(ec);
+  // Far bigger ones get the same answer: the server stops reading at the limit instead of
+  // letting the WebSocket layer cut the connection without a reason (PROTOCOL.md, "Closing").
+  for (size_t size : {70'000u, 100'000u, 1'000'000u}) {
+    SCOPED_TRACE(size);
+    Client huge(server->port());
+    ASSERT_FALSE(huge.connect());
+    huge.hello();
+    huge.send("{\"type\":\"ping\",\"t\":1,\"pad\":\"" + std::string(size, 'x') + "\"}");
+    auto error = huge.next_error();
+    ASSERT_TRUE(error);
+    EXPECT_EQ(error->code, ErrorCode::kTooLarge);
+    EXPECT_TRUE(error->fatal);
+    auto reason = huge.wait_close();
+    EXPECT_EQ(reason.code, 1009);
+    EXPECT_EQ(std::string(reason.reason.c_str()), "too_large");
+  }
   EXPECT_TRUE(bystander.alive());
   EXPECT_GT(server->metrics().errors(ErrorCode::kTooLarge), 0u);
+  // A text frame that is not UTF-8 fails the WebSocket connection (RFC 6455 8.1): close 1007,
+  // no error message, before the JSON is read.
+  Client latin1(server->port());
+  ASSERT_FALSE(latin1.connect());
+  latin1.hello();
+  latin1.send("{\"type\":\"ping\",\"t\":1,\"x\":\"caf\xe9\"}");
+  EXPECT_EQ(latin1.wait_close().code, 1007);
+  EXPECT_TRUE(bystander.alive());
 }
 
 TEST(ServerHttp, endpoints_answer_and_plain_http_on_ws_is_426) {
@@ -865,7 +883,10 @@ TEST(ServerLimits, connections_over_max_connections_are_refused) {
   ASSERT_TRUE(e);
   EXPECT_EQ(e->code, ErrorCode::kOverloaded);
   EXPECT_TRUE(e->fatal);
-  extra.wait_close();
+  // Sent at once, before any hello (PROTOCOL.md, "Closing").
+  auto reason = extra.wait_close();
+  EXPECT_EQ(reason.code, 1008);
+  EXPECT_EQ(std::string(reason.reason.c_str()), "overloaded");
   EXPECT_EQ(server->metrics().connections_rejected.value(), 1u);
   EXPECT_TRUE(a.alive());
   // A place frees up when a client leaves.

@@ -1,0 +1,321 @@
+#include "server/conversation.hpp"
+
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <chrono>
+
+#include "proto/token.hpp"
+#include "server/metrics.hpp"
+
+namespace grotto::server {
+namespace {
+
+uint64_t system_unix_ms() {
+  return static_cast<uint64_t>(std::chrono::duration_cast<std::chrono::milliseconds>(
+                                   std::chrono::system_clock::now().time_since_epoch())
+                                   .count());
+}
+
+}  // namespace
+
+CloseCode close_code_for(ErrorCode code) {
+  switch (code) {
+    case ErrorCode::kServiceRestart:
+      return CloseCode::kGoingAway;
+    case ErrorCode::kTooLarge:
+      return CloseCode::kTooBig;
+    default:
+      return CloseCode::kPolicy;
+  }
+}
+
+Conversation::Conversation(ConversationConfig config, WorldPort& worlds, Metrics* metrics)
+    : config_(std::move(config)), worlds_(worlds), metrics_(metrics) {
+  if (!config_.unix_ms) config_.unix_ms = system_unix_ms;
+}
+
+std::vector<Action> Conversation::take() {
+  std::vector<Action> out;
+  out.swap(actions_);
+  return out;
+}
+
+// ---- events ----
+
+void Conversation::admit(Admission admission) {
+  if (state_ != State::kNew) return;
+  switch (admission) {
+    case Admission::kAdmitted:
+      state_ = State::kAwaitingHello;
+      emit(act::Timer{std::chrono::milliseconds{config_.limits.handshake_timeout_ms}});
+      return;
+    case Admission::kStopping:
+      fail(Error{ErrorCode::kServiceRestart, "the server is shutting down"}, std::nullopt,
+           CloseCode::kGoingAway);
+      return;
+    case Admission::kFull:
+      fail(Error{ErrorCode::kOverloaded, "too many connections (max_connections " +
+                                             std::to_string(config_.max_connections) +
+                                             "); retry later"},
+           std::nullopt, CloseCode::kPolicy);
+      return;
+  }
+}
+
+// PROTOCOL.md, "Which error a message gets": size, JSON, type, then order (hello first and only
+// once), then fields, then what the message asks; every error before welcome is fatal.
+void Conversation::text(std::string_view message) {
+  if (state_ == State::kNew || state_ == State::kClosed) return;
+  if (metrics_) metrics_->messages_total.add();
+  if (message.size() > config_.limits.max_message_bytes) return oversized();
+  if (state_ == State::kOpen) {
+    emit(act::Timer{std::chrono::milliseconds{config_.limits.idle_timeout_ms}});
+  }
+  const bool welcomed = state_ == State::kOpen;
+  proto::Ref ref;
+  std::string type;
+  auto parsed = proto::parse_client_message(message, config_.limits, &ref, &type);
+  if (!type.empty() && (type == "hello") == welcomed) {
+    // The order check comes before any field error.
+    return fail(
+        Error{ErrorCode::kOutOfOrder, welcomed ? "a second hello" : "'" + type + "' before hello"},
+        ref, CloseCode::kPolicy);
+  }
+  if (!parsed) {
+    Error e{parsed.error().code, parsed.error().message};
+    if (!welcomed) return fail(e, ref, CloseCode::kPolicy);
+    return send_error(proto::error_reply(e, ref));
+  }
+  std::visit([&](const auto& m) { on(m); }, parsed.value());
+}
+
+void Conversation::binary() {
+  if (state_ == State::kNew || state_ == State::kClosed) return;
+  if (metrics_) metrics_->messages_total.add();
+  fail(Error{ErrorCode::kBadFrame, "clients must not send binary frames"}, std::nullopt,
+       CloseCode::kPolicy);
+}
+
+void Conversation::oversized() {
+  if (state_ == State::kNew || state_ == State::kClosed) return;
+  fail(
+      Error{ErrorCode::kTooLarge, "message over max_message_bytes (" +
+                                      std::to_string(config_.limits.max_message_bytes) + " bytes)"},
+      std::nullopt, CloseCode::kTooBig);
+}
+
+void Conversation::deadline() {
+  if (state_ == State::kAwaitingHello) {
+    fail(Error{ErrorCode::kTimeout, "no hello within handshake_timeout_ms (" +
+                                        std::to_string(config_.limits.handshake_timeout_ms) +
+                                        " ms)"},
+         std::nullopt, CloseCode::kPolicy);
+  } else if (state_ == State::kOpen) {
+    fail(Error{ErrorCode::kTimeout, "no message within idle_timeout_ms (" +
+                                        std::to_string(config_.limits.idle_timeout_ms) + " ms)"},
+         std::nullopt, CloseCode::kPolicy);
+  }
+}
+
+void Conversation::delivery(Delivery d) {
+  if (state_ != State::kOpen) return;
+  auto it = in_flight_.find(d.key.id.packed());
+  if (it == in_flight_.end()) return;       // cancelled meanwhile: not sent
+  if (it->second.lod != d.key.lod) return;  // a lod the client replaced since
+  proto::Ref ref = it->second.ref;
+  in_flight_.erase(it);
+  if (d.error) {
+    if (d.error->code == ErrorCode::kServiceRestart) {
+      return fail(*d.error, std::nullopt, CloseCode::kGoingAway);
+    }
+    auto e = proto::error_reply(*d.error, ref, d.key.id);
+    e.fatal = false;  // a room's failure refuses that room only
+    return send_error(std::move(e));
+  }
+  ++rooms_sent_;
+  if (metrics_) metrics_->rooms_served.add();
+  emit(act::SendRoom{std::move(d.room)});
+}
+
+void Conversation::sent(uint64_t bytes) {
+  bytes_sent_ += bytes;
+}
+
+void Conversation::shutdown() {
+  if (state_ == State::kClosed) return;
+  fail(Error{ErrorCode::kServiceRestart, "the server is shutting down"}, std::nullopt,
+       CloseCode::kGoingAway);
+}
+
+void Conversation::slow_client() {
+  if (state_ == State::kClosed) return;
+  spdlog::warn("event=slow_client_dropped session={} peer={}", config_.session, config_.peer);
+  if (metrics_) metrics_->slow_clients_dropped.add();
+  release();
+  close(CloseCode::kPolicy, "slow_client");
+}
+
+void Conversation::transport_closed() {
+  release();
+  state_ = State::kClosed;
+}
+
+// ---- messages ----
+
+void Conversation::on(const proto::Hello& m) {
+  // The token comes first: a client without it learns nothing about this server's worlds.
+  if (!config_.token.empty() && (!m.token || !proto::token_equals(config_.token, *m.token))) {
+    return fail(Error{ErrorCode::kUnauthorized, m.token ? "wrong token" : "missing token"}, m.ref,
+                CloseCode::kPolicy);
+  }
+  uint32_t chosen = 0;
+  for (uint32_t v : m.versions) {
+    if (v == proto::kProtocolVersion) chosen = v;
+  }
+  if (chosen == 0) {
+    return fail(
+        Error{ErrorCode::kUnsupportedVersion, "no protocol version in common; this server speaks " +
+                                                  std::to_string(proto::kProtocolVersion)},
+        m.ref, CloseCode::kPolicy, {proto::kProtocolVersion});
+  }
+  if (m.params && *m.params != config_.params_digest) {
+    return fail(Error{ErrorCode::kWorldMismatch,
+                      "this server's parameter digest differs from the one asked for"},
+                m.ref, CloseCode::kPolicy);
+  }
+  // The world: the one named, opened now if need be (--max-worlds), else the server's own.
+  const uint64_t seed = m.seed.value_or(worlds_.own_seed());
+  auto client = worlds_.open(seed);
+  if (!client) return fail(client.error(), m.ref, CloseCode::kPolicy);
+  client_ = *client;
+  state_ = State::kOpen;
+  proto::Welcome w;
+  w.ref = m.ref;
+  w.version = chosen;
+  w.server = config_.server_name;
+  w.seed = seed;
+  w.params = config_.params_digest;
+  w.limits = config_.limits;
+  send(w);
+  spdlog::info("event=hello session={} name=\"{}\" version={} seed={}", config_.session,
+               proto::echo(m.name), chosen, seed);
+  emit(act::Timer{std::chrono::milliseconds{config_.limits.idle_timeout_ms}});
+}
+
+void Conversation::on(const proto::Locate& m) {
+  proto::Located r;
+  r.ref = m.ref;
+  r.point = m.point;
+  r.room = worlds_.locate(client_, m.point);
+  send(r);
+}
+
+void Conversation::on(const proto::Spawn& m) {
+  proto::SpawnPoint r = worlds_.spawn(client_);
+  r.ref = m.ref;
+  send(r);
+}
+
+void Conversation::on(const proto::Request& m) {
+  size_t added = 0;
+  for (const auto& w : m.rooms) {
+    if (!in_flight_.contains(w.id.packed())) ++added;
+  }
+  const size_t limit = config_.limits.max_rooms_in_flight;
+  if (in_flight_.size() + added > limit) {
+    return send_error(proto::error_reply(
+        Error{ErrorCode::kLimitExceeded,
+              "request would take rooms in flight to " + std::to_string(in_flight_.size() + added) +
+                  " (max_rooms_in_flight " + std::to_string(limit) + "); nothing in it was queued"},
+        m.ref));
+  }
+  std::vector<cave::RoomId> relod;
+  for (const auto& w : m.rooms) {
+    auto [it, inserted] = in_flight_.try_emplace(w.id.packed(), InFlight{w.lod, m.ref});
+    // Re-requested: the generator replaces its priority; a new lod replaces the old one, so the
+    // old lod's want goes. An error about the room names the latest request.
+    it->second.ref = m.ref;
+    if (!inserted && it->second.lod != w.lod) {
+      it->second.lod = w.lod;
+      relod.push_back(w.id);
+    }
+  }
+  if (!relod.empty()) emit(act::Drop{client_, std::move(relod)});
+  if (metrics_) metrics_->rooms_requested.add(m.rooms.size());
+  // Cache hits are delivered as soon as they are asked for: sorted first so they go out by
+  // priority too (stable: ties keep the order requested).
+  std::vector<proto::RoomWant> wants = m.rooms;
+  std::stable_sort(wants.begin(), wants.end(),
+                   [](const auto& a, const auto& b) { return a.priority < b.priority; });
+  emit(act::Want{client_, std::move(wants)});
+}
+
+void Conversation::on(const proto::Cancel& m) {
+  std::vector<cave::RoomId> ids;
+  for (const auto& id : m.rooms) {
+    if (in_flight_.erase(id.packed()) > 0) ids.push_back(id);
+  }
+  if (!ids.empty()) emit(act::Drop{client_, std::move(ids)});
+}
+
+void Conversation::on(const proto::Ping& m) {
+  proto::Pong p;
+  p.ref = m.ref;
+  p.t = m.t;
+  p.time_ms = config_.unix_ms();
+  send(p);
+}
+
+void Conversation::on(const proto::StatsQuery& m) {
+  proto::Stats s;
+  s.ref = m.ref;
+  s.in_flight = in_flight_.size();
+  s.rooms_sent = rooms_sent_;
+  s.bytes_sent = bytes_sent_;
+  s.errors = errors_sent_;
+  send(s);
+}
+
+// ---- replies ----
+
+void Conversation::send(const proto::ServerMessage& m) {
+  emit(act::SendText{proto::serialize(m)});
+}
+
+void Conversation::send_error(proto::ErrorMessage e) {
+  ++errors_sent_;
+  if (metrics_) metrics_->count_error(e.code);
+  spdlog::info("event=error_sent session={} code={} fatal={} detail=\"{}\"", config_.session,
+               proto::wire_code_name(e.code), e.fatal, proto::echo(e.message));
+  send(proto::ServerMessage{std::move(e)});
+}
+
+void Conversation::fail(const Error& error, proto::Ref ref, CloseCode code,
+                        std::vector<uint32_t> versions) {
+  if (state_ == State::kClosed) return;
+  release();
+  auto e = proto::error_reply(error, ref);
+  e.fatal = true;
+  e.versions = std::move(versions);
+  send_error(std::move(e));
+  close(code, proto::wire_code_name(error.code));
+}
+
+void Conversation::close(CloseCode code, std::string reason) {
+  spdlog::info("event=closing session={} code={} reason={}", config_.session,
+               static_cast<int>(code), reason);
+  emit(act::Close{code, std::move(reason)});
+  state_ = State::kClosed;
+}
+
+void Conversation::release() {
+  // Nothing this client asked for is wanted any more.
+  in_flight_.clear();
+  if (client_ != 0) {
+    emit(act::Release{client_});
+    client_ = 0;
+  }
+}
+
+}  // namespace grotto::server

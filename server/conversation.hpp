@@ -1,0 +1,173 @@
+// One client's side of the protocol (proto/PROTOCOL.md) as a plain state machine, in the manner
+// of sans-I/O protocol cores (h11, quinn-proto): the session feeds it events (the upgrade's
+// admission, a text message, a binary message, a message over the size limit, the timer firing,
+// a room delivered by the generator, a write completed, shutdown) and carries out the actions it
+// returns (send a text or a room, ask the generator for rooms or drop them, arm the timer, close
+// with a code). The handshake, the token, the choice of world, the single in-flight ledger, the
+// limits and every error and close code live here; the session only moves bytes and timers.
+//
+// No sockets, no Asio, no Beast, no OpenCL: tests drive it with tables of events and actions.
+// Not thread-safe: one conversation is fed from one strand.
+#pragma once
+
+#include <chrono>
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <string_view>
+#include <unordered_map>
+#include <variant>
+#include <vector>
+
+#include "proto/messages.hpp"
+#include "server/rooms.hpp"
+
+namespace grotto::server {
+
+class Metrics;
+
+// RFC 6455 close codes the server sends (PROTOCOL.md, "Closing").
+enum class CloseCode : uint16_t {
+  kNormal = 1000,
+  kGoingAway = 1001,  // service_restart
+  kPolicy = 1008,     // every other fatal error, and slow_client
+  kTooBig = 1009,     // a message over max_message_bytes
+};
+
+// The close code that follows a fatal error of this code.
+CloseCode close_code_for(ErrorCode code);
+
+// What a conversation needs answered at once about worlds (the generator, behind the session).
+class WorldPort {
+ public:
+  virtual ~WorldPort() = default;
+  virtual uint64_t own_seed() const = 0;
+  // A client of world `seed`, whose deliveries reach Conversation::delivery. Errors:
+  // world_mismatch, overloaded (PROTOCOL.md's hello checks).
+  virtual Result<ClientId> open(uint64_t seed) = 0;
+  virtual std::optional<cave::RoomId> locate(ClientId client, Vec3 point) = 0;
+  virtual proto::SpawnPoint spawn(ClientId client) = 0;
+};
+
+// The actions a conversation returns, carried out by the session in order.
+namespace act {
+struct SendText {  // a control message (JSON text frame)
+  std::string text;
+  friend bool operator==(const SendText&, const SendText&) = default;
+};
+struct SendRoom {  // a room frame (binary), shared with the cache
+  RoomPtr room;
+  friend bool operator==(const SendRoom&, const SendRoom&) = default;
+};
+struct Want {  // Generator::request, in this order (sorted by priority, stable)
+  ClientId client = 0;
+  std::vector<proto::RoomWant> rooms;
+  friend bool operator==(const Want&, const Want&) = default;
+};
+struct Drop {  // Generator::cancel
+  ClientId client = 0;
+  std::vector<cave::RoomId> rooms;
+  friend bool operator==(const Drop&, const Drop&) = default;
+};
+struct Release {  // Generator::remove_client: nothing more is wanted for this client
+  ClientId client = 0;
+  friend bool operator==(const Release&, const Release&) = default;
+};
+struct Timer {  // (re)arm the one timer: deadline() is called when it fires
+  std::chrono::milliseconds after{0};
+  friend bool operator==(const Timer&, const Timer&) = default;
+};
+struct Close {  // close with this code and reason once what is queued before it has been sent
+  CloseCode code = CloseCode::kNormal;
+  std::string reason;
+  friend bool operator==(const Close&, const Close&) = default;
+};
+}  // namespace act
+using Action = std::variant<act::SendText, act::SendRoom, act::Want, act::Drop, act::Release,
+                            act::Timer, act::Close>;
+
+struct ConversationConfig {
+  proto::Limits limits;
+  std::string token;  // the deployment's shared secret; empty: none required
+  uint64_t params_digest = 0;
+  std::string server_name;            // welcome.server
+  int max_connections = 0;            // named in the connection-limit error
+  std::function<uint64_t()> unix_ms;  // pong.time; null: the system clock
+  uint64_t session = 0;               // for log lines
+  std::string peer;                   // for log lines
+};
+
+// Whether the server took the connection when its upgrade completed.
+enum class Admission { kAdmitted, kFull, kStopping };
+
+class Conversation {
+ public:
+  enum class State {
+    kNew,            // upgraded, not yet admitted
+    kAwaitingHello,  // admitted; the handshake timer runs
+    kOpen,           // welcome sent; the idle timer runs
+    kClosed,         // a close was returned, or the transport is gone: no more actions but none
+  };
+
+  // `metrics` may be null (tests).
+  Conversation(ConversationConfig config, WorldPort& worlds, Metrics* metrics);
+
+  // ---- events ----
+  void admit(Admission admission);
+  void text(std::string_view message);  // one whole text message
+  void binary();                        // the client sent a binary message
+  void oversized();                     // a message grew past max_message_bytes (not read whole)
+  void deadline();                      // the timer fired
+  void delivery(Delivery d);            // the generator's outcome for one wanted room
+  void sent(uint64_t bytes);            // a message's write completed (stats.bytes_sent)
+  void shutdown();                      // the server is stopping
+  void slow_client();                   // the send queue went over its bound
+  void transport_closed();              // the socket is gone: release what is held
+
+  // The actions since the last call, in order.
+  std::vector<Action> take();
+
+  State state() const { return state_; }
+  size_t in_flight() const { return in_flight_.size(); }
+  uint64_t rooms_sent() const { return rooms_sent_; }
+  uint64_t errors_sent() const { return errors_sent_; }
+
+ private:
+  struct InFlight {
+    uint32_t lod = 0;
+    proto::Ref ref;  // of the request that named it, copied into an error about the room
+  };
+
+  void on(const proto::Hello& m);
+  void on(const proto::Locate& m);
+  void on(const proto::Spawn& m);
+  void on(const proto::Request& m);
+  void on(const proto::Cancel& m);
+  void on(const proto::Ping& m);
+  void on(const proto::StatsQuery& m);
+
+  void send(const proto::ServerMessage& m);
+  void send_error(proto::ErrorMessage e);
+  // A fatal error: the error, then the close; everything held is released first.
+  void fail(const Error& error, proto::Ref ref, CloseCode code,
+            std::vector<uint32_t> versions = {});
+  void close(CloseCode code, std::string reason);
+  void release();
+  template <class A>
+  void emit(A action) {
+    actions_.emplace_back(std::in_place_type<A>, std::move(action));
+  }
+
+  ConversationConfig config_;
+  WorldPort& worlds_;
+  Metrics* metrics_;
+  State state_ = State::kNew;
+  ClientId client_ = 0;
+  std::unordered_map<uint64_t, InFlight> in_flight_;  // the ledger, by packed room id
+  uint64_t rooms_sent_ = 0;
+  uint64_t bytes_sent_ = 0;
+  uint64_t errors_sent_ = 0;
+  std::vector<Action> actions_;
+};
+
+}  // namespace grotto::server

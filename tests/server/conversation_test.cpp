@@ -1,0 +1,531 @@
+// The server's protocol core without sockets: each row feeds a conversation some events (the
+// state it starts from), then one more (the input), and checks the actions that input returned
+// and the state it left. Every client message, every documented error and every close code has
+// a row; tests/server/server_test.cpp checks the same over real WebSocket connections.
+#include <gtest/gtest.h>
+
+#include <functional>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "proto/messages.hpp"
+#include "server/conversation.hpp"
+
+namespace grotto::server {
+namespace {
+
+using std::chrono::milliseconds;
+
+constexpr uint64_t kSeed = 7;
+constexpr uint64_t kDigest = 0x1234abcd5678ef90ull;
+
+cave::RoomId room(const char* text) {
+  return cave::RoomId::parse(text).value();
+}
+
+// The generator as a table: which seeds open, where points are, where players start.
+class FakeWorlds : public WorldPort {
+ public:
+  uint64_t own_seed() const override { return kSeed; }
+  Result<ClientId> open(uint64_t seed) override {
+    if (auto it = refuse.find(seed); it != refuse.end()) return it->second;
+    return ClientId{41};
+  }
+  std::optional<cave::RoomId> locate(ClientId, Vec3 point) override {
+    if (point.x < 0) return std::nullopt;
+    return room("0.0.0.r3");
+  }
+  proto::SpawnPoint spawn(ClientId) override {
+    proto::SpawnPoint s;
+    s.room = room("0.0.0.r0");
+    s.position = {1, 2, 3};
+    return s;
+  }
+  std::map<uint64_t, Error> refuse = {
+      {8, Error{ErrorCode::kWorldMismatch, "this server serves seed 7, not 8"}},
+      {9, Error{ErrorCode::kOverloaded, "every world is open and in use"}}};
+};
+
+// One action as a line of text, so a row states what it expects in a few words.
+std::string describe(const Action& action) {
+  struct Visitor {
+    std::string operator()(const act::SendText& a) {
+      auto m = proto::parse_server_message(a.text, proto::Limits{});
+      if (!m) return "unparsable " + a.text;
+      return std::visit([](const auto& x) { return describe_message(x); }, m.value());
+    }
+    std::string operator()(const act::SendRoom& a) {
+      return "room " + a.room->key.id.to_string() + "@" + std::to_string(a.room->key.lod);
+    }
+    std::string operator()(const act::Want& a) {
+      std::string s = "want";
+      for (const auto& w : a.rooms)
+        s +=
+            " " + w.id.to_string() + "@" + std::to_string(w.lod) + "/" + std::to_string(w.priority);
+      return s;
+    }
+    std::string operator()(const act::Drop& a) {
+      std::string s = "drop";
+      for (const auto& id : a.rooms)
+        s += " " + id.to_string();
+      return s;
+    }
+    std::string operator()(const act::Release&) { return "release"; }
+    std::string operator()(const act::Timer& a) {
+      return "timer " + std::to_string(a.after.count());
+    }
+    std::string operator()(const act::Close& a) {
+      return "close " + std::to_string(static_cast<int>(a.code)) + " " + a.reason;
+    }
+
+    static std::string ref_text(const proto::Ref& ref) {
+      return ref ? " ref=" + std::to_string(*ref) : "";
+    }
+    static std::string describe_message(const proto::Welcome& m) {
+      return "welcome seed=" + std::to_string(m.seed) + ref_text(m.ref);
+    }
+    static std::string describe_message(const proto::Located& m) {
+      return "located " + (m.room ? m.room->to_string() : std::string("null")) + ref_text(m.ref);
+    }
+    static std::string describe_message(const proto::SpawnPoint& m) {
+      return "spawn_point " + m.room.to_string() + ref_text(m.ref);
+    }
+    static std::string describe_message(const proto::ErrorMessage& m) {
+      std::string s = std::string("error ") + proto::wire_code_name(m.code) +
+                      (m.fatal ? " fatal" : "") + ref_text(m.ref);
+      if (m.room) s += " room=" + m.room->to_string();
+      for (uint32_t v : m.versions)
+        s += " v" + std::to_string(v);
+      return s;
+    }
+    static std::string describe_message(const proto::Pong& m) {
+      return "pong t=" + std::to_string(static_cast<int>(m.t)) +
+             " time=" + std::to_string(m.time_ms) + ref_text(m.ref);
+    }
+    static std::string describe_message(const proto::Stats& m) {
+      return "stats in_flight=" + std::to_string(m.in_flight) +
+             " rooms_sent=" + std::to_string(m.rooms_sent) +
+             " bytes_sent=" + std::to_string(m.bytes_sent) + " errors=" + std::to_string(m.errors) +
+             ref_text(m.ref);
+    }
+  };
+  return std::visit(Visitor{}, action);
+}
+
+// ---- events ----
+
+using Event = std::function<void(Conversation&)>;
+
+Event admit(Admission a = Admission::kAdmitted) {
+  return [a](Conversation& c) { c.admit(a); };
+}
+Event text(std::string t) {
+  return [t](Conversation& c) { c.text(t); };
+}
+Event binary() {
+  return [](Conversation& c) { c.binary(); };
+}
+Event oversized() {
+  return [](Conversation& c) { c.oversized(); };
+}
+Event deadline() {
+  return [](Conversation& c) { c.deadline(); };
+}
+Event shutdown() {
+  return [](Conversation& c) { c.shutdown(); };
+}
+Event slow() {
+  return [](Conversation& c) { c.slow_client(); };
+}
+Event sent(uint64_t bytes) {
+  return [bytes](Conversation& c) { c.sent(bytes); };
+}
+Event gone() {
+  return [](Conversation& c) { c.transport_closed(); };
+}
+Event deliver(const char* id, uint8_t lod = 0) {
+  return [id, lod](Conversation& c) {
+    auto r = std::make_shared<EncodedRoom>();
+    r->key = {room(id), lod, kSeed};
+    r->frame = {1, 2, 3};
+    Delivery d;
+    d.key = r->key;
+    d.room = r;
+    c.delivery(std::move(d));
+  };
+}
+Event fail_room(const char* id, ErrorCode code, uint8_t lod = 0) {
+  return [id, code, lod](Conversation& c) {
+    Delivery d;
+    d.key = {room(id), lod, kSeed};
+    d.error = Error{code, "no such room"};
+    c.delivery(std::move(d));
+  };
+}
+
+const std::string kHello = R"({"type":"hello","ref":1,"versions":[1]})";
+const std::vector<Event> kOpen = {admit(), text(kHello)};
+std::vector<Event> open_then(std::vector<Event> more) {
+  std::vector<Event> all = kOpen;
+  all.insert(all.end(), more.begin(), more.end());
+  return all;
+}
+const std::string kRequest3 =
+    R"({"type":"request","ref":5,"rooms":[{"id":"0.0.0.r2","lod":0,"priority":9},)"
+    R"({"id":"0.0.0.r1","lod":0,"priority":3},{"id":"0.0.0.r3","lod":1,"priority":3}]})";
+
+using State = Conversation::State;
+
+struct Row {
+  const char* name;
+  std::vector<Event> given;
+  Event when;
+  std::vector<std::string> then;
+  State state;
+};
+
+ConversationConfig config(std::string token = {}) {
+  ConversationConfig c;
+  c.limits.max_lod = 1;
+  c.limits.max_rooms_in_flight = 4;
+  c.limits.max_rooms_per_request = 8;
+  c.limits.max_message_bytes = 1024;
+  c.limits.idle_timeout_ms = 60'000;
+  c.limits.handshake_timeout_ms = 10'000;
+  c.token = std::move(token);
+  c.params_digest = kDigest;
+  c.server_name = "grotto-server test";
+  c.max_connections = 2;
+  c.unix_ms = [] { return uint64_t{1000}; };
+  return c;
+}
+
+void run(const std::vector<Row>& rows, const ConversationConfig& cfg = config()) {
+  for (const Row& row : rows) {
+    SCOPED_TRACE(row.name);
+    FakeWorlds worlds;
+    Conversation c(cfg, worlds, nullptr);
+    for (const Event& e : row.given)
+      e(c);
+    c.take();
+    row.when(c);
+    std::vector<std::string> got;
+    for (const Action& a : c.take())
+      got.push_back(describe(a));
+    EXPECT_EQ(got, row.then);
+    EXPECT_EQ(static_cast<int>(c.state()), static_cast<int>(row.state));
+  }
+}
+
+TEST(Conversation, admission_and_the_handshake) {
+  run({
+      {"admitted: the handshake timer starts", {}, admit(), {"timer 10000"}, State::kAwaitingHello},
+      {"over max_connections: overloaded before any hello, close 1008",
+       {},
+       admit(Admission::kFull),
+       {"error overloaded fatal", "close 1008 overloaded"},
+       State::kClosed},
+      {"while stopping: service_restart, close 1001",
+       {},
+       admit(Admission::kStopping),
+       {"error service_restart fatal", "close 1001 service_restart"},
+       State::kClosed},
+      {"hello: welcome with the server's seed, then the idle timer",
+       {admit()},
+       text(kHello),
+       {"welcome seed=7 ref=1", "timer 60000"},
+       State::kOpen},
+      {"hello naming another world that opens",
+       {admit()},
+       text(R"({"type":"hello","versions":[1,2],"seed":"11"})"),
+       {"welcome seed=11", "timer 60000"},
+       State::kOpen},
+      {"hello for a seed a one-world server does not serve: world_mismatch, 1008",
+       {admit()},
+       text(R"({"type":"hello","ref":2,"versions":[1],"seed":"8"})"),
+       {"error world_mismatch fatal ref=2", "close 1008 world_mismatch"},
+       State::kClosed},
+      {"hello for a world with no free slot: overloaded, 1008",
+       {admit()},
+       text(R"({"type":"hello","versions":[1],"seed":"9"})"),
+       {"error overloaded fatal", "close 1008 overloaded"},
+       State::kClosed},
+      {"hello with another parameter digest: world_mismatch",
+       {admit()},
+       text(R"({"type":"hello","versions":[1],"params":"0000000000000001"})"),
+       {"error world_mismatch fatal", "close 1008 world_mismatch"},
+       State::kClosed},
+      {"hello with its own digest is welcome",
+       {admit()},
+       text(R"({"type":"hello","versions":[1],"params":"1234abcd5678ef90"})"),
+       {"welcome seed=7", "timer 60000"},
+       State::kOpen},
+      {"no version in common: unsupported_version lists the server's",
+       {admit()},
+       text(R"({"type":"hello","ref":3,"versions":[2,3]})"),
+       {"error unsupported_version fatal ref=3 v1", "close 1008 unsupported_version"},
+       State::kClosed},
+      {"a message before hello: out_of_order",
+       {admit()},
+       text(R"({"type":"ping","ref":4,"t":1})"),
+       {"error out_of_order fatal ref=4", "close 1008 out_of_order"},
+       State::kClosed},
+      {"a message before hello with a bad field: out_of_order still (order before fields)",
+       {admit()},
+       text(R"({"type":"ping","t":"x"})"),
+       {"error out_of_order fatal", "close 1008 out_of_order"},
+       State::kClosed},
+      {"before welcome every error is fatal: bad_json",
+       {admit()},
+       text("{nope"),
+       {"error bad_json fatal", "close 1008 bad_json"},
+       State::kClosed},
+      {"before welcome every error is fatal: bad_message",
+       {admit()},
+       text(R"({"type":"hello","ref":6,"versions":"1"})"),
+       {"error bad_message fatal ref=6", "close 1008 bad_message"},
+       State::kClosed},
+      {"before welcome every error is fatal: unknown_type",
+       {admit()},
+       text(R"({"type":"teleport"})"),
+       {"error unknown_type fatal", "close 1008 unknown_type"},
+       State::kClosed},
+      {"no hello within handshake_timeout_ms: timeout, 1008",
+       {admit()},
+       deadline(),
+       {"error timeout fatal", "close 1008 timeout"},
+       State::kClosed},
+      {"a second hello: out_of_order, whatever its fields",
+       kOpen,
+       text(R"({"type":"hello","ref":7,"versions":"x"})"),
+       {"timer 60000", "release", "error out_of_order fatal ref=7", "close 1008 out_of_order"},
+       State::kClosed},
+  });
+}
+
+TEST(Conversation, the_token_comes_before_everything_in_hello) {
+  run(
+      {
+          {"missing token",
+           {admit()},
+           text(R"({"type":"hello","versions":[9],"seed":"8"})"),
+           {"error unauthorized fatal", "close 1008 unauthorized"},
+           State::kClosed},
+          {"wrong token",
+           {admit()},
+           text(R"({"type":"hello","versions":[1],"token":"guess"})"),
+           {"error unauthorized fatal", "close 1008 unauthorized"},
+           State::kClosed},
+          {"right token",
+           {admit()},
+           text(R"({"type":"hello","versions":[1],"token":"s3cret"})"),
+           {"welcome seed=7", "timer 60000"},
+           State::kOpen},
+      },
+      config("s3cret"));
+}
+
+TEST(Conversation, questions_after_welcome) {
+  run({
+      {"locate in a room",
+       kOpen,
+       text(R"({"type":"locate","ref":8,"point":[1,2,3]})"),
+       {"timer 60000", "located 0.0.0.r3 ref=8"},
+       State::kOpen},
+      {"locate in rock",
+       kOpen,
+       text(R"({"type":"locate","point":[-1,2,3]})"),
+       {"timer 60000", "located null"},
+       State::kOpen},
+      {"spawn",
+       kOpen,
+       text(R"({"type":"spawn","ref":9})"),
+       {"timer 60000", "spawn_point 0.0.0.r0 ref=9"},
+       State::kOpen},
+      {"ping: pong with the server's clock",
+       kOpen,
+       text(R"({"type":"ping","ref":10,"t":42})"),
+       {"timer 60000", "pong t=42 time=1000 ref=10"},
+       State::kOpen},
+      {"stats count what was sent, in payload bytes of completed writes",
+       open_then(
+           {text(kRequest3), deliver("0.0.0.r1"), sent(300), sent(3), text(R"({"type":"nope"})")}),
+       text(R"({"type":"stats","ref":11})"),
+       {"timer 60000", "stats in_flight=2 rooms_sent=1 bytes_sent=303 errors=1 ref=11"},
+       State::kOpen},
+      {"silence for idle_timeout_ms: timeout",
+       kOpen,
+       deadline(),
+       {"release", "error timeout fatal", "close 1008 timeout"},
+       State::kClosed},
+  });
+}
+
+TEST(Conversation, errors_after_welcome_refuse_one_message) {
+  run({
+      {"bad_json", kOpen, text("[1,"), {"timer 60000", "error bad_json"}, State::kOpen},
+      {"bad_message names the message's ref",
+       kOpen,
+       text(R"({"type":"locate","ref":12,"point":[1,2]})"),
+       {"timer 60000", "error bad_message ref=12"},
+       State::kOpen},
+      {"unknown_type",
+       kOpen,
+       text(R"({"type":"teleport","ref":13})"),
+       {"timer 60000", "error unknown_type ref=13"},
+       State::kOpen},
+      {"invalid_room_id",
+       kOpen,
+       text(R"({"type":"request","ref":14,"rooms":[{"id":"0.0.0.r9999","lod":0,"priority":0}]})"),
+       {"timer 60000", "error invalid_room_id ref=14"},
+       State::kOpen},
+      {"a lod above max_lod is bad_message",
+       kOpen,
+       text(R"({"type":"request","rooms":[{"id":"0.0.0.r1","lod":2,"priority":0}]})"),
+       {"timer 60000", "error bad_message"},
+       State::kOpen},
+      {"a list over max_rooms_per_request is too_large, not fatal",
+       kOpen,
+       text(R"({"type":"cancel","ref":15,"rooms":["0.0.0.r1","0.0.0.r1","0.0.0.r1","0.0.0.r1",)"
+            R"("0.0.0.r1","0.0.0.r1","0.0.0.r1","0.0.0.r1","0.0.0.r1"]})"),
+       {"timer 60000", "error too_large ref=15"},
+       State::kOpen},
+      {"a whole message over max_message_bytes: too_large, close 1009",
+       kOpen,
+       text(std::string(2000, ' ')),
+       {"release", "error too_large fatal", "close 1009 too_large"},
+       State::kClosed},
+      {"a message that grew past the limit while being read: the same",
+       kOpen,
+       oversized(),
+       {"release", "error too_large fatal", "close 1009 too_large"},
+       State::kClosed},
+      {"a binary frame: bad_frame, close 1008",
+       kOpen,
+       binary(),
+       {"release", "error bad_frame fatal", "close 1008 bad_frame"},
+       State::kClosed},
+  });
+}
+
+TEST(Conversation, the_in_flight_ledger) {
+  run({
+      {"a request asks the generator, by priority (ties in the order asked)",
+       kOpen,
+       text(kRequest3),
+       {"timer 60000", "want 0.0.0.r1@0/3 0.0.0.r3@1/3 0.0.0.r2@0/9"},
+       State::kOpen},
+      {"a request over max_rooms_in_flight is refused whole: limit_exceeded",
+       open_then({text(kRequest3)}),
+       text(R"({"type":"request","ref":16,"rooms":[{"id":"1.0.0.r1","lod":0,"priority":0},)"
+            R"({"id":"1.0.0.r2","lod":0,"priority":0}]})"),
+       {"timer 60000", "error limit_exceeded ref=16"},
+       State::kOpen},
+      {"re-requesting rooms in flight does not count twice",
+       open_then({text(kRequest3)}),
+       text(R"({"type":"request","rooms":[{"id":"0.0.0.r1","lod":0,"priority":1},)"
+            R"({"id":"0.0.0.r2","lod":0,"priority":1}]})"),
+       {"timer 60000", "want 0.0.0.r1@0/1 0.0.0.r2@0/1"},
+       State::kOpen},
+      {"a new lod replaces the old one: the old want is dropped",
+       open_then({text(kRequest3)}),
+       text(R"({"type":"request","rooms":[{"id":"0.0.0.r1","lod":1,"priority":1}]})"),
+       {"timer 60000", "drop 0.0.0.r1", "want 0.0.0.r1@1/1"},
+       State::kOpen},
+      {"a delivered room is sent",
+       open_then({text(kRequest3)}),
+       deliver("0.0.0.r2"),
+       {"room 0.0.0.r2@0"},
+       State::kOpen},
+      {"a room at a lod the client replaced is not sent",
+       open_then({text(kRequest3)}),
+       deliver("0.0.0.r3", 0),
+       {},
+       State::kOpen},
+      {"a room not in flight (cancelled meanwhile) is not sent",
+       open_then({text(kRequest3), text(R"({"type":"cancel","rooms":["0.0.0.r2"]})")}),
+       deliver("0.0.0.r2"),
+       {},
+       State::kOpen},
+      {"a room delivered twice is sent once",
+       open_then({text(kRequest3), deliver("0.0.0.r2")}),
+       deliver("0.0.0.r2"),
+       {},
+       State::kOpen},
+      {"not_found names the room and the request's ref",
+       open_then({text(kRequest3)}),
+       fail_room("0.0.0.r2", ErrorCode::kNotFound),
+       {"error not_found ref=5 room=0.0.0.r2"},
+       State::kOpen},
+      {"a build failure is internal for that room only",
+       open_then({text(kRequest3)}),
+       fail_room("0.0.0.r1", ErrorCode::kInternal),
+       {"error internal ref=5 room=0.0.0.r1"},
+       State::kOpen},
+      {"a job past its deadline is overloaded, not fatal",
+       open_then({text(kRequest3)}),
+       fail_room("0.0.0.r1", ErrorCode::kOverloaded),
+       {"error overloaded ref=5 room=0.0.0.r1"},
+       State::kOpen},
+      {"the generator stopping is service_restart, close 1001",
+       open_then({text(kRequest3)}),
+       fail_room("0.0.0.r1", ErrorCode::kServiceRestart),
+       {"release", "error service_restart fatal", "close 1001 service_restart"},
+       State::kClosed},
+      {"cancel drops only rooms in flight",
+       open_then({text(kRequest3)}),
+       text(R"({"type":"cancel","rooms":["0.0.0.r2","7.0.0.r1","0.0.0.r2"]})"),
+       {"timer 60000", "drop 0.0.0.r2"},
+       State::kOpen},
+      {"cancel of nothing in flight: no action, no error",
+       kOpen,
+       text(R"({"type":"cancel","rooms":["0.0.0.r2"]})"),
+       {"timer 60000"},
+       State::kOpen},
+  });
+}
+
+TEST(Conversation, closing) {
+  run({
+      {"shutdown: service_restart, close 1001",
+       open_then({text(kRequest3)}),
+       shutdown(),
+       {"release", "error service_restart fatal", "close 1001 service_restart"},
+       State::kClosed},
+      {"a slow client is released and closed 1008 slow_client, without an error message",
+       open_then({text(kRequest3)}),
+       slow(),
+       {"release", "close 1008 slow_client"},
+       State::kClosed},
+      {"the transport gone: the generator's client is released",
+       open_then({text(kRequest3)}),
+       gone(),
+       {"release"},
+       State::kClosed},
+      {"nothing happens after the close",
+       open_then({deadline()}),
+       text(kRequest3),
+       {},
+       State::kClosed},
+      {"a delivery after the close is dropped",
+       open_then({text(kRequest3), shutdown()}),
+       deliver("0.0.0.r1"),
+       {},
+       State::kClosed},
+      {"nothing before admission", {}, text(kHello), {}, State::kNew},
+  });
+}
+
+TEST(Conversation, close_codes_follow_the_error) {
+  EXPECT_EQ(close_code_for(ErrorCode::kServiceRestart), CloseCode::kGoingAway);
+  EXPECT_EQ(close_code_for(ErrorCode::kTooLarge), CloseCode::kTooBig);
+  for (ErrorCode c : {ErrorCode::kTimeout, ErrorCode::kOverloaded, ErrorCode::kWorldMismatch,
+                      ErrorCode::kUnauthorized, ErrorCode::kOutOfOrder, ErrorCode::kBadFrame,
+                      ErrorCode::kUnsupportedVersion, ErrorCode::kBadJson}) {
+    EXPECT_EQ(close_code_for(c), CloseCode::kPolicy) << error_code_name(c);
+  }
+}
+
+}  // namespace
+}  // namespace grotto::server
