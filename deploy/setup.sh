@@ -13,6 +13,7 @@ packages=(
   libmeshoptimizer-dev
   zlib1g-dev  # PNG compression (screenshots, layout previews)
   xvfb xauth libgl1-mesa-dri  # grotto-client tests: Mesa llvmpipe under Xvfb (xvfb-run needs xauth)
+  libegl-dev libegl-mesa0  # grotto-client --screenshot/--bench without X: EGL headers, Mesa's EGL
   clang libclang-rt-14-dev  # libFuzzer (tests/fuzz); its runtime is in libclang-rt-14-dev
   nginx  # tests/deploy: the load balancer in front of grotto-server replicas
   python3-yaml systemd  # tests/deploy/manifests_test.sh: YAML checks, systemd-analyze verify

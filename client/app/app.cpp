@@ -1,5 +1,6 @@
 #include "client/app/app.hpp"
 
+#include <GLFW/glfw3.h>
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
@@ -106,9 +107,9 @@ void follow_path(Session& s, double seconds) {
 
 }  // namespace
 
-Session::Session(const Options& o, GLFWwindow* w, render::Renderer& r, render::Overlay& ov,
+Session::Session(const Options& o, render::Renderer& r, render::Overlay& ov,
                  render::GpuRoomCache& c, client::Stream& st)
-    : options(o), window(w), renderer(r), overlay(ov), cache(c), stream(st), player(Vec3{}) {
+    : options(o), renderer(r), overlay(ov), cache(c), stream(st), player(Vec3{}) {
   play::PlayerParams params;
   params.speed = o.speed;
   player = play::Player(Vec3{}, params);
@@ -405,17 +406,17 @@ int run_headless(Session& s) {
   return o.bench_s ? bench(s, fb.value(), deadline) : screenshot(s, fb.value(), deadline);
 }
 
-int run_window(Session& s) {
+int run_window(Session& s, GLFWwindow* window) {
   struct Mouse {
     double last_x = 0, last_y = 0;
     bool seen = false;
     render::Camera* camera = nullptr;
   } mouse;
   mouse.camera = &s.camera;
-  glfwSetWindowUserPointer(s.window, &mouse);
-  glfwSetInputMode(s.window, GLFW_CURSOR, GLFW_CURSOR_DISABLED);
-  glfwSetCursorPosCallback(s.window, [](GLFWwindow* window, double x, double y) {
-    auto* m = static_cast<Mouse*>(glfwGetWindowUserPointer(window));
+  glfwSetWindowUserPointer(window, &mouse);
+  glfwSetInputMode(window, GLFW_CURSOR, GLFW_CURSOR_DISABLED);
+  glfwSetCursorPosCallback(window, [](GLFWwindow* w, double x, double y) {
+    auto* m = static_cast<Mouse*>(glfwGetWindowUserPointer(w));
     if (m->seen) {
       constexpr double kRadiansPerPixel = 0.0025;
       m->camera->yaw += (x - m->last_x) * kRadiansPerPixel;
@@ -435,19 +436,19 @@ int run_window(Session& s) {
   bool t_down = false, p_down = false, f_down = false, g_down = false, n_down = false;
   bool x_down = false, o_down = false, l_down = false, h_down = false, v_down = false;
   bool b_down = false, m_down = false;
-  auto key = [&](int k) { return glfwGetKey(s.window, k) == GLFW_PRESS; };
+  auto key = [&](int k) { return glfwGetKey(window, k) == GLFW_PRESS; };
   auto pressed = [&](int k, bool& was) {
     const bool now = key(k);
     const bool edge = now && !was;
     was = now;
     return edge;
   };
-  while (!glfwWindowShouldClose(s.window)) {
+  while (!glfwWindowShouldClose(window)) {
     glfwPollEvents();
     const auto now = Clock::now();
     const double dt = std::min(std::chrono::duration<double>(now - last).count(), 0.1);
     last = now;
-    if (key(GLFW_KEY_ESCAPE)) glfwSetWindowShouldClose(s.window, 1);
+    if (key(GLFW_KEY_ESCAPE)) glfwSetWindowShouldClose(window, 1);
     if (pressed(GLFW_KEY_T, t_down)) ro.tessellation = !ro.tessellation;
     if (pressed(GLFW_KEY_F, f_down)) ro.wireframe = !ro.wireframe;
     if (pressed(GLFW_KEY_P, p_down))
@@ -497,11 +498,11 @@ int run_window(Session& s) {
     pump(s, moving ? speed : s.options.speed);
 
     int w = 0, h = 0;
-    glfwGetFramebufferSize(s.window, &w, &h);
+    glfwGetFramebufferSize(window, &w, &h);
     glBindFramebuffer(GL_FRAMEBUFFER, 0);
     glViewport(0, 0, w, h);
     const render::FrameStats fs = draw_frame(s, w, h);
-    glfwSwapBuffers(s.window);
+    glfwSwapBuffers(window);
 
     title_timer += dt;
     if (title_timer > 0.5) {
@@ -515,7 +516,7 @@ int run_window(Session& s) {
           ro.tessellation ? (ro.surface == render::Surface::kPhong ? "phong" : "pn") : "flat",
           ro.wireframe ? " wire" : "", following ? "path" : play::mode_name(s.player.mode()),
           s.player.noclip() ? " noclip" : "", client::state_name(st.state), seconds_since(began));
-      glfwSetWindowTitle(s.window, title);
+      glfwSetWindowTitle(window, title);
     }
   }
   return 0;

@@ -1,10 +1,9 @@
-// grotto-client's running parts once the window, the GL context, the renderer and the stream
-// exist (main.cpp makes them): rooms flow from the stream into the GPU cache and the collision
-// world, the player or the scripted path moves the camera, and one of three loops runs: the
-// window, a headless --screenshot, or a headless --bench.
+// grotto-client's running parts once the GL context, the renderer and the stream exist (main.cpp
+// makes them): rooms flow from the stream into the GPU cache and the collision world, the player
+// or the scripted path moves the camera, and one of three loops runs: the window, a headless
+// --screenshot, or a headless --bench. Only the window's loop needs a window: headless runs draw
+// into a framebuffer object of their own, in any current context (GLFW's or EGL's).
 #pragma once
-
-#include <GLFW/glfw3.h>
 
 #include <chrono>
 #include <optional>
@@ -20,14 +19,15 @@
 #include "client/render/room_cache.hpp"
 #include "client/stream/stream.hpp"
 
+struct GLFWwindow;
+
 namespace grotto::app {
 
 struct Session {
-  Session(const Options& options, GLFWwindow* window, render::Renderer& renderer,
-          render::Overlay& overlay, render::GpuRoomCache& cache, client::Stream& stream);
+  Session(const Options& options, render::Renderer& renderer, render::Overlay& overlay,
+          render::GpuRoomCache& cache, client::Stream& stream);
 
   const Options& options;
-  GLFWwindow* window;
   render::Renderer& renderer;
   render::Overlay& overlay;
   render::GpuRoomCache& cache;
@@ -58,8 +58,8 @@ void pump(Session& s, double speed);
 // Draws one frame into the bound framebuffer: the cave, then the overlay when shown.
 render::FrameStats draw_frame(Session& s, int width, int height);
 
-// The window until it is closed or Esc.
-int run_window(Session& s);
+// The window (its context current) until it is closed or Esc.
+int run_window(Session& s, GLFWwindow* window);
 // --bench when given, else --screenshot: offscreen frames, then the statistics or the PNG.
 int run_headless(Session& s);
 

@@ -1,9 +1,9 @@
 // grotto-client: the player's program (issue 7). A GLFW window over client/render, fed by a
 // client/stream Stream connected to --server or to a server started in-process; a player that
-// walks or flies and collides with the cave (client/play); headless --screenshot and --bench.
-// Flags live in options.cpp, the loops in app.cpp; this file makes the window, the GL context,
-// the server and the stream, and tears them down in order.
-#include <GLFW/glfw3.h>
+// walks or flies and collides with the cave (client/play); headless --screenshot and --bench,
+// through EGL where there is no display. Flags live in options.cpp, the loops in app.cpp, the
+// window or EGL context in gl_context.cpp; this file makes the context, the renderer, the server
+// and the stream, and tears them down in order.
 #include <spdlog/spdlog.h>
 
 #include <chrono>
@@ -13,6 +13,7 @@
 #include <string>
 
 #include "client/app/app.hpp"
+#include "client/app/gl_context.hpp"
 #include "client/app/options.hpp"
 #include "client/render/gl.hpp"
 #include "server/server.hpp"
@@ -23,15 +24,6 @@ using namespace std::chrono_literals;
 namespace app = grotto::app;
 namespace client = grotto::client;
 namespace render = grotto::render;
-
-// Prints the plain sentence issue 7 asks for instead of a raw GLFW error.
-int no_display(const std::string& why) {
-  std::fprintf(stderr,
-               "grotto-client: no display (%s); run it under a desktop session or `xvfb-run -a "
-               "grotto-client ...`, or use grotto-load for headless streaming\n",
-               why.c_str());
-  return 1;
-}
 
 int fail(const std::string& message) {
   std::fprintf(stderr, "grotto-client: %s\n", message.c_str());
@@ -45,31 +37,19 @@ int main(int argc, char** argv) {
   if (auto exit_code = app::parse_options(argc, argv, o)) return *exit_code;
   spdlog::set_level(spdlog::level::from_str(o.log_level));
 
-  // The display first: without one nothing else is worth starting.
-  const char* display = std::getenv("DISPLAY");
-  const char* wayland = std::getenv("WAYLAND_DISPLAY");
-  if ((display == nullptr || *display == '\0') && (wayland == nullptr || *wayland == '\0'))
-    return no_display("DISPLAY is not set");
-  glfwSetErrorCallback([](int, const char* text) { spdlog::debug("event=glfw_error {}", text); });
-  if (glfwInit() != GLFW_TRUE)
-    return no_display(std::string("cannot open DISPLAY=") + (display ? display : ""));
-  struct GlfwGuard {
-    ~GlfwGuard() { glfwTerminate(); }
-  } glfw_guard;
-
+  // The GL context first: without one nothing else is worth starting.
   const bool headless = !o.screenshot.empty() || o.bench_s.has_value();
-  glfwWindowHint(GLFW_CONTEXT_VERSION_MAJOR, 4);
-  glfwWindowHint(GLFW_CONTEXT_VERSION_MINOR, 1);
-  glfwWindowHint(GLFW_OPENGL_PROFILE, GLFW_OPENGL_CORE_PROFILE);
-  glfwWindowHint(GLFW_OPENGL_FORWARD_COMPAT, GLFW_TRUE);
-  glfwWindowHint(GLFW_VISIBLE, headless ? GLFW_FALSE : GLFW_TRUE);
-  GLFWwindow* window = glfwCreateWindow(headless ? 64 : o.width, headless ? 64 : o.height,
-                                        "grotto-client", nullptr, nullptr);
-  if (window == nullptr)
-    return fail("this display gives no OpenGL 4.1 core context (the renderer needs tessellation)");
-  glfwMakeContextCurrent(window);
-  glfwSwapInterval(headless ? 0 : 1);
-  spdlog::info("event=gl_context {}", render::describe_context());
+  const app::GlBackend backend =
+      app::choose_backend(o.gl, headless, std::getenv("DISPLAY"), std::getenv("WAYLAND_DISPLAY"));
+  auto context_or = backend == app::GlBackend::kEgl
+                        ? app::GlContext::open_egl()
+                        : app::GlContext::open_window(headless ? 64 : o.width,
+                                                      headless ? 64 : o.height, !headless);
+  if (!context_or) return fail(context_or.error().message);
+  app::GlContext context = std::move(context_or).value();
+  spdlog::info("event=gl_context backend={} from=\"{}\" {}",
+               backend == app::GlBackend::kEgl ? "egl" : "glfw", context.origin(),
+               render::describe_context());
   // Mesa's llvmpipe (3D in software) drops triangles from patches tessellated at level 16 and
   // above (levels up to 14 are whole; seen with Mesa 22.3): cap the level there rather than show
   // holes in the cave.
@@ -123,8 +103,8 @@ int main(int argc, char** argv) {
 
   int status = 0;
   {
-    app::Session session(o, window, *renderer, *overlay, *cache, *stream);
-    status = headless ? app::run_headless(session) : app::run_window(session);
+    app::Session session(o, *renderer, *overlay, *cache, *stream);
+    status = headless ? app::run_headless(session) : app::run_window(session, context.window());
   }
 
   stream->stop();
@@ -132,7 +112,6 @@ int main(int argc, char** argv) {
   cache.reset();
   overlay.reset();
   renderer.reset();
-  glfwDestroyWindow(window);
   if (server) server->stop(2000ms);
   return status;
 }

@@ -138,6 +138,12 @@ std::optional<int> parse_options(int argc, char** argv, Options& o) {
       ->capture_default_str()
       ->check(CLI::Range(0.05, 20.0));
   app.add_option("--json", o.json, "With --bench: also write the statistics to this JSON file");
+  app.add_option("--gl", o.gl,
+                 "How --screenshot and --bench get OpenGL: glfw (a hidden window: needs an X or "
+                 "Wayland display), egl (no window system: a GPU's driver, or Mesa's llvmpipe), or "
+                 "auto (glfw where DISPLAY or WAYLAND_DISPLAY is set, else egl). The window always "
+                 "uses glfw")
+      ->capture_default_str();
   app.add_option("--log-level", o.log_level, "Log level on stderr (trace ... off)")
       ->capture_default_str();
   try {
@@ -182,6 +188,10 @@ std::optional<int> parse_options(int argc, char** argv, Options& o) {
                 ")");
   if (o.bench_s && !o.screenshot.empty())
     return fail("--bench and --screenshot are separate runs: give one of them");
+  if (o.gl != "auto" && o.gl != "glfw" && o.gl != "egl")
+    return fail("--gl must be auto, glfw or egl (got '" + o.gl + "')");
+  if (o.gl == "egl" && o.screenshot.empty() && !o.bench_s)
+    return fail("--gl egl is for --screenshot and --bench (the window needs a display: glfw)");
   if (!o.json.empty() && !o.bench_s) return fail("--json needs --bench (it holds its statistics)");
   return std::nullopt;
 }

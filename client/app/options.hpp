@@ -51,6 +51,7 @@ struct Options {
   bool no_bloom = false;
   bool no_motion_blur = false;
   double exposure = 1.0;
+  std::string gl = "auto";  // --gl: auto, glfw or egl (see gl_context.hpp)
   std::string log_level = "warn";
 };
 
