@@ -42,7 +42,8 @@ class GlContext {
   GlBackend backend() const { return backend_; }
   // The GLFW window; null for EGL.
   GLFWwindow* window() const { return window_; }
-  // Where the context came from, for the log: "glfw", or "egl device /dev/dri/renderD128", ...
+  // Where the context came from, for the log: "GLFW", "EGL device /dev/dri/card1", "EGL device
+  // (software)" (Mesa's llvmpipe) or "EGL surfaceless".
   const std::string& origin() const { return origin_; }
 
  private:

@@ -48,7 +48,7 @@ int main(int argc, char** argv) {
   if (!context_or) return fail(context_or.error().message);
   app::GlContext context = std::move(context_or).value();
   spdlog::info("event=gl_context backend={} from=\"{}\" {}",
-               backend == app::GlBackend::kEgl ? "egl" : "glfw", context.origin(),
+               context.backend() == app::GlBackend::kEgl ? "egl" : "glfw", context.origin(),
                render::describe_context());
   // Mesa's llvmpipe (3D in software) drops triangles from patches tessellated at level 16 and
   // above (levels up to 14 are whole; seen with Mesa 22.3): cap the level there rather than show
@@ -112,6 +112,7 @@ int main(int argc, char** argv) {
   cache.reset();
   overlay.reset();
   renderer.reset();
+  // The GL context goes at the end of main, after every GL object.
   if (server) server->stop(2000ms);
   return status;
 }
