@@ -114,6 +114,23 @@ TEST(GrottoClient, without_a_display_a_screenshot_renders_through_egl) {
   std::filesystem::remove(path);
 }
 
+// --bench on a GPU box with no X server: the same path through EGL, and the report names what drew.
+TEST(GrottoClient, without_a_display_bench_measures_through_egl) {
+  const std::string path =
+      (std::filesystem::temp_directory_path() / "grotto_client_test_egl_bench.json").string();
+  std::filesystem::remove(path);
+  Outcome r = run(std::string("env -u DISPLAY -u WAYLAND_DISPLAY ") + GROTTO_CLIENT_BIN +
+                  " --device none --seed 7 --width 160 --height 90 --tess-max 4 --wait 120" +
+                  " --bench 1 --json " + path);
+  ASSERT_EQ(r.status, 0) << r.output;
+  std::ifstream f(path);
+  const nlohmann::json j = nlohmann::json::parse(f, nullptr, false);
+  ASSERT_FALSE(j.is_discarded()) << "invalid JSON in " << path;
+  EXPECT_GT(j.value("frames", 0), 0);
+  EXPECT_NE(j.value("gl_renderer", std::string("unknown")), "unknown");
+  std::filesystem::remove(path);
+}
+
 // Without a usable EGL (here: libEGL finds no vendor library) a headless run fails at once with
 // one line and writes nothing: a screenshot that shows nothing is a failure.
 TEST(GrottoClient, without_egl_a_headless_run_fails_with_one_line) {
