@@ -51,14 +51,13 @@ void Conversation::admit(Admission admission) {
       emit(act::Timer{std::chrono::milliseconds{config_.limits.handshake_timeout_ms}});
       return;
     case Admission::kStopping:
-      fail(Error{ErrorCode::kServiceRestart, "the server is shutting down"}, std::nullopt,
-           CloseCode::kGoingAway);
+      fail(Error{ErrorCode::kServiceRestart, "the server is shutting down"}, std::nullopt);
       return;
     case Admission::kFull:
       fail(Error{ErrorCode::kOverloaded, "too many connections (max_connections " +
                                              std::to_string(config_.max_connections) +
                                              "); retry later"},
-           std::nullopt, CloseCode::kPolicy);
+           std::nullopt);
       return;
   }
 }
@@ -80,11 +79,11 @@ void Conversation::text(std::string_view message) {
     // The order check comes before any field error.
     return fail(
         Error{ErrorCode::kOutOfOrder, welcomed ? "a second hello" : "'" + type + "' before hello"},
-        ref, CloseCode::kPolicy);
+        ref);
   }
   if (!parsed) {
     Error e{parsed.error().code, parsed.error().message};
-    if (!welcomed) return fail(e, ref, CloseCode::kPolicy);
+    if (!welcomed) return fail(e, ref);
     return send_error(proto::error_reply(e, ref));
   }
   std::visit([&](const auto& m) { on(m); }, parsed.value());
@@ -93,8 +92,7 @@ void Conversation::text(std::string_view message) {
 void Conversation::binary() {
   if (state_ == State::kNew || state_ == State::kClosed) return;
   if (metrics_) metrics_->messages_total.add();
-  fail(Error{ErrorCode::kBadFrame, "clients must not send binary frames"}, std::nullopt,
-       CloseCode::kPolicy);
+  fail(Error{ErrorCode::kBadFrame, "clients must not send binary frames"}, std::nullopt);
 }
 
 void Conversation::oversized() {
@@ -102,7 +100,7 @@ void Conversation::oversized() {
   fail(
       Error{ErrorCode::kTooLarge, "message over max_message_bytes (" +
                                       std::to_string(config_.limits.max_message_bytes) + " bytes)"},
-      std::nullopt, CloseCode::kTooBig);
+      std::nullopt);
 }
 
 void Conversation::deadline() {
@@ -110,11 +108,11 @@ void Conversation::deadline() {
     fail(Error{ErrorCode::kTimeout, "no hello within handshake_timeout_ms (" +
                                         std::to_string(config_.limits.handshake_timeout_ms) +
                                         " ms)"},
-         std::nullopt, CloseCode::kPolicy);
+         std::nullopt);
   } else if (state_ == State::kOpen) {
     fail(Error{ErrorCode::kTimeout, "no message within idle_timeout_ms (" +
                                         std::to_string(config_.limits.idle_timeout_ms) + " ms)"},
-         std::nullopt, CloseCode::kPolicy);
+         std::nullopt);
   }
 }
 
@@ -127,7 +125,7 @@ void Conversation::delivery(Delivery d) {
   in_flight_.erase(it);
   if (d.error) {
     if (d.error->code == ErrorCode::kServiceRestart) {
-      return fail(*d.error, std::nullopt, CloseCode::kGoingAway);
+      return fail(*d.error, std::nullopt);
     }
     auto e = proto::error_reply(*d.error, ref, d.key.id);
     e.fatal = false;  // a room's failure refuses that room only
@@ -144,8 +142,7 @@ void Conversation::sent(uint64_t bytes) {
 
 void Conversation::shutdown() {
   if (state_ == State::kClosed) return;
-  fail(Error{ErrorCode::kServiceRestart, "the server is shutting down"}, std::nullopt,
-       CloseCode::kGoingAway);
+  fail(Error{ErrorCode::kServiceRestart, "the server is shutting down"}, std::nullopt);
 }
 
 void Conversation::slow_client() {
@@ -166,8 +163,7 @@ void Conversation::transport_closed() {
 void Conversation::on(const proto::Hello& m) {
   // The token comes first: a client without it learns nothing about this server's worlds.
   if (!config_.token.empty() && (!m.token || !proto::token_equals(config_.token, *m.token))) {
-    return fail(Error{ErrorCode::kUnauthorized, m.token ? "wrong token" : "missing token"}, m.ref,
-                CloseCode::kPolicy);
+    return fail(Error{ErrorCode::kUnauthorized, m.token ? "wrong token" : "missing token"}, m.ref);
   }
   uint32_t chosen = 0;
   for (uint32_t v : m.versions) {
@@ -177,17 +173,17 @@ void Conversation::on(const proto::Hello& m) {
     return fail(
         Error{ErrorCode::kUnsupportedVersion, "no protocol version in common; this server speaks " +
                                                   std::to_string(proto::kProtocolVersion)},
-        m.ref, CloseCode::kPolicy, {proto::kProtocolVersion});
+        m.ref, {proto::kProtocolVersion});
   }
   if (m.params && *m.params != config_.params_digest) {
     return fail(Error{ErrorCode::kWorldMismatch,
                       "this server's parameter digest differs from the one asked for"},
-                m.ref, CloseCode::kPolicy);
+                m.ref);
   }
   // The world: the one named, opened now if need be (--max-worlds), else the server's own.
   const uint64_t seed = m.seed.value_or(worlds_.own_seed());
   auto client = worlds_.open(seed);
-  if (!client) return fail(client.error(), m.ref, CloseCode::kPolicy);
+  if (!client) return fail(client.error(), m.ref);
   client_ = *client;
   state_ = State::kOpen;
   proto::Welcome w;
@@ -291,15 +287,14 @@ void Conversation::send_error(proto::ErrorMessage e) {
   send(proto::ServerMessage{std::move(e)});
 }
 
-void Conversation::fail(const Error& error, proto::Ref ref, CloseCode code,
-                        std::vector<uint32_t> versions) {
+void Conversation::fail(const Error& error, proto::Ref ref, std::vector<uint32_t> versions) {
   if (state_ == State::kClosed) return;
   release();
   auto e = proto::error_reply(error, ref);
   e.fatal = true;
   e.versions = std::move(versions);
   send_error(std::move(e));
-  close(code, proto::wire_code_name(error.code));
+  close(close_code_for(error.code), proto::wire_code_name(error.code));
 }
 
 void Conversation::close(CloseCode code, std::string reason) {

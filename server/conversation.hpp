@@ -148,9 +148,9 @@ class Conversation {
 
   void send(const proto::ServerMessage& m);
   void send_error(proto::ErrorMessage e);
-  // A fatal error: the error, then the close; everything held is released first.
-  void fail(const Error& error, proto::Ref ref, CloseCode code,
-            std::vector<uint32_t> versions = {});
+  // A fatal error: the error, then the close (close_code_for its code); everything held is
+  // released first.
+  void fail(const Error& error, proto::Ref ref, std::vector<uint32_t> versions = {});
   void close(CloseCode code, std::string reason);
   void release();
   template <class A>

@@ -4,6 +4,7 @@
 // a row; tests/server/server_test.cpp checks the same over real WebSocket connections.
 #include <gtest/gtest.h>
 
+#include <fstream>
 #include <functional>
 #include <map>
 #include <string>
@@ -286,6 +287,11 @@ TEST(Conversation, admission_and_the_handshake) {
        text(R"({"type":"hello","ref":6,"versions":"1"})"),
        {"error bad_message fatal ref=6", "close 1008 bad_message"},
        State::kClosed},
+      {"before welcome a field over its limit is too_large, fatal, close 1009",
+       {admit()},
+       text(R"({"type":"hello","versions":[1],"seed":")" + std::string(70, '1') + R"("})"),
+       {"error too_large fatal", "close 1009 too_large"},
+       State::kClosed},
       {"before welcome every error is fatal: unknown_type",
        {admit()},
        text(R"({"type":"teleport"})"),
@@ -515,6 +521,30 @@ TEST(Conversation, closing) {
        State::kClosed},
       {"nothing before admission", {}, text(kHello), {}, State::kNew},
   });
+}
+
+// PROTOCOL.md's error table names each code's close code: the conversation closes with it.
+TEST(Conversation, close_codes_are_the_documented_ones) {
+  std::ifstream in(GROTTO_PROTOCOL_MD);
+  ASSERT_TRUE(in.good()) << GROTTO_PROTOCOL_MD;
+  bool inside = false;
+  int rows = 0;
+  for (std::string line; std::getline(in, line);) {
+    if (line.starts_with("## ")) inside = line == "## Error codes";
+    if (!inside || !line.starts_with("| `")) continue;
+    // | `code` | fatal | close | sent when |
+    std::string name = line.substr(3, line.find('`', 3) - 3);
+    size_t fatal = line.find(" | ", 3);
+    size_t close = line.find(" | ", fatal + 3);
+    int documented = std::stoi(line.substr(close + 3, 4));
+    auto code = proto::parse_wire_code(name);
+    ASSERT_TRUE(code) << name;
+    EXPECT_EQ(static_cast<int>(close_code_for(*code)), documented) << name;
+    ++rows;
+  }
+  // One row per wire code: the protocol's own, and not_found and internal.
+  EXPECT_EQ(rows,
+            static_cast<int>(ErrorCode::kTimeout) - static_cast<int>(ErrorCode::kBadJson) + 3);
 }
 
 TEST(Conversation, close_codes_follow_the_error) {
