@@ -57,6 +57,7 @@ class Metrics {
   Gauge connections_open;        // grotto_connections_open
   Counter connections_rejected;  // grotto_connections_rejected_total (over max_connections)
   Counter http_requests_total;   // grotto_http_requests_total
+  Counter accept_failures;       // grotto_accept_failures_total (EMFILE and the like)
   // Control messages received, and room wants they carried.
   Counter messages_total;   // grotto_messages_total
   Counter rooms_requested;  // grotto_rooms_requested_total

@@ -63,6 +63,12 @@ struct Server::Impl {
   net::io_context ioc;
   std::optional<tcp::acceptor> acceptor;
   std::optional<net::strand<net::io_context::executor_type>> accept_strand;
+  // Accepting pauses after a failure (EMFILE: no file descriptors left), doubling up to a
+  // second, and logs once per pause instead of once per failure.
+  std::optional<net::steady_timer> accept_pause;
+  std::chrono::milliseconds accept_backoff{0};
+  uint64_t accept_failures_unlogged = 0;
+  Clock::time_point accept_logged{};
   std::vector<std::thread> threads;
   tcp::endpoint bound;
   std::atomic<bool> stopping{false};
@@ -466,9 +472,11 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
       return;
     }
     if (ec) {
-      if (ec == http::error::header_limit || ec == http::error::body_limit ||
-          ec == http::error::buffer_overflow) {
-        respond_and_close(http::status::request_header_fields_too_large, "request too large\n");
+      if (ec == http::error::body_limit) {
+        respond_and_close(http::status::payload_too_large, "request body too large\n");
+      } else if (ec == http::error::header_limit || ec == http::error::buffer_overflow) {
+        respond_and_close(http::status::request_header_fields_too_large,
+                          "request headers too large\n");
       }
       return;  // timeouts and resets: the connection just goes
     }
@@ -574,12 +582,30 @@ void Server::Impl::do_accept() {
 
 void Server::Impl::on_accept(beast::error_code ec, tcp::socket socket) {
   if (stopping.load() || !acceptor->is_open()) return;
-  if (ec) {
-    spdlog::warn("event=accept_failed error=\"{}\"", ec.message());
-  } else {
+  if (!ec) {
+    accept_backoff = std::chrono::milliseconds{0};
+    beast::error_code ignored;
+    // Messages go out as soon as they are written (no Nagle wait behind a delayed ACK).
+    socket.set_option(tcp::no_delay(true), ignored);
     std::make_shared<HttpSession>(*this, std::move(socket))->run();
+    return do_accept();
   }
-  do_accept();
+  // Out of file descriptors (or another failure): the pending connection stays in the backlog,
+  // so accepting again at once would spin. Pause, then try again; log once a second at most.
+  metrics.accept_failures.add();
+  ++accept_failures_unlogged;
+  accept_backoff = std::clamp(accept_backoff * 2, std::chrono::milliseconds{10},
+                              std::chrono::milliseconds{1000});
+  if (auto now = Clock::now(); now - accept_logged >= std::chrono::seconds{1}) {
+    spdlog::warn("event=accept_failed error=\"{}\" failures={} pause_ms={}", ec.message(),
+                 accept_failures_unlogged, accept_backoff.count());
+    accept_failures_unlogged = 0;
+    accept_logged = now;
+  }
+  accept_pause->expires_after(accept_backoff);
+  accept_pause->async_wait([this](beast::error_code wait_ec) {
+    if (!wait_ec) do_accept();
+  });
 }
 
 // ---- Server ----
@@ -611,6 +637,7 @@ Result<std::unique_ptr<Server>> Server::start(const ServerConfig& config) {
   tcp::endpoint endpoint(address, config.port);
   impl->accept_strand.emplace(net::make_strand(impl->ioc));
   impl->acceptor.emplace(*impl->accept_strand);
+  impl->accept_pause.emplace(*impl->accept_strand);
   auto& acc = *impl->acceptor;
   auto where = config.bind + ":" + std::to_string(config.port);
   if (acc.open(endpoint.protocol(), ec); ec) {
@@ -683,6 +710,7 @@ void Server::stop(std::chrono::milliseconds drain) {
     net::dispatch(*s.accept_strand, [&] {
       beast::error_code ignored;
       s.acceptor->close(ignored);
+      s.accept_pause->cancel();
       closed.set_value();
     });
     done.wait_for(std::chrono::milliseconds{1000});

@@ -1,9 +1,13 @@
 // grotto-server over real sockets: a Server started in-process on 127.0.0.1, port 0, and Beast
 // WebSocket/HTTP clients on loopback. Every wait is bounded (kWait), so a broken server fails a
 // test instead of hanging it.
+#include <arpa/inet.h>
 #include <gtest/gtest.h>
+#include <netinet/in.h>
 #include <poll.h>
 #include <signal.h>
+#include <sys/resource.h>
+#include <sys/socket.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -234,7 +238,8 @@ struct HttpReply {
 };
 
 // One GET (or a raw request) on a fresh connection, bounded.
-HttpReply http_get(uint16_t port, const std::string& target) {
+HttpReply http_get(uint16_t port, const std::string& target, size_t body_bytes = 0,
+                   size_t header_bytes = 0) {
   net::io_context ioc;
   beast::tcp_stream stream(ioc);
   HttpReply out;
@@ -242,8 +247,13 @@ HttpReply http_get(uint16_t port, const std::string& target) {
   beast::error_code ec;
   stream.connect(tcp::endpoint(net::ip::make_address("127.0.0.1"), port), ec);
   if (ec) return out;
-  http::request<http::empty_body> req(http::verb::get, target, 11);
+  http::request<http::string_body> req(http::verb::get, target, 11);
   req.set(http::field::host, "127.0.0.1");
+  if (header_bytes > 0) req.set("X-Padding", std::string(header_bytes, 'h'));
+  if (body_bytes > 0) {
+    req.body() = std::string(body_bytes, 'b');
+    req.prepare_payload();
+  }
   bool done = false;
   http::response<http::string_body> res;
   beast::flat_buffer buffer;
@@ -729,6 +739,9 @@ TEST(ServerHttp, endpoints_answer_and_plain_http_on_ws_is_426) {
   EXPECT_EQ(http_get(server->port(), "/nothing-here").status, 404);
   EXPECT_EQ(http_get(server->port(), "/healthz").status, 200);
   EXPECT_EQ(http_get(server->port(), "/readyz").status, 200);
+  // Limits: 8 KiB of headers (431), 8 KiB of body (413).
+  EXPECT_EQ(http_get(server->port(), "/healthz", 9000).status, 413);
+  EXPECT_EQ(http_get(server->port(), "/healthz", 0, 9000).status, 431);
   auto v = http_get(server->port(), "/version");
   EXPECT_EQ(v.status, 200);
   EXPECT_NE(v.body.find("\"protocol\":1"), std::string::npos) << v.body;
@@ -1003,17 +1016,22 @@ TEST(ServerSettings, invalid_settings_are_refused_naming_the_setting) {
 
 struct Process {
   pid_t pid = -1;
-  int out = -1;  // its stdout
+  int out = -1;  // its stdout and stderr
 };
 
-Process spawn(std::vector<std::string> args) {
+Process spawn(std::vector<std::string> args, rlim_t max_fds = 0) {
   int pipe_fds[2];
   EXPECT_EQ(pipe(pipe_fds), 0);
   Process p;
   p.pid = fork();
   if (p.pid == 0) {
     dup2(pipe_fds[1], 1);
+    dup2(pipe_fds[1], 2);  // the log too
     close(pipe_fds[0]);
+    if (max_fds != 0) {
+      rlimit limit{max_fds, max_fds};
+      setrlimit(RLIMIT_NOFILE, &limit);
+    }
     std::vector<char*> argv;
     std::string bin = GROTTO_SERVER_BIN;
     argv.push_back(bin.data());
@@ -1085,6 +1103,74 @@ TEST(ServerProgram, starts_serves_healthz_and_exits_0_on_sigterm) {
   client.hello();
   kill(p.pid, SIGTERM);
   EXPECT_EQ(std::string(client.wait_close().reason.c_str()), "service_restart");
+  EXPECT_EQ(wait_exit(p.pid, 15s), 0);
+  close(p.out);
+}
+
+// CPU seconds the process has used (user + system).
+double cpu_seconds(pid_t pid) {
+  std::ifstream in("/proc/" + std::to_string(pid) + "/stat");
+  std::string stat((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  std::istringstream fields(stat.substr(stat.rfind(')') + 2));
+  std::string f;
+  double ticks = 0;
+  for (int i = 3; i <= 15 && fields >> f; ++i) {
+    if (i >= 14) ticks += std::stod(f);  // utime, stime
+  }
+  return ticks / static_cast<double>(sysconf(_SC_CLK_TCK));
+}
+
+// Out of file descriptors, the acceptor pauses instead of spinning, logs a line a second at most,
+// counts the failures, and serves again once descriptors free up.
+TEST(ServerProgram, fd_exhaustion_pauses_accepting_and_recovers) {
+  auto p = spawn({"--port", "0", "--opencl-device", "none", "--workers", "1", "--io-threads", "1",
+                  "--http-timeout-ms", "60000"},
+                 64);
+  auto text = read_until(p.out, "/ws)", 30s);
+  std::smatch m;
+  ASSERT_TRUE(std::regex_search(text, m, std::regex(R"(http://127\.0\.0\.1:(\d+))"))) << text;
+  uint16_t port = static_cast<uint16_t>(std::stoi(m[1]));
+  // Raw TCP connections that never send a byte use up the server's 64 descriptors.
+  std::vector<int> squatters;
+  sockaddr_in addr{};
+  addr.sin_family = AF_INET;
+  addr.sin_port = htons(port);
+  addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  for (int i = 0; i < 150; ++i) {
+    int fd = socket(AF_INET, SOCK_STREAM, 0);
+    ASSERT_GE(fd, 0);
+    ASSERT_EQ(connect(fd, reinterpret_cast<sockaddr*>(&addr), sizeof addr), 0);
+    squatters.push_back(fd);
+  }
+  std::this_thread::sleep_for(500ms);
+  double before = cpu_seconds(p.pid);
+  auto log = read_until(p.out, "\x01", 2000ms);
+  double used = cpu_seconds(p.pid) - before;
+  EXPECT_LT(used, 0.5) << "the acceptor spins: " << used << " CPU s in 2 s";
+  size_t lines = 0;
+  for (size_t at = log.find("accept_failed"); at != std::string::npos;
+       at = log.find("accept_failed", at + 1))
+    ++lines;
+  EXPECT_GE(lines, 1u) << log;
+  EXPECT_LE(lines, 4u) << log;
+  for (int fd : squatters)
+    close(fd);
+  // Descriptors free again: it serves, and counted what happened.
+  auto deadline = Clock::now() + 10s;
+  int status = 0;
+  while (Clock::now() < deadline && (status = http_get(port, "/healthz").status) != 200)
+    std::this_thread::sleep_for(100ms);
+  EXPECT_EQ(status, 200);
+  auto metrics = http_get(port, "/metrics").body;
+  std::smatch failures;
+  ASSERT_TRUE(
+      std::regex_search(metrics, failures, std::regex(R"(grotto_accept_failures_total (\d+))")));
+  EXPECT_GT(std::stoull(failures[1]), 0u);
+  Client player(port);
+  ASSERT_FALSE(player.connect());
+  player.hello();
+  EXPECT_TRUE(player.alive());
+  kill(p.pid, SIGTERM);
   EXPECT_EQ(wait_exit(p.pid, 15s), 0);
   close(p.out);
 }
