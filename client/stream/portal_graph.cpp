@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <bit>
+#include <cassert>
 #include <cmath>
 #include <cstdio>
 #include <set>
@@ -33,11 +34,14 @@ Error bad_frame(std::string message) {
   return {ErrorCode::kBadFrame, std::move(message)};
 }
 
+}  // namespace
+
 // Both sides of portal i of `room` as the layout makes them: the two rooms compute the disc once
 // and negate its normal for one side (common/cave/sector.cpp), so every double is bit-identical
 // and the normals are exact negations. Checked on real sectors by
 // tests/client/portal_graph_test.cpp (portal_sides_are_bit_identical_in_real_sectors).
-Status check_portal(const cave::Room& room, size_t i, const cave::Room& other) {
+Status check_portal_sides(const cave::Room& room, size_t i, const cave::Room& other) {
+  assert(i < room.portals.size());
   const cave::Portal& p = room.portals[i];
   const std::string where = "room " + room.id.to_string() + " portal " + std::to_string(i) +
                             " to " + other.id.to_string();
@@ -55,8 +59,6 @@ Status check_portal(const cave::Room& room, size_t i, const cave::Room& other) {
   return {};
 }
 
-}  // namespace
-
 Status PortalGraph::add(const cave::Room& room) {
   std::set<cave::RoomId> listed;
   for (size_t i = 0; i < room.portals.size(); ++i) {
@@ -68,7 +70,7 @@ Status PortalGraph::add(const cave::Room& room) {
       return bad_frame("room " + room.id.to_string() + " has two portals to " + to.to_string());
     auto it = rooms_.find(to);
     if (it == rooms_.end()) continue;
-    if (Status s = check_portal(room, i, it->second); !s) return s;
+    if (Status s = check_portal_sides(room, i, it->second); !s) return s;
   }
   // The other direction: a known room that leads here must be listed back, or the graph would
   // depend on the order rooms arrived in.

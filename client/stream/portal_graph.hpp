@@ -51,6 +51,14 @@ struct PlannedRoom {
   bool known = false;
 };
 
+// The one check of a portal's two sides (PROTOCOL.md "Binary room frame"): `other` has a portal
+// back to `room`, and it carries the same centre and radius as room.portals[slot], bit for bit,
+// and the opposite normal (the layout computes the disc once and negates the normal for one side,
+// common/cave/sector.cpp). Errors (kBadFrame) name the room, the slot, the neighbour and the first
+// field that differs. Precondition: slot < room.portals.size(). PortalGraph::add and verify_seam
+// call it.
+Status check_portal_sides(const cave::Room& room, size_t slot, const cave::Room& other);
+
 // The rooms a client has descriptors for, with their portals. Adding a room checks it against the
 // neighbours already known: the two sides of a portal carry the same centre and radius, bit for
 // bit, and opposite normals (PROTOCOL.md "Binary room frame").

@@ -1,12 +1,12 @@
 #include "client/stream/verify.hpp"
 
 #include <algorithm>
-#include <bit>
 #include <cmath>
 #include <cstdio>
 #include <string>
 #include <vector>
 
+#include "client/stream/portal_graph.hpp"
 #include "core/grid.hpp"
 
 namespace grotto::client {
@@ -20,13 +20,6 @@ std::string format_vec(Vec3 v) {
   char buf[96];
   std::snprintf(buf, sizeof buf, "(%.17g, %.17g, %.17g)", v.x, v.y, v.z);
   return buf;
-}
-
-bool same_bits(double a, double b) {
-  return std::bit_cast<uint64_t>(a) == std::bit_cast<uint64_t>(b);
-}
-bool same_bits(Vec3 a, Vec3 b) {
-  return same_bits(a.x, b.x) && same_bits(a.y, b.y) && same_bits(a.z, b.z);
 }
 
 Vec3 world_position(const ReadyRoom& r, size_t v) {
@@ -173,15 +166,8 @@ Status verify_seam(const ReadyRoom& a, const ReadyRoom& b) {
     return bad_frame(names + ": only " + (slot_a < 0 ? b : a).room.id.to_string() +
                      " has a portal to the other");
 
-  const cave::Portal& pa = a.room.portals[slot_a];
-  const cave::Portal& pb = b.room.portals[slot_b];
-  if (!same_bits(pa.centre, pb.centre))
-    return bad_frame(names + ": portal centres differ: " + format_vec(pa.centre) + " and " +
-                     format_vec(pb.centre));
-  if (!same_bits(pa.radius, pb.radius)) return bad_frame(names + ": portal radii differ");
-  if (!same_bits(pa.normal, -pb.normal))
-    return bad_frame(names + ": portal normals are not opposite: " + format_vec(pa.normal) +
-                     " and " + format_vec(pb.normal));
+  if (Status sides = check_portal_sides(a.room, static_cast<size_t>(slot_a), b.room); !sides)
+    return bad_frame(names + ": " + sides.error().message);
 
   std::vector<RimVertex> ra = rim_of(a, slot_a), rb = rim_of(b, slot_b);
   const size_t common = std::min(ra.size(), rb.size());

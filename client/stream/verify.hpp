@@ -41,10 +41,11 @@ inline constexpr size_t kMinRimVertices = 3;
 // was wrong.
 Status verify_room(const ReadyRoom& room);
 
-// Two rooms that share a portal (each lists the other): the portal's centre and radius agree bit
-// for bit with opposite normals, and for every loop index k the two rims' vertices decode to the
-// same world position bit for bit (compared as values: -0 and +0 are the same point) and the same
-// normal, with the same K on both sides. Errors (kBadFrame) name both rooms and the first index
+// Two rooms that share a portal (each lists the other): the portal's two sides agree
+// (check_portal_sides in portal_graph.hpp: centre and radius bit for bit, opposite normals), and
+// for every loop index k the two rims' vertices decode to the same world position bit for bit
+// (compared as values: -0 and +0 are the same point) and the same normal, with the same K on both
+// sides. Errors (kBadFrame) name both rooms and the first index
 // that differs; kInvalidArgument when neither lists the other, kBadFrame when only one does.
 Status verify_seam(const ReadyRoom& a, const ReadyRoom& b);
 
