@@ -21,6 +21,7 @@
 #include "cave/room_id.hpp"
 #include "client/stream/portal_graph.hpp"
 #include "client/stream/room_store.hpp"
+#include "client/stream/url.hpp"
 #include "core/result.hpp"
 #include "proto/messages.hpp"
 
@@ -148,13 +149,5 @@ class Stream {
   explicit Stream(std::shared_ptr<Impl> impl);
   std::shared_ptr<Impl> impl_;
 };
-
-// Parses ws://host:port[/path] (default port 80, path /ws). Errors name what is wrong.
-struct Url {
-  std::string host;
-  uint16_t port = 80;
-  std::string path = "/ws";
-};
-Result<Url> parse_url(const std::string& url);
 
 }  // namespace grotto::client
