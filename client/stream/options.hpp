@@ -1,0 +1,86 @@
+// client/stream's configuration and observable state: what a Stream is started with, the states it
+// goes through and the counters it keeps. Plain structs, shared by the Beast-free protocol core
+// (conversation.hpp) and the connection (stream.hpp).
+#pragma once
+#include <chrono>
+#include <cstddef>
+#include <cstdint>
+#include <map>
+#include <optional>
+#include <string>
+
+#include "cave/room_id.hpp"
+#include "client/stream/portal_graph.hpp"
+#include "proto/messages.hpp"
+
+namespace grotto::client {
+
+// Everything a Stream needs; brace-init plus a url works.
+struct StreamOptions {
+  std::string url;                     // ws://host:port/ws (path optional, default /ws)
+  std::optional<uint64_t> seed;        // the world wanted; absent: the server's
+  std::optional<uint64_t> params;      // its parameter digest; absent: the server's
+  std::string name = "grotto-stream";  // hello.name, for the server's logs
+  std::string token;                   // hello.token (proto/token.hpp); "": none
+  // Wire lod requested (0: the streamed patch mesh), capped at the server's max_lod. One lod a
+  // session: rooms of lod 0 and lod 1 do not share rims, so neighbours must be of one lod.
+  uint32_t lod = 0;
+  PlanOptions plan{};                      // horizon and view weighting
+  double cancel_factor = 1.5;              // cancel a room in flight once its cost exceeds
+                                           // cancel_factor × horizon (or it is unreachable)
+  uint32_t max_in_flight = 64;             // own cap; the server's max_rooms_in_flight also applies
+  size_t store_bytes = size_t{256} << 20;  // RoomStore budget
+  std::chrono::milliseconds backoff_initial{100};     // first reconnect delay (before jitter)
+  std::chrono::milliseconds backoff_max{5'000};       // reconnect delays double up to this
+  std::chrono::milliseconds connect_timeout{5'000};   // TCP connect + upgrade + welcome
+  std::chrono::milliseconds request_timeout{30'000};  // a room in flight this long is re-requested
+  std::chrono::milliseconds replan_interval{100};     // at most this often on pose changes
+  int max_room_failures = 3;  // corrupt or failed deliveries of one room before giving up on it
+  bool spawn = true;          // ask the server for a spawn point when no pose was set
+};
+
+enum class StreamState {
+  kConnecting,  // TCP, upgrade, hello sent, waiting for welcome
+  kReady,       // welcome received: requesting and receiving rooms
+  kBackoff,     // dropped; waiting to reconnect
+  kFailed,      // stopped for good: the server refused us (version, world, credentials)
+  kStopped,     // stop() was called
+};
+const char* state_name(StreamState state);
+
+// Counters since the Stream started (never reset by reconnects).
+struct StreamStats {
+  uint64_t connects = 0;        // welcomes received
+  uint64_t reconnects = 0;      // connections after the first
+  uint64_t drops = 0;           // connections lost (read/write error, close, fatal error)
+  uint64_t requests_sent = 0;   // rooms named in request messages
+  uint64_t cancels_sent = 0;    // rooms named in cancel messages
+  uint64_t rooms_received = 0;  // room frames accepted (header valid)
+  uint64_t rooms_ready = 0;     // rooms decoded and stored
+  uint64_t rooms_rejected = 0;  // frames or payloads refused (corrupt, inconsistent, unasked)
+  uint64_t rooms_evicted = 0;   // rooms the store evicted
+  uint64_t rooms_given_up = 0;  // rooms abandoned after max_room_failures or not_found
+  uint64_t bytes_received = 0;  // bytes of all frames, text and binary
+  uint64_t in_flight = 0;       // rooms requested and not yet received (now)
+  uint64_t store_bytes = 0;     // RoomStore bytes (now)
+  uint64_t store_rooms = 0;     // rooms in the store (now)
+  std::map<std::string, uint64_t> errors;  // error messages received, by wire code
+  // `service_restart` messages: the server is draining and will close; we reconnect at once,
+  // possibly to another replica, and ask again. A notice, not counted in `errors`.
+  uint64_t restart_notices = 0;
+  StreamState state = StreamState::kConnecting;
+  std::string last_error;        // the last error, for people (empty when none)
+  std::string server;            // welcome.server of the current or last connection
+  std::optional<uint64_t> seed;  // welcome.seed: the world served (none before a welcome)
+  proto::Limits limits;          // welcome.limits of the current or last connection
+};
+
+// Per-room measurements, for grotto-load's percentiles; drained by take_samples().
+struct RoomSample {
+  cave::RoomId id = cave::RoomId::interior({}, 0);
+  double latency_ms = 0;  // request sent → room frame received
+  double decode_ms = 0;   // decode on a worker
+  size_t frame_bytes = 0;
+};
+
+}  // namespace grotto::client
