@@ -4,6 +4,7 @@
 // wait is bounded (kWait), so a broken client fails a test instead of hanging it.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <atomic>
 #include <boost/asio/ip/tcp.hpp>
 #include <boost/beast/core.hpp>
@@ -277,6 +278,71 @@ TEST(Stream, reconnects_after_a_server_restart_and_every_wanted_room_arrives) {
   EXPECT_EQ(stats.state, StreamState::kReady);
   EXPECT_EQ(stats.rooms_rejected, 0u);
   EXPECT_EQ(stats.rooms_given_up, 0u);
+}
+
+// Rooms of lod 0 and lod 1 do not share rims (PROTOCOL.md "Levels of detail"), so a Stream keeps
+// neighbours at one lod: asked for lod 1, it holds lod-1 rooms from a server that serves them, and
+// when the server comes back serving lod 0 only, it lets every lod-1 room go and holds the same
+// neighbourhood at lod 0, never the two side by side.
+TEST(Stream, a_server_back_with_another_max_lod_never_leaves_neighbours_at_two_lods) {
+  auto detail = test_config();
+  detail.limits.max_lod = 1;
+  auto server = start_server(detail);
+  ASSERT_TRUE(server);
+  const uint16_t port = server->port();
+  Runtime rt(1, 2);
+  StreamOptions o;
+  o.url = url_of(port);
+  o.lod = 1;
+  o.plan.horizon_s = 3.0;
+  o.backoff_initial = 50ms;
+  o.backoff_max = 400ms;
+  auto stream = start_stream(o, rt);
+  ASSERT_TRUE(stream);
+  auto neighbours_at_one_lod = [&](std::set<RoomId> ids) {
+    std::map<RoomId, uint8_t> lods;
+    for (auto id : ids)
+      if (auto r = stream->room(id)) lods[id] = r->lod;
+    for (const auto& [id, lod] : lods) {
+      auto r = stream->room(id);
+      if (!r) continue;
+      for (const auto& p : r->room.portals) {
+        auto it = lods.find(p.neighbour);
+        if (it != lods.end() && it->second != lod) return false;
+      }
+    }
+    return true;
+  };
+  ASSERT_TRUE(wait_for([&] { return stream->spawn_point().has_value(); }))
+      << describe(stream->stats());
+  auto spawn = *stream->spawn_point();
+  auto expected = expected_rooms(7, spawn, o.plan.horizon_s);
+  ASSERT_TRUE(wait_for([&] { return all_ready(*stream, expected); })) << describe(stream->stats());
+  for (auto id : expected)
+    EXPECT_EQ(stream->room(id)->lod, 1) << id.to_string();
+  server->stop(2000ms);
+  server.reset();
+  ASSERT_TRUE(wait_for([&] { return stream->state() == StreamState::kBackoff; }))
+      << describe(stream->stats());
+  server = start_server(test_config(port));  // max_lod 0
+  ASSERT_TRUE(server);
+  auto all_at_lod0 = [&] {
+    for (auto id : expected) {
+      auto r = stream->room(id);
+      if (!r || r->lod != 0) return false;
+    }
+    return true;
+  };
+  bool mixed = false;
+  ASSERT_TRUE(wait_for([&] {
+    mixed = mixed || !neighbours_at_one_lod(expected);
+    return all_at_lod0();
+  })) << describe(stream->stats());
+  EXPECT_FALSE(mixed) << "two neighbouring rooms were held at two lods at once";
+  auto evicted = stream->take_evicted();
+  for (auto id : expected)
+    EXPECT_NE(std::find(evicted.begin(), evicted.end(), id), evicted.end()) << id.to_string();
+  EXPECT_EQ(stream->stats().rooms_rejected, 0u) << describe(stream->stats());
 }
 
 // A multi-world server whose world slots all have players refuses a new world with a fatal
