@@ -11,6 +11,7 @@
 
 #include "cave/room_id.hpp"
 #include "client/stream/portal_graph.hpp"
+#include "core/result.hpp"
 #include "proto/messages.hpp"
 
 namespace grotto::client {
@@ -38,6 +39,13 @@ struct StreamOptions {
   int max_room_failures = 3;  // corrupt or failed deliveries of one room before giving up on it
   bool spawn = true;          // ask the server for a spawn point when no pose was set
 };
+
+// Whether Stream::start would take `options`: the url parses (url.hpp), the horizon is a positive
+// number of seconds, cancel_factor >= 1, max_in_flight >= 1, 1 ms <= backoff_initial <=
+// backoff_max, connect_timeout, request_timeout and replan_interval >= 1 ms, max_room_failures >=
+// 1, lod <= 255, and the token, when there is one, is what proto/token.hpp accepts. Errors
+// (kInvalidArgument) name the option.
+Status validate_options(const StreamOptions& options);
 
 enum class StreamState {
   kConnecting,  // TCP, upgrade, hello sent, waiting for welcome

@@ -32,7 +32,6 @@
 
 #include "client/stream/conversation.hpp"
 #include "codec/room_codec.hpp"
-#include "proto/token.hpp"
 
 namespace grotto::client {
 
@@ -334,24 +333,9 @@ struct Stream::Impl : std::enable_shared_from_this<Stream::Impl> {
 };
 
 Result<std::unique_ptr<Stream>> Stream::start(const StreamOptions& options, Runtime& runtime) {
+  if (Status valid = validate_options(options); !valid) return valid.error();
   auto url = parse_url(options.url);
   if (!url) return url.error();
-  auto invalid = [](const std::string& why) { return Error{ErrorCode::kInvalidArgument, why}; };
-  if (!(options.plan.horizon_s > 0) || !std::isfinite(options.plan.horizon_s)) {
-    return invalid("horizon must be a positive number of seconds");
-  }
-  if (!(options.cancel_factor >= 1) || !std::isfinite(options.cancel_factor)) {
-    return invalid("cancel_factor must be at least 1");
-  }
-  if (options.max_in_flight < 1) return invalid("max_in_flight must be at least 1");
-  if (options.backoff_initial.count() < 1 || options.backoff_max < options.backoff_initial) {
-    return invalid("backoff: need 1 ms <= initial <= max");
-  }
-  if (options.max_room_failures < 1) return invalid("max_room_failures must be at least 1");
-  if (!options.token.empty()) {
-    if (auto st = proto::check_token(options.token); !st)
-      return invalid("token " + st.error().message);
-  }
   auto impl = std::make_shared<Impl>(options, std::move(url).value(), runtime);
   net::post(impl->strand, [impl] { impl->connect(); });
   return std::unique_ptr<Stream>(new Stream(std::move(impl)));
