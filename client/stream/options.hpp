@@ -60,7 +60,8 @@ const char* state_name(StreamState state);
 struct StreamStats {
   uint64_t connects = 0;        // welcomes received
   uint64_t reconnects = 0;      // connections after the first
-  uint64_t drops = 0;           // connections lost (read/write error, close, fatal error)
+  uint64_t drops = 0;           // connections lost or attempts failed (resolve, connect,
+                                // upgrade, read/write error, close, fatal error)
   uint64_t requests_sent = 0;   // rooms named in request messages
   uint64_t cancels_sent = 0;    // rooms named in cancel messages
   uint64_t rooms_received = 0;  // room frames accepted (header valid)

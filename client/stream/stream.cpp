@@ -23,7 +23,6 @@
 #include <boost/asio/thread_pool.hpp>
 #include <boost/beast/core.hpp>
 #include <boost/beast/websocket.hpp>
-#include <cmath>
 #include <deque>
 #include <future>
 #include <mutex>
