@@ -155,6 +155,7 @@ void Conversation::slow_client() {
 
 void Conversation::transport_closed() {
   release();
+  log_unlogged();
   state_ = State::kClosed;
 }
 
@@ -282,9 +283,24 @@ void Conversation::send(const proto::ServerMessage& m) {
 void Conversation::send_error(proto::ErrorMessage e) {
   ++errors_sent_;
   if (metrics_) metrics_->count_error(e.code);
-  spdlog::info("event=error_sent session={} code={} fatal={} detail=\"{}\"", config_.session,
-               proto::wire_code_name(e.code), e.fatal, proto::echo(e.message));
+  // A client sending garbage in a loop must not flood the log: the first few non-fatal errors
+  // of a connection are logged, the rest counted and summed up when it closes. Fatal ones end
+  // the connection, so each is logged.
+  if (e.fatal || errors_logged_ < kErrorsLogged) {
+    if (!e.fatal) ++errors_logged_;
+    spdlog::info("event=error_sent session={} code={} fatal={} detail=\"{}\"", config_.session,
+                 proto::wire_code_name(e.code), e.fatal, proto::echo(e.message));
+  } else {
+    ++errors_unlogged_;
+  }
   send(proto::ServerMessage{std::move(e)});
+}
+
+void Conversation::log_unlogged() {
+  if (errors_unlogged_ == 0) return;
+  spdlog::info("event=errors_not_logged session={} count={} (only the first {} are)",
+               config_.session, errors_unlogged_, kErrorsLogged);
+  errors_unlogged_ = 0;
 }
 
 void Conversation::fail(const Error& error, proto::Ref ref, std::vector<uint32_t> versions) {
@@ -298,6 +314,7 @@ void Conversation::fail(const Error& error, proto::Ref ref, std::vector<uint32_t
 }
 
 void Conversation::close(CloseCode code, std::string reason) {
+  log_unlogged();
   spdlog::info("event=closing session={} code={} reason={}", config_.session,
                static_cast<int>(code), reason);
   emit(act::Close{code, std::move(reason)});

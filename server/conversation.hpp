@@ -148,6 +148,7 @@ class Conversation {
 
   void send(const proto::ServerMessage& m);
   void send_error(proto::ErrorMessage e);
+  void log_unlogged();  // the summary line for errors past kErrorsLogged
   // A fatal error: the error, then the close (close_code_for its code); everything held is
   // released first.
   void fail(const Error& error, proto::Ref ref, std::vector<uint32_t> versions = {});
@@ -167,6 +168,9 @@ class Conversation {
   uint64_t rooms_sent_ = 0;
   uint64_t bytes_sent_ = 0;
   uint64_t errors_sent_ = 0;
+  static constexpr uint64_t kErrorsLogged = 10;  // non-fatal errors logged per connection
+  uint64_t errors_logged_ = 0;
+  uint64_t errors_unlogged_ = 0;
   std::vector<Action> actions_;
 };
 

@@ -3,10 +3,13 @@
 // and the state it left. Every client message, every documented error and every close code has
 // a row; tests/server/server_test.cpp checks the same over real WebSocket connections.
 #include <gtest/gtest.h>
+#include <spdlog/sinks/ostream_sink.h>
+#include <spdlog/spdlog.h>
 
 #include <fstream>
 #include <functional>
 #include <map>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -521,6 +524,37 @@ TEST(Conversation, closing) {
        State::kClosed},
       {"nothing before admission", {}, text(kHello), {}, State::kNew},
   });
+}
+
+// A client sending garbage in a loop gets every error, but the log gets ten lines and a count.
+TEST(Conversation, an_error_flood_is_logged_a_few_lines_and_a_count) {
+  std::ostringstream log;
+  auto previous = spdlog::default_logger();
+  auto capture = std::make_shared<spdlog::logger>(
+      "capture", std::make_shared<spdlog::sinks::ostream_sink_mt>(log));
+  capture->set_level(spdlog::level::info);
+  spdlog::set_default_logger(capture);
+  FakeWorlds worlds;
+  Conversation c(config(), worlds, nullptr);
+  for (const Event& e : kOpen)
+    e(c);
+  size_t errors = 0;
+  for (int i = 0; i < 1000; ++i) {
+    c.text("[1,");
+    for (const Action& a : c.take())
+      errors += describe(a).starts_with("error bad_json");
+  }
+  c.deadline();  // closes: timeout
+  spdlog::set_default_logger(previous);
+  EXPECT_EQ(errors, 1000u) << "every message is still answered";
+  EXPECT_EQ(c.errors_sent(), 1001u);
+  std::string text = log.str();
+  size_t lines = 0;
+  for (size_t at = text.find("event=error_sent"); at != std::string::npos;
+       at = text.find("event=error_sent", at + 1))
+    ++lines;
+  EXPECT_EQ(lines, 11u) << "ten bad_json and the fatal timeout";
+  EXPECT_NE(text.find("event=errors_not_logged session=0 count=990"), std::string::npos) << text;
 }
 
 // PROTOCOL.md's error table names each code's close code: the conversation closes with it.
