@@ -301,6 +301,15 @@ Result<Limits> parse_limits(const json& object) {
   if (Status s = read("handshake_timeout_ms", 1, kMaxU32, l.handshake_timeout_ms); !s) {
     return s.error();
   }
+  // Added within version 1: a server that does not announce them has no request rate limit.
+  l.request_rate = 0;
+  l.request_burst = 0;
+  if (f.find("request_rate")) {
+    if (Status s = read("request_rate", 1, kMaxU32, l.request_rate); !s) return s.error();
+  }
+  if (f.find("request_burst")) {
+    if (Status s = read("request_burst", 1, kMaxU32, l.request_burst); !s) return s.error();
+  }
   return l;
 }
 
@@ -474,6 +483,8 @@ ojson to_json(const Welcome& m) {
   limits["max_lod"] = m.limits.max_lod;
   limits["idle_timeout_ms"] = m.limits.idle_timeout_ms;
   limits["handshake_timeout_ms"] = m.limits.handshake_timeout_ms;
+  if (m.limits.request_rate > 0) limits["request_rate"] = m.limits.request_rate;
+  if (m.limits.request_burst > 0) limits["request_burst"] = m.limits.request_burst;
   out["limits"] = std::move(limits);
   return out;
 }

@@ -156,6 +156,14 @@ const std::vector<Setting>& settings() {
         "handshake-timeout-ms", "Limit: from the upgrade to hello", 1, kMaxInt,
         [](ServerConfig & c) -> auto& { return c.limits.handshake_timeout_ms; }));
     t.push_back(int_setting(
+        "request-rate",
+        "Limit: rooms per second a client may name in requests and cancels (a token bucket; "
+        "0: no limit)",
+        0, kMaxInt, [](ServerConfig & c) -> auto& { return c.limits.request_rate; }));
+    t.push_back(int_setting(
+        "request-burst", "Limit: rooms a client may name at once above the rate", 1, kMaxInt,
+        [](ServerConfig & c) -> auto& { return c.limits.request_burst; }));
+    t.push_back(int_setting(
         "max-connections", "WebSocket sessions at once; more are refused", 1, 1 << 20,
         [](ServerConfig & c) -> auto& { return c.max_connections; }));
     t.push_back(int_setting(

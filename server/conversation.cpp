@@ -11,6 +11,12 @@
 namespace grotto::server {
 namespace {
 
+uint64_t steady_now_ms() {
+  return static_cast<uint64_t>(std::chrono::duration_cast<std::chrono::milliseconds>(
+                                   std::chrono::steady_clock::now().time_since_epoch())
+                                   .count());
+}
+
 uint64_t system_unix_ms() {
   return static_cast<uint64_t>(std::chrono::duration_cast<std::chrono::milliseconds>(
                                    std::chrono::system_clock::now().time_since_epoch())
@@ -33,6 +39,7 @@ CloseCode close_code_for(ErrorCode code) {
 Conversation::Conversation(ConversationConfig config, WorldPort& worlds, Metrics* metrics)
     : config_(std::move(config)), worlds_(worlds), metrics_(metrics) {
   if (!config_.unix_ms) config_.unix_ms = system_unix_ms;
+  if (!config_.steady_ms) config_.steady_ms = steady_now_ms;
 }
 
 std::vector<Action> Conversation::take() {
@@ -187,6 +194,8 @@ void Conversation::on(const proto::Hello& m) {
   if (!client) return fail(client.error(), m.ref);
   client_ = *client;
   state_ = State::kOpen;
+  tokens_ = config_.limits.request_burst;
+  tokens_at_ = config_.steady_ms();
   proto::Welcome w;
   w.ref = m.ref;
   w.version = chosen;
@@ -214,7 +223,40 @@ void Conversation::on(const proto::Spawn& m) {
   send(r);
 }
 
+// The token bucket: `rooms` tokens (at least one) for a request or cancel, refilled at
+// request_rate a second up to request_burst. A cancel is never refused (the client's ledger must
+// stay the server's) but takes its tokens, down to one burst below zero.
+bool Conversation::take_tokens(size_t rooms) {
+  const proto::Limits& l = config_.limits;
+  if (l.request_rate == 0) return true;
+  const uint64_t now = config_.steady_ms();
+  tokens_ = std::min<double>(
+      l.request_burst, tokens_ + static_cast<double>(now - tokens_at_) * l.request_rate / 1000);
+  tokens_at_ = now;
+  const double cost = static_cast<double>(std::max<size_t>(rooms, 1));
+  if (tokens_ < cost) return false;
+  tokens_ -= cost;
+  return true;
+}
+
 void Conversation::on(const proto::Request& m) {
+  if (!take_tokens(m.rooms.size())) {
+    const proto::Limits& l = config_.limits;
+    if (++refused_in_a_row_ > kMaxRefusedInARow) {
+      return fail(Error{ErrorCode::kLimitExceeded,
+                        "over " + std::to_string(kMaxRefusedInARow) +
+                            " requests in a row refused for the request rate (request_rate " +
+                            std::to_string(l.request_rate) + " rooms/s)"},
+                  m.ref);
+    }
+    return send_error(proto::error_reply(
+        Error{ErrorCode::kLimitExceeded,
+              "request rate over request_rate (" + std::to_string(l.request_rate) +
+                  " rooms/s, request_burst " + std::to_string(l.request_burst) +
+                  "); nothing in it was queued, slow down"},
+        m.ref));
+  }
+  refused_in_a_row_ = 0;
   size_t added = 0;
   for (const auto& w : m.rooms) {
     if (!in_flight_.contains(w.id.packed())) ++added;
@@ -249,6 +291,10 @@ void Conversation::on(const proto::Request& m) {
 }
 
 void Conversation::on(const proto::Cancel& m) {
+  if (!take_tokens(m.rooms.size())) {
+    tokens_ = std::max<double>(tokens_ - static_cast<double>(m.rooms.size()),
+                               -static_cast<double>(config_.limits.request_burst));
+  }
   std::vector<cave::RoomId> ids;
   for (const auto& id : m.rooms) {
     if (in_flight_.erase(id.packed()) > 0) ids.push_back(id);

@@ -90,11 +90,12 @@ struct ConversationConfig {
   proto::Limits limits;
   std::string token;  // the deployment's shared secret; empty: none required
   uint64_t params_digest = 0;
-  std::string server_name;            // welcome.server
-  int max_connections = 0;            // named in the connection-limit error
-  std::function<uint64_t()> unix_ms;  // pong.time; null: the system clock
-  uint64_t session = 0;               // for log lines
-  std::string peer;                   // for log lines
+  std::string server_name;              // welcome.server
+  int max_connections = 0;              // named in the connection-limit error
+  std::function<uint64_t()> unix_ms;    // pong.time; null: the system clock
+  std::function<uint64_t()> steady_ms;  // the request rate's clock; null: steady_clock
+  uint64_t session = 0;                 // for log lines
+  std::string peer;                     // for log lines
 };
 
 // Whether the server took the connection when its upgrade completed.
@@ -168,6 +169,12 @@ class Conversation {
   uint64_t rooms_sent_ = 0;
   uint64_t bytes_sent_ = 0;
   uint64_t errors_sent_ = 0;
+  // The request rate (Limits::request_rate, request_burst): a token bucket of rooms.
+  static constexpr uint32_t kMaxRefusedInARow = 100;  // then the connection is closed
+  bool take_tokens(size_t rooms);                     // false: refused
+  double tokens_ = 0;
+  uint64_t tokens_at_ = 0;  // steady_ms when tokens_ was last brought up to date
+  uint32_t refused_in_a_row_ = 0;
   static constexpr uint64_t kErrorsLogged = 10;  // non-fatal errors logged per connection
   uint64_t errors_logged_ = 0;
   uint64_t errors_unlogged_ = 0;

@@ -168,6 +168,19 @@ Event fail_room(const char* id, ErrorCode code, uint8_t lod = 0) {
   };
 }
 
+uint64_t fake_steady_ms = 0;  // the request rate's clock in these tests
+Event wait_ms(uint64_t ms) {
+  return [ms](Conversation&) { fake_steady_ms += ms; };
+}
+std::string request_of(int rooms, int first = 0) {
+  std::string s = R"({"type":"request","ref":30,"rooms":[)";
+  for (int i = 0; i < rooms; ++i) {
+    s += (i ? "," : "") + std::string(R"({"id":"2.0.0.r)") + std::to_string(first + i) +
+         R"(","lod":0,"priority":0})";
+  }
+  return s + "]}";
+}
+
 const std::string kHello = R"({"type":"hello","ref":1,"versions":[1]})";
 const std::vector<Event> kOpen = {admit(), text(kHello)};
 std::vector<Event> open_then(std::vector<Event> more) {
@@ -202,6 +215,7 @@ ConversationConfig config(std::string token = {}) {
   c.server_name = "grotto-server test";
   c.max_connections = 2;
   c.unix_ms = [] { return uint64_t{1000}; };
+  c.steady_ms = [] { return fake_steady_ms; };
   return c;
 }
 
@@ -524,6 +538,58 @@ TEST(Conversation, closing) {
        State::kClosed},
       {"nothing before admission", {}, text(kHello), {}, State::kNew},
   });
+}
+
+TEST(Conversation, the_request_rate) {
+  ConversationConfig slow = config();
+  slow.limits.request_rate = 10;  // rooms a second
+  slow.limits.request_burst = 3;
+  slow.limits.max_rooms_in_flight = 100;
+  auto churn = [](int n) {
+    std::vector<Event> events = kOpen;
+    for (int i = 0; i < n; ++i) {
+      events.push_back(text(request_of(1, i)));
+      events.push_back(
+          text(R"({"type":"cancel","rooms":["2.0.0.r)" + std::to_string(i) + R"("]})"));
+    }
+    return events;
+  };
+  run(
+      {
+          {"within the burst",
+           open_then({text(request_of(2))}),
+           text(request_of(1, 5)),
+           {"timer 60000", "want 2.0.0.r5@0/0"},
+           State::kOpen},
+          {"over the burst: limit_exceeded, nothing queued",
+           open_then({text(request_of(3))}),
+           text(request_of(1, 5)),
+           {"timer 60000", "error limit_exceeded ref=30"},
+           State::kOpen},
+          {"the bucket refills at the rate",
+           open_then({text(request_of(3)), wait_ms(100)}),
+           text(request_of(1, 5)),
+           {"timer 60000", "want 2.0.0.r5@0/0"},
+           State::kOpen},
+          {"a cancel is never refused, but takes tokens",
+           open_then({text(request_of(3)), wait_ms(200)}),
+           text(R"({"type":"cancel","rooms":["2.0.0.r0","2.0.0.r1"]})"),
+           {"timer 60000", "drop 2.0.0.r0 2.0.0.r1"},
+           State::kOpen},
+          {"...so a request after it waits",
+           open_then({text(request_of(3)), wait_ms(200),
+                      text(R"({"type":"cancel","rooms":["2.0.0.r0","2.0.0.r1"]})")}),
+           text(request_of(1, 5)),
+           {"timer 60000", "error limit_exceeded ref=30"},
+           State::kOpen},
+          {"a churner refused 100 times in a row is closed",
+           churn(102),
+           text(request_of(1, 500)),
+           {"timer 60000", "release", "error limit_exceeded fatal ref=30",
+            "close 1008 limit_exceeded"},
+           State::kClosed},
+      },
+      slow);
 }
 
 // A client sending garbage in a loop gets every error, but the log gets ten lines and a count.
