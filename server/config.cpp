@@ -164,8 +164,13 @@ const std::vector<Setting>& settings() {
         "request-burst", "Limit: rooms a client may name at once above the rate", 1, kMaxInt,
         [](ServerConfig & c) -> auto& { return c.limits.request_burst; }));
     t.push_back(int_setting(
-        "max-connections", "WebSocket sessions at once; more are refused", 1, 1 << 20,
-        [](ServerConfig & c) -> auto& { return c.max_connections; }));
+        "max-connections", "Players (WebSocket sessions past hello) at once; more are refused", 1,
+        1 << 20, [](ServerConfig & c) -> auto& { return c.max_connections; }));
+    t.push_back(int_setting(
+        "max-handshakes",
+        "WebSocket sessions waiting for their hello at once (each for handshake-timeout-ms), "
+        "counted apart from players; more are refused",
+        1, 1 << 20, [](ServerConfig & c) -> auto& { return c.max_handshakes; }));
     t.push_back(int_setting(
         "send-queue-bytes", "Unsent bytes per client before it is dropped as a slow reader", 1024,
         kMaxBytes, [](ServerConfig & c) -> auto& { return c.send_queue_bytes; }));
@@ -328,6 +333,7 @@ Status validate(const ServerConfig& config) {
     return invalid_argument("limits out of range (see --help)");
   }
   if (config.max_connections < 1) return invalid_argument("max-connections must be >= 1");
+  if (config.max_handshakes < 1) return invalid_argument("max-handshakes must be >= 1");
   if (config.send_queue_bytes < 1024) return invalid_argument("send-queue-bytes must be >= 1024");
   if (config.bind.empty()) return invalid_argument("bind must not be empty");
   if (!config.token.empty()) {

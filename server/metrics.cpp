@@ -134,6 +134,9 @@ std::string Metrics::render() const {
   counter(out, "grotto_connections_total", "WebSocket sessions accepted.",
           connections_total.value());
   gauge(out, "grotto_connections_open", "WebSocket sessions open now.", connections_open.value());
+  gauge(out, "grotto_handshakes_open",
+        "WebSocket sessions that have not said hello yet (max-handshakes bounds them).",
+        handshakes_open.value());
   counter(out, "grotto_accept_failures_total",
           "Failed accepts (no file descriptors left, ...); accepting pauses after each.",
           accept_failures.value());

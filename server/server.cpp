@@ -75,10 +75,12 @@ struct Server::Impl {
   bool stopped = false;  // guarded by stop_mutex
   std::mutex stop_mutex;
 
-  // Sessions on /ws that were admitted (count against max_connections).
+  // Sessions on /ws that were admitted: `handshakes` of them have not said hello yet (they count
+  // against max_handshakes), the others are players (against max_connections).
   mutable std::mutex sessions_mutex;
   std::condition_variable sessions_cv;
   std::unordered_map<uint64_t, std::weak_ptr<WsSession>> sessions;
+  size_t handshakes = 0;
   uint64_t next_session = 1;
 
   // Generator deliveries go through this gate: once stop() closes it, no worker posts into the
@@ -91,21 +93,38 @@ struct Server::Impl {
 
   explicit Impl(int threads_hint) : ioc(threads_hint) {}
 
-  // Admission under max_connections: the session's registry id, or 0 when full or stopping.
+  // Admission at the upgrade: the session's registry id, or 0 when stopping, when every player
+  // slot is taken, or when max_handshakes sessions are still waiting for their hello.
   uint64_t admit(const std::shared_ptr<WsSession>& s) {
     std::lock_guard lock(sessions_mutex);
-    if (stopping.load() || sessions.size() >= static_cast<size_t>(config.max_connections)) return 0;
+    if (stopping.load() || players() >= static_cast<size_t>(config.max_connections) ||
+        handshakes >= static_cast<size_t>(config.max_handshakes)) {
+      return 0;
+    }
     uint64_t id = next_session++;
     sessions.emplace(id, s);
+    ++handshakes;
+    metrics.handshakes_open.set(static_cast<int64_t>(handshakes));
     return id;
   }
-  void leave(uint64_t id) {
+  // At hello: the session becomes a player, unless max_connections players are connected.
+  bool promote() {
+    std::lock_guard lock(sessions_mutex);
+    if (players() >= static_cast<size_t>(config.max_connections)) return false;
+    --handshakes;
+    metrics.handshakes_open.set(static_cast<int64_t>(handshakes));
+    return true;
+  }
+  void leave(uint64_t id, bool player) {
     {
       std::lock_guard lock(sessions_mutex);
       sessions.erase(id);
+      if (!player) --handshakes;
+      metrics.handshakes_open.set(static_cast<int64_t>(handshakes));
     }
     sessions_cv.notify_all();
   }
+  size_t players() const { return sessions.size() - handshakes; }  // under sessions_mutex
 
   void do_accept();
   void on_accept(beast::error_code ec, tcp::socket socket);
@@ -127,7 +146,7 @@ class WsSession : public std::enable_shared_from_this<WsSession>, private WorldP
     if (client_ != 0) server_.generator->remove_client(client_);
     if (registry_id_ != 0) {
       server_.metrics.connections_open.add(-1);
-      server_.leave(registry_id_);
+      server_.leave(registry_id_, player_);
     }
   }
 
@@ -215,6 +234,15 @@ class WsSession : public std::enable_shared_from_this<WsSession>, private WorldP
   uint64_t own_seed() const override { return server_.generator->world().seed(); }
 
   Result<ClientId> open(uint64_t seed) override {
+    if (!player_) {
+      if (!server_.promote()) {
+        server_.metrics.connections_rejected.add();
+        return Error{ErrorCode::kOverloaded, "too many players (max_connections " +
+                                                 std::to_string(server_.config.max_connections) +
+                                                 "); retry later"};
+      }
+      player_ = true;
+    }
     std::weak_ptr<WsSession> weak = weak_from_this();
     auto executor = ws_.get_executor();
     auto gate = server_.gate;
@@ -431,6 +459,7 @@ class WsSession : public std::enable_shared_from_this<WsSession>, private WorldP
   net::steady_timer timer_;
   std::string peer_;
   uint64_t registry_id_ = 0;
+  bool player_ = false;  // said hello and took a player slot (else counts as a handshake)
   std::optional<Conversation> conversation_;  // from the upgrade on
   ClientId client_ = 0;  // the generator's client, until the conversation releases it
   bool closing_ = false;

@@ -913,6 +913,44 @@ TEST(ServerLimits, connections_over_max_connections_are_refused) {
   EXPECT_TRUE(later.alive());
 }
 
+// Sockets that upgrade and never say hello wait in their own pool: they cannot take players'
+// places, a full pool refuses more at the door, and each leaves after handshake_timeout_ms.
+TEST(ServerLimits, squatters_without_hello_do_not_take_players_places) {
+  auto c = test_config();
+  c.max_connections = 2;
+  c.max_handshakes = 2;
+  c.limits.handshake_timeout_ms = 400;
+  auto server = start(c);
+  ASSERT_TRUE(server);
+  Client squat1(server->port()), squat2(server->port()), squat3(server->port());
+  ASSERT_FALSE(squat1.connect());
+  ASSERT_FALSE(squat2.connect());
+  // The handshake pool is full: the next one is refused at once.
+  ASSERT_FALSE(squat3.connect());
+  auto e = squat3.next_error();
+  ASSERT_TRUE(e);
+  EXPECT_EQ(e->code, ErrorCode::kOverloaded);
+  EXPECT_EQ(squat3.wait_close().code, 1008);
+  // The squatters are closed with timeout; then two players get in, both player places free.
+  EXPECT_EQ(std::string(squat1.wait_close().reason.c_str()), "timeout");
+  EXPECT_EQ(std::string(squat2.wait_close().reason.c_str()), "timeout");
+  Client a(server->port()), b(server->port());
+  ASSERT_FALSE(a.connect());
+  a.hello();
+  ASSERT_FALSE(b.connect());
+  b.hello();
+  EXPECT_TRUE(a.alive());
+  EXPECT_TRUE(b.alive());
+  // With both player places taken, one more is refused at the door; a squatter meanwhile still
+  // gets a handshake place without costing a player anything.
+  Client extra(server->port());
+  ASSERT_FALSE(extra.connect());
+  e = extra.next_error();
+  ASSERT_TRUE(e);
+  EXPECT_EQ(e->code, ErrorCode::kOverloaded);
+  EXPECT_TRUE(a.alive());
+}
+
 // ---- shutdown ----
 
 TEST(ServerShutdown, stop_closes_every_session_with_service_restart_in_bounded_time) {
