@@ -78,9 +78,10 @@ uint64_t world_params_digest(const cave::LayoutParams& layout, const mesh::MeshP
     c.f64(f);
   for (double a : m.octave_amplitude)
     c.f64(a);
-  for (double v : {m.rim_frequency, m.rim_amplitude, m.fade_distance, m.big_room_radius,
-                   m.big_frequency, m.big_amplitude, m.big_fade_distance, m.roundness, m.tension,
-                   m.roughness_frequency, m.mineral_frequency}) {
+  for (double v :
+       {m.rim_frequency, m.rim_amplitude, m.fade_distance, m.big_room_radius, m.big_frequency,
+        m.big_amplitude, m.big_fade_distance, m.roundness, m.tension, m.roughness_frequency,
+        m.mineral_frequency, m.rim_min_radius, m.rim_softness, m.passage_roundness}) {
     c.f64(v);
   }
   return fold_digest(layout_params_digest(layout), c.bytes());

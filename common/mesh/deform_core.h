@@ -63,7 +63,10 @@ typedef struct {
   float roundness;                        /* 0: thesis tubes; 1: keep the sphere far from portals */
   float tension;                          /* Hermite tangent length as a fraction of the span */
   float remove_band;                      /* vertices closer than this to a portal plane go */
-  float pad[11];
+  float rim_min_radius;    /* surface noise narrows no portal's rim below this radius (metres) */
+  float rim_softness;      /* metres over which that limit eases in */
+  float passage_roundness; /* roundness of small rooms with two portals */
+  float pad[8];
 } GrottoShape;
 
 /* Triples, component by component in a fixed order (a + b is a.x + b.x, ...). */
@@ -175,6 +178,29 @@ GROTTO_FN gfloat grotto_rim_radius(uint seed, GROTTO_CONSTANT const GrottoPortal
   return p->radius * (1.0f + s->rim_amplitude * grotto_noise3(seed, on_rim, s->rim_frequency));
 }
 
+/* Thesis §3.1.6: the surface octaves at noise-space point wp, metres along the outward direction.
+ */
+GROTTO_FN gfloat grotto_surface_noise(uint seed, GROTTO_CONSTANT const GrottoShape* s, gfloat3 wp) {
+  gfloat d = 0.0f;
+  for (uint k = 0; k < s->octaves; ++k) {
+    d = d + s->amplitude[k] * grotto_noise3(seed, wp, s->frequency[k]);
+  }
+  return d;
+}
+
+/* The surface noise d where the wall meets a portal of this radius: the same noise, so the wall
+ * keeps its roughness up to the rim instead of smoothing into a collar, but softly held from
+ * narrowing the irregular rim below rim_min_radius (a player must still fit through). A smooth
+ * maximum of d and -allow, exact when d is well above -allow. The canonical rim (mesh/rim.cpp)
+ * moves by this much, so both rooms of a portal meet on it. */
+GROTTO_FN gfloat grotto_rim_noise(GROTTO_CONSTANT const GrottoShape* s, float portal_radius,
+                                  gfloat d) {
+  float allow = portal_radius * (1.0f - s->rim_amplitude) - s->rim_min_radius;
+  allow = allow > 0.0f ? allow : 0.0f;
+  gfloat x = d + allow;
+  return 0.5f * (x + grotto_sqrt(x * x + s->rim_softness * s->rim_softness)) - allow;
+}
+
 /* The unit in-plane direction from a portal's centre towards the point nearest to v. */
 GROTTO_FN gfloat3 grotto_rim_direction(GROTTO_CONSTANT const GrottoPortal* p, gfloat3 v) {
   gfloat3 n = grotto_portal_normal(p);
@@ -269,27 +295,67 @@ GROTTO_FN gfloat3 grotto_deform_vertex(uint seed, GROTTO_CONSTANT const GrottoSh
     gfloat pull = 1.0f - grotto_smooth(height[0] / (0.5f * room->radius));
     dead_end = grotto_add(v, grotto_scale(grotto_sub(rim[0], plain), pull));
   }
+  /* Its axis: the portal's near the portal (noise then moves the wall within the portal plane,
+   * where the rim moves), the sphere's centre deeper in. */
+  gfloat3 dead_axis = o;
+  if (n == 1u) {
+    gfloat h0 = -grotto_dot(grotto_sub(dead_end, grotto_portal_centre(portals)),
+                            grotto_portal_normal(portals));
+    gfloat3 on_axis =
+        grotto_sub(grotto_portal_centre(portals), grotto_scale(grotto_portal_normal(portals), h0));
+    dead_axis = grotto_add(
+        on_axis, grotto_scale(grotto_sub(o, on_axis), grotto_smooth(h0 / (0.5f * room->radius))));
+  }
   gmask blended = weight_sum > 0.0f;
   gfloat3 smooth_pos = grotto_select3(blended, grotto_div(sum, weight_sum), dead_end);
-  gfloat3 axis = grotto_select3(blended, grotto_div(axis_sum, weight_sum), o);
+  gfloat3 axis = grotto_select3(blended, grotto_div(axis_sum, weight_sum), dead_axis);
 
-  /* Far from portals a room may keep some of its sphere (caverns stay round). */
+  /* Far from portals a room may keep some of its sphere (caverns stay round). A small room whose
+   * two portals face each other across it is a straight stretch of passage and keeps less: a
+   * shaft of them, each bulging out to its sphere between narrow portals, was a string of beads,
+   * puckered at every portal. A bent one keeps its roundness: its tube would leave the sphere's
+   * centre, where players spawn and the flythrough passes, outside the wall. */
+  float roundness = s->roundness;
+  if (n == 2u && room->big_amplitude == 0.0f) {
+    float facing = -(portals[0].nx * portals[1].nx + portals[0].ny * portals[1].ny +
+                     portals[0].nz * portals[1].nz);
+    float straight = (facing - 0.5f) / 0.35f;
+    straight = straight < 0.0f ? 0.0f : (straight > 1.0f ? 1.0f : straight);
+    straight = straight * straight * (3.0f - 2.0f * straight);
+    roundness = roundness + (s->passage_roundness - roundness) * straight;
+  }
   gfloat nearest = grotto_least_height(portals, n, smooth_pos);
-  gfloat keep = s->roundness * grotto_smooth(nearest / room->radius);
+  gfloat keep = roundness * grotto_smooth(nearest / room->radius);
   smooth_pos = grotto_add(smooth_pos, grotto_scale(grotto_sub(v, smooth_pos), keep));
   axis = grotto_add(axis, grotto_scale(grotto_sub(o, axis), keep));
 
-  /* Thesis §3.1.6: world-space noise along the outward direction, faded to nothing at portal
-   * planes so rims stay where the neighbour expects them; big rooms get a low octave too. */
+  /* Thesis §3.1.6: world-space noise along the outward direction; big rooms get a low octave too,
+   * faded out near portals. At a portal plane the outward direction lies in the plane and the
+   * surface noise is what the canonical rim moved by (grotto_rim_noise), so the wall runs rough
+   * into the rim: fading the noise to nothing there left a smooth collar around every portal,
+   * two creased rings. Near any other part of a portal plane (where a bend brings the wall
+   * close to a plane's extension, far from its disc) the noise still fades to nothing, so no
+   * vertex crosses a plane. */
   gfloat3 out = grotto_sub(smooth_pos, axis);
   gfloat out_len = grotto_length(out);
   out = grotto_select3(out_len > 1e-6f, grotto_div(out, out_len), dir);
   gfloat3 wp = grotto_add(w0, smooth_pos);
-  gfloat displacement = 0.0f;
-  for (uint k = 0; k < s->octaves; ++k) {
-    displacement = displacement + s->amplitude[k] * grotto_noise3(seed, wp, s->frequency[k]);
+  gfloat noise = grotto_surface_noise(seed, s, wp);
+  gfloat near_sum = 0.0f, rim_sum = 0.0f;
+  for (uint i = 0; i < n; ++i) {
+    GROTTO_CONSTANT const GrottoPortal* p = portals + i;
+    gfloat3 rel = grotto_sub(smooth_pos, grotto_portal_centre(p));
+    gfloat h = -grotto_dot(rel, grotto_portal_normal(p));
+    gfloat3 in_plane = grotto_add(rel, grotto_scale(grotto_portal_normal(p), h));
+    gfloat beyond_disc = grotto_length(in_plane) - p->radius * (1.0f + s->rim_amplitude);
+    gfloat near_plane = 1.0f - grotto_smooth(h / s->fade_distance);
+    gfloat on_disc = 1.0f - grotto_smooth(beyond_disc / s->fade_distance - 1.0f);
+    near_sum = near_sum + near_plane;
+    rim_sum = rim_sum + near_plane * on_disc * grotto_rim_noise(s, p->radius, noise);
   }
-  displacement = displacement * grotto_smooth(nearest / s->fade_distance);
+  gfloat rim_target = near_sum > 0.0f ? rim_sum / (near_sum > 0.0f ? near_sum : 1.0f) : 0.0f;
+  gfloat fade = grotto_smooth(nearest / s->fade_distance);
+  gfloat displacement = noise * fade + rim_target * (1.0f - fade);
   displacement = displacement + room->big_amplitude * grotto_noise3(seed, wp, s->big_frequency) *
                                     grotto_smooth(nearest / s->big_fade_distance);
   gfloat3 pos = grotto_add(smooth_pos, grotto_scale(out, displacement));

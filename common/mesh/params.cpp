@@ -55,6 +55,8 @@ Status validate(const MeshParams& p) {
     return bad("rim_amplitude", p.rim_amplitude, "in [0, 0.3]");
   }
   if (!positive(p.fade_distance)) return bad("fade_distance", p.fade_distance, "> 0");
+  if (!non_negative(p.rim_min_radius)) return bad("rim_min_radius", p.rim_min_radius, ">= 0");
+  if (!positive(p.rim_softness)) return bad("rim_softness", p.rim_softness, "> 0");
   if (!positive(p.big_room_radius)) return bad("big_room_radius", p.big_room_radius, "> 0");
   if (!noise_frequency(p.big_frequency)) {
     return bad("big_frequency", p.big_frequency, kFrequencyRule);
@@ -66,6 +68,9 @@ Status validate(const MeshParams& p) {
     return bad("big_fade_distance", p.big_fade_distance, "> 0");
   }
   if (!(p.roundness >= 0 && p.roundness <= 1)) return bad("roundness", p.roundness, "in [0, 1]");
+  if (!(p.passage_roundness >= 0 && p.passage_roundness <= 1)) {
+    return bad("passage_roundness", p.passage_roundness, "in [0, 1]");
+  }
   if (!(p.tension > 0 && p.tension <= 3)) return bad("tension", p.tension, "in (0, 3]");
   if (!noise_frequency(p.roughness_frequency)) {
     return bad("roughness_frequency", p.roughness_frequency, kFrequencyRule);
@@ -87,9 +92,12 @@ core::GrottoShape shape_for(const MeshParams& p, Lod lod) {
   s.rim_frequency = static_cast<float>(p.rim_frequency);
   s.rim_amplitude = static_cast<float>(p.rim_amplitude);
   s.fade_distance = static_cast<float>(p.fade_distance);
+  s.rim_min_radius = static_cast<float>(p.rim_min_radius);
+  s.rim_softness = static_cast<float>(p.rim_softness);
   s.big_frequency = static_cast<float>(p.big_frequency);
   s.big_fade_distance = static_cast<float>(p.big_fade_distance);
   s.roundness = static_cast<float>(p.roundness);
+  s.passage_roundness = static_cast<float>(p.passage_roundness);
   s.tension = static_cast<float>(p.tension);
   // The cut keeps half an edge clear of each portal plane for the stitch strip.
   s.remove_band = static_cast<float>(0.5 * l.edge_length);

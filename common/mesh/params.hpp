@@ -35,14 +35,24 @@ struct MeshParams {
   std::array<double, GROTTO_MAX_OCTAVES> octave_amplitude{0.45, 0.22, 0.11, 0.06, 0.03, 0.015};
   double rim_frequency = 22 / 64.0;  // irregular rims: noise on the portal radius ...
   double rim_amplitude = 0.12;       // ... as a fraction of the radius
-  double fade_distance = 1.2;        // surface noise fades in over this distance from portal planes
+  // Surface noise fades in over this distance from a portal plane's extension beyond the disc,
+  // so that no vertex crosses a plane; at the disc the noise runs into the rim instead.
+  double fade_distance = 1.2;
+  // At a portal the rim moves with the surface noise (deform_core.h, grotto_rim_noise), but
+  // narrows it no further than this radius (metres; the layout's narrowest portal, 1.2 m, with
+  // its irregular rim, is 1.06 m) and eases into that limit over rim_softness metres.
+  double rim_min_radius = 1.05;
+  double rim_softness = 0.1;
   // The low-frequency octave of large rooms, faded out near portals (thesis §3.1.6).
   double big_room_radius = 6.0;  // rooms at least this big get it
   double big_frequency = 4 / 64.0;
   double big_amplitude = 0.12;  // fraction of the room radius
   double big_fade_distance = 5.0;
   double roundness = 0.35;  // 0: the thesis's tubes; 1: rooms keep their sphere
-  double tension = 1.0;     // Hermite tangent length, fraction of the span between rims
+  // The same for small rooms (below big_room_radius) whose two portals face each other across
+  // the room (normals within ~60 degrees of opposite, fully from ~30): straight passage.
+  double passage_roundness = 0.1;
+  double tension = 1.0;  // Hermite tangent length, fraction of the span between rims
   // Roughness and mineral fields (per-vertex channels that steer GPU detail).
   double roughness_frequency = 5 / 64.0;  // a second octave at 3x
   double mineral_frequency = 7 / 64.0;

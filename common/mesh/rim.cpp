@@ -49,6 +49,10 @@ RimLoop canonical_rim(const MeshContext& ctx, const cave::Room& room, const cave
     core::float3 at = ctx.noise_position(portal.centre + u * portal.radius);
     float noise = core::grotto_noise3(ctx.noise_seed(), at, shape.rim_frequency);
     double radius = portal.radius * (1.0 + shape.rim_amplitude * static_cast<double>(noise));
+    // The surface noise where the walls of both rooms reach the rim (deform_core.h), in the plane.
+    core::float3 on_rim = ctx.noise_position(portal.centre + u * radius);
+    float surface = core::grotto_surface_noise(ctx.noise_seed(), &shape, on_rim);
+    radius += core::grotto_rim_noise(&shape, static_cast<float>(portal.radius), surface);
     loop.positions.push_back(grid::snap(portal.centre + u * radius));
     loop.normals.push_back(
         {static_cast<float>(-u.x), static_cast<float>(-u.y), static_cast<float>(-u.z)});
