@@ -8,6 +8,10 @@ namespace grotto::play {
 namespace {
 
 constexpr int kSamplesPerSegment = 16;
+// The camera looks at the path this far ahead, as someone walking a passage looks where it
+// leads: the tangent alone points at the outer wall of every bend (and of the swerve through
+// each room's interior point) until the path has turned.
+constexpr double kLookAhead = 4.0;  // metres
 
 // Centripetal Catmull-Rom between p1 and p2 (Barry-Goldman's pyramid): no cusps or loops where
 // waypoints bunch up, so the path stays near the straight portal-to-room segments.
@@ -81,6 +85,15 @@ void Flythrough::sample() {
     lengths_.push_back(lengths_.back() + distance(points_[i - 1], points_[i]));
 }
 
+Vec3 Flythrough::point_at(double s) const {
+  const size_t i =
+      static_cast<size_t>(std::upper_bound(lengths_.begin(), lengths_.end(), s) - lengths_.begin());
+  const size_t hi = std::clamp<size_t>(i, 1, points_.size() - 1), lo = hi - 1;
+  const double span = lengths_[hi] - lengths_[lo];
+  const double u = span > 0 ? std::clamp((s - lengths_[lo]) / span, 0.0, 1.0) : 0;
+  return points_[lo] + (points_[hi] - points_[lo]) * u;
+}
+
 PathPose Flythrough::at(double distance_along) const {
   PathPose pose;
   if (points_.empty()) return pose;
@@ -90,14 +103,26 @@ PathPose Flythrough::at(double distance_along) const {
   double s = std::fmod(std::max(distance_along, 0.0), 2 * total);
   const bool back = s > total;
   if (back) s = 2 * total - s;
+  pose.position = point_at(s);
   const size_t i =
       static_cast<size_t>(std::upper_bound(lengths_.begin(), lengths_.end(), s) - lengths_.begin());
   const size_t hi = std::clamp<size_t>(i, 1, points_.size() - 1), lo = hi - 1;
-  const double span = lengths_[hi] - lengths_[lo];
-  const double u = span > 0 ? (s - lengths_[lo]) / span : 0;
-  pose.position = points_[lo] + (points_[hi] - points_[lo]) * u;
-  const Vec3 direction = points_[hi] - points_[lo];
-  if (grotto::length(direction) > 0) pose.forward = normalize(back ? -direction : direction);
+  Vec3 tangent = points_[hi] - points_[lo];
+  if (!(grotto::length(tangent) > 0)) return pose;
+  tangent = normalize(back ? -tangent : tangent);
+  pose.forward = tangent;
+  // The gaze: the chord of kLookAhead metres that ends kLookAhead ahead of the camera, or at the
+  // path's end when that is nearer (so it never shrinks to nothing there).
+  const double reach = std::min(kLookAhead, total);
+  const double ahead = back ? std::max(s - reach, 0.0) : std::min(s + reach, total);
+  const double behind = back ? ahead + reach : ahead - reach;
+  const Vec3 chord = point_at(ahead) - point_at(behind);
+  if (!(grotto::length(chord) > 1e-6)) return pose;
+  const Vec3 gaze = normalize(chord);
+  // Where the path doubles back within the look-ahead, lean towards the travel, continuously,
+  // so that the camera never looks backwards (forward . tangent >= 1 - c > 0 below c = 1/2).
+  const double c = dot(gaze, tangent);
+  pose.forward = normalize(gaze + tangent * std::max(0.0, 1 - 2 * c));
   return pose;
 }
 

@@ -33,11 +33,12 @@ class Flythrough {
   std::optional<cave::RoomId> waiting_for() const { return waiting_for_; }
   double length() const { return lengths_.empty() ? 0 : lengths_.back(); }
   // The pose `distance` metres along the path, there and back again (ping-pong) beyond its end;
-  // forward follows the direction of travel.
+  // forward looks a few metres ahead along the path, never against the direction of travel.
   PathPose at(double distance) const;
 
  private:
-  void sample();  // the spline as a polyline with cumulative lengths
+  void sample();                  // the spline as a polyline with cumulative lengths
+  Vec3 point_at(double s) const;  // the polyline's point s metres from its start, s in [0, length]
 
   std::vector<Vec3> waypoints_;
   std::vector<cave::RoomId> rooms_;
