@@ -11,7 +11,8 @@
 //                amplitude from the roughness channel and a slow world-space variety field;
 //   flowstone:   vertical curtains on walls (anisotropic ridged noise, 2.6 m tall, 0.4 m wide);
 //   speleothems: stalactites on undersides and stalagmites on the floors beneath them, spikes
-//                centred on one jittered point per 1.5 m cell of the horizontal plane, so a
+//                centred on one point per 1.5 m cell of the horizontal plane (jittered over the
+//                whole cell, on a lattice turned off the world axes, 55 % of the cells), so a
 //                stalagmite stands under every stalactite (thesis §5.5: underside bias from the
 //                world-space normal), longer in bigger rooms.
 // Zero on portal rims (rim weight 1), so the seams between rooms stay where the server put them.
@@ -22,6 +23,10 @@
 const float kReliefRock = 0.30f;        // metres of rock relief at roughness 1, strength 1
 const float kReliefFlowstone = 0.14f;   // metres of flowstone curtain at strength 1
 const float kReliefCell = 1.5f;         // metres: speleothem cell in the horizontal plane
+// The speleothem lattice is turned 29 degrees off the world axes: passages often run along x or
+// z, and a lattice aligned with them lines its spikes up along the passage.
+const float kReliefTurnCos = 0.8746197f;
+const float kReliefTurnSin = 0.4848096f;
 const float kReliefSpikeMax = 1.9f;     // metres: the longest stalactite at strength 1
 const float kReliefSpikeMin = 0.35f;    // metres: the longest stalactite of the smallest rooms
 const float kReliefSpikePerRadius = 0.2f;  // spike length per metre of room radius
@@ -160,7 +165,9 @@ RELIEF_FN Relief relief_at(vec3 p, vec3 n, float roughness, float rim, float roo
     float longest = strength * relief_spike_length(room_radius) * keep *
                     mix(0.45f, 1.0f, smoothstep(0.3f, 0.75f, variety));
     float density = 0.55f;
-    vec2 here = vec2(p.x, p.z);
+    // In the turned lattice's frame (the gradient turns back below).
+    vec2 here = vec2(kReliefTurnCos * p.x - kReliefTurnSin * p.z,
+                     kReliefTurnSin * p.x + kReliefTurnCos * p.z);
     ivec2 base = ivec2(floor(here / kReliefCell));
     float best = 0.0f;
     vec2 best_gradient = vec2(0.0f);
@@ -171,7 +178,10 @@ RELIEF_FN Relief relief_at(vec3 p, vec3 n, float roughness, float rim, float roo
         float jx = relief_hash(ivec3(c.x, 104729, c.y));
         float jz = relief_hash(ivec3(c.x, 1299709, c.y));
         float size = relief_hash(ivec3(c.x, 15485863, c.y));
-        vec2 centre = (vec2(c) + vec2(0.15f + 0.7f * jx, 0.15f + 0.7f * jz)) * kReliefCell;
+        // Jittered over nearly the whole cell: a jitter of 70 % of it left the rows of the grid
+        // visible on big ceilings. The longest reach (a stalagmite, 0.51 m) stays within the
+        // 3 x 3 cells searched.
+        vec2 centre = (vec2(c) + vec2(0.05f + 0.9f * jx, 0.05f + 0.9f * jz)) * kReliefCell;
         vec2 d = here - centre;
         float dist = length(d);
         float radius = mix(0.13f, 0.32f, size);
@@ -200,7 +210,8 @@ RELIEF_FN Relief relief_at(vec3 p, vec3 n, float roughness, float rim, float roo
       }
     }
     r.height += best;
-    r.gradient += vec3(best_gradient.x, 0.0f, best_gradient.y);
+    r.gradient += vec3(kReliefTurnCos * best_gradient.x + kReliefTurnSin * best_gradient.y, 0.0f,
+                       kReliefTurnCos * best_gradient.y - kReliefTurnSin * best_gradient.x);
     r.spike = longest > 0.0f ? clamp(best / (0.6f * longest), 0.0f, 1.0f) : 0.0f;
   }
   return r;
