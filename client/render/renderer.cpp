@@ -11,6 +11,7 @@
 
 #include "client/render/shaders.hpp"
 #include "client/stream/verify.hpp"
+#include "mesh/rim.hpp"
 #include "shaders/relief.hpp"
 
 namespace grotto::render {
@@ -25,7 +26,7 @@ constexpr double kAnchorStep = 1024.0;
 constexpr double kCutDistance = 2.0;  // metres
 constexpr double kCutAngle = 0.6;     // radians of yaw or pitch
 constexpr int kCapSegments = 24;
-constexpr double kCapScale = 1.15;   // caps overlap the rim loop's wall
+constexpr double kCapScale = 1.03;   // caps overlap the rim loop's wall (beyond its reach)
 constexpr double kCapOffset = 0.01;  // metres beyond the portal plane
 
 glm::vec3 to_vec3(Vec3 v) {
@@ -41,6 +42,13 @@ Vec3 normalized(Vec3 v) {
   return n > 0 ? Vec3{v.x / n, v.y / n, v.z / n} : Vec3{0, 0, 0};
 }
 
+// The radius of a disc that covers `portal`'s opening and overlaps its wall: rims move with the
+// surface noise, up to mesh::rim_reach from the centre (the default world's mesh parameters).
+double cover_radius(const cave::Portal& portal) {
+  static const mesh::MeshParams params;
+  return mesh::rim_reach(params, portal.radius) * kCapScale;
+}
+
 // The fan of a disc over `portal` (anchor-relative), appended as triangles.
 void append_cap(const cave::Portal& portal, Vec3 anchor, std::vector<float>& out) {
   Vec3 n = normalized(portal.normal);
@@ -48,7 +56,7 @@ void append_cap(const cave::Portal& portal, Vec3 anchor, std::vector<float>& out
   Vec3 t = normalized(cross(n, helper));
   Vec3 b = cross(n, t);
   Vec3 centre = portal.centre + n * kCapOffset - anchor;
-  double r = portal.radius * kCapScale;
+  double r = cover_radius(portal);
   auto point = [&](int k) {
     double a = 2 * kPi * k / kCapSegments;
     return centre + t * (r * std::cos(a)) + b * (r * std::sin(a));
@@ -116,7 +124,7 @@ PortalView view_portal(const cave::Portal& portal, Vec3 anchor, const glm::mat4&
   const Vec3 helper = std::abs(n.y) < 0.9 ? Vec3{0, 1, 0} : Vec3{1, 0, 0};
   const Vec3 t = normalized(cross(n, helper));
   const Vec3 b = cross(n, t);
-  const double r = (portal.radius * kCapScale + margin) / std::cos(kPi / kSides);
+  const double r = (cover_radius(portal) + margin) / std::cos(kPi / kSides);
   std::array<glm::vec4, 2 * kSides> clip;
   for (int k = 0; k < kSides; ++k) {
     const double a = 2 * kPi * (k + 0.5) / kSides;

@@ -60,4 +60,15 @@ RimLoop canonical_rim(const MeshContext& ctx, const cave::Room& room, const cave
   return loop;
 }
 
+double rim_reach(const MeshParams& params, double portal_radius) {
+  double octaves = 0;
+  for (const LodParams& lod : params.lods) {
+    double sum = 0;
+    for (int k = 0; k < lod.octaves; ++k)
+      sum += params.octave_amplitude[k];
+    octaves = std::max(octaves, sum);
+  }
+  return portal_radius * (1.0 + params.rim_amplitude) + octaves + 0.5 * params.rim_softness;
+}
+
 }  // namespace grotto::mesh

@@ -29,4 +29,10 @@ int rim_vertex_count(double radius, double edge_length);
 RimLoop canonical_rim(const MeshContext& ctx, const cave::Room& room, const cave::Portal& portal,
                       Lod lod);
 
+// The farthest a rim vertex of a portal of this radius can lie from the portal's centre, at any
+// level of detail (metres): the irregular radius plus the surface octaves that move the rim
+// (deform_core.h, grotto_rim_noise; gradient noise stays within [-1, 1]), plus their soft limit's
+// offset. What covers a whole opening (fog caps, portal culling) must reach this far.
+double rim_reach(const MeshParams& params, double portal_radius);
+
 }  // namespace grotto::mesh

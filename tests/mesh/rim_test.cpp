@@ -101,5 +101,23 @@ TEST_F(RimTest, rims_move_with_the_surface_noise_but_stay_wide_enough) {
   EXPECT_GT(moved / count, 0.05);
 }
 
+TEST_F(RimTest, every_rim_vertex_lies_within_the_rim_reach) {
+  // The renderer's fog caps and portal culling cover an opening out to rim_reach.
+  cave::Region region = cave::generate_region(world, {0, 0, 0}, {0, 0, 0});
+  double closest = 1e300;
+  for (const cave::Room& r : region.rooms) {
+    for (const cave::Portal& p : r.portals) {
+      const double reach = rim_reach(ctx.params(), p.radius);
+      for (Lod lod : {Lod::kDetail, Lod::kPatch}) {
+        for (Vec3 v : canonical_rim(ctx, r, p, lod).positions) {
+          EXPECT_LE(length(v - p.centre), reach + grid::kStep) << r.id.to_string();
+          closest = std::min(closest, reach - length(v - p.centre));
+        }
+      }
+    }
+  }
+  std::printf("the farthest rim vertex is %.3f m inside its rim reach\n", closest);
+}
+
 }  // namespace
 }  // namespace grotto::mesh
