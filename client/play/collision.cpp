@@ -3,10 +3,19 @@
 #include <algorithm>
 #include <cmath>
 
+#include "mesh/rim.hpp"
 #include "shaders/relief.hpp"
 
 namespace grotto::play {
 namespace {
+
+// The wall's radius over a portal of this radius: out to the farthest its rim can reach (the rim
+// moves with the surface noise, mesh::rim_reach, for the default world's mesh parameters), and
+// kPortalWallMargin beyond.
+double portal_wall_radius(double portal_radius) {
+  static const mesh::MeshParams params;
+  return mesh::rim_reach(params, portal_radius) + kPortalWallMargin;
+}
 
 constexpr double kCell = 1.0;  // metres: a patch triangle spans about one to three cells
 
@@ -221,7 +230,7 @@ void CollisionWorld::gather(Vec3 lo, Vec3 hi, Neighbourhood& out) const {
   for (const auto& [id, room] : rooms_) {
     for (const cave::Portal& portal : room.room.portals) {
       if (contains(portal.neighbour)) continue;
-      const double reach = portal.radius + kPortalWallMargin;
+      const double reach = portal_wall_radius(portal.radius);
       const Vec3 extent{reach, reach, reach};
       if (boxes_overlap(lo, hi, portal.centre - extent, portal.centre + extent))
         out.walls.push_back({portal.centre, portal.normal, reach});

@@ -46,8 +46,9 @@ Vec3 unit_normal(const Triangle& t);
 bool segment_crosses(const Triangle& t, Vec3 p, Vec3 q);
 bool segment_crosses(const Disc& d, Vec3 p, Vec3 q);
 
-// The portal disc is widened by this much, so that the wall closes over the rim's triangles
-// (rim vertices lie on the portal circle; the patch triangles between them cut inside it).
+// The wall over a portal reaches this much beyond the farthest its rim can lie from the portal's
+// centre (mesh::rim_reach: the irregular radius plus the surface noise that moves the rim), so
+// that it closes over the rim's triangles.
 inline constexpr double kPortalWallMargin = 0.15;
 
 // Refinement of a patch triangle for collision: kRefine segments per edge.
