@@ -40,15 +40,11 @@ void look_along(render::Camera& camera, Vec3 f) {
   camera.pitch = std::clamp(std::atan2(f.y, horizontal), -89 * kPi / 180, 89 * kPi / 180);
 }
 
-// The room whose sphere holds p most deeply, among the rooms on the GPU.
+// The room whose space holds p by the cave's rule, among the rooms on the GPU.
 std::optional<cave::RoomId> room_at(const render::GpuRoomCache& cache, Vec3 p) {
-  std::optional<cave::RoomId> best;
-  double best_depth = 0;
-  for (const auto& [id, room] : cache.rooms()) {
-    const double depth = room.room.sphere.radius - distance(p, room.room.sphere.centre);
-    if (depth > best_depth) best = id, best_depth = depth;
-  }
-  return best;
+  const cave::Room* room = cave::room_at(
+      cache.rooms(), p, [](const auto& entry) -> const cave::Room& { return entry.second.room; });
+  return room ? std::optional<cave::RoomId>(room->id) : std::nullopt;
 }
 
 // Rooms around p are ready: its room and every neighbour through its portals are on the GPU, and

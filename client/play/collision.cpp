@@ -271,13 +271,8 @@ void CollisionWorld::gather(Vec3 lo, Vec3 hi, Neighbourhood& out) const {
 }
 
 const cave::Room* CollisionWorld::room_at(Vec3 p) const {
-  const cave::Room* best = nullptr;
-  double best_ratio = 1;
-  for (const auto& [id, room] : rooms_) {
-    const double ratio = distance(p, room.room.sphere.centre) / room.room.sphere.radius;
-    if (ratio < best_ratio) best = &room.room, best_ratio = ratio;
-  }
-  return best;
+  return cave::room_at(rooms_, p,
+                       [](const auto& entry) -> const cave::Room& { return entry.second.room; });
 }
 
 }  // namespace grotto::play

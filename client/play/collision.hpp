@@ -75,7 +75,7 @@ class CollisionWorld {
   // Everything whose box overlaps [lo, hi] (world metres), appended to `out` (cleared first).
   // A triangle appears once.
   void gather(Vec3 lo, Vec3 hi, Neighbourhood& out) const;
-  // The loaded room whose sphere holds p most deeply (distance over radius), or nullptr.
+  // The loaded room whose space holds p by the cave's rule (cave::room_at), or nullptr.
   const cave::Room* room_at(Vec3 p) const;
 
  private:

@@ -111,21 +111,21 @@ Vec3 interior_point(const Room& room) {
   return p;
 }
 
+const Room* room_at(const SectorLayout& layout, Vec3 point) {
+  const Room* interior = room_at(layout.rooms, point);
+  const Room* gate = room_at(layout.gates, point);
+  if (!interior || (gate && gate->id < interior->id)) return gate;
+  return interior;
+}
+
 std::optional<RoomId> locate(const World& world, Vec3 point) {
   if (!is_finite(point)) return std::nullopt;
   SectorCoord s = sector_of(world, point);
   if (!in_range(s)) return std::nullopt;
-  SectorLayout layout = generate_sector(world, s);
   // Only this sector's side of a gate matters: portals on the other side lie in the other sector.
-  std::optional<RoomId> best;
-  auto consider = [&](const Room& r) {
-    if (in_space(r, point) && (!best || r.id < *best)) best = r.id;
-  };
-  for (const Room& r : layout.rooms)
-    consider(r);
-  for (const Room& r : layout.gates)
-    consider(r);
-  return best;
+  SectorLayout layout = generate_sector(world, s);
+  const Room* found = room_at(layout, point);
+  return found ? std::optional<RoomId>(found->id) : std::nullopt;
 }
 
 RoomId spawn_room(const World& world) {

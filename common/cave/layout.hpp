@@ -10,6 +10,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <optional>
 #include <vector>
 
@@ -85,6 +86,24 @@ std::optional<RoomId> locate(const World& world, Vec3 point);
 // Whether the point is in the room's space: inside its sphere and on its own side of every
 // portal plane (a point on a plane belongs to the room with the smaller id). locate's rule.
 bool in_space(const Room& room, Vec3 point);
+
+// "Which room holds p", the one rule every stage uses (locate, the client's collision and
+// camera): among `rooms`, the room whose space holds `point` (in_space), the smallest id when
+// several do; nullptr when none does. Any set of rooms will do: a room whose neighbour through a
+// portal is missing from the set still gives up the cap beyond that portal. `proj` maps an
+// element of `rooms` to its `const Room&` (identity for a range of Room).
+template <typename Rooms, typename Proj = std::identity>
+const Room* room_at(const Rooms& rooms, Vec3 point, Proj proj = {}) {
+  const Room* best = nullptr;
+  for (const auto& element : rooms) {
+    const Room& r = std::invoke(proj, element);
+    if ((!best || r.id < best->id) && in_space(r, point)) best = &r;
+  }
+  return best;
+}
+// room_at over one sector's interior rooms and gates (the gates with this side's portals only):
+// the answer locate gives for a point in that sector.
+const Room* room_at(const SectorLayout& layout, Vec3 point);
 // A point well inside the room's space: the sphere's centre, stepped back behind any portal plane
 // whose cap holds it (overlapping spheres can put it there). Where a player starts in the room.
 Vec3 interior_point(const Room& room);

@@ -1,6 +1,9 @@
 #include <gtest/gtest.h>
 
 #include <limits>
+#include <map>
+#include <utility>
+#include <vector>
 
 #include "cave/layout.hpp"
 
@@ -59,6 +62,63 @@ TEST(Locate, spawn_is_deterministic_and_inside_its_room) {
   auto r = room(world, spawn);
   ASSERT_TRUE(r.ok());
   EXPECT_EQ(locate(world, r->sphere.centre), spawn);
+}
+
+TEST(RoomAt, over_a_region_answers_as_locate_does) {
+  World world = test_world();
+  Region region = generate_region(world, {0, 0, 0}, {1, 0, 0});
+  int checked = 0;
+  for (const Room& r : region.rooms) {
+    if (r.id.sector() != SectorCoord{0, 0, 0}) continue;
+    std::vector<Vec3> points{r.sphere.centre};
+    for (const Portal& p : r.portals) {
+      if (!region.find(p.neighbour)) continue;  // beyond the block: locate sees a room we lack
+      points.push_back(p.centre - p.normal * 0.01);
+      points.push_back(p.centre + p.normal * 0.01);
+      points.push_back(p.centre);  // on the plane: the smaller id's
+    }
+    for (Vec3 point : points) {
+      const Room* found = room_at(region.rooms, point);
+      std::optional<RoomId> want = locate(world, point);
+      ASSERT_EQ(found != nullptr, want.has_value()) << r.id.to_string();
+      if (found) {
+        EXPECT_EQ(found->id, *want) << r.id.to_string();
+      }
+      ++checked;
+    }
+  }
+  EXPECT_GT(checked, 100);
+}
+
+TEST(RoomAt, a_room_without_its_neighbour_gives_up_the_cap_beyond_the_portal) {
+  Region region = generate_region(test_world(), {0, 0, 0}, {0, 0, 0});
+  const Room& r = region.rooms.front();
+  ASSERT_FALSE(r.portals.empty());
+  const Portal& p = r.portals.front();
+  std::vector<Room> alone{r};
+  EXPECT_EQ(room_at(alone, p.centre - p.normal * 0.01), &alone[0]);
+  // Inside r's sphere but beyond its portal: the neighbour's space, and the neighbour is absent.
+  EXPECT_EQ(room_at(alone, p.centre + p.normal * 0.01), nullptr);
+  // A projection reads rooms held in other records.
+  std::map<RoomId, std::pair<int, Room>> held{{r.id, {7, r}}};
+  const Room* found =
+      room_at(held, r.sphere.centre, [](const auto& e) -> const Room& { return e.second.second; });
+  ASSERT_NE(found, nullptr);
+  EXPECT_EQ(found->id, r.id);
+}
+
+TEST(RoomAt, overlapping_spaces_go_to_the_smallest_id) {
+  // Two rooms with no portals between them overlap everywhere in their lens: the smaller id wins
+  // whatever order the rooms come in.
+  Room a{RoomId::interior({0, 0, 0}, 3), Sphere{{0, 0, 0}, 4}, {}};
+  Room b{RoomId::interior({0, 0, 0}, 1), Sphere{{3, 0, 0}, 4}, {}};
+  std::vector<Room> rooms{a, b};
+  ASSERT_NE(room_at(rooms, {1.5, 0, 0}), nullptr);
+  EXPECT_EQ(room_at(rooms, {1.5, 0, 0})->id, b.id);
+  EXPECT_EQ(room_at(rooms, {-3, 0, 0})->id, a.id);
+  EXPECT_EQ(room_at(rooms, {20, 0, 0}), nullptr);
+  std::vector<Room> none;
+  EXPECT_EQ(room_at(none, {0, 0, 0}), nullptr);
 }
 
 TEST(Room, ids_that_name_no_room_are_not_found) {
