@@ -1,7 +1,8 @@
 // Sector layouts kept in a bounded LRU, so that the rooms, locate and spawn of the generation
 // service cost one generate_sector per sector instead of one per room (cave::room regenerates
-// the sector, ~0.5-1 ms, on every call). Answers are those of cave::room / cave::locate /
-// cave::spawn_room, computed from the cached layouts (tests pin the equality).
+// the sector, ~0.5-1 ms, on every call). The cache only keeps sectors: its answers are the
+// cave's own functions (cave::room / cave::locate / cave::spawn) run over the cached layouts
+// through a cave::SectorSource (tests pin the equality with the uncached forms).
 //
 // The layouts live in a SectorStore, which several worlds' caches may share: one LRU bounded in
 // layouts, keyed by world and sector, so a busy world takes more of it than an idle one.
@@ -59,12 +60,13 @@ class SectorCache {
   Result<cave::Room> room(cave::RoomId id);
   // cave::locate(world, point).
   std::optional<cave::RoomId> locate(Vec3 point);
-  // cave::spawn_room(world) and a position inside that room's space (its sphere's centre, moved
-  // back behind any portal plane it lies beyond).
+  // cave::spawn(world): spawn_room's room and a position inside its space (interior_point).
   proto::SpawnPoint spawn();
 
   // The layout of an in-range sector, from the cache or generated now.
   std::shared_ptr<const cave::SectorLayout> sector(cave::SectorCoord s);
+  // sector() as a source for the cave's functions; valid while this cache lives.
+  cave::SectorSource source();
 
   // The store's counts (all worlds sharing it).
   size_t hits() const { return store_->hits(); }

@@ -56,27 +56,45 @@ Result<World> World::create(uint64_t seed, const LayoutParams& params) {
   return World(seed, params);
 }
 
+namespace {
+// The World-only forms generate every sector they need.
+SectorSource generating(const World& world) {
+  return [world](SectorCoord s) {
+    return std::make_shared<const SectorLayout>(generate_sector(world, s));
+  };
+}
+}  // namespace
+
 Result<Room> room(const World& world, RoomId id) {
+  return room(world, id, generating(world));
+}
+
+Result<Room> room(const World& world, RoomId id, const SectorSource& sectors) {
   SectorCoord s = id.sector();
   if (!id.is_gate()) {
-    SectorLayout layout = generate_sector(world, s);
-    if (!layout.connected) return disconnected(s);
-    if (id.index() >= static_cast<int>(layout.rooms.size())) {
+    auto layout = sectors(s);
+    if (!layout->connected) return disconnected(s);
+    if (id.index() >= static_cast<int>(layout->rooms.size())) {
       return not_found("room " + id.to_string() + " does not exist: sector " + to_string(s) +
-                       " has " + std::to_string(layout.rooms.size()) + " interior rooms");
+                       " has " + std::to_string(layout->rooms.size()) + " interior rooms");
     }
-    return layout.rooms[id.index()];
+    return layout->rooms[id.index()];
   }
+  SectorCoord upper_coord = neighbour(s, id.gate_axis(), 1);
+  if (!in_range(upper_coord)) {
+    return not_found("room " + id.to_string() + " does not exist: the world's edge has no gates");
+  }
+  // A face's gates are a hash away (face_gates): a missing one costs no sector.
   size_t gate_count = face_gates(world, s, id.gate_axis()).size();
   if (id.index() >= static_cast<int>(gate_count)) {
     return not_found("room " + id.to_string() + " does not exist: that face has " +
                      std::to_string(gate_count) + " gates");
   }
-  SectorLayout lower = generate_sector(world, s);
-  SectorLayout upper = generate_sector(world, neighbour(s, id.gate_axis(), 1));
-  if (!lower.connected) return disconnected(lower.sector);
-  if (!upper.connected) return disconnected(upper.sector);
-  return merge_gate(lower, upper, id);
+  auto lower = sectors(s);
+  auto upper = sectors(upper_coord);
+  if (!lower->connected) return disconnected(lower->sector);
+  if (!upper->connected) return disconnected(upper->sector);
+  return merge_gate(*lower, *upper, id);
 }
 
 SectorCoord sector_of(const World& world, Vec3 point) {
@@ -119,22 +137,25 @@ const Room* room_at(const SectorLayout& layout, Vec3 point) {
 }
 
 std::optional<RoomId> locate(const World& world, Vec3 point) {
+  return locate(world, point, generating(world));
+}
+
+std::optional<RoomId> locate(const World& world, Vec3 point, const SectorSource& sectors) {
   if (!is_finite(point)) return std::nullopt;
   SectorCoord s = sector_of(world, point);
   if (!in_range(s)) return std::nullopt;
   // Only this sector's side of a gate matters: portals on the other side lie in the other sector.
-  SectorLayout layout = generate_sector(world, s);
-  const Room* found = room_at(layout, point);
+  auto layout = sectors(s);
+  const Room* found = room_at(*layout, point);
   return found ? std::optional<RoomId>(found->id) : std::nullopt;
 }
 
-RoomId spawn_room(const World& world) {
-  SectorCoord origin{0, 0, 0};
-  SectorLayout layout = generate_sector(world, origin);
+Spawn spawn(const World& world, const SectorSource& sectors) {
+  auto layout = sectors({0, 0, 0});
   double half = 0.5 * world.params().sector_size;
   Vec3 centre{half, half, half};
   const Room* best = nullptr;
-  for (const Room& r : layout.rooms) {
+  for (const Room& r : layout->rooms) {
     if (!best ||
         length_squared(r.sphere.centre - centre) < length_squared(best->sphere.centre - centre)) {
       best = &r;
@@ -142,7 +163,12 @@ RoomId spawn_room(const World& world) {
   }
   // A sector always links its gates with at least one interior room.
   assert(best);
-  return best ? best->id : layout.gates.front().id;
+  if (!best) best = &layout->gates.front();
+  return {best->id, interior_point(*best)};
+}
+
+RoomId spawn_room(const World& world) {
+  return spawn(world, generating(world)).room;
 }
 
 const Room* Region::find(RoomId id) const {

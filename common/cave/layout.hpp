@@ -11,6 +11,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <memory>
 #include <optional>
 #include <vector>
 
@@ -74,14 +75,22 @@ std::vector<Room> face_gates(const World& world, SectorCoord lower, int axis);
 // Precondition: in_range(sector). Bounded work: the sector's own rooms and its faces' gates.
 SectorLayout generate_sector(const World& world, SectorCoord sector);
 
+// Where sector layouts come from: the World-only functions below generate them; a cache passes
+// its own source to the overloads that take one. A source returns generate_sector(world, s) for
+// the same world (from wherever it keeps it); it is called only for in_range sectors.
+using SectorSource = std::function<std::shared_ptr<const SectorLayout>(SectorCoord)>;
+
 // Any room with all its portals. Interior rooms need their sector; gates need both sectors of
-// their face. Errors: kNotFound for a well-formed id that names no room.
+// their face. Errors: kNotFound for a well-formed id that names no room (also a gate on the
+// world's edge); kInternal for a sector that could not link its gates.
 Result<Room> room(const World& world, RoomId id);
+Result<Room> room(const World& world, RoomId id, const SectorSource& sectors);
 
 // The room whose space (its sphere minus the caps beyond its portals) contains `point`; a point
 // on a portal plane belongs to the room with the smaller id. None outside every room or outside
 // the sector range.
 std::optional<RoomId> locate(const World& world, Vec3 point);
+std::optional<RoomId> locate(const World& world, Vec3 point, const SectorSource& sectors);
 
 // Whether the point is in the room's space: inside its sphere and on its own side of every
 // portal plane (a point on a plane belongs to the room with the smaller id). locate's rule.
@@ -111,6 +120,12 @@ Vec3 interior_point(const Room& room);
 // The deterministic place a new player starts: the interior room of sector (0,0,0) closest to
 // the sector's centre.
 RoomId spawn_room(const World& world);
+// spawn_room's room and where in it a player starts (interior_point).
+struct Spawn {
+  RoomId room = RoomId::interior({}, 0);
+  Vec3 position;
+};
+Spawn spawn(const World& world, const SectorSource& sectors);
 
 // The sector that contains a point (floor division by the sector size).
 SectorCoord sector_of(const World& world, Vec3 point);

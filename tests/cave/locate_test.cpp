@@ -2,6 +2,7 @@
 
 #include <limits>
 #include <map>
+#include <memory>
 #include <utility>
 #include <vector>
 
@@ -119,6 +120,46 @@ TEST(RoomAt, overlapping_spaces_go_to_the_smallest_id) {
   EXPECT_EQ(room_at(rooms, {20, 0, 0}), nullptr);
   std::vector<Room> none;
   EXPECT_EQ(room_at(none, {0, 0, 0}), nullptr);
+}
+
+// A cache hands the cave its layouts through a SectorSource: the answers are the World forms'.
+TEST(SectorSourceTest, room_locate_and_spawn_through_a_source_match_the_world_forms) {
+  World world = test_world();
+  std::map<SectorCoord, std::shared_ptr<const SectorLayout>> kept;
+  int calls = 0;
+  SectorSource source = [&](SectorCoord s) {
+    ++calls;
+    auto& layout = kept[s];
+    if (!layout) layout = std::make_shared<const SectorLayout>(generate_sector(world, s));
+    return layout;
+  };
+  Region region = generate_region(world, {0, 0, 0}, {0, 0, 0});
+  std::vector<RoomId> ids;
+  for (const Room& r : region.rooms)
+    ids.push_back(r.id);
+  ids.push_back(RoomId::interior({0, 0, 0}, kMaxInteriorRooms - 1));
+  ids.push_back(RoomId::gate({0, 0, 0}, 2, kMaxGatesPerFace - 1));
+  ids.push_back(RoomId::gate({kSectorCoordLimit, 0, 0}, 0, 0));
+  for (RoomId id : ids) {
+    auto want = room(world, id);
+    auto got = room(world, id, source);
+    ASSERT_EQ(want.ok(), got.ok()) << id.to_string();
+    if (!want.ok()) {
+      EXPECT_EQ(got.error().code, want.error().code);
+      EXPECT_EQ(got.error().message, want.error().message);
+      continue;
+    }
+    std::vector<unsigned char> a, b;
+    append_bytes(*want, a);
+    append_bytes(*got, b);
+    EXPECT_EQ(a, b) << id.to_string();
+    EXPECT_EQ(locate(world, got->sphere.centre, source), locate(world, got->sphere.centre));
+  }
+  EXPECT_GT(calls, static_cast<int>(region.rooms.size()));
+  Spawn s = spawn(world, source);
+  EXPECT_EQ(s.room, spawn_room(world));
+  EXPECT_EQ(s.position, interior_point(room(world, s.room).value()));
+  EXPECT_EQ(locate(world, s.position), s.room);
 }
 
 TEST(Room, ids_that_name_no_room_are_not_found) {
