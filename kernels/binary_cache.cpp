@@ -11,6 +11,7 @@
 #include <fstream>
 #include <system_error>
 
+#include "core/bytes.hpp"
 #include "core/random.hpp"
 
 namespace grotto::kernels {
@@ -18,23 +19,9 @@ namespace {
 
 constexpr std::array<unsigned char, 8> kMagic = {'G', 'R', 'O', 'T', 'C', 'L', 'B', '1'};
 
-void put_u64(unsigned char* out, uint64_t v) {
-  for (int i = 0; i < 8; ++i) {
-    out[i] = static_cast<unsigned char>(v >> (8 * i));
-  }
-}
-
-uint64_t get_u64(const unsigned char* in) {
-  uint64_t v = 0;
-  for (int i = 0; i < 8; ++i) {
-    v |= uint64_t{in[i]} << (8 * i);
-  }
-  return v;
-}
-
 uint64_t hash_field(uint64_t h, std::string_view field) {
   unsigned char length[8];
-  put_u64(length, field.size());
+  le::store(length, field.size());
   h = fnv1a64(length, sizeof length, h);
   return fnv1a64(reinterpret_cast<const unsigned char*>(field.data()), field.size(), h);
 }
@@ -83,9 +70,9 @@ std::string cache_file_name(uint64_t key) {
 std::vector<unsigned char> encode_cache_entry(uint64_t key, std::span<const unsigned char> binary) {
   std::vector<unsigned char> file(kCacheHeaderSize + binary.size());
   std::memcpy(file.data(), kMagic.data(), kMagic.size());
-  put_u64(file.data() + 8, key);
-  put_u64(file.data() + 16, binary.size());
-  put_u64(file.data() + 24, fnv1a64(binary.data(), binary.size()));
+  le::store(file.data() + 8, key);
+  le::store(file.data() + 16, binary.size());
+  le::store(file.data() + 24, fnv1a64(binary.data(), binary.size()));
   if (!binary.empty()) std::memcpy(file.data() + kCacheHeaderSize, binary.data(), binary.size());
   return file;
 }
@@ -99,16 +86,16 @@ Result<std::vector<unsigned char>> decode_cache_entry(uint64_t key,
   if (std::memcmp(file.data(), kMagic.data(), kMagic.size()) != 0) {
     return invalid_argument("cache entry has the wrong magic (not a Grotto v1 entry)");
   }
-  if (get_u64(file.data() + 8) != key) {
+  if (le::load(file.data() + 8) != key) {
     return invalid_argument("cache entry belongs to another key");
   }
-  const uint64_t size = get_u64(file.data() + 16);
+  const uint64_t size = le::load(file.data() + 16);
   if (size == 0 || size != file.size() - kCacheHeaderSize) {
     return invalid_argument("cache entry truncated or padded: header says " + std::to_string(size) +
                             " bytes, file holds " + std::to_string(file.size() - kCacheHeaderSize));
   }
   std::span<const unsigned char> binary = file.subspan(kCacheHeaderSize);
-  if (fnv1a64(binary.data(), binary.size()) != get_u64(file.data() + 24)) {
+  if (fnv1a64(binary.data(), binary.size()) != le::load(file.data() + 24)) {
     return invalid_argument("cache entry checksum mismatch (corrupt)");
   }
   return std::vector<unsigned char>(binary.begin(), binary.end());

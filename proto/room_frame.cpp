@@ -1,11 +1,11 @@
 #include "proto/room_frame.hpp"
 
 #include <algorithm>
-#include <bit>
 #include <cassert>
 #include <cmath>
 #include <string>
 
+#include "core/bytes.hpp"
 #include "core/grid.hpp"
 
 namespace grotto::proto {
@@ -26,33 +26,6 @@ constexpr std::size_t kOffRadius = 72;
 
 Error bad_frame(std::string message) {
   return {ErrorCode::kBadFrame, "room frame: " + std::move(message)};
-}
-
-// Little-endian whatever the host, and no unaligned loads.
-uint64_t read_le(const uint8_t* p, int bytes) {
-  uint64_t v = 0;
-  for (int i = bytes - 1; i >= 0; --i)
-    v = (v << 8) | p[i];
-  return v;
-}
-double read_f64(const uint8_t* p) {
-  return std::bit_cast<double>(read_le(p, 8));
-}
-Vec3 read_vec(const uint8_t* p) {
-  return {read_f64(p), read_f64(p + 8), read_f64(p + 16)};
-}
-
-void write_le(std::vector<uint8_t>& out, uint64_t v, int bytes) {
-  for (int i = 0; i < bytes; ++i)
-    out.push_back(static_cast<uint8_t>(v >> (8 * i)));
-}
-void write_f64(std::vector<uint8_t>& out, double v) {
-  write_le(out, std::bit_cast<uint64_t>(v), 8);
-}
-void write_vec(std::vector<uint8_t>& out, Vec3 v) {
-  write_f64(out, v.x);
-  write_f64(out, v.y);
-  write_f64(out, v.z);
 }
 
 bool finite(Vec3 v) {
@@ -134,22 +107,22 @@ std::vector<uint8_t> encode_room_frame(const cave::Room& room, uint8_t lod, Vec3
   out.reserve(room_frame_size(room.portals.size(), payload.size()));
   for (uint8_t c : kFrameMagic)
     out.push_back(c);
-  write_le(out, kProtocolVersion, 2);
-  write_le(out, kFrameTypeRoom, 1);
-  write_le(out, room.id.is_gate() ? kFlagGate : 0, 1);
-  write_le(out, room.id.packed(), 8);
-  write_le(out, lod, 1);
-  write_le(out, room.portals.size(), 1);
-  write_le(out, 0, 2);
-  write_le(out, payload.size(), 4);
-  write_vec(out, origin);
-  write_vec(out, room.sphere.centre);
-  write_f64(out, room.sphere.radius);
+  le::append(out, kProtocolVersion, 2);
+  le::append(out, kFrameTypeRoom, 1);
+  le::append(out, room.id.is_gate() ? kFlagGate : 0, 1);
+  le::append(out, room.id.packed(), 8);
+  le::append(out, lod, 1);
+  le::append(out, room.portals.size(), 1);
+  le::append(out, 0, 2);
+  le::append(out, payload.size(), 4);
+  le::append_vec3(out, origin);
+  le::append_vec3(out, room.sphere.centre);
+  le::append_f64(out, room.sphere.radius);
   for (const cave::Portal& p : room.portals) {
-    write_le(out, p.neighbour.packed(), 8);
-    write_vec(out, p.centre);
-    write_vec(out, p.normal);
-    write_f64(out, p.radius);
+    le::append(out, p.neighbour.packed(), 8);
+    le::append_vec3(out, p.centre);
+    le::append_vec3(out, p.normal);
+    le::append_f64(out, p.radius);
   }
   out.insert(out.end(), payload.begin(), payload.end());
   assert(out.size() == room_frame_size(room.portals.size(), payload.size()));
@@ -173,7 +146,7 @@ Result<RoomFrame> decode_room_frame(std::span<const uint8_t> bytes, const Limits
     return bad_frame("wrong magic (a room frame starts with 'GRTO')");
   }
   if (size >= kOffType) {
-    uint64_t version = read_le(b + kOffVersion, 2);
+    uint64_t version = le::load(b + kOffVersion, 2);
     if (version != kProtocolVersion) {
       return Error{ErrorCode::kUnsupportedVersion,
                    "room frame: version " + std::to_string(version) + ", this decoder reads " +
@@ -190,7 +163,7 @@ Result<RoomFrame> decode_room_frame(std::span<const uint8_t> bytes, const Limits
   }
   const uint8_t flags = b[kOffFlags];
   const std::size_t portals = b[kOffPortalCount];
-  const uint64_t payload_bytes = read_le(b + kOffPayloadBytes, 4);
+  const uint64_t payload_bytes = le::load(b + kOffPayloadBytes, 4);
   if (portals > static_cast<std::size_t>(cave::kMaxPortalsPerRoom)) {
     return bad_frame("portal count " + std::to_string(portals) + " is over " +
                      std::to_string(cave::kMaxPortalsPerRoom));
@@ -203,9 +176,9 @@ Result<RoomFrame> decode_room_frame(std::span<const uint8_t> bytes, const Limits
                      std::to_string(expected) + " (" + std::to_string(portals) + " portals, " +
                      std::to_string(payload_bytes) + " payload bytes)");
   }
-  if (read_le(b + kOffReserved, 2) != 0) return bad_frame("reserved header bytes are not zero");
+  if (le::load(b + kOffReserved, 2) != 0) return bad_frame("reserved header bytes are not zero");
 
-  Result<cave::RoomId> id = cave::RoomId::unpack(read_le(b + kOffId, 8));
+  Result<cave::RoomId> id = cave::RoomId::unpack(le::load(b + kOffId, 8));
   if (!id) return Error{ErrorCode::kInvalidRoomId, "room frame: id: " + id.error().message};
   if ((flags & ~kFlagGate) != 0) return bad_frame("unknown flag bits are set");
   if (((flags & kFlagGate) != 0) != id->is_gate()) {
@@ -215,22 +188,22 @@ Result<RoomFrame> decode_room_frame(std::span<const uint8_t> bytes, const Limits
   RoomFrame frame;
   frame.room.id = *id;
   frame.lod = b[kOffLod];
-  frame.origin = read_vec(b + kOffOrigin);
-  frame.room.sphere.centre = read_vec(b + kOffCentre);
-  frame.room.sphere.radius = read_f64(b + kOffRadius);
+  frame.origin = le::load_vec3(b + kOffOrigin);
+  frame.room.sphere.centre = le::load_vec3(b + kOffCentre);
+  frame.room.sphere.radius = le::load_f64(b + kOffRadius);
   frame.room.portals.reserve(portals);
   for (std::size_t i = 0; i < portals; ++i) {
     const uint8_t* p = b + kRoomHeaderBytes + kPortalRecordBytes * i;
-    Result<cave::RoomId> to = cave::RoomId::unpack(read_le(p, 8));
+    Result<cave::RoomId> to = cave::RoomId::unpack(le::load(p, 8));
     if (!to) {
       return Error{ErrorCode::kInvalidRoomId,
                    "room frame: portals[" + std::to_string(i) + "].to: " + to.error().message};
     }
     cave::Portal portal;
     portal.neighbour = *to;
-    portal.centre = read_vec(p + 8);
-    portal.normal = read_vec(p + 32);
-    portal.radius = read_f64(p + 56);
+    portal.centre = le::load_vec3(p + 8);
+    portal.normal = le::load_vec3(p + 32);
+    portal.radius = le::load_f64(p + 56);
     frame.room.portals.push_back(portal);
   }
   const uint8_t* payload = b + room_frame_size(portals, 0);

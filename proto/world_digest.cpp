@@ -1,9 +1,9 @@
 #include "proto/world_digest.hpp"
 
-#include <bit>
 #include <string_view>
 #include <vector>
 
+#include "core/bytes.hpp"
 #include "core/random.hpp"
 
 namespace grotto::proto {
@@ -11,17 +11,10 @@ namespace {
 
 class Canonical {
  public:
-  void u64(uint64_t v) {
-    for (int i = 0; i < 8; ++i)
-      bytes_.push_back(static_cast<uint8_t>(v >> (8 * i)));
-  }
+  void u64(uint64_t v) { le::append(bytes_, v); }
   void i64(int64_t v) { u64(static_cast<uint64_t>(v)); }
-  void f64(double v) { u64(std::bit_cast<uint64_t>(v)); }
-  void vec(Vec3 v) {
-    f64(v.x);
-    f64(v.y);
-    f64(v.z);
-  }
+  void f64(double v) { le::append_f64(bytes_, v); }
+  void vec(Vec3 v) { le::append_vec3(bytes_, v); }
   void text(std::string_view s) {
     u64(s.size());
     bytes_.insert(bytes_.end(), s.begin(), s.end());

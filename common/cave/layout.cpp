@@ -1,28 +1,15 @@
 #include "cave/layout.hpp"
 
 #include <algorithm>
-#include <bit>
 #include <cassert>
 #include <cmath>
 #include <map>
 
+#include "core/bytes.hpp"
 #include "core/random.hpp"
 
 namespace grotto::cave {
 namespace {
-
-void put_u64(std::vector<unsigned char>& out, uint64_t v) {
-  for (int i = 0; i < 8; ++i)
-    out.push_back(static_cast<unsigned char>(v >> (8 * i)));
-}
-void put_f64(std::vector<unsigned char>& out, double v) {
-  put_u64(out, std::bit_cast<uint64_t>(v));
-}
-void put_vec(std::vector<unsigned char>& out, Vec3 v) {
-  put_f64(out, v.x);
-  put_f64(out, v.y);
-  put_f64(out, v.z);
-}
 
 const Room* find_room(const std::vector<Room>& rooms, RoomId id) {
   auto it = std::lower_bound(rooms.begin(), rooms.end(), id,
@@ -222,15 +209,15 @@ Region generate_region(const World& world, SectorCoord lo, SectorCoord hi) {
 }
 
 void append_bytes(const Room& room, std::vector<unsigned char>& out) {
-  put_u64(out, room.id.packed());
-  put_vec(out, room.sphere.centre);
-  put_f64(out, room.sphere.radius);
-  put_u64(out, room.portals.size());
+  le::append(out, room.id.packed());
+  le::append_vec3(out, room.sphere.centre);
+  le::append_f64(out, room.sphere.radius);
+  le::append(out, room.portals.size());
   for (const Portal& p : room.portals) {
-    put_u64(out, p.neighbour.packed());
-    put_vec(out, p.centre);
-    put_vec(out, p.normal);
-    put_f64(out, p.radius);
+    le::append(out, p.neighbour.packed());
+    le::append_vec3(out, p.centre);
+    le::append_vec3(out, p.normal);
+    le::append_f64(out, p.radius);
   }
 }
 
