@@ -6,7 +6,6 @@
 // and the stream, and tears them down in order.
 #include <spdlog/spdlog.h>
 
-#include <chrono>
 #include <cstdio>
 #include <cstdlib>
 #include <memory>
@@ -16,11 +15,10 @@
 #include "client/app/gl_context.hpp"
 #include "client/app/options.hpp"
 #include "client/render/gl.hpp"
-#include "server/server.hpp"
+#include "server/embedded.hpp"
 
 namespace {
 
-using namespace std::chrono_literals;
 namespace app = grotto::app;
 namespace client = grotto::client;
 namespace render = grotto::render;
@@ -77,18 +75,15 @@ int main(int argc, char** argv) {
   std::unique_ptr<grotto::server::Server> server;
   std::string url = o.server_url;
   if (url.empty()) {
-    grotto::server::ServerConfig config;
-    config.port = 0;
-    config.bind = "127.0.0.1";
+    grotto::server::ServerConfig config = grotto::server::embedded_config();
     if (o.seed) config.seed = *o.seed;
     config.token = o.token;
     config.generator.builder.device.device = o.device;
-    config.drain_timeout = 2000ms;
     config.log_level = o.log_level;
-    auto started = grotto::server::Server::start(config);
+    auto started = grotto::server::start_embedded(config);
     if (!started) return fail("in-process server: " + started.error().message);
-    server = std::move(started).value();
-    url = "ws://127.0.0.1:" + std::to_string(server->port()) + "/ws";
+    url = started.value().url;
+    server = std::move(started.value().server);
   }
   client::Runtime runtime(1, 0);
   client::StreamOptions so;
@@ -113,6 +108,6 @@ int main(int argc, char** argv) {
   overlay.reset();
   renderer.reset();
   // The GL context goes at the end of main, after every GL object.
-  if (server) server->stop(2000ms);
+  if (server) server->stop(server->config().drain_timeout);
   return status;
 }

@@ -13,7 +13,7 @@
 #include "cave/layout.hpp"
 #include "client/load/verifier.hpp"
 #include "client/stream/stream.hpp"
-#include "server/server.hpp"
+#include "server/embedded.hpp"
 
 namespace grotto::client::load {
 
@@ -169,21 +169,18 @@ Result<LoadReport> run_load(const LoadOptions& options) {
   std::unique_ptr<server::Server> server;
   std::string url = options.url;
   if (url.empty()) {
-    server::ServerConfig config;
-    config.port = 0;
-    config.bind = "127.0.0.1";
+    server::ServerConfig config = server::embedded_config();
     if (options.seed) config.seed = *options.seed;
     if (!options.seeds.empty()) config.seed = options.seeds.front();
     config.token = options.token;
     config.generator.builder.device.device = options.device;
     config.generator.workers = options.server_workers;
-    config.drain_timeout = std::chrono::milliseconds(2'000);
     // Every player is one connection; the default cap (1024) must not be what a big run measures.
     config.max_connections = std::max(config.max_connections, options.players + 16);
-    auto started = server::Server::start(config);
+    auto started = server::start_embedded(config);
     if (!started) return started.error();
-    server = std::move(started).value();
-    url = "ws://127.0.0.1:" + std::to_string(server->port()) + "/ws";
+    url = started.value().url;
+    server = std::move(started.value().server);
     report.embedded_server = true;
     report.seed = config.seed;
     report.compute = server->generator().compute_path();
@@ -397,7 +394,7 @@ Result<LoadReport> run_load(const LoadOptions& options) {
   total_players(report);
 
   players.clear();  // the Streams go before the Runtime and the server
-  if (server) server->stop(std::chrono::milliseconds(2'000));
+  if (server) server->stop(server->config().drain_timeout);
   return report;
 }
 
