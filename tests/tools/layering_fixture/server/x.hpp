@@ -1,0 +1,2 @@
+// layering_fixture: a server header.
+#pragma once
