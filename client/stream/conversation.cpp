@@ -7,6 +7,8 @@
 #include <cstdio>
 #include <utility>
 
+#include "core/bytes.hpp"
+
 namespace grotto::client {
 
 namespace {
@@ -26,10 +28,7 @@ double ms_between(SteadyTime from, SteadyTime to) {
 // The id field of a frame refused before its descriptor could be read (bytes 8-15).
 std::optional<cave::RoomId> frame_id(std::span<const uint8_t> bytes) {
   if (bytes.size() < 16) return std::nullopt;
-  uint64_t packed = 0;
-  for (int i = 0; i < 8; ++i)
-    packed |= uint64_t{bytes[8 + i]} << (8 * i);
-  auto id = cave::RoomId::unpack(packed);
+  auto id = cave::RoomId::unpack(le::load(bytes.data() + 8));
   if (!id) return std::nullopt;
   return id.value();
 }

@@ -115,19 +115,12 @@ const cave::Room* PortalGraph::find(cave::RoomId id) const {
 }
 
 std::optional<cave::RoomId> PortalGraph::room_at(Vec3 point) const {
-  std::optional<cave::RoomId> best;
-  double best_ratio = 0;
-  for (const auto& [id, room] : rooms_) {
-    const double d = distance(point, room.sphere.centre);
-    if (!(d <= room.sphere.radius)) continue;
-    const double ratio = d / room.sphere.radius;
-    // Strictly smaller: on a tie the first in id order (the map's order) stays.
-    if (!best || ratio < best_ratio) {
-      best = id;
-      best_ratio = ratio;
-    }
-  }
-  return best;
+  // The cave's one rule over the rooms known: a room whose neighbour is not known yet still
+  // gives up the cap beyond that portal.
+  const cave::Room* r = cave::room_at(
+      rooms_, point, [](const auto& entry) -> const cave::Room& { return entry.second; });
+  if (!r) return std::nullopt;
+  return r->id;
 }
 
 std::vector<PlannedRoom> PortalGraph::plan(cave::RoomId start, const Pose& pose,

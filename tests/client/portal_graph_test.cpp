@@ -391,10 +391,10 @@ TEST_F(PortalGraphAdd, replaces_remove_and_clear) {
   EXPECT_EQ(g.find(p.neighbour.id), nullptr);
 }
 
-TEST_F(RealSector, room_at_finds_each_room_at_its_centre_and_nothing_in_the_void) {
+TEST_F(RealSector, room_at_finds_each_room_at_its_interior_point_and_nothing_in_the_void) {
   PortalGraph g = whole_graph();
   for (const Room& r : region_->rooms) {
-    auto at = g.room_at(r.sphere.centre);
+    auto at = g.room_at(cave::interior_point(r));
     ASSERT_TRUE(at.has_value()) << r.id.to_string();
     EXPECT_EQ(*at, r.id);
   }
@@ -402,17 +402,25 @@ TEST_F(RealSector, room_at_finds_each_room_at_its_centre_and_nothing_in_the_void
   EXPECT_FALSE(PortalGraph().room_at(region_->rooms[0].sphere.centre).has_value());
 }
 
-TEST(PortalGraphRoomAt, overlapping_spheres_pick_the_smaller_distance_over_radius) {
+// The cave's rule (cave::room_at): a room's space ends at its portal planes; where spheres
+// overlap with no portal between them, the smaller id.
+TEST(PortalGraphRoomAt, the_portal_plane_divides_overlapping_rooms) {
   Rooms rs;
   rs.room(0, {0, 0, 0}, 4);
   rs.room(1, {5, 0, 0}, 2);
-  PortalGraph g = rs.graph({0, 1});
-  EXPECT_EQ(g.room_at({3, 0, 0}), rid(0));    // 3/4 against 2/2
-  EXPECT_EQ(g.room_at({3.5, 0, 0}), rid(1));  // 3.5/4 against 1.5/2
-  EXPECT_EQ(g.room_at({4, 0, 0}), rid(1));    // on r0's surface: inside both, 1 against 1/2
+  rs.room(2, {0, 5, 0}, 2);  // overlaps r0, no portal between them
+  rs.link(0, 1, {3.5, 0, 0});
+  PortalGraph g = rs.graph({0, 1, 2});
+  EXPECT_EQ(g.room_at({3, 0, 0}), rid(0));
+  EXPECT_EQ(g.room_at({3.6, 0, 0}), rid(1));  // past the portal: r1, though inside r0's sphere
+  EXPECT_EQ(g.room_at({3.5, 0, 0}), rid(0));  // on the plane: the smaller id
   EXPECT_EQ(g.room_at({7, 0, 0}), rid(1));    // on r1's surface only
+  EXPECT_EQ(g.room_at({0, 3.5, 0}), rid(0));  // in both spheres, no portal: the smaller id
   EXPECT_FALSE(g.room_at({7.001, 0, 0}).has_value());
-  EXPECT_FALSE(g.room_at({0, 4.001, 0}).has_value());
+  EXPECT_FALSE(g.room_at({0, -4.001, 0}).has_value());
+  // r1 not known: the cap beyond r0's portal is still not r0's.
+  PortalGraph partial = rs.graph({0});
+  EXPECT_FALSE(partial.room_at({3.6, 0, 0}).has_value());
 }
 
 TEST_F(RealSector, plan_matches_the_hand_computed_costs_of_two_rings) {
