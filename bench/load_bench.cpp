@@ -133,7 +133,7 @@ PhaseResult in_process_decoded(const ServerConfig& config,
     cv.notify_all();
   });
   auto t0 = Clock::now();
-  std::vector<grotto::proto::RoomWant> wants;
+  std::vector<grotto::server::Want> wants;
   for (auto id : ids)
     wants.push_back({id, 0, 0});
   gen.request(client, wants);

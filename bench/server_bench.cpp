@@ -73,7 +73,7 @@ PipelineRun run_pipeline(const cave::World& world, const std::vector<cave::RoomI
     }
     cv.notify_all();
   });
-  std::vector<proto::RoomWant> wants;
+  std::vector<server::Want> wants;
   for (size_t i = 0; i < ids.size(); ++i)
     wants.push_back({ids[i], 0, static_cast<uint32_t>(i)});
   auto start = clock_type::now();

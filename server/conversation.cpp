@@ -218,8 +218,11 @@ void Conversation::on(const proto::Locate& m) {
 }
 
 void Conversation::on(const proto::Spawn& m) {
-  proto::SpawnPoint r = worlds_.spawn(client_);
+  cave::Spawn spawn = worlds_.spawn(client_);
+  proto::SpawnPoint r;
   r.ref = m.ref;
+  r.room = spawn.room;
+  r.position = spawn.position;
   send(r);
 }
 
@@ -284,7 +287,10 @@ void Conversation::on(const proto::Request& m) {
   if (metrics_) metrics_->rooms_requested.add(m.rooms.size());
   // Cache hits are delivered as soon as they are asked for: sorted first so they go out by
   // priority too (stable: ties keep the order requested).
-  std::vector<proto::RoomWant> wants = m.rooms;
+  std::vector<Want> wants;
+  wants.reserve(m.rooms.size());
+  for (const proto::RoomWant& w : m.rooms)
+    wants.push_back({w.id, w.lod, w.priority});
   std::stable_sort(wants.begin(), wants.end(),
                    [](const auto& a, const auto& b) { return a.priority < b.priority; });
   emit(act::Want{client_, std::move(wants)});

@@ -46,7 +46,7 @@ class WorldPort {
   // world_mismatch, overloaded (PROTOCOL.md's hello checks).
   virtual Result<ClientId> open(uint64_t seed) = 0;
   virtual std::optional<cave::RoomId> locate(ClientId client, Vec3 point) = 0;
-  virtual proto::SpawnPoint spawn(ClientId client) = 0;
+  virtual cave::Spawn spawn(ClientId client) = 0;
 };
 
 // The actions a conversation returns, carried out by the session in order.
@@ -61,7 +61,7 @@ struct SendRoom {  // a room frame (binary), shared with the cache
 };
 struct Want {  // Generator::request, in this order (sorted by priority, stable)
   ClientId client = 0;
-  std::vector<proto::RoomWant> rooms;
+  std::vector<server::Want> rooms;
   friend bool operator==(const Want&, const Want&) = default;
 };
 struct Drop {  // Generator::cancel

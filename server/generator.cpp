@@ -70,7 +70,7 @@ struct QueueEntry {
   }
 };
 
-struct Want {
+struct Waiting {
   uint32_t priority = 0;
   uint64_t seq = 0;
   Clock::time_point received;
@@ -81,7 +81,7 @@ struct Client {
   ClientId id = 0;
   WorldPtr world;
   Generator::DeliverFn deliver;
-  std::map<RoomKey, Want, RoomKeyLess> wants;
+  std::map<RoomKey, Waiting, RoomKeyLess> wants;
   std::set<QueueEntry> queue;  // wants whose job is queued
   int delivering = 0;          // callbacks collected or running outside the lock
 };
@@ -217,7 +217,7 @@ struct Generator::State {
   }
 
   // Removes one want of a client (cancel or removal); a queued job nobody waits for goes.
-  void drop_want(Client& client, std::map<RoomKey, Want, RoomKeyLess>::iterator it) {
+  void drop_want(Client& client, std::map<RoomKey, Waiting, RoomKeyLess>::iterator it) {
     RoomKey key = it->first;
     if (it->second.queued) client.queue.erase({it->second.priority, it->second.seq, key});
     client.wants.erase(it);
@@ -275,7 +275,7 @@ struct Generator::State {
         // The job leaves every waiter's queue; the wants stay until it is answered.
         for (ClientId id : job->waiters) {
           Client& w = *clients.at(id);
-          Want& want = w.wants.at(job->key);
+          Waiting& want = w.wants.at(job->key);
           w.queue.erase({want.priority, want.seq, job->key});
           want.queued = false;
         }
@@ -536,7 +536,7 @@ void Generator::remove_client(ClientId id) {
   s.deliver_cv.wait(lock, [&] { return client->delivering == 0; });
 }
 
-void Generator::request(ClientId id, std::span<const proto::RoomWant> wants) {
+void Generator::request(ClientId id, std::span<const server::Want> wants) {
   State& s = *state_;
   std::unique_lock lock(s.mutex);
   auto c = s.clients.find(id);
@@ -545,7 +545,7 @@ void Generator::request(ClientId id, std::span<const proto::RoomWant> wants) {
   std::vector<Outgoing> out;
   auto now = Clock::now();
   bool queued = false;
-  for (const proto::RoomWant& w : wants) {
+  for (const server::Want& w : wants) {
     if (!proto::mesh_lod(w.lod)) {
       ++client->delivering;
       out.push_back({client, error_delivery({w.id, static_cast<uint8_t>(std::min(w.lod, 255u)),
@@ -563,7 +563,7 @@ void Generator::request(ClientId id, std::span<const proto::RoomWant> wants) {
     }
     if (auto known = client->wants.find(key); known != client->wants.end()) {
       // Already waiting: only the priority changes (its place among equals stays).
-      Want& want = known->second;
+      Waiting& want = known->second;
       if (want.queued) {
         client->queue.erase({want.priority, want.seq, key});
         client->queue.insert({w.priority, want.seq, key});
@@ -582,7 +582,7 @@ void Generator::request(ClientId id, std::span<const proto::RoomWant> wants) {
       out.push_back({client, std::move(d)});
       continue;
     }
-    Want want{w.priority, s.next_seq++, now, false};
+    Waiting want{w.priority, s.next_seq++, now, false};
     auto j = s.jobs.find(key);
     if (j != s.jobs.end()) {
       s.metrics.rooms_deduplicated.add();
@@ -631,7 +631,7 @@ std::optional<cave::RoomId> Generator::locate(ClientId client, Vec3 point) {
   return state_->world_of(client)->sectors.locate(point);
 }
 
-proto::SpawnPoint Generator::spawn(ClientId client) {
+cave::Spawn Generator::spawn(ClientId client) {
   return state_->world_of(client)->sectors.spawn();
 }
 

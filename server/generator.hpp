@@ -24,7 +24,6 @@
 #include "kernels/room_builder.hpp"
 #include "mesh/params.hpp"
 #include "proto/lod.hpp"
-#include "proto/messages.hpp"
 #include "server/rooms.hpp"
 
 namespace grotto::server {
@@ -75,7 +74,7 @@ class Generator {
   // without the worker pool; so are immediate errors (a lod above kMaxServedLod:
   // invalid_argument; after shutdown: service_restart). Unknown or removed clients are ignored.
   // The caller enforces the per-client in-flight limit and the announced max_lod.
-  void request(ClientId client, std::span<const proto::RoomWant> wants);
+  void request(ClientId client, std::span<const Want> wants);
   // Stops waiting for these rooms (any lod). A job nobody waits for any more is never built; a
   // job already building finishes (and is cached) but is not delivered to this client. A
   // delivery already on its way when cancel() is called (its job finished a moment before) may
@@ -85,7 +84,7 @@ class Generator {
   // The layout side of the client's world, served from its sector cache (an unknown client gets
   // the generator's own world).
   std::optional<cave::RoomId> locate(ClientId client, Vec3 point);
-  proto::SpawnPoint spawn(ClientId client);
+  cave::Spawn spawn(ClientId client);
 
   // Stops taking work: queued jobs fail with `service_restart`, building ones finish, workers exit.
   // Idempotent; waits at most `timeout` for the workers.

@@ -29,6 +29,15 @@ struct RoomKey {
   friend bool operator==(const RoomKey&, const RoomKey&) = default;
 };
 
+// A room a client waits for: which, at which wire lod (proto/lod.hpp), how soon (smaller first,
+// e.g. milliseconds until the player can reach it).
+struct Want {
+  cave::RoomId id = cave::RoomId::interior({}, 0);
+  uint32_t lod = 0;
+  uint32_t priority = 0;
+  friend bool operator==(const Want&, const Want&) = default;
+};
+
 // A built room, ready for the wire: the whole binary room frame (proto/room_frame.hpp: header,
 // descriptor, Draco payload). Immutable and shared by the cache and every session sending it.
 struct EncodedRoom {

@@ -52,12 +52,8 @@ std::optional<RoomId> SectorCache::locate(Vec3 point) {
   return cave::locate(world_, point, source());
 }
 
-proto::SpawnPoint SectorCache::spawn() {
-  cave::Spawn s = cave::spawn(world_, source());
-  proto::SpawnPoint out;
-  out.room = s.room;
-  out.position = s.position;
-  return out;
+cave::Spawn SectorCache::spawn() {
+  return cave::spawn(world_, source());
 }
 
 size_t SectorStore::hits() const {

@@ -61,7 +61,7 @@ class SectorCache {
   // cave::locate(world, point).
   std::optional<cave::RoomId> locate(Vec3 point);
   // cave::spawn(world): spawn_room's room and a position inside its space (interior_point).
-  proto::SpawnPoint spawn();
+  cave::Spawn spawn();
 
   // The layout of an in-range sector, from the cache or generated now.
   std::shared_ptr<const cave::SectorLayout> sector(cave::SectorCoord s);

@@ -261,7 +261,7 @@ class WsSession : public std::enable_shared_from_this<WsSession>, private WorldP
     return server_.generator->locate(client, point);
   }
 
-  proto::SpawnPoint spawn(ClientId client) override { return server_.generator->spawn(client); }
+  cave::Spawn spawn(ClientId client) override { return server_.generator->spawn(client); }
 
   void on_delivery(Delivery d) {
     if (closing_) return;

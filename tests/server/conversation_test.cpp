@@ -40,8 +40,8 @@ class FakeWorlds : public WorldPort {
     if (point.x < 0) return std::nullopt;
     return room("0.0.0.r3");
   }
-  proto::SpawnPoint spawn(ClientId) override {
-    proto::SpawnPoint s;
+  cave::Spawn spawn(ClientId) override {
+    cave::Spawn s;
     s.room = room("0.0.0.r0");
     s.position = {1, 2, 3};
     return s;

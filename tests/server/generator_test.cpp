@@ -51,9 +51,9 @@ std::vector<cave::RoomId> existing_rooms(size_t n, const cave::World& world = te
   return out;
 }
 
-std::vector<proto::RoomWant> wants_of(const std::vector<cave::RoomId>& ids, uint32_t lod = 0,
-                                      uint32_t priority = 0) {
-  std::vector<proto::RoomWant> out;
+std::vector<Want> wants_of(const std::vector<cave::RoomId>& ids, uint32_t lod = 0,
+                           uint32_t priority = 0) {
+  std::vector<Want> out;
   for (cave::RoomId id : ids)
     out.push_back({id, lod, priority});
   return out;
@@ -141,7 +141,7 @@ struct Stalled {
   explicit Stalled(GeneratorConfig config) {
     gen = make_generator(config, metrics);
     staller = gen->add_client([this](Delivery) { gate.pass(); });
-    std::vector<proto::RoomWant> one = wants_of({existing_rooms(1)});
+    std::vector<Want> one = wants_of({existing_rooms(1)});
     gen->request(staller, one);
     EXPECT_TRUE(gate.wait_entered());
   }
@@ -167,7 +167,7 @@ TEST_P(GeneratorPathTest, delivered_frame_decodes_to_the_mesh_built_in_process) 
   cave::RoomId id = existing_rooms(3)[2];
   Inbox inbox;
   ClientId c = gen->add_client(inbox.fn());
-  std::vector<proto::RoomWant> want = {{id, 0, 0}};
+  std::vector<Want> want = {{id, 0, 0}};
   gen->request(c, want);
   ASSERT_TRUE(inbox.wait_for(1));
   Delivery d = inbox.got()[0];
@@ -261,7 +261,7 @@ TEST(GeneratorTest, single_flight_builds_a_room_once_for_every_client) {
   for (int i = 0; i < kClients; ++i) {
     inboxes.push_back(std::make_unique<Inbox>());
     ClientId c = s.gen->add_client(inboxes.back()->fn());
-    std::vector<proto::RoomWant> want = {{id, 0, static_cast<uint32_t>(i)}};
+    std::vector<Want> want = {{id, 0, static_cast<uint32_t>(i)}};
     s.gen->request(c, want);
   }
   EXPECT_EQ(s.gen->queue_depth(), 1u);
@@ -286,8 +286,8 @@ TEST(GeneratorTest, cancelled_before_start_is_never_built_nor_delivered) {
   Inbox keep, drop;
   ClientId a = s.gen->add_client(keep.fn());
   ClientId b = s.gen->add_client(drop.fn());
-  std::vector<proto::RoomWant> keep_wants = wants_of({ids[1], ids[2]});
-  std::vector<proto::RoomWant> drop_wants = wants_of({ids[3], ids[4], ids[2]});
+  std::vector<Want> keep_wants = wants_of({ids[1], ids[2]});
+  std::vector<Want> drop_wants = wants_of({ids[3], ids[4], ids[2]});
   s.gen->request(a, keep_wants);
   s.gen->request(b, drop_wants);
   EXPECT_EQ(s.gen->queue_depth(), 4u);
@@ -313,8 +313,8 @@ TEST(GeneratorTest, remove_client_drops_its_work_and_delivers_nothing_more) {
   Inbox gone, stays;
   ClientId a = s.gen->add_client(gone.fn());
   ClientId b = s.gen->add_client(stays.fn());
-  std::vector<proto::RoomWant> a_wants = wants_of({ids[1], ids[2], ids[3], ids[4]});
-  std::vector<proto::RoomWant> b_wants = wants_of({ids[4], ids[5]});
+  std::vector<Want> a_wants = wants_of({ids[1], ids[2], ids[3], ids[4]});
+  std::vector<Want> b_wants = wants_of({ids[4], ids[5]});
   s.gen->request(a, a_wants);
   s.gen->request(b, b_wants);
   EXPECT_EQ(s.gen->queue_depth(), 5u);
@@ -345,7 +345,7 @@ TEST(GeneratorTest, a_client_asking_few_rooms_is_not_starved_by_one_asking_many)
   ClientId c = s.gen->add_client(later.fn([&] { a_at_c = many.size(); }));
   std::vector<cave::RoomId> a_ids(ids.begin(), ids.begin() + 500);
   s.gen->request(a, wants_of(a_ids));
-  std::vector<proto::RoomWant> b_want = wants_of({ids[500]});
+  std::vector<Want> b_want = wants_of({ids[500]});
   s.gen->request(b, b_want);
   s.gate.open();
   // Round-robin: B's one room is in the first batch after A's 500 were queued.
@@ -356,7 +356,7 @@ TEST(GeneratorTest, a_client_asking_few_rooms_is_not_starved_by_one_asking_many)
   // asked and for the rest of its own batch: 8 + 7 of A's rooms with one worker (plus one
   // batch of slack: A's count is read just before C asks, and a batch may finish in between).
   size_t a_at_request = many.size();
-  std::vector<proto::RoomWant> c_want = wants_of({ids[501]});
+  std::vector<Want> c_want = wants_of({ids[501]});
   s.gen->request(c, c_want);
   ASSERT_TRUE(later.wait_for(1));
   ASSERT_TRUE(later.got()[0].room);
@@ -373,11 +373,11 @@ TEST(GeneratorTest, priorities_are_honoured_within_a_client) {
   std::vector<cave::RoomId> ids = existing_rooms(7);
   Inbox inbox;
   ClientId c = s.gen->add_client(inbox.fn());
-  std::vector<proto::RoomWant> wants = {{ids[1], 0, 50}, {ids[2], 0, 30}, {ids[3], 0, 90},
-                                        {ids[4], 0, 10}, {ids[5], 0, 30}, {ids[6], 0, 70}};
+  std::vector<Want> wants = {{ids[1], 0, 50}, {ids[2], 0, 30}, {ids[3], 0, 90},
+                             {ids[4], 0, 10}, {ids[5], 0, 30}, {ids[6], 0, 70}};
   s.gen->request(c, wants);
   // A repeated want changes the priority: ids[3] now comes first.
-  std::vector<proto::RoomWant> again = {{ids[3], 0, 0}};
+  std::vector<Want> again = {{ids[3], 0, 0}};
   s.gen->request(c, again);
   s.gate.open();
   ASSERT_TRUE(inbox.wait_for(6));
@@ -414,7 +414,7 @@ TEST(GeneratorTest, concurrent_clients_requesting_and_cancelling_leave_nothing_b
       std::mt19937 rng(1234 + t);
       auto pick = [&] { return pool[rng() % pool.size()]; };
       for (int round = 0; round < 25; ++round) {
-        std::vector<proto::RoomWant> wants;
+        std::vector<Want> wants;
         {
           std::lock_guard lock(m);
           for (int i = 0; i < 5; ++i) {
@@ -459,7 +459,7 @@ TEST(GeneratorTest, second_request_is_served_from_cache_inside_request) {
   Inbox first, second;
   ClientId a = gen->add_client(first.fn());
   ClientId b = gen->add_client(second.fn());
-  std::vector<proto::RoomWant> want = {{id, 0, 0}};
+  std::vector<Want> want = {{id, 0, 0}};
   gen->request(a, want);
   ASSERT_TRUE(first.wait_for(1));
   ASSERT_TRUE(first.got()[0].room);
@@ -474,7 +474,7 @@ TEST(GeneratorTest, second_request_is_served_from_cache_inside_request) {
   EXPECT_EQ(metrics.cache_entries.value(), 1);
   EXPECT_EQ(metrics.cache_bytes.value(), static_cast<int64_t>(first.got()[0].room->frame.size()));
   // Another lod is another room.
-  std::vector<proto::RoomWant> detail = {{id, 1, 0}};
+  std::vector<Want> detail = {{id, 1, 0}};
   gen->request(b, detail);
   ASSERT_TRUE(second.wait_for(2));
   EXPECT_FALSE(second.got()[1].from_cache);
@@ -491,7 +491,7 @@ TEST(GeneratorTest, cache_keeps_within_its_byte_bound_evicting_least_recent) {
   Inbox inbox;
   ClientId c = gen->add_client(inbox.fn());
   for (size_t i = 0; i < ids.size(); ++i) {
-    std::vector<proto::RoomWant> one = wants_of({ids[i]});
+    std::vector<Want> one = wants_of({ids[i]});
     gen->request(c, one);
     ASSERT_TRUE(inbox.wait_for(i + 1));
     EXPECT_LE(metrics.cache_bytes.value(), 12'000);
@@ -499,11 +499,11 @@ TEST(GeneratorTest, cache_keeps_within_its_byte_bound_evicting_least_recent) {
   EXPECT_GT(metrics.cache_entries.value(), 0);
   EXPECT_LT(metrics.cache_entries.value(), 10);
   uint64_t built = metrics.rooms_built.value();
-  std::vector<proto::RoomWant> last = wants_of({ids.back()});
+  std::vector<Want> last = wants_of({ids.back()});
   gen->request(c, last);
   ASSERT_EQ(inbox.size(), ids.size() + 1);
   EXPECT_TRUE(inbox.got().back().from_cache);
-  std::vector<proto::RoomWant> first = wants_of({ids.front()});
+  std::vector<Want> first = wants_of({ids.front()});
   gen->request(c, first);
   ASSERT_TRUE(inbox.wait_for(ids.size() + 2));
   EXPECT_FALSE(inbox.got().back().from_cache);
@@ -517,7 +517,7 @@ TEST(GeneratorTest, cache_disabled_builds_every_time) {
   auto gen = make_generator(config, metrics);
   Inbox inbox;
   ClientId c = gen->add_client(inbox.fn());
-  std::vector<proto::RoomWant> one = wants_of(existing_rooms(1));
+  std::vector<Want> one = wants_of(existing_rooms(1));
   gen->request(c, one);
   ASSERT_TRUE(inbox.wait_for(1));
   gen->request(c, one);
@@ -557,9 +557,9 @@ TEST(GeneratorTest, missing_room_is_not_found_and_bad_lod_invalid) {
   auto gen = make_generator(cpu_config(), metrics);
   Inbox inbox;
   ClientId c = gen->add_client(inbox.fn());
-  std::vector<proto::RoomWant> wants = {{cave::RoomId::interior({0, 0, 0}, 4000), 0, 0},
-                                        {cave::RoomId::gate({0, 0, 0}, 1, 15), 0, 0},
-                                        {existing_rooms(1)[0], proto::kMaxWireLod + 1, 0}};
+  std::vector<Want> wants = {{cave::RoomId::interior({0, 0, 0}, 4000), 0, 0},
+                             {cave::RoomId::gate({0, 0, 0}, 1, 15), 0, 0},
+                             {existing_rooms(1)[0], proto::kMaxWireLod + 1, 0}};
   gen->request(c, wants);
   ASSERT_TRUE(inbox.wait_for(3));
   std::map<cave::RoomId, ErrorCode> codes;
@@ -617,7 +617,7 @@ TEST(GeneratorTest, shutdown_fails_queued_work_with_service_restart_and_returns)
     EXPECT_EQ(d.error->code, ErrorCode::kServiceRestart);
   }
   s->gen->shutdown(10ms);  // idempotent
-  std::vector<proto::RoomWant> late = wants_of({ids[0]});
+  std::vector<Want> late = wants_of({ids[0]});
   s->gen->request(c, late);
   ASSERT_EQ(inbox.size(), queued.size() + 1);
   EXPECT_EQ(inbox.got().back().error->code, ErrorCode::kServiceRestart);
@@ -666,7 +666,7 @@ TEST(SectorCacheTest, rooms_locate_and_spawn_match_the_layout_functions) {
   for (const cave::Room& r : s0.rooms) {
     EXPECT_EQ(cache.locate(r.sphere.centre), cave::locate(test_world(), r.sphere.centre));
   }
-  proto::SpawnPoint spawn = cache.spawn();
+  cave::Spawn spawn = cache.spawn();
   EXPECT_EQ(spawn.room, cave::spawn_room(test_world()));
   EXPECT_EQ(cave::locate(test_world(), spawn.position), spawn.room);
 }
@@ -707,7 +707,7 @@ TEST(GeneratorTest, locate_and_spawn_agree) {
   Metrics metrics;
   auto gen = make_generator(cpu_config(), metrics);
   ClientId c = gen->add_client([](Delivery) {});
-  proto::SpawnPoint spawn = gen->spawn(c);
+  cave::Spawn spawn = gen->spawn(c);
   EXPECT_EQ(gen->locate(c, spawn.position), spawn.room);
   EXPECT_FALSE(gen->locate(c, {1e30, 0, 0}));
 }
@@ -779,7 +779,7 @@ TEST(GeneratorWorlds, another_worlds_rooms_equal_those_of_a_generator_of_that_wo
   auto c43 = gen->add_client(43, [](Delivery) {});
   ASSERT_TRUE(c43.ok());
   ClientId c42 = gen->add_client([](Delivery) {});
-  proto::SpawnPoint s43 = gen->spawn(*c43);
+  cave::Spawn s43 = gen->spawn(*c43);
   EXPECT_EQ(s43.room, cave::spawn_room(world43));
   EXPECT_EQ(gen->spawn(c42).room, cave::spawn_room(test_world()));
   EXPECT_EQ(gen->locate(*c43, s43.position), s43.room);
