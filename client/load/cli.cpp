@@ -19,9 +19,11 @@ constexpr const char* kDescription =
     "players get: time to first room, request->room latency, rooms/s and MB/s, stalls (a player "
     "at a portal whose room is not ready), errors, reconnects, drain notices and decode time.\n"
     "Without --server it starts a server in-process on 127.0.0.1.\n"
-    "Exit codes: 0 pass; 1 errors (error messages from the server, a stream refused for good, "
-    "--verify failures, or the run could not start; a draining server's service_restart is a "
-    "notice, not an error); 2 invalid flags; 3 more stalls than --max-stalls.";
+    "Exit codes: 0 pass; 1 errors (more error messages from the server than --max-errors, a "
+    "stream refused for good, a player still reconnecting when the run ends because the server "
+    "was lost, --verify failures, or the run could not start; a draining server's "
+    "service_restart is a notice, not an error); 2 invalid flags; 3 more stalls than "
+    "--max-stalls; 4 a request->room p99 over --max-p99-ms. 1 wins over 3, 3 over 4.";
 
 // A finite double within [lo, hi] (CLI::Range lets NaN through).
 std::string check_number(const char* flag, double v, double lo, double hi) {
@@ -121,6 +123,13 @@ CommandLine parse_command_line(int argc, const char* const* argv) {
                  "More stalls than this (all players together) exit 3; -1: no limit")
       ->check(CLI::Range(-1, 1'000'000'000))
       ->capture_default_str();
+  app.add_option("--max-errors", o.max_errors,
+                 "More error messages than this (all players together) exit 1")
+      ->check(CLI::Range(0, 1'000'000'000))
+      ->capture_default_str();
+  app.add_option("--max-p99-ms", o.max_p99_ms,
+                 "A request->room latency p99 above this (milliseconds) exits 4; -1: no limit")
+      ->capture_default_str();
   app.add_option("--tick-hz", o.tick_hz, "Simulation steps per second")->capture_default_str();
   app.add_option("--turn-back", o.walker.turn_back_chance,
                  "Chance per room entered that a player turns round part-way and goes back")
@@ -158,7 +167,8 @@ CommandLine parse_command_line(int argc, const char* const* argv) {
                                check_number("--radius", o.radius_m, 0.01, 100'000),
                                check_number("--tick-hz", o.tick_hz, 1, 1000),
                                check_number("--turn-back", o.walker.turn_back_chance, 0, 1),
-                               check_number("--burst-rate", o.walker.burst_rate, 0, 100)}) {
+                               check_number("--burst-rate", o.walker.burst_rate, 0, 100),
+                               check_number("--max-p99-ms", o.max_p99_ms, -1, 1e9)}) {
     if (!m.empty()) return fail(m);
   }
   if (!seed_text.empty()) {

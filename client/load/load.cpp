@@ -161,6 +161,8 @@ Result<LoadReport> run_load(const LoadOptions& options) {
   report.radius_m = burst ? options.radius_m : 0;
   report.duration_s = duration;
   report.max_stalls = options.max_stalls;
+  report.max_errors = options.max_errors;
+  report.max_p99_ms = options.max_p99_ms;
   report.seed = options.seed;
   report.rng_seed = options.rng_seed;
   report.spread = options.spread;
@@ -379,6 +381,10 @@ Result<LoadReport> run_load(const LoadOptions& options) {
     report.rooms_given_up += s.rooms_given_up;
     report.drops += s.drops;
     report.streams_failed += p.final_state == StreamState::kFailed ? 1 : 0;
+    // Still trying to connect when the run ends: the server was lost (a drain that another
+    // replica picked up is not, since the player is connected again by then).
+    report.players_disconnected +=
+        p.final_state == StreamState::kConnecting || p.final_state == StreamState::kBackoff;
     if (!s.server.empty()) report.server = s.server;
     report.players_detail.push_back(std::move(pr));
   }

@@ -47,6 +47,8 @@ struct LoadOptions {
   bool spread = false;     // player i starts in interior room 0 of sector (3i, 0, 0)
   bool verify = false;     // check every received room, seam and the portal graph
   int max_stalls = -1;     // more stalls than this: exit 3 (-1: no limit)
+  int max_errors = 0;      // more error messages than this (all players): exit 1
+  double max_p99_ms = -1;  // request->room p99 above this: exit 4 (-1: no limit)
   double tick_hz = 20;     // simulation steps per second
   bool progress = false;   // a live progress line on stderr (grotto-load: when it is a TTY)
   WalkerOptions walker{};  // speed is taken from `speed`

@@ -68,11 +68,12 @@ void total_players(LoadReport& r) {
 }
 
 int exit_code(const LoadReport& r) {
-  if (r.errors_total > 0 || r.streams_failed > 0 || r.players_without_room > 0 ||
-      r.verify.failures() > 0) {
+  if (r.errors_total > static_cast<uint64_t>(std::max(r.max_errors, 0)) || r.streams_failed > 0 ||
+      r.players_without_room > 0 || r.players_disconnected > 0 || r.verify.failures() > 0) {
     return kExitErrors;
   }
   if (r.max_stalls >= 0 && r.stalls > static_cast<uint64_t>(r.max_stalls)) return kExitStalls;
+  if (r.max_p99_ms >= 0 && r.latency_ms.p99 > r.max_p99_ms) return kExitLatency;
   return kExitOk;
 }
 
@@ -133,9 +134,15 @@ std::string format_table(const LoadReport& r) {
   if (r.players_without_room > 0) {
     appendf(out, "  players without a room %llu\n", u(r.players_without_room));
   }
+  if (r.players_disconnected > 0) {
+    appendf(out, "  players not connected at the end %llu (the server was lost)\n",
+            u(r.players_disconnected));
+  }
   for (const auto& p : r.players_detail) {
-    // The first player's last error says why, when a player never started or a stream failed.
-    if (!p.last_error.empty() && (r.players_without_room > 0 || r.streams_failed > 0)) {
+    // The first player's last error says why, when a player never started, a stream failed or
+    // the server was lost.
+    if (!p.last_error.empty() &&
+        (r.players_without_room > 0 || r.streams_failed > 0 || r.players_disconnected > 0)) {
       appendf(out, "  last error (player %d): %s\n", p.index, p.last_error.c_str());
       break;
     }
@@ -161,7 +168,11 @@ std::string format_table(const LoadReport& r) {
   }
   int code = exit_code(r);
   appendf(out, "\n  result: %s (exit %d)\n",
-          code == kExitOk ? "pass" : (code == kExitStalls ? "too many stalls" : "errors"), code);
+          code == kExitOk        ? "pass"
+          : code == kExitStalls  ? "too many stalls"
+          : code == kExitLatency ? "latency p99 over --max-p99-ms"
+                                 : "errors",
+          code);
   return out;
 }
 
@@ -242,8 +253,11 @@ std::string to_json_text(const LoadReport& r) {
       {"drops", r.drops},
       {"streams_failed", r.streams_failed},
       {"players_without_room", r.players_without_room},
+      {"players_disconnected", r.players_disconnected},
       {"errors", r.errors},
       {"errors_total", r.errors_total},
+      {"gates",
+       {{"max_stalls", r.max_stalls}, {"max_errors", r.max_errors}, {"max_p99_ms", r.max_p99_ms}}},
       {"walk",
        {{"rooms_entered", r.rooms_entered},
         {"turn_backs", r.turn_backs},

@@ -86,6 +86,7 @@ struct LoadReport {
   uint64_t reconnects = 0, drops = 0, streams_failed = 0;
   uint64_t restart_notices = 0;       // servers that drained gracefully under a player (not errors)
   uint64_t players_without_room = 0;  // never got their start room (counts as an error)
+  uint64_t players_disconnected = 0;  // not connected when the run ended: server lost (an error)
   std::map<std::string, uint64_t> errors;  // error messages by wire code
   uint64_t errors_total = 0;
   std::map<uint64_t, uint64_t> rooms_received_by_seed;  // players that named a seed, by seed
@@ -95,20 +96,25 @@ struct LoadReport {
   VerifyReport verify;
   std::vector<PlayerReport> players_detail;
 
-  // The outcome, given max_stalls (-1: no limit).
+  // The gates: stalls (-1: no limit), error messages, request->room p99 (-1: no limit).
   int max_stalls = -1;
+  int max_errors = 0;
+  double max_p99_ms = -1;
 };
 
 // Sums the players into the totals (rooms, bytes, stalls, ...) and derives the rates; leaves the
 // distributions and errors (filled from raw samples) alone.
 void total_players(LoadReport& report);
 
-// Exit codes: 0 pass, 1 errors (error messages, a Stream that failed for good, a player that never
-// got its start room, verification failures), 3 more stalls than max_stalls; 1 wins over 3.
+// Exit codes: 0 pass, 1 errors (more error messages than max_errors, a Stream that failed for
+// good, a player that never got its start room or was not connected at the end because the server
+// was lost, verification failures), 3 more stalls than max_stalls, 4 a request->room p99 over
+// max_p99_ms; 1 wins over 3, 3 over 4.
 inline constexpr int kExitOk = 0;
 inline constexpr int kExitErrors = 1;
 inline constexpr int kExitBadFlags = 2;
 inline constexpr int kExitStalls = 3;
+inline constexpr int kExitLatency = 4;
 int exit_code(const LoadReport& report);
 
 std::string format_table(const LoadReport& report);

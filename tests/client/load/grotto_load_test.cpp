@@ -10,6 +10,7 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 #include <string>
+#include <thread>
 
 #include "client/load/load.hpp"
 #include "server/server.hpp"
@@ -209,6 +210,25 @@ grotto::Result<std::unique_ptr<grotto::server::Server>> start_server(const std::
   c.log_level = "off";
   c.token = token;
   return grotto::server::Server::start(c);
+}
+
+// A server lost mid-run is a failure by default (exit 1, named in the table), not a pass; a
+// latency gate no run can meet exits 4.
+TEST(GrottoLoad, a_server_lost_mid_run_fails_and_the_latency_gate_exits_4) {
+  auto server = start_server("");
+  ASSERT_TRUE(server.ok()) << server.error().message;
+  std::string url = "--server ws://127.0.0.1:" + std::to_string((*server)->port()) + "/ws ";
+  ProcessResult strict = run(url + "--players 2 --duration 2 --max-p99-ms 0.000001");
+  EXPECT_EQ(strict.exit_code, 4) << strict.output;
+  EXPECT_NE(strict.output.find("latency p99 over --max-p99-ms"), std::string::npos)
+      << strict.output;
+  ProcessResult lost;
+  std::thread load([&] { lost = run(url + "--players 2 --duration 4"); });
+  std::this_thread::sleep_for(std::chrono::milliseconds(1500));
+  (*server)->stop(std::chrono::milliseconds(0));
+  load.join();
+  EXPECT_EQ(lost.exit_code, 1) << lost.output;
+  EXPECT_NE(lost.output.find("not connected at the end"), std::string::npos) << lost.output;
 }
 
 // A server that wants a token: grotto-load with the right one (from --token-file, or from

@@ -119,6 +119,25 @@ TEST(Report, exit_code_is_1_for_errors_3_for_too_many_stalls_and_errors_win) {
   EXPECT_EQ(exit_code(r), 1);
 }
 
+TEST(Report, the_gates_errors_lost_server_and_latency) {
+  using grotto::client::load::exit_code;
+  LoadReport r = sample_report();
+  ASSERT_GT(r.errors_total, 0u);
+  EXPECT_EQ(exit_code(r), 1);
+  r.max_errors = static_cast<int>(r.errors_total);  // as many as allowed
+  EXPECT_EQ(exit_code(r), 0);
+  r.players_disconnected = 1;  // the server was lost: an error whatever the other gates say
+  EXPECT_EQ(exit_code(r), 1);
+  r.players_disconnected = 0;
+  r.max_p99_ms = r.latency_ms.p99;  // at the limit passes
+  EXPECT_EQ(exit_code(r), 0);
+  r.max_p99_ms = r.latency_ms.p99 * 0.5;
+  EXPECT_EQ(exit_code(r), 4);
+  r.max_stalls = 0;  // stalls win over latency
+  ASSERT_GT(r.stalls, 0u);
+  EXPECT_EQ(exit_code(r), 3);
+}
+
 TEST(Report, json_holds_every_figure) {
   LoadReport r = sample_report();
   r.verify.enabled = true;
