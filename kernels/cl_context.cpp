@@ -200,6 +200,9 @@ const char* build_origin_name(BuildOrigin origin) {
 Result<ComputeContext> ComputeContext::create(const DeviceConfig& config) {
   try {
     const std::string request = resolve_device_request(config);
+    if (lowercase(request) == "none" && !config.none_reason.empty()) {
+      return Error{ErrorCode::kUnavailable, config.none_reason};
+    }
     auto chosen = choose_device(request);
     if (!chosen.ok()) return chosen.error();
     auto state = open_device(chosen.value(), config);

@@ -46,6 +46,9 @@ struct DeviceConfig {
   std::string cache_dir{};
   // True: every build_program() in this context compiles from source or the in-process cache.
   bool disable_disk_cache = false;
+  // With device "none": why OpenCL is off, for the compute path and logs (empty: "disabled by
+  // configuration"). grotto-server sets it when its OpenCL probe failed.
+  std::string none_reason{};
 };
 
 // What the chosen device is; the strings are exactly what the driver reports.

@@ -7,8 +7,10 @@
 
 #include <csignal>
 #include <cstdio>
+#include <cstdlib>
 
 #include "server/config.hpp"
+#include "server/opencl_probe.hpp"
 #include "server/server.hpp"
 
 int main(int argc, char** argv) {
@@ -17,11 +19,21 @@ int main(int argc, char** argv) {
     std::fprintf(cli.exit_code == 0 ? stdout : stderr, "%s\n", cli.text.c_str());
     return cli.exit_code;
   }
-  const auto& config = cli.config;
+  auto& config = cli.config;
   // Logs go to stderr, one line per event; stdout carries only the listening address.
   auto logger = spdlog::stderr_color_mt("grotto-server");
   spdlog::set_default_logger(logger);
   spdlog::set_level(spdlog::level::from_str(config.log_level));
+  if (const char* probe = std::getenv(grotto::server::kProbeEnv); probe && *probe) {
+    return grotto::server::probe_child(config);
+  }
+  // A device build that would kill the process (PoCL's compiler on a full or broken cache) is
+  // found by a child first; the server then serves from the CPU and says why.
+  if (auto why = grotto::server::probe_opencl(config, argc, argv)) {
+    spdlog::warn("event=compute_path_fallback reason=\"{}\"", *why);
+    config.generator.builder.device.device = "none";
+    config.generator.builder.device.none_reason = "CPU fallback: " + *why;
+  }
 
   // Block the signals before any thread starts, so every thread inherits the mask and sigwait
   // below is the only place they arrive.

@@ -529,9 +529,12 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
       return respond(req, http::status::ok, "text/plain", "ok\n");
     }
     if (path == "/readyz") {
+      // Ready on the CPU path too (slower, still serving); the body says which path it runs.
       bool ready = server_.generator != nullptr && !server_.stopping.load();
+      std::string body = ready ? "ready\n" : "not ready\n";
+      if (server_.generator) body += "compute: " + server_.generator->compute_path() + "\n";
       return respond(req, ready ? http::status::ok : http::status::service_unavailable,
-                     "text/plain", ready ? "ready\n" : "not ready\n");
+                     "text/plain", std::move(body));
     }
     if (path == "/metrics") {
       return respond(req, http::status::ok, "text/plain; version=0.0.4; charset=utf-8",

@@ -27,9 +27,11 @@
 #include <set>
 #include <sstream>
 #include <thread>
+#include <tuple>
 
 #include "cave/layout.hpp"
 #include "codec/room_codec.hpp"
+#include "kernels/binary_cache.hpp"
 #include "mesh/context.hpp"
 #include "mesh/room_mesh.hpp"
 #include "proto/messages.hpp"
@@ -1211,6 +1213,150 @@ TEST(ServerProgram, fd_exhaustion_pauses_accepting_and_recovers) {
   kill(p.pid, SIGTERM);
   EXPECT_EQ(wait_exit(p.pid, 15s), 0);
   close(p.out);
+}
+
+// Starts grotto-server (OpenCL auto) with `cache` as GROTTO_CACHE_DIR and PoCL's cache left to
+// it; returns the process and its port (0 if it never listened), and what it printed.
+std::tuple<Process, uint16_t, std::string> start_with_cache(const std::string& cache) {
+  std::string pocl = getenv("POCL_CACHE_DIR") ? getenv("POCL_CACHE_DIR") : "";
+  setenv("GROTTO_CACHE_DIR", cache.c_str(), 1);
+  unsetenv("POCL_CACHE_DIR");
+  auto p = spawn({"--port", "0", "--workers", "1", "--io-threads", "1"});
+  unsetenv("GROTTO_CACHE_DIR");
+  if (!pocl.empty()) setenv("POCL_CACHE_DIR", pocl.c_str(), 1);
+  std::string text = read_until(p.out, "/ws)", 60s);
+  std::smatch m;
+  uint16_t port = 0;
+  if (std::regex_search(text, m, std::regex(R"(http://127\.0\.0\.1:(\d+))")))
+    port = static_cast<uint16_t>(std::stoi(m[1]));
+  return {p, port, text};
+}
+
+void stop_process(const Process& p) {
+  kill(p.pid, SIGTERM);
+  EXPECT_EQ(wait_exit(p.pid, 15s), 0);
+  close(p.out);
+}
+
+// The cache volume full: PoCL's compiler would abort the process; the probe child dies instead
+// and the server serves from the CPU, saying why in /metrics and /readyz.
+TEST(ServerProgram, a_full_cache_volume_falls_back_to_the_cpu_and_keeps_serving) {
+  std::filesystem::path dir =
+      std::filesystem::temp_directory_path() / ("grotto-full-" + std::to_string(getpid()));
+  std::filesystem::create_directories(dir);
+  if (std::system(
+          ("mount -t tmpfs -o size=256k tmpfs '" + dir.string() + "' 2>/dev/null").c_str()) != 0) {
+    std::filesystem::remove(dir);
+    GTEST_SKIP() << "cannot mount a small tmpfs here (needs root)";
+  }
+  auto [p, port, text] = start_with_cache(dir.string());
+  ASSERT_NE(port, 0) << text;
+  auto metrics = http_get(port, "/metrics").body;
+  auto ready = http_get(port, "/readyz");
+  Client player(port);
+  ASSERT_FALSE(player.connect());
+  player.hello();
+  EXPECT_TRUE(player.alive());
+  stop_process(p);
+  EXPECT_EQ(std::system(("umount '" + dir.string() + "'").c_str()), 0);
+  std::filesystem::remove(dir);
+  if (metrics.find("path=\"opencl") != std::string::npos) {
+    GTEST_SKIP() << "OpenCL built within 256 KiB here: nothing to fall back from";
+  }
+  EXPECT_NE(
+      metrics.find("grotto_compute_path_info{path=\"cpu: CPU fallback: the OpenCL probe failed"),
+      std::string::npos)
+      << metrics;
+  EXPECT_EQ(ready.status, 200);
+  EXPECT_NE(ready.body.find("compute: cpu: CPU fallback"), std::string::npos) << ready.body;
+  EXPECT_NE(text.find("event=compute_path_fallback"), std::string::npos) << text;
+}
+
+// Truncated files in PoCL's cache (a crash mid-write, a full disk): the server still starts and
+// serves, on OpenCL after discarding the cache Grotto owns, or on the CPU.
+TEST(ServerProgram, truncated_pocl_cache_files_do_not_stop_the_start) {
+  std::filesystem::path dir =
+      std::filesystem::temp_directory_path() / ("grotto-trunc-" + std::to_string(getpid()));
+  std::filesystem::remove_all(dir);
+  {
+    auto [p, port, text] = start_with_cache(dir.string());  // fills the caches
+    ASSERT_NE(port, 0) << text;
+    stop_process(p);
+  }
+  size_t truncated = 0;
+  for (const auto& e : std::filesystem::recursive_directory_iterator(dir / "pocl")) {
+    if (!e.is_regular_file() || e.file_size() < 2) continue;
+    std::filesystem::resize_file(e.path(), e.file_size() / 2);
+    ++truncated;
+  }
+  if (truncated == 0) {
+    std::filesystem::remove_all(dir);
+    GTEST_SKIP() << "no OpenCL device here: PoCL left no cache";
+  }
+  auto [p, port, text] = start_with_cache(dir.string());
+  ASSERT_NE(port, 0) << "the server did not start after " << truncated << " files were cut\n"
+                     << text;
+  EXPECT_EQ(http_get(port, "/readyz").status, 200);
+  // PoCL aborts on the cut program: the probe dies, the cache Grotto owns is discarded, and the
+  // second probe (and the server) build afresh.
+  EXPECT_NE(text.find("event=opencl_probe_failed attempt=1"), std::string::npos) << text;
+  EXPECT_NE(text.find("event=pocl_cache_discarded"), std::string::npos) << text;
+  Client player(port);
+  ASSERT_FALSE(player.connect());
+  player.hello();
+  EXPECT_TRUE(player.alive());
+  stop_process(p);
+  std::filesystem::remove_all(dir);
+}
+
+// A Grotto program binary cut *before* it was checksummed passes the entry's checks and would
+// crash the driver: the probe dies on it, the binaries are discarded, and OpenCL comes back.
+TEST(ServerProgram, a_checksummed_but_cut_program_binary_does_not_stop_the_start) {
+  std::filesystem::path dir =
+      std::filesystem::temp_directory_path() / ("grotto-cutbin-" + std::to_string(getpid()));
+  std::filesystem::remove_all(dir);
+  {
+    auto [p, port, text] = start_with_cache(dir.string());
+    ASSERT_NE(port, 0) << text;
+    stop_process(p);
+  }
+  size_t cut = 0;
+  for (const auto& e : std::filesystem::directory_iterator(dir)) {
+    if (e.path().extension() != ".clbin") continue;
+    std::ifstream in(e.path(), std::ios::binary);
+    std::vector<unsigned char> file((std::istreambuf_iterator<char>(in)),
+                                    std::istreambuf_iterator<char>());
+    in.close();
+    ASSERT_GT(file.size(), grotto::kernels::kCacheHeaderSize);
+    uint64_t key = 0;
+    for (int i = 0; i < 8; ++i)
+      key |= uint64_t{file[8 + i]} << (8 * i);
+    std::vector<unsigned char> half(file.begin() + grotto::kernels::kCacheHeaderSize,
+                                    file.begin() + grotto::kernels::kCacheHeaderSize +
+                                        (file.size() - grotto::kernels::kCacheHeaderSize) / 2);
+    auto entry = grotto::kernels::encode_cache_entry(key, half);
+    ASSERT_TRUE(grotto::kernels::decode_cache_entry(key, entry).ok()) << "passes its checks";
+    std::ofstream(e.path(), std::ios::binary | std::ios::trunc)
+        .write(reinterpret_cast<const char*>(entry.data()),
+               static_cast<std::streamsize>(entry.size()));
+    ++cut;
+  }
+  if (cut == 0) {
+    std::filesystem::remove_all(dir);
+    GTEST_SKIP() << "no OpenCL device here: no program binary to cut";
+  }
+  auto [p, port, text] = start_with_cache(dir.string());
+  ASSERT_NE(port, 0) << text;
+  EXPECT_EQ(http_get(port, "/readyz").status, 200);
+  EXPECT_NE(text.find("event=program_cache_discarded"), std::string::npos) << text;
+  auto metrics = http_get(port, "/metrics").body;
+  EXPECT_NE(metrics.find("grotto_compute_path_info{path=\"opencl"), std::string::npos) << metrics;
+  Client player(port);
+  ASSERT_FALSE(player.connect());
+  player.hello();
+  EXPECT_TRUE(player.alive());
+  stop_process(p);
+  std::filesystem::remove_all(dir);
 }
 
 TEST(ServerProgram, invalid_flag_exits_2_naming_it) {
