@@ -53,6 +53,7 @@ CommandLine parse_command_line(int argc, const char* const* argv) {
 
   std::string mode = "walk";
   std::string seed_text;
+  size_t store_mb = o.store_bytes >> 20;
   app.add_option("--server", o.url,
                  "Server WebSocket url, ws://HOST:PORT[/PATH] (default path /ws); without it a "
                  "server runs in-process on 127.0.0.1")
@@ -123,6 +124,11 @@ CommandLine parse_command_line(int argc, const char* const* argv) {
                  "More stalls than this (all players together) exit 3; -1: no limit")
       ->check(CLI::Range(-1, 1'000'000'000))
       ->capture_default_str();
+  app.add_option("--store-mb", store_mb,
+                 "Each player's room store in MiB (decoded rooms kept around it; the farthest "
+                 "go first): bounds grotto-load's memory at about players x this")
+      ->check(CLI::Range(1, 65536))
+      ->capture_default_str();
   app.add_option("--max-errors", o.max_errors,
                  "More error messages than this (all players together) exit 1")
       ->check(CLI::Range(0, 1'000'000'000))
@@ -171,6 +177,7 @@ CommandLine parse_command_line(int argc, const char* const* argv) {
                                check_number("--max-p99-ms", o.max_p99_ms, -1, 1e9)}) {
     if (!m.empty()) return fail(m);
   }
+  o.store_bytes = store_mb << 20;
   if (!seed_text.empty()) {
     o.seed = parse_u64(seed_text);
     if (!o.seed) {

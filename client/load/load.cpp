@@ -227,6 +227,7 @@ Result<LoadReport> run_load(const LoadOptions& options) {
     so.token = options.token;
     so.plan = plan_options;
     so.spawn = !options.spread;
+    so.store_bytes = options.store_bytes;
     auto stream = Stream::start(so, runtime);
     if (!stream) return stream.error();
     p.stream = std::move(stream).value();

@@ -48,6 +48,9 @@ struct LoadOptions {
   bool verify = false;     // check every received room, seam and the portal graph
   int max_stalls = -1;     // more stalls than this: exit 3 (-1: no limit)
   int max_errors = 0;      // more error messages than this (all players): exit 1
+  // Each player's room store (decoded meshes kept around it): what bounds grotto-load's memory.
+  // A player needs the rooms within its horizon, a few MB; a game client keeps far more.
+  size_t store_bytes = size_t{8} << 20;
   double max_p99_ms = -1;  // request->room p99 above this: exit 4 (-1: no limit)
   double tick_hz = 20;     // simulation steps per second
   bool progress = false;   // a live progress line on stderr (grotto-load: when it is a TTY)
