@@ -7,6 +7,7 @@
 
 #include <fcntl.h>
 
+#include <cctype>
 #include <cerrno>
 #include <cstdlib>
 #include <cstring>
@@ -84,6 +85,27 @@ ChildResult run_child(int argc, char** argv) {
   return {false, "the OpenCL probe failed (" + how + (line.empty() ? ")" : "): " + line)};
 }
 
+// Whether `dir` holds nothing but what PoCL 3 writes in its cache (directories named by two
+// capital letters of a hash, and tempfile_* files): only then is emptying it safe when the
+// operator chose it through POCL_CACHE_DIR.
+bool looks_like_pocl_cache(const std::filesystem::path& dir) {
+  std::error_code ec;
+  for (const auto& e : std::filesystem::directory_iterator(dir, ec)) {
+    const std::string name = e.path().filename().string();
+    const bool hash_dir =
+        e.is_directory(ec) && name.size() == 2 && std::isupper(name[0]) && std::isupper(name[1]);
+    if (!hash_dir && !name.starts_with("tempfile")) return false;
+  }
+  return !ec;
+}
+
+// Empties PoCL's cache directory (keeps the directory itself).
+void empty_dir(const std::filesystem::path& dir) {
+  std::error_code ec;
+  for (const auto& e : std::filesystem::directory_iterator(dir, ec))
+    std::filesystem::remove_all(e.path(), ec);
+}
+
 }  // namespace
 
 int probe_child(const ServerConfig& config) {
@@ -103,15 +125,20 @@ std::optional<std::string> probe_opencl(const ServerConfig& config, int argc, ch
     request = env ? env : "";
   }
   if (request == "none") return std::nullopt;
-  // PoCL's own cache under a directory Grotto owns, so it can be discarded when it is broken.
-  std::filesystem::path owned;
+  // PoCL's own cache under a directory Grotto owns, so it can be discarded when it is broken;
+  // one the operator chose is emptied only when it holds nothing but PoCL's cache.
+  std::filesystem::path pocl_dir;
+  bool owned = false;
   const char* pocl = std::getenv("POCL_CACHE_DIR");
   if (pocl == nullptr || *pocl == '\0') {
     std::filesystem::path dir = kernels::resolve_cache_dir(device.cache_dir);
     if (!dir.empty()) {
-      owned = dir / "pocl";
-      setenv("POCL_CACHE_DIR", owned.c_str(), 1);
+      pocl_dir = dir / "pocl";
+      owned = true;
+      setenv("POCL_CACHE_DIR", pocl_dir.c_str(), 1);
     }
+  } else {
+    pocl_dir = pocl;
   }
   ChildResult first = run_child(argc, argv);
   if (first.ok) return std::nullopt;
@@ -120,9 +147,12 @@ std::optional<std::string> probe_opencl(const ServerConfig& config, int argc, ch
   // program binaries (an entry can pass its checksum and still hold a cut binary that crashes
   // the driver, if it was cut before it was written).
   std::error_code ignored;
-  if (!owned.empty()) {
-    std::filesystem::remove_all(owned, ignored);
-    spdlog::info("event=pocl_cache_discarded dir={}", owned.string());
+  if (!pocl_dir.empty() && (owned || looks_like_pocl_cache(pocl_dir))) {
+    empty_dir(pocl_dir);
+    spdlog::info("event=pocl_cache_discarded dir={}", pocl_dir.string());
+  } else if (!pocl_dir.empty()) {
+    spdlog::warn("event=pocl_cache_kept dir={} reason=\"it holds more than PoCL's cache\"",
+                 pocl_dir.string());
   }
   if (std::filesystem::path dir = kernels::resolve_cache_dir(device.cache_dir); !dir.empty()) {
     size_t removed = 0;

@@ -22,7 +22,8 @@ int probe_child(const ServerConfig& config);
 
 // In the parent, before Server::start: unless the device is "none", gives PoCL a cache directory
 // Grotto owns (<cache dir>/pocl) when POCL_CACHE_DIR is not set, runs the child (argv as given),
-// and on a failure discards that directory and Grotto's program binaries and tries once more.
+// and on a failure empties PoCL's cache (Grotto's own, or the operator's when it holds nothing
+// else) and Grotto's program binaries, and tries once more.
 // Returns why OpenCL must not be used (the child's last stderr line), or nothing when it may.
 std::optional<std::string> probe_opencl(const ServerConfig& config, int argc, char** argv);
 

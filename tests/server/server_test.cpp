@@ -1217,12 +1217,16 @@ TEST(ServerProgram, fd_exhaustion_pauses_accepting_and_recovers) {
 
 // Starts grotto-server (OpenCL auto) with `cache` as GROTTO_CACHE_DIR and PoCL's cache left to
 // it; returns the process and its port (0 if it never listened), and what it printed.
-std::tuple<Process, uint16_t, std::string> start_with_cache(const std::string& cache) {
+// `pocl_cache` sets POCL_CACHE_DIR as a deployment does.
+std::tuple<Process, uint16_t, std::string> start_with_cache(const std::string& cache,
+                                                            const std::string& pocl_cache = {}) {
   std::string pocl = getenv("POCL_CACHE_DIR") ? getenv("POCL_CACHE_DIR") : "";
   setenv("GROTTO_CACHE_DIR", cache.c_str(), 1);
   unsetenv("POCL_CACHE_DIR");
+  if (!pocl_cache.empty()) setenv("POCL_CACHE_DIR", pocl_cache.c_str(), 1);
   auto p = spawn({"--port", "0", "--workers", "1", "--io-threads", "1"});
   unsetenv("GROTTO_CACHE_DIR");
+  unsetenv("POCL_CACHE_DIR");
   if (!pocl.empty()) setenv("POCL_CACHE_DIR", pocl.c_str(), 1);
   std::string text = read_until(p.out, "/ws)", 60s);
   std::smatch m;
@@ -1273,13 +1277,21 @@ TEST(ServerProgram, a_full_cache_volume_falls_back_to_the_cpu_and_keeps_serving)
 }
 
 // Truncated files in PoCL's cache (a crash mid-write, a full disk): the server still starts and
-// serves, on OpenCL after discarding the cache Grotto owns, or on the CPU.
-TEST(ServerProgram, truncated_pocl_cache_files_do_not_stop_the_start) {
+// serves, on OpenCL after discarding PoCL's cache: Grotto's own, or one POCL_CACHE_DIR names (as
+// the deployments do) that holds nothing else.
+class TruncatedPoclCache : public ::testing::TestWithParam<bool> {};
+INSTANTIATE_TEST_SUITE_P(ServerProgram, TruncatedPoclCache, ::testing::Values(false, true),
+                         [](const auto& param_info) {
+                           return std::string(param_info.param ? "pocl_cache_dir_set" : "owned");
+                         });
+
+TEST_P(TruncatedPoclCache, does_not_stop_the_start) {
   std::filesystem::path dir =
       std::filesystem::temp_directory_path() / ("grotto-trunc-" + std::to_string(getpid()));
   std::filesystem::remove_all(dir);
+  const std::string pocl_dir = GetParam() ? (dir / "pocl").string() : std::string();
   {
-    auto [p, port, text] = start_with_cache(dir.string());  // fills the caches
+    auto [p, port, text] = start_with_cache(dir.string(), pocl_dir);  // fills the caches
     ASSERT_NE(port, 0) << text;
     stop_process(p);
   }
@@ -1293,7 +1305,7 @@ TEST(ServerProgram, truncated_pocl_cache_files_do_not_stop_the_start) {
     std::filesystem::remove_all(dir);
     GTEST_SKIP() << "no OpenCL device here: PoCL left no cache";
   }
-  auto [p, port, text] = start_with_cache(dir.string());
+  auto [p, port, text] = start_with_cache(dir.string(), pocl_dir);
   ASSERT_NE(port, 0) << "the server did not start after " << truncated << " files were cut\n"
                      << text;
   EXPECT_EQ(http_get(port, "/readyz").status, 200);
