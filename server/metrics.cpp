@@ -137,6 +137,11 @@ std::string Metrics::render() const {
   gauge(out, "grotto_handshakes_open",
         "WebSocket sessions that have not said hello yet (max-handshakes bounds them).",
         handshakes_open.value());
+  gauge(out, "grotto_sockets_open", "Accepted TCP sockets open now, upgraded or not.",
+        sockets_open.value());
+  counter(out, "grotto_sockets_shed_total",
+          "Sockets closed as soon as accepted: max-connections + max-handshakes + 64 were open.",
+          sockets_shed.value());
   counter(out, "grotto_accept_failures_total",
           "Failed accepts (no file descriptors left, ...); accepting pauses after each.",
           accept_failures.value());

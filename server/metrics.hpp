@@ -59,6 +59,8 @@ class Metrics {
   Gauge handshakes_open;         // grotto_handshakes_open (sessions not yet past hello)
   Counter http_requests_total;   // grotto_http_requests_total
   Counter accept_failures;       // grotto_accept_failures_total (EMFILE and the like)
+  Gauge sockets_open;            // grotto_sockets_open (accepted TCP sockets, upgraded or not)
+  Counter sockets_shed;          // grotto_sockets_shed_total (closed at accept: too many open)
   // Control messages received, and room wants they carried.
   Counter messages_total;   // grotto_messages_total
   Counter rooms_requested;  // grotto_rooms_requested_total

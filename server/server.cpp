@@ -24,6 +24,7 @@
 #include <optional>
 #include <thread>
 #include <unordered_map>
+#include <utility>
 #include <vector>
 
 #include "cave/layout.hpp"
@@ -47,6 +48,9 @@ constexpr std::size_t kHttpBodyLimit = 8 * 1024;    // no endpoint takes a body
 constexpr auto kCloseGrace = std::chrono::milliseconds{1000};
 // How much of a message is read at a time (bounds what a message over the limit costs).
 constexpr std::size_t kReadPiece = 16 * 1024;
+// Sockets accepted beyond players and handshakes: plain HTTP (probes, scrapes) and upgrades on
+// their way.
+constexpr int kSpareSockets = 64;
 
 class WsSession;
 
@@ -68,6 +72,12 @@ struct Server::Impl {
   std::optional<net::steady_timer> accept_pause;
   std::chrono::milliseconds accept_backoff{0};
   uint64_t accept_failures_unlogged = 0;
+  // Every accepted TCP socket, upgraded or not, holds a slot until its session ends; over
+  // max_sockets() new ones are closed at once (shed), so sockets that never send a request
+  // cannot use up the process's file descriptors.
+  std::atomic<int> sockets{0};
+  Clock::time_point shed_logged{};
+  int max_sockets() const { return config.max_connections + config.max_handshakes + kSpareSockets; }
   Clock::time_point accept_logged{};
   std::vector<std::thread> threads;
   tcp::endpoint bound;
@@ -132,12 +142,29 @@ struct Server::Impl {
 
 namespace {
 
+// One accepted socket's place in Impl::sockets, held by whichever session owns the socket.
+class SocketSlot {
+ public:
+  SocketSlot(std::atomic<int>& count, Metrics& metrics) : count_(&count), metrics_(&metrics) {}
+  SocketSlot(SocketSlot&& other) noexcept
+      : count_(std::exchange(other.count_, nullptr)), metrics_(other.metrics_) {}
+  SocketSlot& operator=(SocketSlot&&) = delete;
+  ~SocketSlot() {
+    if (count_) metrics_->sockets_open.set(count_->fetch_sub(1) - 1);
+  }
+
+ private:
+  std::atomic<int>* count_;
+  Metrics* metrics_;
+};
+
 // ---- WebSocket session ----
 
 class WsSession : public std::enable_shared_from_this<WsSession>, private WorldPort {
  public:
-  WsSession(Server::Impl& server, beast::tcp_stream&& stream)
-      : server_(server),
+  WsSession(Server::Impl& server, beast::tcp_stream&& stream, SocketSlot slot)
+      : slot_(std::move(slot)),
+        server_(server),
         limits_(server.config.limits),
         ws_(std::move(stream)),
         timer_(ws_.get_executor()) {}
@@ -452,6 +479,7 @@ class WsSession : public std::enable_shared_from_this<WsSession>, private WorldP
     }
   }
 
+  SocketSlot slot_;
   Server::Impl& server_;
   const proto::Limits limits_;
   websocket::stream<beast::tcp_stream> ws_;
@@ -476,8 +504,8 @@ class WsSession : public std::enable_shared_from_this<WsSession>, private WorldP
 
 class HttpSession : public std::enable_shared_from_this<HttpSession> {
  public:
-  HttpSession(Server::Impl& server, tcp::socket&& socket)
-      : server_(server), stream_(std::move(socket)) {}
+  HttpSession(Server::Impl& server, tcp::socket&& socket, SocketSlot slot)
+      : slot_(std::move(slot)), server_(server), stream_(std::move(socket)) {}
 
   void run() {
     net::dispatch(stream_.get_executor(),
@@ -489,7 +517,15 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
     parser_.emplace();
     parser_->header_limit(kHttpHeaderLimit);
     parser_->body_limit(kHttpBodyLimit);
-    stream_.expires_after(server_.config.http_timeout);
+    // A new connection gets the shorter of the HTTP and the handshake budget for its first
+    // request, so sockets that never send one go soon.
+    auto timeout = server_.config.http_timeout;
+    if (first_request_) {
+      timeout =
+          std::min(timeout, std::chrono::milliseconds{server_.config.limits.handshake_timeout_ms});
+      first_request_ = false;
+    }
+    stream_.expires_after(timeout);
     http::async_read(stream_, buffer_, *parser_,
                      beast::bind_front_handler(&HttpSession::on_read, shared_from_this()));
   }
@@ -517,7 +553,8 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
         server_.metrics.http_requests_total.add();
         return respond(req, http::status::not_found, "text/plain", "not found\n");
       }
-      std::make_shared<WsSession>(server_, std::move(stream_))->run(std::move(req));
+      std::make_shared<WsSession>(server_, std::move(stream_), std::move(slot_))
+          ->run(std::move(req));
       return;
     }
     server_.metrics.http_requests_total.add();
@@ -598,8 +635,10 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
     do_read();
   }
 
+  SocketSlot slot_;
   Server::Impl& server_;
   beast::tcp_stream stream_;
+  bool first_request_ = true;
   beast::flat_buffer buffer_{kHttpHeaderLimit + kHttpBodyLimit};
   std::optional<http::request_parser<http::string_body>> parser_;
 };
@@ -619,7 +658,20 @@ void Server::Impl::on_accept(beast::error_code ec, tcp::socket socket) {
     beast::error_code ignored;
     // Messages go out as soon as they are written (no Nagle wait behind a delayed ACK).
     socket.set_option(tcp::no_delay(true), ignored);
-    std::make_shared<HttpSession>(*this, std::move(socket))->run();
+    if (int open = sockets.fetch_add(1) + 1; open > max_sockets()) {
+      sockets.fetch_sub(1);
+      metrics.sockets_shed.add();
+      if (auto now = Clock::now(); now - shed_logged >= std::chrono::seconds{1}) {
+        spdlog::warn("event=socket_shed open={} max={} (max_connections + max_handshakes + {})",
+                     open - 1, max_sockets(), kSpareSockets);
+        shed_logged = now;
+      }
+      socket.close(ignored);
+      return do_accept();
+    } else {
+      metrics.sockets_open.set(open);
+    }
+    std::make_shared<HttpSession>(*this, std::move(socket), SocketSlot(sockets, metrics))->run();
     return do_accept();
   }
   // Out of file descriptors (or another failure): the pending connection stays in the backlog,

@@ -953,6 +953,48 @@ TEST(ServerLimits, squatters_without_hello_do_not_take_players_places) {
   EXPECT_TRUE(a.alive());
 }
 
+// Every accepted socket counts, upgraded or not: raw TCP connections beyond max_connections +
+// max_handshakes + 64 are closed at once, and those that never send a request go after
+// handshake_timeout_ms; then players and probes get in again.
+TEST(ServerLimits, raw_sockets_are_counted_shed_and_timed_out) {
+  auto c = test_config();
+  c.max_connections = 2;
+  c.max_handshakes = 2;
+  c.limits.handshake_timeout_ms = 300;
+  auto server = start(c);
+  ASSERT_TRUE(server);
+  sockaddr_in addr{};
+  addr.sin_family = AF_INET;
+  addr.sin_port = htons(server->port());
+  addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  std::vector<int> raw;
+  for (int i = 0; i < 100; ++i) {
+    int fd = socket(AF_INET, SOCK_STREAM, 0);
+    ASSERT_GE(fd, 0);
+    ASSERT_EQ(connect(fd, reinterpret_cast<sockaddr*>(&addr), sizeof addr), 0);
+    raw.push_back(fd);
+  }
+  // The server closes every one of them: 32 at once (over 2 + 2 + 64), the rest after 300 ms.
+  auto deadline = Clock::now() + 5s;
+  size_t closed = 0;
+  for (int fd : raw) {
+    pollfd pfd{fd, POLLIN, 0};
+    auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - Clock::now());
+    char byte;
+    if (poll(&pfd, 1, static_cast<int>(std::max<int64_t>(left.count(), 0))) == 1 &&
+        recv(fd, &byte, 1, 0) <= 0)
+      ++closed;
+    close(fd);
+  }
+  EXPECT_EQ(closed, raw.size());
+  EXPECT_GE(server->metrics().sockets_shed.value(), 32u);
+  EXPECT_EQ(http_get(server->port(), "/healthz").status, 200);
+  Client player(server->port());
+  ASSERT_FALSE(player.connect());
+  player.hello();
+  EXPECT_TRUE(player.alive());
+}
+
 // ---- shutdown ----
 
 TEST(ServerShutdown, stop_closes_every_session_with_service_restart_in_bounded_time) {
