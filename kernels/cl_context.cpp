@@ -29,16 +29,6 @@ std::string trim(std::string_view text) {
   return std::string(text.substr(first, last - first + 1));
 }
 
-// The device request after the config → environment → default precedence.
-std::string resolve_device_request(const DeviceConfig& config) {
-  std::string request = trim(config.device);
-  if (request.empty()) {
-    const char* env = std::getenv("GROTTO_OPENCL_DEVICE");
-    if (env != nullptr) request = trim(env);
-  }
-  return request.empty() ? std::string("auto") : request;
-}
-
 const char* type_name(cl_device_type type) {
   if (type & CL_DEVICE_TYPE_GPU) return "gpu";
   if (type & CL_DEVICE_TYPE_ACCELERATOR) return "accelerator";
@@ -185,6 +175,19 @@ Result<std::unique_ptr<ComputeContext::State>> open_device(const Candidate& chos
 
 }  // namespace
 
+std::string resolve_device_request(const DeviceConfig& config) {
+  std::string request = trim(config.device);
+  if (request.empty()) {
+    const char* env = std::getenv("GROTTO_OPENCL_DEVICE");
+    if (env != nullptr) request = trim(env);
+  }
+  return request.empty() ? std::string("auto") : request;
+}
+
+bool opencl_disabled(const DeviceConfig& config) {
+  return lowercase(resolve_device_request(config)) == "none";
+}
+
 const char* build_origin_name(BuildOrigin origin) {
   switch (origin) {
     case BuildOrigin::kSource:
@@ -200,7 +203,7 @@ const char* build_origin_name(BuildOrigin origin) {
 Result<ComputeContext> ComputeContext::create(const DeviceConfig& config) {
   try {
     const std::string request = resolve_device_request(config);
-    if (lowercase(request) == "none" && !config.none_reason.empty()) {
+    if (opencl_disabled(config) && !config.none_reason.empty()) {
       return Error{ErrorCode::kUnavailable, config.none_reason};
     }
     auto chosen = choose_device(request);

@@ -51,6 +51,11 @@ struct DeviceConfig {
   std::string none_reason{};
 };
 
+// The device request after the config -> $GROTTO_OPENCL_DEVICE -> "auto" precedence, trimmed.
+std::string resolve_device_request(const DeviceConfig& config);
+// Whether that request is "none" (any case): no OpenCL, the CPU reference path.
+bool opencl_disabled(const DeviceConfig& config);
+
 // What the chosen device is; the strings are exactly what the driver reports.
 struct DeviceInfo {
   std::string platform_name;

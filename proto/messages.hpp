@@ -51,7 +51,7 @@ struct Limits {
   uint32_t max_rooms_per_request = 256;        // entries in one request or cancel
   uint32_t max_rooms_in_flight = 1024;         // requested, not yet delivered/failed/cancelled
   uint32_t max_lod = 0;  // the highest wire lod served (≤ 255; proto/lod.hpp maps it to mesh::Lod)
-  uint32_t idle_timeout_ms = 60'000;       // no message from the client for this long: closed
+  uint32_t idle_timeout_ms = 60'000;      // no message from the client for this long: closed
   uint32_t handshake_timeout_ms = 5'000;  // no hello this long after the upgrade: closed
   // Rooms named by request and cancel messages (each message at least one) per second, and the
   // most at once: a token bucket per client. 0 in a parsed welcome: not announced, no limit.

@@ -119,12 +119,7 @@ int probe_child(const ServerConfig& config) {
 
 std::optional<std::string> probe_opencl(const ServerConfig& config, int argc, char** argv) {
   const auto& device = config.generator.builder.device;
-  std::string request = device.device;
-  if (request.empty()) {
-    const char* env = std::getenv("GROTTO_OPENCL_DEVICE");
-    request = env ? env : "";
-  }
-  if (request == "none") return std::nullopt;
+  if (kernels::opencl_disabled(device)) return std::nullopt;
   // PoCL's own cache under a directory Grotto owns, so it can be discarded when it is broken;
   // one the operator chose is emptied only when it holds nothing but PoCL's cache.
   std::filesystem::path pocl_dir;

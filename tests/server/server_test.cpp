@@ -31,6 +31,7 @@
 
 #include "cave/layout.hpp"
 #include "codec/room_codec.hpp"
+#include "core/bytes.hpp"
 #include "kernels/binary_cache.hpp"
 #include "mesh/context.hpp"
 #include "mesh/room_mesh.hpp"
@@ -1189,6 +1190,14 @@ TEST(ServerProgram, starts_serves_healthz_and_exits_0_on_sigterm) {
   close(p.out);
 }
 
+// A player connects, says hello and is welcomed.
+void expect_a_player_gets_in(uint16_t port) {
+  Client player(port);
+  ASSERT_FALSE(player.connect());
+  player.hello();
+  EXPECT_TRUE(player.alive());
+}
+
 // CPU seconds the process has used (user + system).
 double cpu_seconds(pid_t pid) {
   std::ifstream in("/proc/" + std::to_string(pid) + "/stat");
@@ -1248,10 +1257,7 @@ TEST(ServerProgram, fd_exhaustion_pauses_accepting_and_recovers) {
   ASSERT_TRUE(
       std::regex_search(metrics, failures, std::regex(R"(grotto_accept_failures_total (\d+))")));
   EXPECT_GT(std::stoull(failures[1]), 0u);
-  Client player(port);
-  ASSERT_FALSE(player.connect());
-  player.hello();
-  EXPECT_TRUE(player.alive());
+  expect_a_player_gets_in(port);
   kill(p.pid, SIGTERM);
   EXPECT_EQ(wait_exit(p.pid, 15s), 0);
   close(p.out);
@@ -1299,10 +1305,7 @@ TEST(ServerProgram, a_full_cache_volume_falls_back_to_the_cpu_and_keeps_serving)
   ASSERT_NE(port, 0) << text;
   auto metrics = http_get(port, "/metrics").body;
   auto ready = http_get(port, "/readyz");
-  Client player(port);
-  ASSERT_FALSE(player.connect());
-  player.hello();
-  EXPECT_TRUE(player.alive());
+  expect_a_player_gets_in(port);
   stop_process(p);
   EXPECT_EQ(std::system(("umount '" + dir.string() + "'").c_str()), 0);
   std::filesystem::remove(dir);
@@ -1355,10 +1358,7 @@ TEST_P(TruncatedPoclCache, does_not_stop_the_start) {
   // second probe (and the server) build afresh.
   EXPECT_NE(text.find("event=opencl_probe_failed attempt=1"), std::string::npos) << text;
   EXPECT_NE(text.find("event=pocl_cache_discarded"), std::string::npos) << text;
-  Client player(port);
-  ASSERT_FALSE(player.connect());
-  player.hello();
-  EXPECT_TRUE(player.alive());
+  expect_a_player_gets_in(port);
   stop_process(p);
   std::filesystem::remove_all(dir);
 }
@@ -1382,9 +1382,7 @@ TEST(ServerProgram, a_checksummed_but_cut_program_binary_does_not_stop_the_start
                                     std::istreambuf_iterator<char>());
     in.close();
     ASSERT_GT(file.size(), grotto::kernels::kCacheHeaderSize);
-    uint64_t key = 0;
-    for (int i = 0; i < 8; ++i)
-      key |= uint64_t{file[8 + i]} << (8 * i);
+    const uint64_t key = grotto::le::load(file.data() + 8);
     std::vector<unsigned char> half(file.begin() + grotto::kernels::kCacheHeaderSize,
                                     file.begin() + grotto::kernels::kCacheHeaderSize +
                                         (file.size() - grotto::kernels::kCacheHeaderSize) / 2);
@@ -1405,10 +1403,7 @@ TEST(ServerProgram, a_checksummed_but_cut_program_binary_does_not_stop_the_start
   EXPECT_NE(text.find("event=program_cache_discarded"), std::string::npos) << text;
   auto metrics = http_get(port, "/metrics").body;
   EXPECT_NE(metrics.find("grotto_compute_path_info{path=\"opencl"), std::string::npos) << metrics;
-  Client player(port);
-  ASSERT_FALSE(player.connect());
-  player.hello();
-  EXPECT_TRUE(player.alive());
+  expect_a_player_gets_in(port);
   stop_process(p);
   std::filesystem::remove_all(dir);
 }
