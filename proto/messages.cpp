@@ -33,11 +33,6 @@ constexpr uint64_t kMaxU32 = 0xffffffffu;
 std::string seed_text(uint64_t seed) {
   return std::to_string(seed);
 }
-std::string digest_text(uint64_t digest) {
-  char buf[17];
-  std::snprintf(buf, sizeof buf, "%016llx", static_cast<unsigned long long>(digest));
-  return buf;
-}
 
 Result<uint64_t> parse_seed(const std::string& s, std::string_view field) {
   bool digits = !s.empty() && s.size() <= 20 &&
@@ -629,6 +624,12 @@ std::string echo(std::string_view untrusted) {
   }
   if (untrusted.size() > n) out += "...";
   return out;
+}
+
+std::string digest_text(uint64_t digest) {
+  char buf[17];
+  std::snprintf(buf, sizeof buf, "%016llx", static_cast<unsigned long long>(digest));
+  return buf;
 }
 
 }  // namespace grotto::proto

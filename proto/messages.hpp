@@ -219,6 +219,9 @@ bool is_fatal(ErrorCode code);
 ErrorMessage error_reply(const Error& error, Ref ref = std::nullopt,
                          std::optional<cave::RoomId> room = std::nullopt);
 
+// A parameter digest as the wire writes it: 16 lowercase hex digits.
+std::string digest_text(uint64_t digest);
+
 // At most kMaxEchoBytes of untrusted text, control and non-ASCII bytes shown as '?', with "..."
 // when cut: safe to put in an error message or a log line.
 std::string echo(std::string_view untrusted);

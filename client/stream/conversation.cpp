@@ -4,7 +4,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
 #include <utility>
 
 #include "core/bytes.hpp"
@@ -31,12 +30,6 @@ std::optional<cave::RoomId> frame_id(std::span<const uint8_t> bytes) {
   auto id = cave::RoomId::unpack(le::load(bytes.data() + 8));
   if (!id) return std::nullopt;
   return id.value();
-}
-
-std::string digest_text(uint64_t digest) {
-  char buf[17];
-  std::snprintf(buf, sizeof buf, "%016llx", static_cast<unsigned long long>(digest));
-  return buf;
 }
 
 }  // namespace
@@ -295,8 +288,8 @@ void Conversation::on_message(const proto::Welcome& w, SteadyTime now, Actions& 
                 out);
   }
   if (options_.params && w.params != *options_.params) {
-    return fail("server uses parameter digest " + digest_text(w.params) + ", not the requested " +
-                    digest_text(*options_.params),
+    return fail("server uses parameter digest " + proto::digest_text(w.params) +
+                    ", not the requested " + proto::digest_text(*options_.params),
                 out);
   }
   if (world_ && *world_ != std::pair{w.seed, w.params}) {
