@@ -152,9 +152,10 @@ void Conversation::shutdown() {
   fail(Error{ErrorCode::kServiceRestart, "the server is shutting down"}, std::nullopt);
 }
 
-void Conversation::slow_client() {
+void Conversation::slow_client(size_t queued_bytes) {
   if (state_ == State::kClosed) return;
-  spdlog::warn("event=slow_client_dropped session={} peer={}", config_.session, config_.peer);
+  spdlog::warn("event=slow_client_dropped session={} peer={} queued_bytes={}", config_.session,
+               config_.peer, queued_bytes);
   if (metrics_) metrics_->slow_clients_dropped.add();
   release();
   close(CloseCode::kPolicy, "slow_client");

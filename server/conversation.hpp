@@ -122,8 +122,8 @@ class Conversation {
   void delivery(Delivery d);            // the generator's outcome for one wanted room
   void sent(uint64_t bytes);            // a message's write completed (stats.bytes_sent)
   void shutdown();                      // the server is stopping
-  void slow_client();                   // the send queue went over its bound
-  void transport_closed();              // the socket is gone: release what is held
+  void slow_client(size_t queued_bytes = 0);  // the send queue went over its bound
+  void transport_closed();                    // the socket is gone: release what is held
 
   // The actions since the last call, in order.
   std::vector<Action> take();

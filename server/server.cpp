@@ -421,14 +421,12 @@ class WsSession : public std::enable_shared_from_this<WsSession>, private WorldP
   // behind the write in flight, so the socket is cut if that does not finish within kCloseGrace.
   void drop_slow_client() {
     dropped_ = true;
-    spdlog::warn("event=slow_client_queue session={} queued_bytes={} limit={}", registry_id_,
-                 queued_bytes_, server_.config.send_queue_bytes);
     // The front is being written (Beast holds its buffer); everything behind it goes now.
     while (queue_.size() > 1) {
       queued_bytes_ -= queue_.back().size();
       queue_.pop_back();
     }
-    conversation_->slow_client();
+    conversation_->slow_client(queued_bytes_);
     apply();
   }
 
