@@ -58,6 +58,8 @@ struct Player {
   double burst_complete_s = -1;
   uint64_t burst_rooms = 0;
   StreamStats final_stats;
+  uint64_t window_bytes = 0;  // bytes received when the current one-second window began
+  double peak_kbps = 0;
   StreamState final_state = StreamState::kConnecting;  // before stop()
   std::string final_error;                             // before stop()
 };
@@ -269,6 +271,8 @@ Result<LoadReport> run_load(const LoadOptions& options) {
   // ticks at 200 Hz so that time to first room is measured to ~5 ms.
   auto last = t0;
   double next_progress = 1.0, next_burst_check = 0;
+  // Each player's peak bandwidth: bytes over windows of (at least) one second.
+  double window_start = 0;
   double t = 0;
   for (;;) {
     const auto now = Clock::now();
@@ -305,6 +309,15 @@ Result<LoadReport> run_load(const LoadOptions& options) {
         report.burst_s = t;
         break;
       }
+    }
+    if (t - window_start >= 1.0) {
+      for (auto& p : players) {
+        const uint64_t bytes = p.stream->stats().bytes_received;
+        p.peak_kbps = std::max(p.peak_kbps, static_cast<double>(bytes - p.window_bytes) * 8.0 /
+                                                1000.0 / (t - window_start));
+        p.window_bytes = bytes;
+      }
+      window_start = t;
     }
     if (options.progress && t >= next_progress) {
       next_progress = t + 1.0;
@@ -352,6 +365,10 @@ Result<LoadReport> run_load(const LoadOptions& options) {
     pr.rooms_ready = s.rooms_ready;
     pr.rooms_received = s.rooms_received;
     pr.bytes = s.bytes_received;
+    pr.mean_kbps =
+        report.elapsed_s > 0 ? static_cast<double>(pr.bytes) * 8.0 / 1000.0 / report.elapsed_s : 0;
+    // A run shorter than a second has no whole window: its mean is its peak.
+    pr.peak_kbps = std::max(p.peak_kbps, pr.mean_kbps);
     pr.requests = s.requests_sent;
     pr.cancels = s.cancels_sent;
     pr.rooms_entered = w.rooms_entered;

@@ -65,6 +65,16 @@ void total_players(LoadReport& r) {
     r.rooms_per_s = static_cast<double>(r.rooms_ready) / r.elapsed_s;
     r.mb_per_s = static_cast<double>(r.bytes) / 1e6 / r.elapsed_s;
   }
+  std::vector<double> means, peaks;
+  for (const auto& p : r.players_detail) {
+    means.push_back(p.mean_kbps);
+    peaks.push_back(p.peak_kbps);
+  }
+  r.player_kbps = summarize(std::move(means));
+  r.player_peak_kbps = summarize(std::move(peaks));
+  r.rooms_per_room_entered = r.rooms_entered > 0 ? static_cast<double>(r.rooms_received) /
+                                                       static_cast<double>(r.rooms_entered)
+                                                 : 0;
 }
 
 int exit_code(const LoadReport& r) {
@@ -117,6 +127,8 @@ std::string format_table(const LoadReport& r) {
   distribution_row(out, "request->room ms", r.latency_ms);
   distribution_row(out, "decode ms", r.decode_ms);
   distribution_row(out, "stall ms", r.stall_ms);
+  distribution_row(out, "player kbit/s (mean)", r.player_kbps);
+  distribution_row(out, "player kbit/s (peak s)", r.player_peak_kbps);
   appendf(out, "\n  rooms ready       %10llu  (%.1f rooms/s)\n", u(r.rooms_ready), r.rooms_per_s);
   appendf(out, "  bytes received    %10llu  (%.2f MB/s)\n", u(r.bytes), r.mb_per_s);
   appendf(out, "  rooms received    %10llu  rejected %llu, evicted %llu, given up %llu\n",
@@ -129,6 +141,8 @@ std::string format_table(const LoadReport& r) {
           r.max_stalls >= 0 ? (" (limit " + std::to_string(r.max_stalls) + ")").c_str() : "");
   appendf(out, "  walked            %10.0f m, %llu portals, %llu turn-backs\n", r.distance_m,
           u(r.rooms_entered), u(r.turn_backs));
+  appendf(out, "  rooms per portal  %10.2f  (rooms received / portals crossed: prefetch waste)\n",
+          r.rooms_per_room_entered);
   appendf(out, "  reconnects        %10llu  drops %llu, streams failed %llu, drain notices %llu\n",
           u(r.reconnects), u(r.drops), u(r.streams_failed), u(r.restart_notices));
   if (r.players_without_room > 0) {
@@ -187,6 +201,8 @@ std::string to_json_text(const LoadReport& r) {
          {"rooms_ready", p.rooms_ready},
          {"rooms_received", p.rooms_received},
          {"bytes", p.bytes},
+         {"mean_kbps", p.mean_kbps},
+         {"peak_kbps", p.peak_kbps},
          {"requests", p.requests},
          {"cancels", p.cancels},
          {"rooms_entered", p.rooms_entered},
@@ -247,6 +263,9 @@ std::string to_json_text(const LoadReport& r) {
       {"bytes", r.bytes},
       {"rooms_per_s", r.rooms_per_s},
       {"mb_per_s", r.mb_per_s},
+      {"player_kbps", to_json(r.player_kbps)},
+      {"player_peak_kbps", to_json(r.player_peak_kbps)},
+      {"rooms_per_room_entered", r.rooms_per_room_entered},
       {"stalls", {{"count", r.stalls}, {"total_s", r.stall_total_s}, {"max", r.max_stalls}}},
       {"reconnects", r.reconnects},
       {"restart_notices", r.restart_notices},

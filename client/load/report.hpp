@@ -29,6 +29,8 @@ struct PlayerReport {
   uint64_t rooms_ready = 0;      // rooms decoded and stored by its Stream
   uint64_t rooms_received = 0;   // room frames accepted
   uint64_t bytes = 0;            // bytes received
+  double mean_kbps = 0;          // bytes x 8 / 1000 over the run's elapsed time
+  double peak_kbps = 0;          // the most received in one whole second of the run, x 8 / 1000
   uint64_t requests = 0;         // rooms requested
   uint64_t cancels = 0;          // rooms cancelled
   uint64_t rooms_entered = 0;    // portals crossed by the walker
@@ -81,6 +83,12 @@ struct LoadReport {
   uint64_t rooms_ready = 0, rooms_received = 0, rooms_rejected = 0, rooms_evicted = 0,
            rooms_given_up = 0, requests = 0, cancels = 0, bytes = 0;
   double rooms_per_s = 0, mb_per_s = 0;  // rooms_ready and bytes over elapsed_s (MB = 10^6 B)
+  // Bandwidth per player in kbit/s (1000 bit/s): each player's mean over the run, and each
+  // player's peak second (the sample is one per player).
+  Distribution player_kbps, player_peak_kbps;
+  // Prefetch waste: rooms received per portal crossed (0 with no crossing). 1 means each room
+  // arrived once and was entered; prefetch asks for rooms the player may not take, so it is more.
+  double rooms_per_room_entered = 0;
   uint64_t stalls = 0;
   double stall_total_s = 0;
   uint64_t reconnects = 0, drops = 0, streams_failed = 0;

@@ -171,6 +171,15 @@ TEST(GrottoLoad, four_players_walk_the_embedded_server_without_errors_or_stalls)
   EXPECT_GT(j["verify"]["rooms_checked"].get<uint64_t>(), 0u);
   EXPECT_GE(j["elapsed_s"].get<double>(), 5.0);
   EXPECT_GT(j["walk"]["distance_m"].get<double>(), 0);
+  // Bandwidth: each player's mean is its bytes over the run, and no whole second beats its peak.
+  for (const auto& p : j["per_player"]) {
+    const double mean = p["mean_kbps"].get<double>();
+    EXPECT_NEAR(mean, p["bytes"].get<double>() * 8 / 1000 / j["elapsed_s"].get<double>(), 1e-6);
+    EXPECT_GT(mean, 0);
+    EXPECT_GE(p["peak_kbps"].get<double>(), mean);
+  }
+  EXPECT_EQ(j["player_kbps"]["count"], 4);
+  EXPECT_GT(j["rooms_per_room_entered"].get<double>(), 0);
   std::filesystem::remove_all(dir);
 }
 

@@ -66,6 +66,8 @@ LoadReport sample_report() {
     p.rooms_ready = 100 + i;
     p.rooms_received = 110 + i;
     p.bytes = 1'000'000;
+    p.mean_kbps = 800;
+    p.peak_kbps = 1000 + 500 * i;
     p.requests = 120;
     p.cancels = 7;
     p.rooms_entered = 30;
@@ -93,6 +95,11 @@ TEST(Report, totals_add_up_the_players_and_rates_use_elapsed_time) {
   EXPECT_EQ(r.errors_total, 3u);
   EXPECT_DOUBLE_EQ(r.rooms_per_s, 20.1);
   EXPECT_DOUBLE_EQ(r.mb_per_s, 0.2);
+  EXPECT_EQ(r.player_kbps.count, 2u);
+  EXPECT_DOUBLE_EQ(r.player_kbps.mean, 800);
+  EXPECT_DOUBLE_EQ(r.player_peak_kbps.max, 1500);
+  EXPECT_DOUBLE_EQ(r.player_peak_kbps.mean, 1250);
+  EXPECT_DOUBLE_EQ(r.rooms_per_room_entered, 221.0 / 60.0);
 }
 
 TEST(Report, exit_code_is_1_for_errors_3_for_too_many_stalls_and_errors_win) {
@@ -166,6 +173,10 @@ TEST(Report, json_holds_every_figure) {
   EXPECT_EQ(j["bytes"], 2'000'000);
   EXPECT_DOUBLE_EQ(j["rooms_per_s"].get<double>(), 20.1);
   EXPECT_DOUBLE_EQ(j["mb_per_s"].get<double>(), 0.2);
+  EXPECT_DOUBLE_EQ(j["player_kbps"]["mean"].get<double>(), 800);
+  EXPECT_DOUBLE_EQ(j["player_peak_kbps"]["max"].get<double>(), 1500);
+  EXPECT_DOUBLE_EQ(j["per_player"][1]["peak_kbps"].get<double>(), 1500);
+  EXPECT_DOUBLE_EQ(j["rooms_per_room_entered"].get<double>(), 221.0 / 60.0);
   EXPECT_EQ(j["stalls"]["count"], 3);
   EXPECT_DOUBLE_EQ(j["stalls"]["total_s"].get<double>(), 2.0);
   EXPECT_EQ(j["reconnects"], 1);
@@ -191,7 +202,8 @@ TEST(Report, table_names_the_figures_and_the_outcome) {
   LoadReport r = sample_report();
   std::string t = grotto::client::load::format_table(r);
   for (const char* s : {"request->room ms", "time to first room", "decode ms", "stall ms",
-                        "rooms/s", "MB/s", "overloaded=2", "reconnects", "exit 1"}) {
+                        "rooms/s", "MB/s", "player kbit/s (mean)", "player kbit/s (peak s)",
+                        "rooms per portal", "overloaded=2", "reconnects", "exit 1"}) {
     EXPECT_NE(t.find(s), std::string::npos) << s << "\n" << t;
   }
 }
