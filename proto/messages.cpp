@@ -305,6 +305,10 @@ Result<Limits> parse_limits(const json& object) {
   if (f.find("request_burst")) {
     if (Status s = read("request_burst", 1, kMaxU32, l.request_burst); !s) return s.error();
   }
+  l.max_kbps = 0;
+  if (f.find("max_kbps")) {
+    if (Status s = read("max_kbps", 1, kMaxU32, l.max_kbps); !s) return s.error();
+  }
   return l;
 }
 
@@ -480,6 +484,7 @@ ojson to_json(const Welcome& m) {
   limits["handshake_timeout_ms"] = m.limits.handshake_timeout_ms;
   if (m.limits.request_rate > 0) limits["request_rate"] = m.limits.request_rate;
   if (m.limits.request_burst > 0) limits["request_burst"] = m.limits.request_burst;
+  if (m.limits.max_kbps > 0) limits["max_kbps"] = m.limits.max_kbps;
   out["limits"] = std::move(limits);
   return out;
 }

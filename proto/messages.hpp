@@ -57,6 +57,9 @@ struct Limits {
   // most at once: a token bucket per client. 0 in a parsed welcome: not announced, no limit.
   uint32_t request_rate = 2000;
   uint32_t request_burst = 4000;
+  // Room frames' bandwidth per connection, kilobits (1000 bits) a second, averaged over a second;
+  // rooms ready beyond it wait, most urgent first. 0: not announced, no cap.
+  uint32_t max_kbps = 0;
   friend bool operator==(const Limits&, const Limits&) = default;
 };
 

@@ -164,6 +164,11 @@ const std::vector<Setting>& settings() {
         "request-burst", "Limit: rooms a client may name at once above the rate", 1, kMaxInt,
         [](ServerConfig & c) -> auto& { return c.limits.request_burst; }));
     t.push_back(int_setting(
+        "max-kbps",
+        "Limit: room frames' bandwidth per player in kbit/s, averaged over a second; rooms ready "
+        "beyond it wait, most urgent first (0: no cap)",
+        0, kMaxInt, [](ServerConfig & c) -> auto& { return c.limits.max_kbps; }));
+    t.push_back(int_setting(
         "max-connections", "Players (WebSocket sessions past hello) at once; more are refused", 1,
         1 << 20, [](ServerConfig & c) -> auto& { return c.max_connections; }));
     t.push_back(int_setting(

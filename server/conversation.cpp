@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 
 #include "proto/token.hpp"
 #include "server/metrics.hpp"
@@ -128,9 +129,9 @@ void Conversation::delivery(Delivery d) {
   auto it = in_flight_.find(d.key.id.packed());
   if (it == in_flight_.end()) return;       // cancelled meanwhile: not sent
   if (it->second.lod != d.key.lod) return;  // a lod the client replaced since
-  proto::Ref ref = it->second.ref;
-  in_flight_.erase(it);
   if (d.error) {
+    proto::Ref ref = it->second.ref;
+    in_flight_.erase(it);
     if (d.error->code == ErrorCode::kServiceRestart) {
       return fail(*d.error, std::nullopt);
     }
@@ -138,9 +139,53 @@ void Conversation::delivery(Delivery d) {
     e.fatal = false;  // a room's failure refuses that room only
     return send_error(std::move(e));
   }
-  ++rooms_sent_;
-  if (metrics_) metrics_->rooms_served.add();
-  emit(act::SendRoom{std::move(d.room)});
+  if (config_.limits.max_kbps == 0) {
+    in_flight_.erase(it);
+    ++rooms_sent_;
+    if (metrics_) metrics_->rooms_served.add();
+    return emit(act::SendRoom{std::move(d.room)});
+  }
+  // Asked again while waiting, it may be delivered twice: it waits once.
+  if (!it->second.ready) ++waiting_;
+  it->second.ready = std::move(d.room);
+  send_ready();
+}
+
+void Conversation::pace() {
+  if (state_ != State::kOpen) return;
+  send_ready();
+}
+
+void Conversation::send_ready() {
+  const double bytes_per_ms = config_.limits.max_kbps / 8.0;  // kbit/s = 1000/8 B/s
+  const uint64_t now = config_.steady_ms();
+  bytes_tokens_ =
+      std::min(bytes_per_ms * 1000,
+               bytes_tokens_ + static_cast<double>(now - bytes_tokens_at_) * bytes_per_ms);
+  bytes_tokens_at_ = now;
+  while (waiting_ > 0 && bytes_tokens_ >= 0) {
+    // The most urgent; ties by room id, so the order does not depend on the map's.
+    auto next = in_flight_.end();
+    for (auto it = in_flight_.begin(); it != in_flight_.end(); ++it) {
+      if (!it->second.ready) continue;
+      if (next == in_flight_.end() || it->second.priority < next->second.priority ||
+          (it->second.priority == next->second.priority && it->first < next->first)) {
+        next = it;
+      }
+    }
+    RoomPtr room = std::move(next->second.ready);
+    in_flight_.erase(next);
+    --waiting_;
+    bytes_tokens_ -= static_cast<double>(room->frame.size());
+    ++rooms_sent_;
+    if (metrics_) metrics_->rooms_served.add();
+    emit(act::SendRoom{std::move(room)});
+  }
+  if (waiting_ > 0) {
+    if (metrics_) metrics_->bandwidth_waits.add();
+    const auto ms = static_cast<int64_t>(std::ceil(-bytes_tokens_ / bytes_per_ms));
+    emit(act::Pace{std::chrono::milliseconds{std::max<int64_t>(ms, 1)}});
+  }
 }
 
 void Conversation::sent(uint64_t bytes) {
@@ -197,6 +242,8 @@ void Conversation::on(const proto::Hello& m) {
   state_ = State::kOpen;
   tokens_ = config_.limits.request_burst;
   tokens_at_ = config_.steady_ms();
+  bytes_tokens_ = config_.limits.max_kbps / 8.0 * 1000;
+  bytes_tokens_at_ = tokens_at_;
   proto::Welcome w;
   w.ref = m.ref;
   w.version = chosen;
@@ -275,12 +322,19 @@ void Conversation::on(const proto::Request& m) {
   }
   std::vector<cave::RoomId> relod;
   for (const auto& w : m.rooms) {
-    auto [it, inserted] = in_flight_.try_emplace(w.id.packed(), InFlight{w.lod, m.ref});
+    auto [it, inserted] =
+        in_flight_.try_emplace(w.id.packed(), InFlight{w.lod, w.priority, m.ref, nullptr});
     // Re-requested: the generator replaces its priority; a new lod replaces the old one, so the
-    // old lod's want goes. An error about the room names the latest request.
+    // old lod's want goes (and a room of the old lod waiting for bandwidth). An error about the
+    // room names the latest request.
     it->second.ref = m.ref;
+    it->second.priority = w.priority;
     if (!inserted && it->second.lod != w.lod) {
       it->second.lod = w.lod;
+      if (it->second.ready) {
+        it->second.ready.reset();
+        --waiting_;
+      }
       relod.push_back(w.id);
     }
   }
@@ -304,7 +358,15 @@ void Conversation::on(const proto::Cancel& m) {
   }
   std::vector<cave::RoomId> ids;
   for (const auto& id : m.rooms) {
-    if (in_flight_.erase(id.packed()) > 0) ids.push_back(id);
+    auto it = in_flight_.find(id.packed());
+    if (it == in_flight_.end()) continue;
+    // A room waiting for bandwidth is built: nothing to cancel in the generator.
+    if (it->second.ready) {
+      --waiting_;
+    } else {
+      ids.push_back(id);
+    }
+    in_flight_.erase(it);
   }
   if (!ids.empty()) emit(act::Drop{client_, std::move(ids)});
 }
@@ -377,6 +439,7 @@ void Conversation::close(CloseCode code, std::string reason) {
 void Conversation::release() {
   // Nothing this client asked for is wanted any more.
   in_flight_.clear();
+  waiting_ = 0;
   if (client_ != 0) {
     emit(act::Release{client_});
     client_ = 0;

@@ -77,6 +77,10 @@ struct Timer {  // (re)arm the one timer: deadline() is called when it fires
   std::chrono::milliseconds after{0};
   friend bool operator==(const Timer&, const Timer&) = default;
 };
+struct Pace {  // (re)arm the bandwidth timer: pace() is called when it fires
+  std::chrono::milliseconds after{0};
+  friend bool operator==(const Pace&, const Pace&) = default;
+};
 struct Close {  // close with this code and reason once what is queued before it has been sent
   CloseCode code = CloseCode::kNormal;
   std::string reason;
@@ -84,7 +88,7 @@ struct Close {  // close with this code and reason once what is queued before it
 };
 }  // namespace act
 using Action = std::variant<act::SendText, act::SendRoom, act::Want, act::Drop, act::Release,
-                            act::Timer, act::Close>;
+                            act::Timer, act::Pace, act::Close>;
 
 struct ConversationConfig {
   proto::Limits limits;
@@ -93,7 +97,7 @@ struct ConversationConfig {
   std::string server_name;              // welcome.server
   int max_connections = 0;              // named in the connection-limit error
   std::function<uint64_t()> unix_ms;    // pong.time; null: the system clock
-  std::function<uint64_t()> steady_ms;  // the request rate's clock; null: steady_clock
+  std::function<uint64_t()> steady_ms;  // the request rate's and max_kbps's clock; null: steady
   uint64_t session = 0;                 // for log lines
   std::string peer;                     // for log lines
 };
@@ -119,6 +123,7 @@ class Conversation {
   void binary();                        // the client sent a binary message
   void oversized();                     // a message grew past max_message_bytes (not read whole)
   void deadline();                      // the timer fired
+  void pace();                          // the bandwidth timer fired (act::Pace)
   void delivery(Delivery d);            // the generator's outcome for one wanted room
   void sent(uint64_t bytes);            // a message's write completed (stats.bytes_sent)
   void shutdown();                      // the server is stopping
@@ -130,13 +135,16 @@ class Conversation {
 
   State state() const { return state_; }
   size_t in_flight() const { return in_flight_.size(); }
+  size_t waiting_for_bandwidth() const { return waiting_; }
   uint64_t rooms_sent() const { return rooms_sent_; }
   uint64_t errors_sent() const { return errors_sent_; }
 
  private:
   struct InFlight {
     uint32_t lod = 0;
+    uint32_t priority = 0;
     proto::Ref ref;  // of the request that named it, copied into an error about the room
+    RoomPtr ready;   // built, waiting for bandwidth (Limits::max_kbps); it is still in flight
   };
 
   void on(const proto::Hello& m);
@@ -175,6 +183,13 @@ class Conversation {
   double tokens_ = 0;
   uint64_t tokens_at_ = 0;  // steady_ms when tokens_ was last brought up to date
   uint32_t refused_in_a_row_ = 0;
+  // The bandwidth cap (Limits::max_kbps): a token bucket of frame bytes holding one second's
+  // worth. A ready room goes out while the bucket is not below zero, so a frame larger than the
+  // bucket is never stuck; the most urgent waiting room (smallest priority) goes first.
+  void send_ready();
+  double bytes_tokens_ = 0;
+  uint64_t bytes_tokens_at_ = 0;
+  size_t waiting_ = 0;                           // entries of in_flight_ with `ready` set
   static constexpr uint64_t kErrorsLogged = 10;  // non-fatal errors logged per connection
   uint64_t errors_logged_ = 0;
   uint64_t errors_unlogged_ = 0;

@@ -191,6 +191,9 @@ std::string Metrics::render() const {
   counter(out, "grotto_slow_clients_dropped_total",
           "Clients disconnected because their send queue passed its limit.",
           slow_clients_dropped.value());
+  counter(out, "grotto_bandwidth_waits_total",
+          "Times a player's ready rooms were held back by max_kbps (its bandwidth cap).",
+          bandwidth_waits.value());
 
   // Several codes share a wire name (invalid_argument is sent as bad_message): sum them.
   std::map<std::string, uint64_t> by_wire;

@@ -87,6 +87,7 @@ class Metrics {
   Histogram room_latency_seconds;  // grotto_room_latency_seconds (want received -> frame queued)
   Counter bytes_sent;              // grotto_bytes_sent_total (all frames)
   Counter slow_clients_dropped;    // grotto_slow_clients_dropped_total (send queue over limit)
+  Counter bandwidth_waits;         // grotto_bandwidth_waits_total (ready rooms held: max_kbps)
 
   // Errors sent to clients, by wire code: grotto_errors_total{code="..."}.
   void count_error(ErrorCode code);

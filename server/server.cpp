@@ -167,7 +167,8 @@ class WsSession : public std::enable_shared_from_this<WsSession>, private WorldP
         server_(server),
         limits_(server.config.limits),
         ws_(std::move(stream)),
-        timer_(ws_.get_executor()) {}
+        timer_(ws_.get_executor()),
+        pace_timer_(ws_.get_executor()) {}
 
   ~WsSession() {
     if (client_ != 0) server_.generator->remove_client(client_);
@@ -316,6 +317,10 @@ class WsSession : public std::enable_shared_from_this<WsSession>, private WorldP
     timer_.expires_after(a.after);
     timer_.async_wait(beast::bind_front_handler(&WsSession::on_timer, shared_from_this()));
   }
+  void carry_out(act::Pace& a) {
+    pace_timer_.expires_after(a.after);
+    pace_timer_.async_wait(beast::bind_front_handler(&WsSession::on_pace, shared_from_this()));
+  }
   void carry_out(act::Close& a) {
     if (closing_) return;
     close_code_ = websocket::close_reason(static_cast<websocket::close_code>(a.code), a.reason);
@@ -328,6 +333,13 @@ class WsSession : public std::enable_shared_from_this<WsSession>, private WorldP
     if (ec || closing_) return;  // cancelled or re-armed
     if (timer_.expiry() > Clock::now()) return;
     conversation_->deadline();
+    apply();
+  }
+
+  void on_pace(beast::error_code ec) {
+    if (ec || closing_) return;  // cancelled or re-armed
+    if (pace_timer_.expiry() > Clock::now()) return;
+    conversation_->pace();
     apply();
   }
 
@@ -348,6 +360,7 @@ class WsSession : public std::enable_shared_from_this<WsSession>, private WorldP
       }
       closing_ = true;
       timer_.cancel();
+      pace_timer_.cancel();
       release();
       return;
     }
@@ -407,6 +420,7 @@ class WsSession : public std::enable_shared_from_this<WsSession>, private WorldP
       writing_ = false;
       closing_ = true;
       timer_.cancel();
+      pace_timer_.cancel();
       release();
       return;
     }
@@ -432,6 +446,7 @@ class WsSession : public std::enable_shared_from_this<WsSession>, private WorldP
 
   void begin_closing(std::chrono::milliseconds grace) {
     closing_ = true;
+    pace_timer_.cancel();
     timer_.expires_after(grace);
     timer_.async_wait([self = shared_from_this()](beast::error_code ec) {
       if (!ec) self->cut_socket();
@@ -483,6 +498,7 @@ class WsSession : public std::enable_shared_from_this<WsSession>, private WorldP
   websocket::stream<beast::tcp_stream> ws_;
   beast::flat_buffer buffer_;
   net::steady_timer timer_;
+  net::steady_timer pace_timer_;  // the bandwidth cap's (act::Pace)
   std::string peer_;
   uint64_t registry_id_ = 0;
   bool player_ = false;  // said hello and took a player slot (else counts as a handshake)

@@ -314,6 +314,12 @@ TEST(ProtoMalformed, server_messages_are_checked_as_strictly) {
                        R"("max_rooms_per_request":256,"max_rooms_in_flight":1024,"max_lod":256,)"
                        R"("idle_timeout_ms":60000,"handshake_timeout_ms":10000}})"),
        ErrorCode::kBadMessage, "field 'limits.max_lod' must be in [0, 255]"},
+      {"max_kbps zero (absent means no cap)",
+       R"({"type":"welcome","version":1,"server":"s","seed":"1","params":"0000000000000000",)" +
+           std::string(R"("limits":{"max_message_bytes":65536,"max_frame_bytes":4194304,)"
+                       R"("max_rooms_per_request":256,"max_rooms_in_flight":1024,"max_lod":0,)"
+                       R"("idle_timeout_ms":60000,"handshake_timeout_ms":10000,"max_kbps":0}})"),
+       ErrorCode::kBadMessage, "field 'limits.max_kbps' must be"},
       {"tiny message limit",
        R"({"type":"welcome","version":1,"server":"s","seed":"1","params":"0000000000000000",)" +
            std::string(R"("limits":{"max_message_bytes":10,"max_frame_bytes":4194304,)"

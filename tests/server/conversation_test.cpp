@@ -79,6 +79,7 @@ std::string describe(const Action& action) {
     std::string operator()(const act::Timer& a) {
       return "timer " + std::to_string(a.after.count());
     }
+    std::string operator()(const act::Pace& a) { return "pace " + std::to_string(a.after.count()); }
     std::string operator()(const act::Close& a) {
       return "close " + std::to_string(static_cast<int>(a.code)) + " " + a.reason;
     }
@@ -136,6 +137,9 @@ Event oversized() {
 Event deadline() {
   return [](Conversation& c) { c.deadline(); };
 }
+Event pace() {
+  return [](Conversation& c) { c.pace(); };
+}
 Event shutdown() {
   return [](Conversation& c) { c.shutdown(); };
 }
@@ -148,11 +152,11 @@ Event sent(uint64_t bytes) {
 Event gone() {
   return [](Conversation& c) { c.transport_closed(); };
 }
-Event deliver(const char* id, uint8_t lod = 0) {
-  return [id, lod](Conversation& c) {
+Event deliver(const char* id, uint8_t lod = 0, size_t frame_bytes = 3) {
+  return [id, lod, frame_bytes](Conversation& c) {
     auto r = std::make_shared<EncodedRoom>();
     r->key = {room(id), lod, kSeed};
-    r->frame = {1, 2, 3};
+    r->frame.assign(frame_bytes, 1);
     Delivery d;
     d.key = r->key;
     d.room = r;
@@ -590,6 +594,74 @@ TEST(Conversation, the_request_rate) {
            State::kClosed},
       },
       slow);
+}
+
+// max_kbps: room frames go out at most at the cap, averaged over a second; ready rooms beyond it
+// wait, the most urgent first, and still count as in flight.
+TEST(Conversation, the_bandwidth_cap) {
+  ConversationConfig capped = config();
+  capped.limits.max_kbps = 80;  // 10,000 bytes a second, 10 a millisecond; the bucket holds 10,000
+  const std::string request =
+      R"({"type":"request","ref":30,"rooms":[{"id":"2.0.0.r0","lod":0,"priority":5},)"
+      R"({"id":"2.0.0.r1","lod":0,"priority":5},{"id":"2.0.0.r2","lod":0,"priority":9},)"
+      R"({"id":"2.0.0.r3","lod":0,"priority":1}]})";
+  // r0 and r1 spend the bucket to -2,000 bytes; r2 then waits.
+  const std::vector<Event> spent =
+      open_then({text(request), deliver("2.0.0.r0", 0, 6000), deliver("2.0.0.r1", 0, 6000),
+                 deliver("2.0.0.r2", 0, 6000)});
+  std::vector<Event> both_wait = spent;
+  both_wait.push_back(deliver("2.0.0.r3", 0, 6000));
+  std::vector<Event> refilled = both_wait;
+  refilled.push_back(wait_ms(200));
+  run(
+      {
+          {"within the bucket a room goes at once",
+           open_then({text(request)}),
+           deliver("2.0.0.r0", 0, 6000),
+           {"room 2.0.0.r0@0"},
+           State::kOpen},
+          {"a frame larger than what is left still goes while the bucket is not below zero",
+           open_then({text(request), deliver("2.0.0.r0", 0, 6000)}),
+           deliver("2.0.0.r1", 0, 6000),
+           {"room 2.0.0.r1@0"},
+           State::kOpen},
+          {"below zero a ready room waits, the timer set for when the bucket is back at zero",
+           open_then({text(request), deliver("2.0.0.r0", 0, 6000), deliver("2.0.0.r1", 0, 6000)}),
+           deliver("2.0.0.r2", 0, 6000),
+           {"pace 200"},
+           State::kOpen},
+          {"a waiting room is still in flight",
+           spent,
+           text(R"({"type":"stats","ref":4})"),
+           {"timer 60000", "stats in_flight=2 rooms_sent=2 bytes_sent=0 errors=0 ref=4"},
+           State::kOpen},
+          {"too early, nothing goes", both_wait, pace(), {"pace 200"}, State::kOpen},
+          {"the most urgent waiting room goes first",
+           refilled,
+           pace(),
+           {"room 2.0.0.r3@0", "pace 600"},
+           State::kOpen},
+          {"a cancelled waiting room is never sent, and the generator has nothing to drop",
+           spent,
+           text(R"({"type":"cancel","rooms":["2.0.0.r2","2.0.0.r3"]})"),
+           {"timer 60000", "drop 2.0.0.r3"},
+           State::kOpen},
+          {"...so the timer then sends nothing",
+           [&] {
+             auto e = refilled;
+             e.push_back(text(R"({"type":"cancel","rooms":["2.0.0.r2","2.0.0.r3"]})"));
+             return e;
+           }(),
+           pace(),
+           {},
+           State::kOpen},
+          {"a waiting room asked again at another lod is dropped and wanted anew",
+           spent,
+           text(R"({"type":"request","ref":31,"rooms":[{"id":"2.0.0.r2","lod":1,"priority":0}]})"),
+           {"timer 60000", "drop 2.0.0.r2", "want 2.0.0.r2@1/0"},
+           State::kOpen},
+      },
+      capped);
 }
 
 // A client sending garbage in a loop gets every error, but the log gets ten lines and a count.
