@@ -534,6 +534,49 @@ TEST(ServerRooms, re_requesting_a_room_replaces_its_lod_and_priority) {
     EXPECT_NE(frame_id(frame), rooms[300].id);
 }
 
+// --max-kbps over real sockets: frames come no faster than the cap allows, and rooms asked for
+// later at a smaller priority overtake the far ones still waiting for bandwidth.
+TEST(ServerRooms, max_kbps_paces_frames_and_near_rooms_overtake_far_ones) {
+  auto c = test_config();
+  c.limits.max_kbps = 200;  // 25,000 bytes a second; the bucket holds as much
+  auto server = start(c);
+  ASSERT_TRUE(server);
+  auto rooms = many_rooms(35);
+  Client client(server->port());
+  ASSERT_FALSE(client.connect());
+  EXPECT_EQ(client.hello().limits.max_kbps, 200u);
+  const auto t0 = Clock::now();
+  ASSERT_FALSE(client.send(request_of(rooms, 0, 30, 1, 50)));  // far: ~80 KB, over 3 s of cap
+  std::vector<RoomId> order;
+  size_t bytes = 0, largest = 0;
+  auto read_frame = [&] {
+    auto [ec, in] = client.read();
+    ASSERT_FALSE(ec) << ec.message();
+    ASSERT_FALSE(in.text) << in.data;
+    order.push_back(frame_id(in.data));
+    bytes += in.data.size();
+    largest = std::max(largest, in.data.size());
+  };
+  read_frame();
+  ASSERT_FALSE(client.send(request_of(rooms, 30, 5, 2, 0)));  // near
+  while (order.size() < 35 && !HasFatalFailure())
+    read_frame();
+  const double elapsed = std::chrono::duration<double>(Clock::now() - t0).count();
+  // The bucket (25,000 bytes) and one overdrawing frame may go at once; the rest at the rate.
+  const double floor_s =
+      (static_cast<double>(bytes) - 25'000 - static_cast<double>(largest)) / 25'000;
+  EXPECT_GE(elapsed, floor_s) << bytes << " bytes";
+  EXPECT_GT(floor_s, 1.0);  // the test asks for well over the bucket
+  // Every near room came before the last ten far ones.
+  size_t last_near = 0;
+  for (size_t i = 0; i < order.size(); ++i) {
+    for (size_t k = 30; k < 35; ++k)
+      if (order[i] == rooms[k].id) last_near = i;
+  }
+  EXPECT_LT(last_near, order.size() - 10);
+  EXPECT_GT(server->metrics().bandwidth_waits.value(), 0u);
+}
+
 // ---- bad input: each case gets its documented code; the server and other clients carry on ----
 
 struct BadCase {
