@@ -28,7 +28,7 @@ struct ServerConfig {
   int max_connections = 1024;  // players (sessions past hello) at once; more are refused
   // Sessions upgraded but not yet past hello, counted apart from players so that sockets which
   // never say hello cannot take the players' places; each has handshake_timeout_ms.
-  int max_handshakes = 128;
+  int max_handshakes = 512;
   size_t send_queue_bytes = size_t{8} << 20;       // unsent bytes per client before it is dropped
   std::chrono::milliseconds http_timeout{10'000};  // a plain HTTP request or a WebSocket upgrade
   std::chrono::milliseconds drain_timeout{5'000};  // stop(): bound on the graceful close

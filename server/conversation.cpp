@@ -67,6 +67,12 @@ void Conversation::admit(Admission admission) {
                                              "); retry later"},
            std::nullopt);
       return;
+    case Admission::kHandshakesFull:
+      fail(Error{ErrorCode::kOverloaded, "too many connections waiting for hello (max_handshakes " +
+                                             std::to_string(config_.max_handshakes) +
+                                             "); retry later"},
+           std::nullopt);
+      return;
   }
 }
 

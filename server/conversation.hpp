@@ -96,6 +96,7 @@ struct ConversationConfig {
   uint64_t params_digest = 0;
   std::string server_name;              // welcome.server
   int max_connections = 0;              // named in the connection-limit error
+  int max_handshakes = 0;               // named in the handshake-pool error
   std::function<uint64_t()> unix_ms;    // pong.time; null: the system clock
   std::function<uint64_t()> steady_ms;  // the request rate's and max_kbps's clock; null: steady
   uint64_t session = 0;                 // for log lines
@@ -103,7 +104,8 @@ struct ConversationConfig {
 };
 
 // Whether the server took the connection when its upgrade completed.
-enum class Admission { kAdmitted, kFull, kStopping };
+// kFull: max_connections players; kHandshakesFull: max_handshakes connections awaiting hello.
+enum class Admission { kAdmitted, kFull, kHandshakesFull, kStopping };
 
 class Conversation {
  public:

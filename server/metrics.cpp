@@ -146,7 +146,9 @@ std::string Metrics::render() const {
           "Failed accepts (no file descriptors left, ...); accepting pauses after each.",
           accept_failures.value());
   counter(out, "grotto_connections_rejected_total",
-          "Connections refused because max_connections were open.", connections_rejected.value());
+          "Connections refused at the door: max_connections players or max_handshakes waiting for "
+          "hello.",
+          connections_rejected.value());
   counter(out, "grotto_http_requests_total", "Plain HTTP requests answered.",
           http_requests_total.value());
   counter(out, "grotto_messages_total", "Control messages received from clients.",

@@ -55,7 +55,8 @@ class Metrics {
   // Connections (sessions on the WebSocket path; HTTP requests counted apart).
   Counter connections_total;     // grotto_connections_total
   Gauge connections_open;        // grotto_connections_open
-  Counter connections_rejected;  // grotto_connections_rejected_total (over max_connections)
+  Counter connections_rejected;  // grotto_connections_rejected_total (max_connections or
+                                 // max_handshakes)
   Gauge handshakes_open;         // grotto_handshakes_open (sessions not yet past hello)
   Counter http_requests_total;   // grotto_http_requests_total
   Counter accept_failures;       // grotto_accept_failures_total (EMFILE and the like)

@@ -105,10 +105,18 @@ struct Server::Impl {
 
   // Admission at the upgrade: the session's registry id, or 0 when stopping, when every player
   // slot is taken, or when max_handshakes sessions are still waiting for their hello.
-  uint64_t admit(const std::shared_ptr<WsSession>& s) {
+  uint64_t admit(const std::shared_ptr<WsSession>& s, Admission& refusal) {
     std::lock_guard lock(sessions_mutex);
-    if (stopping.load() || players() >= static_cast<size_t>(config.max_connections) ||
-        handshakes >= static_cast<size_t>(config.max_handshakes)) {
+    if (stopping.load()) {
+      refusal = Admission::kStopping;
+      return 0;
+    }
+    if (players() >= static_cast<size_t>(config.max_connections)) {
+      refusal = Admission::kFull;
+      return 0;
+    }
+    if (handshakes >= static_cast<size_t>(config.max_handshakes)) {
+      refusal = Admission::kHandshakesFull;
       return 0;
     }
     uint64_t id = next_session++;
@@ -230,22 +238,25 @@ class WsSession : public std::enable_shared_from_this<WsSession>, private WorldP
       spdlog::debug("event=ws_accept_failed peer={} error=\"{}\"", peer_, ec.message());
       return;
     }
-    registry_id_ = server_.admit(shared_from_this());
+    Admission refusal = Admission::kAdmitted;
+    registry_id_ = server_.admit(shared_from_this(), refusal);
     ConversationConfig c;
     c.limits = limits_;
     c.token = server_.config.token;
     c.params_digest = server_.params_digest;
     c.server_name = product_version();
     c.max_connections = server_.config.max_connections;
+    c.max_handshakes = server_.config.max_handshakes;
     c.session = registry_id_;
     c.peer = peer_;
     conversation_.emplace(std::move(c), static_cast<WorldPort&>(*this), &server_.metrics);
     if (registry_id_ == 0) {
-      bool stopping = server_.stopping.load();
       server_.metrics.connections_rejected.add();
       spdlog::warn("event=connection_rejected peer={} reason={}", peer_,
-                   stopping ? "stopping" : "max_connections");
-      conversation_->admit(stopping ? Admission::kStopping : Admission::kFull);
+                   refusal == Admission::kStopping ? "stopping"
+                   : refusal == Admission::kFull   ? "max_connections"
+                                                   : "max_handshakes");
+      conversation_->admit(refusal);
       apply();
       return;
     }
