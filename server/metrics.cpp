@@ -145,6 +145,16 @@ std::string Metrics::render() const {
   counter(out, "grotto_accept_failures_total",
           "Failed accepts (no file descriptors left, ...); accepting pauses after each.",
           accept_failures.value());
+  gauge(out, "grotto_fd_reserve_held",
+        "Reserve file descriptors held for health checks while the process is out of them.",
+        fd_reserve_held.value());
+  counter(out, "grotto_fd_reserve_connections_total",
+          "Connections accepted on a reserve descriptor while out of file descriptors and "
+          "answered health-only.",
+          fd_reserve_connections.value());
+  counter(out, "grotto_fd_reserve_refill_failures_total",
+          "Times a reserve descriptor could not be opened again (retried on the next accept).",
+          fd_reserve_refill_failures.value());
   counter(out, "grotto_connections_rejected_total",
           "Connections refused at the door: max_connections players or max_handshakes waiting for "
           "hello.",

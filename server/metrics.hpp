@@ -62,6 +62,11 @@ class Metrics {
   Counter accept_failures;       // grotto_accept_failures_total (EMFILE and the like)
   Gauge sockets_open;            // grotto_sockets_open (accepted TCP sockets, upgraded or not)
   Counter sockets_shed;          // grotto_sockets_shed_total (closed at accept: too many open)
+  // Out of file descriptors, a few reserve descriptors are traded for connections that are
+  // answered health-only (/healthz, /readyz, /metrics; server.cpp, "the fd reserve").
+  Gauge fd_reserve_held;               // grotto_fd_reserve_held (reserve descriptors held now)
+  Counter fd_reserve_connections;      // grotto_fd_reserve_connections_total (answered health-only)
+  Counter fd_reserve_refill_failures;  // grotto_fd_reserve_refill_failures_total
   // Control messages received, and room wants they carried.
   Counter messages_total;   // grotto_messages_total
   Counter rooms_requested;  // grotto_rooms_requested_total

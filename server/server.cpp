@@ -5,7 +5,10 @@
 // reads as do_x/on_x pairs; sends go through a queue with one async_write in flight.
 #include "server/server.hpp"
 
+#include <fcntl.h>
+#include <poll.h>
 #include <spdlog/spdlog.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <atomic>
@@ -17,7 +20,9 @@
 #include <boost/beast/core.hpp>
 #include <boost/beast/http.hpp>
 #include <boost/beast/websocket.hpp>
+#include <cerrno>
 #include <condition_variable>
+#include <cstring>
 #include <deque>
 #include <future>
 #include <mutex>
@@ -51,8 +56,52 @@ constexpr std::size_t kReadPiece = 16 * 1024;
 // Sockets accepted beyond players and handshakes: plain HTTP (probes, scrapes) and upgrades on
 // their way.
 constexpr int kSpareSockets = 64;
+// The fd reserve (issue 17): descriptors on /dev/null held back so that, with the process out of
+// file descriptors, /healthz, /readyz and /metrics still answer. Each is traded for one pending
+// connection, answered health-only (its request and its answer each within kReserveDeadline), then
+// closed; the reserve is opened again on the accept strand.
+constexpr int kFdReserve = 4;
+constexpr auto kReserveDeadline = std::chrono::milliseconds{1000};
+// While the reserve holds descriptors, a paused acceptor looks again at least this often, so a
+// probe waits at most this long in the backlog (with none held, the pause doubles up to 1 s).
+constexpr auto kReservePause = std::chrono::milliseconds{100};
+// Silent connections closed in one turn of the accept strand (the rest wait for the next turn).
+constexpr int kReserveDrainPerTurn = 256;
 
 class WsSession;
+
+// Descriptors held back for health checks while the process has none left. Only the accept strand
+// touches it.
+class FdReserve {
+ public:
+  FdReserve() = default;
+  FdReserve(const FdReserve&) = delete;
+  FdReserve& operator=(const FdReserve&) = delete;
+  ~FdReserve() {
+    for (int fd : fds_)
+      ::close(fd);
+  }
+  // Opens descriptors until kFdReserve are held: 0, or the errno of the open that failed.
+  int refill() {
+    while (held() < kFdReserve) {
+      int fd = ::open("/dev/null", O_RDONLY | O_CLOEXEC);
+      if (fd < 0) return errno;
+      fds_.push_back(fd);
+    }
+    return 0;
+  }
+  // Closes one held descriptor so that the next accept can have its number; false if none held.
+  bool release() {
+    if (fds_.empty()) return false;
+    ::close(fds_.back());
+    fds_.pop_back();
+    return true;
+  }
+  int held() const { return static_cast<int>(fds_.size()); }
+
+ private:
+  std::vector<int> fds_;
+};
 
 }  // namespace
 
@@ -72,6 +121,8 @@ struct Server::Impl {
   std::optional<net::steady_timer> accept_pause;
   std::chrono::milliseconds accept_backoff{0};
   uint64_t accept_failures_unlogged = 0;
+  FdReserve reserve;  // on the accept strand
+  Clock::time_point refill_logged{};
   // Every accepted TCP socket, upgraded or not, holds a slot until its session ends; over
   // max_sockets() new ones are closed at once (shed), so sockets that never send a request
   // cannot use up the process's file descriptors.
@@ -146,6 +197,12 @@ struct Server::Impl {
 
   void do_accept();
   void on_accept(beast::error_code ec, tcp::socket socket);
+  void serve_from_reserve();
+  bool connection_waiting();
+  void refill_reserve();
+  // A reserve connection ended (its socket is closed): open the reserve again, and look at the
+  // backlog at once if the acceptor is paused. From any thread.
+  void reserve_returned();
 };
 
 namespace {
@@ -164,6 +221,21 @@ class SocketSlot {
  private:
   std::atomic<int>* count_;
   Metrics* metrics_;
+};
+
+// A reserve connection's hold on the reserve. Declared before the session's stream, so the
+// socket is closed before the reserve is opened again.
+class ReserveLoan {
+ public:
+  explicit ReserveLoan(Server::Impl& server) : server_(&server) {}
+  ReserveLoan(ReserveLoan&& other) noexcept : server_(std::exchange(other.server_, nullptr)) {}
+  ReserveLoan& operator=(ReserveLoan&&) = delete;
+  ~ReserveLoan() {
+    if (server_) server_->reserve_returned();
+  }
+
+ private:
+  Server::Impl* server_;
 };
 
 // ---- WebSocket session ----
@@ -529,8 +601,13 @@ class WsSession : public std::enable_shared_from_this<WsSession>, private WorldP
 
 class HttpSession : public std::enable_shared_from_this<HttpSession> {
  public:
-  HttpSession(Server::Impl& server, tcp::socket&& socket, SocketSlot slot)
-      : slot_(std::move(slot)), server_(server), stream_(std::move(socket)) {}
+  // With a loan, the connection holds a reserve descriptor and is answered health-only.
+  HttpSession(Server::Impl& server, tcp::socket&& socket, SocketSlot slot,
+              std::optional<ReserveLoan> loan = std::nullopt)
+      : slot_(std::move(slot)),
+        loan_(std::move(loan)),
+        server_(server),
+        stream_(std::move(socket)) {}
 
   void run() {
     net::dispatch(stream_.get_executor(),
@@ -550,6 +627,7 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
           std::min(timeout, std::chrono::milliseconds{server_.config.limits.handshake_timeout_ms});
       first_request_ = false;
     }
+    if (loan_) timeout = std::min<std::chrono::milliseconds>(timeout, kReserveDeadline);
     stream_.expires_after(timeout);
     http::async_read(stream_, buffer_, *parser_,
                      beast::bind_front_handler(&HttpSession::on_read, shared_from_this()));
@@ -573,6 +651,7 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
     auto req = parser_->release();
     std::string_view target(req.target().data(), req.target().size());
     std::string_view path = target.substr(0, target.find('?'));
+    if (loan_) return respond_from_reserve(req, path);
     if (websocket::is_upgrade(req)) {
       if (path != proto::kWebSocketPath) {
         server_.metrics.http_requests_total.add();
@@ -615,6 +694,33 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
     return respond(req, http::status::not_found, "text/plain", "not found\n");
   }
 
+  // Out of file descriptors, this connection holds a reserve descriptor: health and metrics answer
+  // as usual (the process lives; it is not ready for new players, and says why); anything else,
+  // an upgrade included, gets 503. Never kept alive, so the descriptor comes back soon.
+  template <class Request>
+  void respond_from_reserve(const Request& req, std::string_view path) {
+    static const std::string kWhy =
+        "out of file descriptors: new connections are refused until some close (answered from "
+        "the fd reserve)\n";
+    server_.metrics.http_requests_total.add();
+    bool get = req.method() == http::verb::get || req.method() == http::verb::head;
+    if (get && path == "/healthz") {
+      return respond(req, http::status::ok, "text/plain", "ok\n" + kWhy);
+    }
+    if (get && path == "/readyz") {
+      std::string body = "not ready: " + kWhy;
+      if (server_.generator) body += "compute: " + server_.generator->compute_path() + "\n";
+      return respond(req, http::status::service_unavailable, "text/plain", std::move(body));
+    }
+    if (get && path == "/metrics") {
+      return respond(req, http::status::ok, "text/plain; version=0.0.4; charset=utf-8",
+                     server_.metrics.render());
+    }
+    return respond(
+        req, http::status::service_unavailable, "text/plain",
+        kWhy + "only GET /healthz, /readyz and /metrics are answered now; retry later\n");
+  }
+
   template <class Request>
   void respond(const Request& req, http::status status, const char* type, std::string body,
                bool upgrade = false) {
@@ -625,12 +731,14 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
       res->set(http::field::upgrade, "websocket");
       res->set(http::field::connection, "Upgrade");
     }
-    res->keep_alive(req.keep_alive() && !upgrade);
+    if (loan_ && status == http::status::service_unavailable)
+      res->set(http::field::retry_after, "1");
+    res->keep_alive(req.keep_alive() && !upgrade && !loan_);
     bool head = req.method() == http::verb::head;
     res->body() = std::move(body);
     res->prepare_payload();
     if (head) res->body().clear();
-    stream_.expires_after(server_.config.http_timeout);
+    stream_.expires_after(loan_ ? kReserveDeadline : server_.config.http_timeout);
     http::async_write(stream_, *res,
                       [self = shared_from_this(), res](beast::error_code ec, std::size_t) {
                         self->on_write(ec, res->keep_alive());
@@ -661,6 +769,7 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
   }
 
   SocketSlot slot_;
+  std::optional<ReserveLoan> loan_;  // destroyed after stream_: the socket closes first
   Server::Impl& server_;
   beast::tcp_stream stream_;
   bool first_request_ = true;
@@ -697,23 +806,88 @@ void Server::Impl::on_accept(beast::error_code ec, tcp::socket socket) {
       metrics.sockets_open.set(open);
     }
     std::make_shared<HttpSession>(*this, std::move(socket), SocketSlot(sockets, metrics))->run();
+    if (reserve.held() < kFdReserve) refill_reserve();
     return do_accept();
   }
   // Out of file descriptors (or another failure): the pending connection stays in the backlog,
   // so accepting again at once would spin. Pause, then try again; log once a second at most.
+  // Out of descriptors, the reserve answers health checks meanwhile.
   metrics.accept_failures.add();
   ++accept_failures_unlogged;
-  accept_backoff = std::clamp(accept_backoff * 2, std::chrono::milliseconds{10},
-                              std::chrono::milliseconds{1000});
+  if (ec == net::error::no_descriptors || ec == beast::errc::too_many_files_open_in_system) {
+    serve_from_reserve();
+  }
+  auto longest = reserve.held() > 0 ? kReservePause : std::chrono::milliseconds{1000};
+  accept_backoff = std::clamp(accept_backoff * 2, std::chrono::milliseconds{10}, longest);
   if (auto now = Clock::now(); now - accept_logged >= std::chrono::seconds{1}) {
-    spdlog::warn("event=accept_failed error=\"{}\" failures={} pause_ms={}", ec.message(),
-                 accept_failures_unlogged, accept_backoff.count());
+    spdlog::warn(
+        "event=accept_failed error=\"{}\" failures={} pause_ms={} reserve_held={} "
+        "reserve_connections={}",
+        ec.message(), accept_failures_unlogged, accept_backoff.count(), reserve.held(),
+        metrics.fd_reserve_connections.value());
     accept_failures_unlogged = 0;
     accept_logged = now;
   }
   accept_pause->expires_after(accept_backoff);
-  accept_pause->async_wait([this](beast::error_code wait_ec) {
-    if (!wait_ec) do_accept();
+  // Cancelled by stop(), or early by a reserve coming back (reserve_returned).
+  accept_pause->async_wait([this](beast::error_code) {
+    if (!stopping.load()) do_accept();
+  });
+}
+
+// Trades a reserve descriptor for the connection that has waited longest. A silent one with
+// others behind it is closed at once (counted as shed), so a backlog of squatters cannot keep a
+// probe from its turn; one with a request to read, or the last in line, is answered health-only.
+void Server::Impl::serve_from_reserve() {
+  if (!reserve.release()) return;
+  metrics.fd_reserve_held.set(reserve.held());
+  beast::error_code ignored;
+  for (int drained = 0; drained <= kReserveDrainPerTurn; ++drained) {
+    tcp::socket socket(net::make_strand(ioc));
+    beast::error_code ec;
+    acceptor->accept(socket, ec);  // the acceptor is non-blocking: would_block when none waits
+    if (ec) break;
+    if (socket.available(ignored) == 0 && connection_waiting()) {
+      metrics.sockets_shed.add();
+      socket.close(ignored);  // its number goes to the next in line
+      continue;
+    }
+    socket.set_option(tcp::no_delay(true), ignored);
+    metrics.sockets_open.set(sockets.fetch_add(1) + 1);
+    metrics.fd_reserve_connections.add();
+    std::make_shared<HttpSession>(*this, std::move(socket), SocketSlot(sockets, metrics),
+                                  ReserveLoan(*this))
+        ->run();
+    return;
+  }
+  refill_reserve();  // the number went unused: nobody waiting, or another thread took it
+}
+
+bool Server::Impl::connection_waiting() {
+  pollfd p{acceptor->native_handle(), POLLIN, 0};
+  return ::poll(&p, 1, 0) == 1 && (p.revents & POLLIN) != 0;
+}
+
+// Opens the reserve up to kFdReserve; a failure is counted, logged once a second at most, and
+// retried on the next accept, pause or returned reserve connection.
+void Server::Impl::refill_reserve() {
+  int err = reserve.refill();
+  metrics.fd_reserve_held.set(reserve.held());
+  if (err == 0) return;
+  metrics.fd_reserve_refill_failures.add();
+  if (auto now = Clock::now(); now - refill_logged >= std::chrono::seconds{1}) {
+    spdlog::warn("event=fd_reserve_refill_failed error=\"{}\" held={} of {}", std::strerror(err),
+                 reserve.held(), kFdReserve);
+    refill_logged = now;
+  }
+}
+
+void Server::Impl::reserve_returned() {
+  if (stopping.load()) return;  // the strand may be gone with the io_context
+  net::post(*accept_strand, [this] {
+    if (stopping.load()) return;
+    refill_reserve();
+    accept_pause->cancel();  // a paused acceptor looks at the backlog now
   });
 }
 
@@ -763,6 +937,11 @@ Result<std::unique_ptr<Server>> Server::start(const ServerConfig& config) {
     return Error{ErrorCode::kUnavailable, "cannot listen on " + where + ": " + ec.message()};
   }
   impl->bound = acc.local_endpoint(ec);
+  // Sync accepts (serve_from_reserve) must not block; async_accept is unaffected.
+  if (acc.non_blocking(true, ec); ec) {
+    return Error{ErrorCode::kUnavailable, "cannot make the listener non-blocking: " + ec.message()};
+  }
+  impl->refill_reserve();  // before any thread runs: the accept strand is not yet in use
   net::dispatch(*impl->accept_strand, [p = impl.get()] { p->do_accept(); });
   for (int i = 0; i < threads; ++i) {
     impl->threads.emplace_back([p = impl.get()] { p->ioc.run(); });
