@@ -81,9 +81,9 @@ class FdReserve {
     for (int fd : fds_)
       ::close(fd);
   }
-  // Opens descriptors until kFdReserve are held: 0, or the errno of the open that failed.
-  int refill() {
-    while (held() < kFdReserve) {
+  // Opens descriptors until `target` are held: 0, or the errno of the open that failed.
+  int refill(int target) {
+    while (held() < target) {
       int fd = ::open("/dev/null", O_RDONLY | O_CLOEXEC);
       if (fd < 0) return errno;
       fds_.push_back(fd);
@@ -121,7 +121,8 @@ struct Server::Impl {
   std::optional<net::steady_timer> accept_pause;
   std::chrono::milliseconds accept_backoff{0};
   uint64_t accept_failures_unlogged = 0;
-  FdReserve reserve;  // on the accept strand
+  FdReserve reserve;      // on the accept strand
+  int reserve_loans = 0;  // on the accept strand: reserve descriptors out with connections
   Clock::time_point refill_logged{};
   // Every accepted TCP socket, upgraded or not, holds a slot until its session ends; over
   // max_sockets() new ones are closed at once (shed), so sockets that never send a request
@@ -806,7 +807,7 @@ void Server::Impl::on_accept(beast::error_code ec, tcp::socket socket) {
       metrics.sockets_open.set(open);
     }
     std::make_shared<HttpSession>(*this, std::move(socket), SocketSlot(sockets, metrics))->run();
-    if (reserve.held() < kFdReserve) refill_reserve();
+    if (reserve.held() + reserve_loans < kFdReserve) refill_reserve();
     return do_accept();
   }
   // Out of file descriptors (or another failure): the pending connection stays in the backlog,
@@ -839,7 +840,7 @@ void Server::Impl::on_accept(beast::error_code ec, tcp::socket socket) {
 // others behind it is closed at once (counted as shed), so a backlog of squatters cannot keep a
 // probe from its turn; one with a request to read, or the last in line, is answered health-only.
 void Server::Impl::serve_from_reserve() {
-  if (!reserve.release()) return;
+  if (!reserve.release()) return refill_reserve();  // none held: try to open them again
   metrics.fd_reserve_held.set(reserve.held());
   beast::error_code ignored;
   for (int drained = 0; drained <= kReserveDrainPerTurn; ++drained) {
@@ -855,6 +856,7 @@ void Server::Impl::serve_from_reserve() {
     socket.set_option(tcp::no_delay(true), ignored);
     metrics.sockets_open.set(sockets.fetch_add(1) + 1);
     metrics.fd_reserve_connections.add();
+    ++reserve_loans;
     std::make_shared<HttpSession>(*this, std::move(socket), SocketSlot(sockets, metrics),
                                   ReserveLoan(*this))
         ->run();
@@ -868,10 +870,11 @@ bool Server::Impl::connection_waiting() {
   return ::poll(&p, 1, 0) == 1 && (p.revents & POLLIN) != 0;
 }
 
-// Opens the reserve up to kFdReserve; a failure is counted, logged once a second at most, and
-// retried on the next accept, pause or returned reserve connection.
+// Opens the reserve up to kFdReserve, less the descriptors out with connections; a failure is
+// counted, logged once a second at most, and retried on the next accept, pause or returned
+// reserve connection.
 void Server::Impl::refill_reserve() {
-  int err = reserve.refill();
+  int err = reserve.refill(kFdReserve - reserve_loans);
   metrics.fd_reserve_held.set(reserve.held());
   if (err == 0) return;
   metrics.fd_reserve_refill_failures.add();
@@ -886,6 +889,7 @@ void Server::Impl::reserve_returned() {
   if (stopping.load()) return;  // the strand may be gone with the io_context
   net::post(*accept_strand, [this] {
     if (stopping.load()) return;
+    --reserve_loans;
     refill_reserve();
     accept_pause->cancel();  // a paused acceptor looks at the backlog now
   });
