@@ -210,6 +210,10 @@ websocket::close_reason Client::wait_close(std::chrono::milliseconds timeout) {
   return {};
 }
 
+void Client::close(websocket::close_code code) {
+  run([&](auto h) { ws_.async_close(code, h); });
+}
+
 void Client::close_tcp() {
   beast::error_code ignored;
   beast::get_lowest_layer(ws_).socket().close(ignored);

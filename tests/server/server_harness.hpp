@@ -94,6 +94,8 @@ class Client {
   std::optional<grotto::proto::ErrorMessage> next_error();
   // Reads until the server closes; returns its close reason (code 0 if it never closed).
   websocket::close_reason wait_close(std::chrono::milliseconds timeout = kWait);
+  // A WebSocket close handshake with `code`, bounded like every operation.
+  void close(websocket::close_code code = websocket::close_code::normal);
   void close_tcp();
 
   websocket::stream<beast::tcp_stream>& ws() { return ws_; }

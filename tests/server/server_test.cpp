@@ -611,7 +611,7 @@ TEST(ServerLimits, connections_over_max_connections_are_refused) {
   EXPECT_EQ(server->metrics().connections_rejected.value(), 1u);
   EXPECT_TRUE(a.alive());
   // A place frees up when a client leaves.
-  a.ws().close(websocket::close_code::normal);
+  a.close();
   auto deadline = Clock::now() + kWait;
   while (server->sessions() > 1 && Clock::now() < deadline)
     std::this_thread::sleep_for(5ms);
