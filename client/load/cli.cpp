@@ -77,6 +77,10 @@ CommandLine parse_command_line(int argc, const char* const* argv) {
                  "Prefetch horizon in seconds: rooms reachable within it are requested (walk, "
                  "soak)")
       ->capture_default_str();
+  app.add_option("--min-horizon", o.min_horizon_s,
+                 "Adaptive prefetch: the horizon follows the rooms' latency (1 s + 2 x its recent "
+                 "p90) between this and --horizon; 0: always --horizon (walk, soak)")
+      ->capture_default_str();
   app.add_option("--radius", o.radius_m,
                  "burst mode: metres of walking distance wanted around each player")
       ->capture_default_str();
@@ -170,6 +174,7 @@ CommandLine parse_command_line(int argc, const char* const* argv) {
   for (const std::string& m : {check_number("--duration", o.duration_s, 0, 1e7),
                                check_number("--speed", o.speed, 0.01, 1000),
                                check_number("--horizon", o.horizon_s, 0.01, 3600),
+                               check_number("--min-horizon", o.min_horizon_s, 0, 3600),
                                check_number("--radius", o.radius_m, 0.01, 100'000),
                                check_number("--tick-hz", o.tick_hz, 1, 1000),
                                check_number("--turn-back", o.walker.turn_back_chance, 0, 1),

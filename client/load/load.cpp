@@ -88,6 +88,9 @@ Status check(const LoadOptions& o) {
     return invalid_argument("--players must be in [1, 10000]");
   if (!(o.speed > 0)) return invalid_argument("--speed must be > 0");
   if (!(o.horizon_s > 0)) return invalid_argument("--horizon must be > 0");
+  if (!(o.min_horizon_s >= 0 && o.min_horizon_s <= o.horizon_s)) {
+    return invalid_argument("--min-horizon must be in [0, --horizon]");
+  }
   if (!(o.radius_m > 0)) return invalid_argument("--radius must be > 0");
   if (!(o.duration_s >= 0)) return invalid_argument("--duration must be >= 0");
   if (!(o.tick_hz > 0)) return invalid_argument("tick_hz must be > 0");
@@ -160,6 +163,7 @@ Result<LoadReport> run_load(const LoadOptions& options) {
   report.players = options.players;
   report.speed = options.speed;
   report.horizon_s = burst ? options.radius_m / options.speed : options.horizon_s;
+  report.min_horizon_s = burst ? 0 : options.min_horizon_s;
   report.radius_m = burst ? options.radius_m : 0;
   report.duration_s = duration;
   report.max_stalls = options.max_stalls;
@@ -228,6 +232,7 @@ Result<LoadReport> run_load(const LoadOptions& options) {
     so.name = "grotto-load";
     so.token = options.token;
     so.plan = plan_options;
+    if (!burst) so.min_horizon_s = options.min_horizon_s;
     so.spawn = !options.spread;
     so.store_bytes = options.store_bytes;
     auto stream = Stream::start(so, runtime);
@@ -365,6 +370,7 @@ Result<LoadReport> run_load(const LoadOptions& options) {
     pr.rooms_ready = s.rooms_ready;
     pr.rooms_received = s.rooms_received;
     pr.bytes = s.bytes_received;
+    pr.horizon_s = s.horizon_s;
     pr.mean_kbps =
         report.elapsed_s > 0 ? static_cast<double>(pr.bytes) * 8.0 / 1000.0 / report.elapsed_s : 0;
     // A run shorter than a second has no whole window: its mean is its peak.

@@ -65,11 +65,13 @@ void total_players(LoadReport& r) {
     r.rooms_per_s = static_cast<double>(r.rooms_ready) / r.elapsed_s;
     r.mb_per_s = static_cast<double>(r.bytes) / 1e6 / r.elapsed_s;
   }
-  std::vector<double> means, peaks;
+  std::vector<double> means, peaks, horizons;
   for (const auto& p : r.players_detail) {
     means.push_back(p.mean_kbps);
     peaks.push_back(p.peak_kbps);
+    horizons.push_back(p.horizon_s);
   }
+  r.final_horizon_s = summarize(std::move(horizons));
   r.player_kbps = summarize(std::move(means));
   r.player_peak_kbps = summarize(std::move(peaks));
   r.rooms_per_room_entered = r.rooms_entered > 0 ? static_cast<double>(r.rooms_received) /
@@ -129,6 +131,7 @@ std::string format_table(const LoadReport& r) {
   distribution_row(out, "stall ms", r.stall_ms);
   distribution_row(out, "player kbit/s (mean)", r.player_kbps);
   distribution_row(out, "player kbit/s (peak s)", r.player_peak_kbps);
+  if (r.min_horizon_s > 0) distribution_row(out, "horizon s at the end", r.final_horizon_s);
   appendf(out, "\n  rooms ready       %10llu  (%.1f rooms/s)\n", u(r.rooms_ready), r.rooms_per_s);
   appendf(out, "  bytes received    %10llu  (%.2f MB/s)\n", u(r.bytes), r.mb_per_s);
   appendf(out, "  rooms received    %10llu  rejected %llu, evicted %llu, given up %llu\n",
@@ -203,6 +206,7 @@ std::string to_json_text(const LoadReport& r) {
          {"bytes", p.bytes},
          {"mean_kbps", p.mean_kbps},
          {"peak_kbps", p.peak_kbps},
+         {"horizon_s", p.horizon_s},
          {"requests", p.requests},
          {"cancels", p.cancels},
          {"rooms_entered", p.rooms_entered},
@@ -244,6 +248,8 @@ std::string to_json_text(const LoadReport& r) {
       {"spread", r.spread},
       {"speed_m_s", r.speed},
       {"horizon_s", r.horizon_s},
+      {"min_horizon_s", r.min_horizon_s},
+      {"final_horizon_s", to_json(r.final_horizon_s)},
       {"radius_m", r.radius_m},
       {"duration_s", r.duration_s},
       {"elapsed_s", r.elapsed_s},

@@ -30,6 +30,7 @@ struct PlayerReport {
   uint64_t rooms_received = 0;   // room frames accepted
   uint64_t bytes = 0;            // bytes received
   double mean_kbps = 0;          // bytes x 8 / 1000 over the run's elapsed time
+  double horizon_s = 0;          // the prefetch horizon in use at the end (--min-horizon)
   double peak_kbps = 0;          // the most received in one whole second of the run, x 8 / 1000
   uint64_t requests = 0;         // rooms requested
   uint64_t cancels = 0;          // rooms cancelled
@@ -89,6 +90,8 @@ struct LoadReport {
   // Prefetch waste: rooms received per portal crossed (0 with no crossing). 1 means each room
   // arrived once and was entered; prefetch asks for rooms the player may not take, so it is more.
   double rooms_per_room_entered = 0;
+  Distribution final_horizon_s;  // each player's horizon at the end (adaptive with --min-horizon)
+  double min_horizon_s = 0;
   uint64_t stalls = 0;
   double stall_total_s = 0;
   uint64_t reconnects = 0, drops = 0, streams_failed = 0;

@@ -135,6 +135,8 @@ Actions Conversation::binary(std::span<const uint8_t> bytes, SteadyTime now) {
   sample.id = id;
   sample.frame_bytes = bytes.size();
   sample.latency_ms = ms_between(it->second.sent, now);
+  recent_latency_ms_.push_back(sample.latency_ms);
+  if (recent_latency_ms_.size() > kLatencyWindow) recent_latency_ms_.pop_front();
   in_flight_.erase(it);
   if (auto added = graph_.add(frame.room); !added) {
     ++stats_.rooms_rejected;
@@ -401,6 +403,19 @@ void Conversation::on_message(const proto::ErrorMessage& e, SteadyTime now, Acti
 
 // ---- planning ----
 
+// Rooms must arrive before the player reaches them: the horizon covers the time a room takes to
+// come (the p90 of recent latencies, doubled for its spread) and a second for decoding, a turn and
+// a sprint's start. Without samples (a new stream, or a server that sent nothing yet) it is the
+// maximum, so a slow start is not made slower.
+double Conversation::horizon_s() const {
+  const double max = options_.plan.horizon_s;
+  if (options_.min_horizon_s <= 0 || recent_latency_ms_.empty()) return max;
+  std::vector<double> sorted(recent_latency_ms_.begin(), recent_latency_ms_.end());
+  std::sort(sorted.begin(), sorted.end());
+  const double p90 = sorted[std::min(sorted.size() - 1, sorted.size() * 9 / 10)];
+  return std::clamp(1.0 + 2.0 * p90 / 1000.0, options_.min_horizon_s, max);
+}
+
 void Conversation::send(proto::ClientMessage message, SteadyTime now, Actions& out) {
   last_send_ = now;
   out.emplace_back(std::in_place_type<SendMessage>, SendMessage{std::move(message)});
@@ -425,14 +440,15 @@ void Conversation::plan(SteadyTime now, Actions& out) {
     return;
   }
   current_ = start;
+  const double horizon = horizon_s();
   PlanOptions wide = options_.plan;
-  wide.horizon_s *= options_.cancel_factor;
+  wide.horizon_s = horizon * options_.cancel_factor;
   auto keep = graph_.plan(*start, pose_, wide);
   std::set<cave::RoomId> keep_ids;
   wanted_.clear();
   for (const auto& p : keep) {
     keep_ids.insert(p.id);
-    if (p.seconds <= options_.plan.horizon_s) wanted_.insert(p.id);
+    if (p.seconds <= horizon) wanted_.insert(p.id);
   }
   const uint32_t batch = batch_size();
   std::vector<cave::RoomId> cancels;
@@ -457,7 +473,7 @@ void Conversation::plan(SteadyTime now, Actions& out) {
   std::vector<proto::RoomWant> wants;
   for (const auto& p : keep) {
     if (in_flight_.size() + wants.size() >= cap) break;
-    if (p.seconds > options_.plan.horizon_s) break;
+    if (p.seconds > horizon) break;
     if (store_.contains(p.id) || in_flight_.count(p.id) || decoding_.count(p.id) ||
         given_up_.count(p.id)) {
       continue;
@@ -557,6 +573,7 @@ StreamStats Conversation::stats() const {
   s.in_flight = in_flight_.size();
   s.store_bytes = store_.bytes();
   s.store_rooms = store_.size();
+  s.horizon_s = horizon_s();
   return s;
 }
 

@@ -24,6 +24,7 @@
 #include <chrono>
 #include <cstddef>
 #include <cstdint>
+#include <deque>
 #include <map>
 #include <memory>
 #include <optional>
@@ -162,6 +163,7 @@ class Conversation {
   void on_message(const proto::Stats&, SteadyTime, Actions&) {}
 
   void plan(SteadyTime now, Actions& out);
+  double horizon_s() const;  // StreamOptions::min_horizon_s: from recent_latency_ms_
   void send(proto::ClientMessage message, SteadyTime now, Actions& out);
   uint32_t batch_size() const;
   void count_failure(cave::RoomId id);
@@ -209,6 +211,8 @@ class Conversation {
   std::set<cave::RoomId> wanted_;  // the last plan, within the horizon
   std::vector<std::shared_ptr<const ReadyRoom>> fresh_;
   std::vector<RoomSample> samples_;
+  std::deque<double> recent_latency_ms_;  // the last kLatencyWindow request->room latencies
+  static constexpr size_t kLatencyWindow = 32;
   std::vector<cave::RoomId> evicted_;
   StreamStats stats_;
 };

@@ -14,6 +14,9 @@ Status validate_options(const StreamOptions& options) {
   if (!(options.plan.horizon_s > 0) || !std::isfinite(options.plan.horizon_s)) {
     return invalid("horizon must be a positive number of seconds");
   }
+  if (!(options.min_horizon_s >= 0 && options.min_horizon_s <= options.plan.horizon_s)) {
+    return invalid("min_horizon_s must be in [0, horizon] seconds");
+  }
   if (!(options.cancel_factor >= 1) || !std::isfinite(options.cancel_factor)) {
     return invalid("cancel_factor must be at least 1");
   }

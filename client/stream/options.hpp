@@ -26,7 +26,13 @@ struct StreamOptions {
   // Wire lod requested (0: the streamed patch mesh), capped at the server's max_lod. One lod a
   // session: rooms of lod 0 and lod 1 do not share rims, so neighbours must be of one lod.
   uint32_t lod = 0;
-  PlanOptions plan{};                      // horizon and view weighting
+  PlanOptions plan{};  // horizon and view weighting
+  // Adaptive prefetch: with min_horizon_s > 0 the horizon follows how long rooms take to come,
+  // 1 s + 2 x the p90 of the last 32 request->room latencies, kept within [min_horizon_s,
+  // plan.horizon_s]; before the first room arrives it is plan.horizon_s. A healthy server then
+  // gets asked for fewer rooms the player may never enter, and a slow one for as many as before.
+  // 0: always plan.horizon_s.
+  double min_horizon_s = 0;
   double cancel_factor = 1.5;              // cancel a room in flight once its cost exceeds
                                            // cancel_factor × horizon (or it is unreachable)
   uint32_t max_in_flight = 64;             // own cap; the server's max_rooms_in_flight also applies
@@ -82,6 +88,7 @@ struct StreamStats {
   std::string server;            // welcome.server of the current or last connection
   std::optional<uint64_t> seed;  // welcome.seed: the world served (none before a welcome)
   proto::Limits limits;          // welcome.limits of the current or last connection
+  double horizon_s = 0;          // the prefetch horizon in use (StreamOptions::min_horizon_s)
 };
 
 // Per-room measurements, for grotto-load's percentiles; drained by take_samples().

@@ -813,6 +813,8 @@ TEST(Conversation, timers_limits_and_cancels_table) {
   two.max_rooms_per_request = 1;
   StreamOptions own_cap;
   own_cap.max_in_flight = 3;
+  StreamOptions adaptive;
+  adaptive.min_horizon_s = 1.5;
   run_table({
       {"quiet tick: nothing",
        Start::kReady,
@@ -873,6 +875,39 @@ TEST(Conversation, timers_limits_and_cancels_table) {
        StreamState::kReady,
        in_flight_is({1, 2}),
        two},
+      {"adaptive horizon: rooms come at once, so only what is 1.5 s away is asked for",
+       Start::kReady,
+       [](Harness& h) { return h.frame(frame_of(0)); },
+       {"decode 0.0.0.r0@0", "request 0.0.0.r4@0"},
+       StreamState::kReady,
+       [](const Harness& h) {
+         in_flight_is({4})(h);
+         EXPECT_DOUBLE_EQ(h.c.stats().horizon_s, 1.5);
+       },
+       {},
+       adaptive},
+      {"adaptive horizon: a room that took 1.2 s widens it to 1 + 2 x 1.2 = 3.4 s",
+       Start::kReady,
+       [](Harness& h) {
+         h.now += milliseconds(1200);  // no tick: nothing else happens meanwhile
+         return h.frame(frame_of(0));
+       },
+       {"decode 0.0.0.r0@0", "request 0.0.0.r4@0 0.0.0.r1@0 0.0.0.r2@0 0.0.0.r3@0"},
+       StreamState::kReady,
+       [](const Harness& h) { EXPECT_NEAR(h.c.stats().horizon_s, 3.4, 1e-9); },
+       {},
+       adaptive},
+      {"adaptive horizon: never past plan.horizon_s (r5 at 4.375 s stays unasked)",
+       Start::kReady,
+       [](Harness& h) {
+         h.now += seconds(9);
+         return h.frame(frame_of(0));
+       },
+       {"decode 0.0.0.r0@0", "request 0.0.0.r4@0 0.0.0.r1@0 0.0.0.r2@0 0.0.0.r3@0"},
+       StreamState::kReady,
+       [](const Harness& h) { EXPECT_DOUBLE_EQ(h.c.stats().horizon_s, 4.0); },
+       {},
+       adaptive},
       {"turning away: what leaves the horizon is cancelled",
        Start::kDecoding,
        [](Harness& h) {
