@@ -36,10 +36,14 @@ double mean(const std::vector<double>& v) {
   return v.empty() ? 0 : s / static_cast<double>(v.size());
 }
 
-// Per room: bytes, encode ms, decode ms.
+double max_of(const std::vector<double>& v) {
+  return v.empty() ? 0 : *std::max_element(v.begin(), v.end());
+}
+
+// Per room: bytes, bytes of positions and connectivity alone (Draco rows), encode ms, decode ms.
 struct Row {
   std::string name;
-  std::vector<double> bytes, encode_ms, decode_ms;
+  std::vector<double> bytes, geometry_bytes, encode_ms, decode_ms;
 };
 
 // The meshoptimizer peer's vertex, quantized like the Draco payload (positions on the same grid,
@@ -110,6 +114,7 @@ int main(int argc, char** argv) {
   std::string json_path = "codec_bench.json";
   int reps = 5, room_count = 100;
   uint64_t seed = 42;
+  int profile_loops = 0;
   app.add_option("--json", json_path, "Write the report here")->capture_default_str();
   app.add_option("--repetitions", reps, "Runs per room and setting (the median is kept)")
       ->check(CLI::Range(1, 100))
@@ -118,6 +123,10 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(1, 1000))
       ->capture_default_str();
   app.add_option("--seed", seed, "World seed")->capture_default_str();
+  app.add_option("--profile-loops", profile_loops,
+                 "Only encode and decode every room this many times with the defaults, for a "
+                 "profiler (perf record, callgrind), and report nothing")
+      ->check(CLI::Range(0, 100000));
   CLI11_PARSE(app, argc, argv);
 
   cave::World world = cave::World::create(seed, cave::LayoutParams{}).value();
@@ -133,6 +142,17 @@ int main(int argc, char** argv) {
     detail.push_back(std::move(d).value());
   }
   spdlog::info("codec_bench rooms={} reps={}", patch.size(), reps);
+  if (profile_loops > 0) {
+    size_t total = 0;
+    for (int i = 0; i < profile_loops; ++i) {
+      for (const mesh::RoomMesh& m : patch) {
+        std::vector<uint8_t> bytes = codec::encode_room(m).value();
+        total += codec::decode_room(bytes).value().vertex_count();
+      }
+    }
+    spdlog::info("codec_bench profile loops={} vertices={}", profile_loops, total);
+    return 0;
+  }
 
   std::vector<double> raw_detail, raw_patch, patch_vertices;
   for (size_t i = 0; i < patch.size(); ++i) {
@@ -143,11 +163,13 @@ int main(int argc, char** argv) {
 
   std::vector<Row> rows;
   auto measure_draco = [&](const std::string& name, codec::EncodeOptions opt) {
-    Row row{name, {}, {}, {}};
+    Row row{name, {}, {}, {}, {}};
     for (const mesh::RoomMesh& m : patch) {
       std::vector<uint8_t> bytes;
       row.encode_ms.push_back(median_ms(reps, [&] { bytes = codec::encode_room(m, opt).value(); }));
       row.bytes.push_back(static_cast<double>(bytes.size()));
+      row.geometry_bytes.push_back(
+          static_cast<double>(codec::encode_geometry_only(codec::view_of(m), opt).value().size()));
       row.decode_ms.push_back(median_ms(reps, [&] {
         auto d = codec::decode_room(bytes);
         if (!d) std::abort();
@@ -159,23 +181,26 @@ int main(int argc, char** argv) {
     return "draco speed " + std::to_string(o.speed) + ", normals " + std::to_string(o.normal_bits) +
            ", channels " + std::to_string(o.channel_bits);
   };
-  // Speed (edgebreaker traversal and prediction schemes) at 10-bit normals and 8-bit channels.
+  // Speed (edgebreaker traversal and prediction schemes) at the default quantization.
+  const codec::EncodeOptions defaults;
   for (int speed : {0, 3, 5, 7, 9}) {
-    codec::EncodeOptions opt{speed, 10, 8};
+    codec::EncodeOptions opt = defaults;
+    opt.speed = speed;
     measure_draco(label(opt), opt);
   }
-  // Quantization of normals and channels at speed 3.
+  // Quantization of normals and channels at the default speed.
   for (auto [normal_bits, channel_bits] :
-       {std::pair{12, 8}, {8, 8}, {8, 7}, {10, 6}, {8, 6}, {7, 6}}) {
-    codec::EncodeOptions opt{3, normal_bits, channel_bits};
+       {std::pair{10, 8}, {8, 8}, {8, 7}, {8, 6}, {8, 5}, {7, 6}, {7, 5}}) {
+    codec::EncodeOptions opt = defaults;
+    opt.normal_bits = normal_bits;
+    opt.channel_bits = channel_bits;
     measure_draco(label(opt), opt);
   }
-  codec::EncodeOptions defaults;
   measure_draco(label(defaults) + " (default)", defaults);
 
   // Draco's decoder alone (no validation, no copy into DecodedRoom), default settings.
   {
-    Row row{"draco::Decoder alone, default settings", {}, {}, {}};
+    Row row{"draco::Decoder alone, default settings", {}, {}, {}, {}};
     for (const mesh::RoomMesh& m : patch) {
       std::vector<uint8_t> bytes = codec::encode_room(m).value();
       row.bytes.push_back(static_cast<double>(bytes.size()));
@@ -191,7 +216,8 @@ int main(int argc, char** argv) {
 
   // The peer: meshoptimizer's vertex and index codecs after its vertex cache and fetch passes.
   {
-    Row row{"meshoptimizer vertex+index codec (16-bit grid positions, 8-bit normals)", {}, {}, {}};
+    Row row{
+        "meshoptimizer vertex+index codec (16-bit grid positions, 8-bit normals)", {}, {}, {}, {}};
     for (const mesh::RoomMesh& m : patch) {
       PeerEncoded enc;
       row.encode_ms.push_back(median_ms(reps, [&] { enc = peer_encode(m); }));
@@ -224,26 +250,48 @@ int main(int argc, char** argv) {
       "raw float32 patch room %.0f B\n\n",
       patch.size(), median(patch_vertices), median(raw_detail), median(raw_patch));
   std::printf(
-      "| setting | bytes/room (median) | bytes/room (mean) | raw detail / bytes | encode "
-      "ms/room | decode ms/room |\n| --- | ---: | ---: | ---: | ---: | ---: |\n");
+      "| setting | bytes/room (median) | bytes/room (mean) | raw detail / bytes | positions + "
+      "connectivity bits/vertex | encode ms/room (median / mean) | decode ms/room (median / mean "
+      "/ max) |\n| --- | ---: | ---: | ---: | ---: | ---: | ---: |\n");
   for (const Row& r : rows) {
-    std::vector<double> ratio;
+    std::vector<double> ratio, geometry_bits;
+    double geometry_total = 0, vertex_total = 0;
     for (size_t i = 0; i < r.bytes.size(); ++i)
       ratio.push_back(raw_detail[i] / r.bytes[i]);
-    settings.push_back(
-        {{"name", r.name},
-         {"bytes_median", median(r.bytes)},
-         {"bytes_mean", mean(r.bytes)},
-         {"raw_detail_ratio_median", median(ratio)},
-         {"raw_detail_ratio_of_means", mean(raw_detail) / mean(r.bytes)},
-         {"encode_ms_median", median(r.encode_ms)},
-         {"decode_ms_median", median(r.decode_ms)},
-         {"decode_ms_max",
-          r.decode_ms.empty() ? 0 : *std::max_element(r.decode_ms.begin(), r.decode_ms.end())}});
-    char encode[32] = "–";
-    if (!r.encode_ms.empty()) std::snprintf(encode, sizeof encode, "%.3f", median(r.encode_ms));
-    std::printf("| %s | %.0f | %.0f | %.1f | %s | %.3f |\n", r.name.c_str(), median(r.bytes),
-                mean(r.bytes), median(ratio), encode, median(r.decode_ms));
+    for (size_t i = 0; i < r.geometry_bytes.size(); ++i) {
+      geometry_bits.push_back(8.0 * r.geometry_bytes[i] / patch_vertices[i]);
+      geometry_total += 8.0 * r.geometry_bytes[i];
+      vertex_total += patch_vertices[i];
+    }
+    nlohmann::json s = {{"name", r.name},
+                        {"bytes_median", median(r.bytes)},
+                        {"bytes_mean", mean(r.bytes)},
+                        {"raw_detail_ratio_median", median(ratio)},
+                        {"raw_detail_ratio_of_means", mean(raw_detail) / mean(r.bytes)},
+                        {"decode_ms_median", median(r.decode_ms)},
+                        {"decode_ms_mean", mean(r.decode_ms)},
+                        {"decode_ms_max", max_of(r.decode_ms)}};
+    if (!r.encode_ms.empty()) {
+      s["encode_ms_median"] = median(r.encode_ms);
+      s["encode_ms_mean"] = mean(r.encode_ms);
+      s["encode_ms_max"] = max_of(r.encode_ms);
+    }
+    char encode[48] = "–", bits[48] = "–";
+    if (!r.encode_ms.empty()) {
+      std::snprintf(encode, sizeof encode, "%.3f / %.3f", median(r.encode_ms), mean(r.encode_ms));
+    }
+    if (!r.geometry_bytes.empty()) {
+      // Per room (median), and over all rooms' bits and vertices.
+      s["geometry_bytes_median"] = median(r.geometry_bytes);
+      s["geometry_bits_per_vertex_median"] = median(geometry_bits);
+      s["geometry_bits_per_vertex_overall"] = geometry_total / vertex_total;
+      std::snprintf(bits, sizeof bits, "%.1f (%.0f B)", median(geometry_bits),
+                    median(r.geometry_bytes));
+    }
+    settings.push_back(s);
+    std::printf("| %s | %.0f | %.0f | %.1f | %s | %s | %.3f / %.3f / %.3f |\n", r.name.c_str(),
+                median(r.bytes), mean(r.bytes), median(ratio), bits, encode, median(r.decode_ms),
+                mean(r.decode_ms), max_of(r.decode_ms));
   }
   report["settings"] = settings;
   std::ofstream(json_path) << report.dump(2) << "\n";

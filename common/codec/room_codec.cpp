@@ -115,7 +115,12 @@ RoomView view_of(const DecodedRoom& r, Vec3 origin) {
           r.mineral, r.rim_portal, r.rim_index, r.indices};
 }
 
-Result<std::vector<uint8_t>> encode_room(const RoomView& room, const EncodeOptions& options) {
+namespace {
+
+// encode_room, or with `geometry_only` the same payload without the three non-position
+// attributes (encode_geometry_only).
+Result<std::vector<uint8_t>> encode(const RoomView& room, const EncodeOptions& options,
+                                    bool geometry_only) {
   if (options.speed < 0 || options.speed > 9) return fail("encoder speed outside 0..9");
   if (options.normal_bits < 2 || options.normal_bits > 16) return fail("normal bits outside 2..16");
   if (options.channel_bits < 1 || options.channel_bits > 16) {
@@ -155,13 +160,16 @@ Result<std::vector<uint8_t>> encode_room(const RoomView& room, const EncodeOptio
     }
   }
   const int pos_id = dm.AddAttribute(std::move(pos));
-  const int nrm_id = dm.AddAttribute(std::move(nrm));
-  const int chn_id = dm.AddAttribute(std::move(chn));
-  const int rim_id = dm.AddAttribute(std::move(rim));
   dm.attribute(pos_id)->set_unique_id(kPositionId);
-  dm.attribute(nrm_id)->set_unique_id(kNormalId);
-  dm.attribute(chn_id)->set_unique_id(kChannelsId);
-  dm.attribute(rim_id)->set_unique_id(kRimId);
+  int nrm_id = -1, chn_id = -1;
+  if (!geometry_only) {
+    nrm_id = dm.AddAttribute(std::move(nrm));
+    chn_id = dm.AddAttribute(std::move(chn));
+    const int rim_id = dm.AddAttribute(std::move(rim));
+    dm.attribute(nrm_id)->set_unique_id(kNormalId);
+    dm.attribute(chn_id)->set_unique_id(kChannelsId);
+    dm.attribute(rim_id)->set_unique_id(kRimId);
+  }
 
   // The world grid as Draco's quantizer: Draco dequantizes q * (range / (2^bits - 1)) + origin in
   // float32, so range = (2^bits - 1) * kStep makes the step exactly kStep (a power of two, the
@@ -185,6 +193,19 @@ Result<std::vector<uint8_t>> encode_room(const RoomView& room, const EncodeOptio
   draco::ExpertEncoder encoder(dm);
   encoder.SetEncodingMethod(draco::MESH_EDGEBREAKER_ENCODING);
   encoder.SetSpeedOptions(options.speed, options.speed);
+  // Every attribute has one value per point, so no attribute has a seam: one connectivity serves
+  // them all. Below speed 6 Draco would still build and encode a seam table per non-position
+  // attribute (MeshAttributeCornerTable::InitFromAttribute on both sides), ~30% of the encode
+  // and ~25% of the decode of a patch room for nothing (docs/BENCHMARKS.md, "Room codec"). With
+  // one connectivity the payload has one attribute decoder holding all four attributes and no
+  // attribute tables, which every Draco decoder reads.
+  encoder.options().SetGlobalBool("split_mesh_on_seams", true);
+  // Draco uses the plain edgebreaker for meshes under 1,000 triangles, whatever the speed; the
+  // valence coder it uses above that (speed < 5) makes a median patch room's connectivity ~100
+  // bytes (5% of the payload) smaller for ~0.03 ms more encoding.
+  if (options.speed < 5) {
+    encoder.options().SetGlobalInt("edgebreaker_method", draco::MESH_EDGEBREAKER_VALENCE_ENCODING);
+  }
   encoder.SetAttributeExplicitQuantization(pos_id, bits, 3, origin, range);
   // Draco keeps options as text written with std::to_string (six decimals), which would turn
   // the range 2047/256 into 7.996094 and the step into no power of two. Grid values are dyadic
@@ -194,8 +215,10 @@ Result<std::vector<uint8_t>> encode_room(const RoomView& room, const EncodeOptio
                                              exact_text(origin[2]));
   exact.SetString("quantization_range", exact_text(range));
   encoder.options().SetAttributeOptions(pos_id, exact);
-  encoder.SetAttributeQuantization(nrm_id, options.normal_bits);
-  encoder.SetAttributeExplicitQuantization(chn_id, options.channel_bits, 2, channel_origin, 1.0f);
+  if (!geometry_only) {
+    encoder.SetAttributeQuantization(nrm_id, options.normal_bits);
+    encoder.SetAttributeExplicitQuantization(chn_id, options.channel_bits, 2, channel_origin, 1.0f);
+  }
   draco::EncoderBuffer buffer;
   draco::Status status = encoder.EncodeToBuffer(&buffer);
   if (!status.ok()) {
@@ -206,6 +229,17 @@ Result<std::vector<uint8_t>> encode_room(const RoomView& room, const EncodeOptio
   }
   const auto* data = reinterpret_cast<const uint8_t*>(buffer.data());
   return std::vector<uint8_t>(data, data + buffer.size());
+}
+
+}  // namespace
+
+Result<std::vector<uint8_t>> encode_room(const RoomView& room, const EncodeOptions& options) {
+  return encode(room, options, false);
+}
+
+Result<std::vector<uint8_t>> encode_geometry_only(const RoomView& room,
+                                                  const EncodeOptions& options) {
+  return encode(room, options, true);
 }
 
 namespace {

@@ -60,7 +60,7 @@ struct EncodeOptions {
   int speed = 3;         // Draco encoding and decoding speed, 0 (smallest) to 9; 10 (sequential
                          // connectivity) is refused: the decoder accepts only edgebreaker
   int normal_bits = 8;   // octahedral normal quantization, 2-16
-  int channel_bits = 7;  // roughness and mineral quantization over [0, 1], 1-16
+  int channel_bits = 6;  // roughness and mineral quantization over [0, 1], 1-16
 };
 
 // A room's geometry as spans, the codec's input. Views a mesh::RoomMesh or a DecodedRoom.
@@ -128,6 +128,13 @@ inline Result<std::vector<uint8_t>> encode_room(const mesh::RoomMesh& mesh,
                                                 const EncodeOptions& options = {}) {
   return encode_room(view_of(mesh), options);
 }
+
+// What encode_room would write for `room` with the position attribute alone: the payload's
+// positions and connectivity, the part the world grid fixes. For measuring (bench/codec_bench
+// reports its bits per vertex); decode_room refuses it (three attributes are missing). Fails as
+// encode_room does.
+Result<std::vector<uint8_t>> encode_geometry_only(const RoomView& room,
+                                                  const EncodeOptions& options = {});
 
 // Decodes a payload made by encode_room. Safe for untrusted input, with bounded memory
 // (kPatchDecodePeakBytes / kDetailDecodePeakBytes): the size limit and the counts that Draco's
