@@ -1,9 +1,11 @@
 // The room codec against its budget and a peer, in one run: bytes per streamed patch room and
 // encode/decode time per room at several Draco settings, against the raw float32 detail room
 // (positions + normals + indices, what a client would otherwise need) and against meshoptimizer's
-// vertex/index codec on the same quantized data. One thread; medians over rooms of the median over
-// repetitions. Writes a JSON report and prints a Markdown table. Command and results:
-// docs/BENCHMARKS.md ("Room codec").
+// vertex/index codec on the same quantized data. One thread; per room the median over
+// repetitions, then the median, mean and (decode) maximum over rooms, and the bits per vertex of
+// positions and connectivity alone (codec::encode_geometry_only). Writes a JSON report and prints
+// a Markdown table; --profile-loops only encodes and decodes, for a profiler. Command and results:
+// docs/BENCHMARKS.md ("Room codec"); bench/codec_levers.cpp compares Draco's levers one by one.
 #include <draco/compression/decode.h>
 #include <meshoptimizer.h>
 #include <spdlog/spdlog.h>

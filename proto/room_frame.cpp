@@ -57,8 +57,8 @@ Status validate_room_frame(const RoomFrame& frame, const Limits& limits) {
   }
   if (frame.payload.empty()) return bad_frame("payload is empty");
   if (Status s = check_position(frame.origin, "origin"); !s) return s;
-  if (!grid::on_grid(frame.origin.x) || !grid::on_grid(frame.origin.y) ||
-      !grid::on_grid(frame.origin.z)) {
+  if (!grid::on_wire_grid(frame.origin.x) || !grid::on_wire_grid(frame.origin.y) ||
+      !grid::on_wire_grid(frame.origin.z)) {
     return bad_frame("origin is not on the 1/256 m grid");
   }
   const Vec3 c = room.sphere.centre;

@@ -4,6 +4,7 @@
 #include <vector>
 
 #include "core/bytes.hpp"
+#include "core/grid.hpp"
 #include "core/random.hpp"
 
 namespace grotto::proto {
@@ -77,6 +78,9 @@ uint64_t world_params_digest(const cave::LayoutParams& layout, const mesh::MeshP
         m.mineral_frequency, m.rim_min_radius, m.rim_softness, m.passage_roundness}) {
     c.f64(v);
   }
+  // The world grid moves every vertex and rim: rooms built on another grid must not share a
+  // client's cache with these.
+  c.f64(grid::kStep);
   return fold_digest(layout_params_digest(layout), c.bytes());
 }
 

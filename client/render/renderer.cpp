@@ -20,7 +20,8 @@ namespace {
 constexpr double kPi = 3.14159265358979323846;
 constexpr double kMaxPitch = 89.0 * kPi / 180.0;
 // The anchor grid: a power of two, so anchor coordinates are exact and room offsets from it stay
-// below grid::kFrameSize (65536 m) for any room near the camera.
+// below 65,536 m for any room near the camera: the float32-exact frame of the wire's 1/256 m
+// grid (grid::kWireStepLog2), on which every server's room origins lie.
 constexpr double kAnchorStep = 1024.0;
 // A camera that moved further than this between two frames jumped (a cut): no motion blur.
 constexpr double kCutDistance = 2.0;  // metres
@@ -402,7 +403,7 @@ FrameStats Renderer::draw(const GpuRoomCache& cache, const Camera& camera, int w
       ++stats.rooms_culled;
       continue;
     }
-    // Exact: origin and anchor are grid values within kFrameSize of each other.
+    // Exact: origin and anchor are wire-grid values within 65,536 m of each other.
     glUniform3fv(u_.room_offset, 1, glm::value_ptr(to_vec3(room.origin - anchor)));
     const float room_radius = static_cast<float>(room.room.sphere.radius);
     glUniform1f(u_.room_radius, room_radius);

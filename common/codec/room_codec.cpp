@@ -35,8 +35,9 @@ bool unit(float3 n) {
   float len = std::sqrt(n.x * n.x + n.y * n.y + n.z * n.z);
   return std::fabs(len - 1.0f) <= kNormalTolerance;
 }
-bool on_grid(float3 v) {
-  return grid::on_grid(v.x) && grid::on_grid(v.y) && grid::on_grid(v.z);
+bool on_grid(float3 v, int step_log2) {
+  return grid::on_grid(v.x, step_log2) && grid::on_grid(v.y, step_log2) &&
+         grid::on_grid(v.z, step_log2);
 }
 bool in_unit_range(float v) {
   return v >= 0.0f && v <= 1.0f;  // false for NaN
@@ -48,7 +49,7 @@ std::string str(size_t v) {
 
 // The contracts of RoomView, checked before anything reaches Draco. The decoder checks the same
 // rules, so a room that decodes always encodes again (the fuzzer holds us to that).
-Status validate_view(const RoomView& r) {
+Status validate_view(const RoomView& r, int step_log2) {
   const size_t n = r.positions.size();
   if (r.normals.size() != n || r.roughness.size() != n || r.mineral.size() != n ||
       r.rim_portal.size() != n || r.rim_index.size() != n) {
@@ -60,8 +61,9 @@ Status validate_view(const RoomView& r) {
   if (t < 1 || t > kMaxTriangles) {
     return fail(str(t) + " triangles, outside 1.." + str(kMaxTriangles));
   }
-  if (!grid::on_grid(r.origin.x) || !grid::on_grid(r.origin.y) || !grid::on_grid(r.origin.z)) {
-    return fail("room origin is not on the world grid");
+  if (!grid::on_grid(r.origin.x, step_log2) || !grid::on_grid(r.origin.y, step_log2) ||
+      !grid::on_grid(r.origin.z, step_log2)) {
+    return fail("room origin is not on the encoder's grid");
   }
   for (size_t v = 0; v < n; ++v) {
     if (!finite(r.positions[v]) || !within_offset(r.positions[v])) {
@@ -77,8 +79,8 @@ Status validate_view(const RoomView& r) {
       return fail("vertex " + str(v) + ": rim slot " + std::to_string(r.rim_portal[v]) +
                   " out of range");
     }
-    if (r.rim_portal[v] >= 0 && !on_grid(r.positions[v])) {
-      return fail("vertex " + str(v) + ": rim vertex is not on the world grid");
+    if (r.rim_portal[v] >= 0 && !on_grid(r.positions[v], step_log2)) {
+      return fail("vertex " + str(v) + ": rim vertex is not on the encoder's grid");
     }
   }
   for (size_t i = 0; i < t; ++i) {
@@ -126,7 +128,10 @@ Result<std::vector<uint8_t>> encode(const RoomView& room, const EncodeOptions& o
   if (options.channel_bits < 1 || options.channel_bits > 16) {
     return fail("channel bits outside 1..16");
   }
-  if (Status s = validate_view(room); !s) return s.error();
+  if (options.grid_step_log2 < 0 || options.grid_step_log2 > grid::kWireStepLog2) {
+    return fail("grid step outside 2^-" + str(grid::kWireStepLog2) + "..1 m");
+  }
+  if (Status s = validate_view(room, options.grid_step_log2); !s) return s.error();
 
   const size_t n = room.positions.size();
   draco::Mesh dm;
@@ -172,20 +177,21 @@ Result<std::vector<uint8_t>> encode(const RoomView& room, const EncodeOptions& o
   }
 
   // The world grid as Draco's quantizer: Draco dequantizes q * (range / (2^bits - 1)) + origin in
-  // float32, so range = (2^bits - 1) * kStep makes the step exactly kStep (a power of two, the
+  // float32, so range = (2^bits - 1) * step makes the step exactly `step` (a power of two, the
   // division is exact) and a grid-multiple origin keeps every grid value exact; offsets below
-  // grid::kFrameSize keep the sum exact too. Encoding computes (v - origin) * 2^8 and rounds, which
-  // is exact for grid values, so grid points travel without loss.
+  // grid::kFrameSize keep the sum exact too. Encoding computes (v - origin) / step and rounds,
+  // which is exact for grid values, so grid points travel without loss.
+  const double step = 1.0 / static_cast<double>(1 << options.grid_step_log2);
   float origin[3];
   double extent = 0;
   for (int c = 0; c < 3; ++c) {
-    origin[c] = static_cast<float>(std::floor(lo[c] / grid::kStep) * grid::kStep);
+    origin[c] = static_cast<float>(std::floor(lo[c] / step) * step);
     extent = std::max(extent, hi[c] - origin[c]);
   }
   int bits = 1;
-  while (static_cast<double>((uint32_t{1} << bits) - 1) * grid::kStep < extent)
+  while (static_cast<double>((uint32_t{1} << bits) - 1) * step < extent)
     ++bits;
-  const float range = static_cast<float>(((uint32_t{1} << bits) - 1) * grid::kStep);
+  const float range = static_cast<float>(((uint32_t{1} << bits) - 1) * step);
   // Channels on [0, 1] explicitly: Draco's own range would follow the data (min/max per room),
   // and a dequantized 1 would not be exactly 1 in every room.
   const float channel_origin[2] = {0.0f, 0.0f};
@@ -503,8 +509,10 @@ Result<DecodedRoom> decode_room(std::span<const uint8_t> payload, const DecodeLi
       return fail("vertex " + str(v) + ": rim slot " + str(r[0] - 1u) + " out of range");
     }
     if (r[0] == 0 && r[1] != 0) return fail("vertex " + str(v) + ": rim index off any rim");
-    if (r[0] > 0 && !on_grid(out.positions[v])) {
-      return fail("vertex " + str(v) + ": rim vertex is not on the world grid");
+    // The wire's grid, not this build's world grid: rooms of a server on any power-of-two grid
+    // down to 1/256 m decode (grid.hpp).
+    if (r[0] > 0 && !on_grid(out.positions[v], grid::kWireStepLog2)) {
+      return fail("vertex " + str(v) + ": rim vertex is not on the 1/256 m grid");
     }
     out.rim_portal[v] = static_cast<int8_t>(static_cast<int>(r[0]) - 1);
     out.rim_index[v] = r[1];

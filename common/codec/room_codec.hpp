@@ -3,13 +3,16 @@
 //
 // Positions are offsets from the room's grid-snapped origin (the origin itself travels in the room
 // frame, proto/PROTOCOL.md "Room payload (Draco)"). They are quantized with an explicit Draco
-// quantization whose step is exactly grid::kStep and whose origin is a grid multiple, so a vertex
-// that lies on the grid (every portal rim vertex) decodes to the very same float it was encoded
-// from: the two rooms of a portal, each encoded alone, decode bit-identical shared rims. Draco's
-// edgebreaker reorders vertices, so rim membership travels as an attribute, never as an index.
+// quantization whose step is exactly grid::kStep (1/64 m) and whose origin is a grid multiple, so
+// a vertex that lies on the grid (every portal rim vertex) decodes to the very same float it was
+// encoded from: the two rooms of a portal, each encoded alone, decode bit-identical shared rims.
+// Draco's edgebreaker reorders vertices, so rim membership travels as an attribute, never as an
+// index. The decoder checks rims against the wire's 1/256 m grid (grid::kWireStep), on which
+// every power-of-two world grid from 1/256 m up lies, so rooms of older servers decode too.
 //
 // Attribute layout (unique ids are part of the format):
-//   0  POSITION  float32 x3  explicit quantization: step grid::kStep, origin a grid multiple
+//   0  POSITION  float32 x3  explicit quantization: step 2^-EncodeOptions::grid_step_log2 m
+//                            (grid::kStep by default), origin a multiple of it
 //   1  NORMAL    float32 x3  octahedral, EncodeOptions::normal_bits
 //   2  GENERIC   float32 x2  (roughness, mineral), explicit quantization of [0, 1]
 //   3  GENERIC   uint16  x2  (portal slot + 1 or 0 off rims, index on the portal's canonical loop)
@@ -20,6 +23,7 @@
 #include <span>
 #include <vector>
 
+#include "core/grid.hpp"
 #include "core/result.hpp"
 #include "core/vec3.hpp"
 #include "mesh/room_mesh.hpp"
@@ -52,20 +56,27 @@ inline constexpr double kMaxOffset = 1024.0;
 inline constexpr float kNormalTolerance = 1e-3f;
 
 // Draco settings. Brace-init means the defaults chosen by measurement (docs/BENCHMARKS.md, "Room
-// codec"): speed 3 (valence edgebreaker, parallelogram positions, geometric normal prediction:
-// 21% smaller than speed 7 for ~2x the decode time, ~0.5 ms a room), 8-bit octahedral normals
-// (< 1 degree) and 7-bit channels, the finest quantization that keeps a patch room under 1/50 of
-// the raw float32 detail room.
+// codec", 2026-11-25): speed 3 (valence edgebreaker at every size, parallelogram positions,
+// geometric normal prediction: 22% smaller than speed 5 to 9, for ~1.6x their encode and decode
+// time, ~0.27 ms and ~0.16 ms for a median room), 8-bit octahedral normals (< 1 degree; the
+// normals cost ~330 bytes a room whatever the prediction) and 6-bit channels (half a step is
+// 0.8% of [0, 1]; 90 bytes smaller than 7 bits). Whatever the speed, every attribute shares the
+// position connectivity (Draco's split_mesh_on_seams): the attributes have one value per vertex,
+// so the per-attribute seam tables Draco would otherwise build cost time and no bytes.
 struct EncodeOptions {
   int speed = 3;         // Draco encoding and decoding speed, 0 (smallest) to 9; 10 (sequential
                          // connectivity) is refused: the decoder accepts only edgebreaker
   int normal_bits = 8;   // octahedral normal quantization, 2-16
   int channel_bits = 6;  // roughness and mineral quantization over [0, 1], 1-16
+  // Positions are quantized on the grid of step 2^-grid_step_log2 m, 0 to grid::kWireStepLog2;
+  // the room's origin and rim vertices must lie on it. The world grid by default; a decoded room
+  // from another server may need the wire's finest (grid::kWireStepLog2) to encode again.
+  int grid_step_log2 = grid::kStepLog2;
 };
 
 // A room's geometry as spans, the codec's input. Views a mesh::RoomMesh or a DecodedRoom.
 struct RoomView {
-  Vec3 origin;                                    // on the grid (grid::on_grid per axis)
+  Vec3 origin;  // on the encoder's grid (EncodeOptions::grid_step_log2) on every axis
   std::span<const mesh::core::float3> positions;  // metres from origin
   std::span<const mesh::core::float3> normals;    // unit
   std::span<const float> roughness;               // 0-1
@@ -142,10 +153,10 @@ Result<std::vector<uint8_t>> encode_geometry_only(const RoomView& room,
 // decoder parses the bytes, and when it reaches the attribute descriptors (after connectivity,
 // before any attribute value is allocated) they must be exactly the four of the layout above, or
 // decoding stops there; then the layout and every value are validated (finite positions within
-// kMaxOffset, rim vertices on the grid, unit normals, channels in [0, 1], rim slots below
-// limits.portal_count, indices in range, no degenerate triangle). Limits over the kMax* ceilings
-// count as the ceilings. Every failure is an invalid_argument Error whose message names the
-// problem; nothing throws or aborts. Deterministic: the same bytes decode to the same room.
+// kMaxOffset, rim vertices on the 1/256 m wire grid, unit normals, channels in [0, 1], rim slots
+// below limits.portal_count, indices in range, no degenerate triangle). Limits over the kMax*
+// ceilings count as the ceilings. Every failure is an invalid_argument Error whose message names
+// the problem; nothing throws or aborts. Deterministic: the same bytes decode to the same room.
 // Thread-safe.
 Result<DecodedRoom> decode_room(std::span<const uint8_t> payload, const DecodeLimits& limits = {});
 

@@ -54,7 +54,8 @@ cave::Region* RoomCodecTest::region_ = nullptr;
 std::map<cave::RoomId, RoomMesh>* RoomCodecTest::meshes_ = nullptr;
 
 // Grid units of a float offset, as a key: decoded vertices are found again by their snapped
-// positions (Draco reorders vertices; two vertices of a patch mesh never share a 4 mm cell).
+// positions (Draco reorders vertices; two vertices of a patch mesh never share a grid cell: its
+// shortest edges are ~0.13 m, the cell 1/64 m).
 using GridKey = std::tuple<int64_t, int64_t, int64_t>;
 GridKey grid_key(float3 p) {
   auto k = [](float v) { return static_cast<int64_t>(std::llround(v / grid::kStep)); };
@@ -419,7 +420,7 @@ TEST(RoomCodecLayout, bad_values_are_errors) {
   off_grid[0].value = [](int v, int c) {
     return testing::octahedron_vertex(v)[c] + (v == 0 ? 0.001 : 0.0);
   };
-  expect_error(decode_room(draco_payload(off_grid)), "rim vertex is not on the world grid");
+  expect_error(decode_room(draco_payload(off_grid)), "rim vertex is not on the 1/256 m grid");
 }
 
 TEST(RoomCodecLayout, other_draco_geometry_is_an_error) {
@@ -449,7 +450,7 @@ TEST_F(RoomCodecTest, encoder_refuses_rooms_that_break_the_contract) {
   expect_refused(bad, "degenerate");
   bad = m;
   bad.origin.x += 0.001;
-  expect_refused(bad, "origin is not on the world grid");
+  expect_refused(bad, "origin is not on the encoder's grid");
   bad = m;
   bad.positions[2].y = std::nanf("");
   expect_refused(bad, "position not finite");
@@ -469,13 +470,49 @@ TEST_F(RoomCodecTest, encoder_refuses_rooms_that_break_the_contract) {
       break;
     }
   }
-  expect_refused(bad, "rim vertex is not on the world grid");
+  expect_refused(bad, "rim vertex is not on the encoder's grid");
   bad = m;
   bad.rim_portal[0] = kMaxPortals;  // would not decode: slots stay below kMaxPortals
   expect_refused(bad, "rim slot 127 out of range");
   EncodeOptions sequential;
   sequential.speed = 10;
   EXPECT_FALSE(encode_room(m, sequential).ok());
+  EncodeOptions finer_than_the_wire;
+  finer_than_the_wire.grid_step_log2 = grid::kWireStepLog2 + 1;
+  EXPECT_FALSE(encode_room(m, finer_than_the_wire).ok());
+}
+
+// The wire promises rims on the 1/256 m grid (proto/PROTOCOL.md), which this build's world grid
+// lies on: a room from a server that quantizes on 1/256 m (as Grotto did before the 1/64 m grid)
+// still decodes, its rims exact, and encodes again at that grid; the world grid refuses it.
+TEST_F(RoomCodecTest, rooms_on_the_finer_wire_grid_decode_and_encode_again_at_it) {
+  static_assert(grid::kStepLog2 < grid::kWireStepLog2, "the test needs a coarser world grid");
+  RoomMesh m = any_room();
+  size_t moved = m.vertex_count();
+  for (size_t v = 0; v < m.vertex_count() && moved == m.vertex_count(); ++v) {
+    if (m.rim_portal[v] >= 0) moved = v;
+  }
+  ASSERT_LT(moved, m.vertex_count());
+  m.positions[moved].x += static_cast<float>(grid::kWireStep);  // exact: a wire-grid offset
+  ASSERT_FALSE(grid::on_grid(m.positions[moved].x));
+  EXPECT_FALSE(encode_room(m).ok()) << "off the world grid, the default encoder must refuse";
+  EncodeOptions wire;
+  wire.grid_step_log2 = grid::kWireStepLog2;
+  auto bytes = encode_room(m, wire);
+  ASSERT_TRUE(bytes.ok()) << bytes.error().message;
+  auto decoded = decode_room(bytes.value());
+  ASSERT_TRUE(decoded.ok()) << message(decoded);
+  const DecodedRoom& d = decoded.value();
+  bool found = false;
+  for (size_t v = 0; v < d.vertex_count(); ++v) {
+    if (d.rim_portal[v] == m.rim_portal[moved] && d.rim_index[v] == m.rim_index[moved]) {
+      found = true;
+      EXPECT_EQ(std::memcmp(&d.positions[v], &m.positions[moved], sizeof(float3)), 0);
+    }
+  }
+  EXPECT_TRUE(found);
+  EXPECT_TRUE(encode_room(view_of(d, m.origin), wire).ok());
+  EXPECT_FALSE(encode_room(view_of(d, m.origin)).ok());
 }
 
 }  // namespace
