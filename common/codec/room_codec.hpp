@@ -57,12 +57,12 @@ inline constexpr float kNormalTolerance = 1e-3f;
 
 // Draco settings. Brace-init means the defaults chosen by measurement (docs/BENCHMARKS.md, "Room
 // codec", 2026-11-25): speed 3 (valence edgebreaker at every size, parallelogram positions,
-// geometric normal prediction: 22% smaller than speed 5 to 9, for ~1.6x their encode and decode
-// time, ~0.27 ms and ~0.16 ms for a median room), 8-bit octahedral normals (< 1 degree; the
-// normals cost ~330 bytes a room whatever the prediction) and 6-bit channels (half a step is
-// 0.8% of [0, 1]; 90 bytes smaller than 7 bits). Whatever the speed, every attribute shares the
-// position connectivity (Draco's split_mesh_on_seams): the attributes have one value per vertex,
-// so the per-attribute seam tables Draco would otherwise build cost time and no bytes.
+// geometric normal prediction: 22% smaller than speed 5, 7 or 9, for 1.5-1.8x their encode and
+// decode time, ~0.26 ms and ~0.16 ms for a median room), 8-bit octahedral normals (< 1 degree;
+// they cost ~340 bytes a room, a fifth of it, and a third of the decode) and 6-bit channels (half a
+// step is 0.8% of [0, 1]; 90 bytes smaller than 7 bits). Whatever the speed, every attribute shares
+// the position connectivity (Draco's split_mesh_on_seams): the attributes have one value per
+// vertex, so the per-attribute seam tables Draco would otherwise build cost time and no bytes.
 struct EncodeOptions {
   int speed = 3;         // Draco encoding and decoding speed, 0 (smallest) to 9; 10 (sequential
                          // connectivity) is refused: the decoder accepts only edgebreaker

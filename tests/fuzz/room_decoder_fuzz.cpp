@@ -20,7 +20,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   }
   // Decoded rims are only promised on the wire's grid, which may be finer than the world grid.
   EncodeOptions options;
-  options.grid_step_log2 = grid::kWireStepLog2;
+  options.grid_step_log2 = grotto::grid::kWireStepLog2;
   auto again = encode_room(view_of(room.value()), options);
   // The one refusal that is no contract of the room: the encoder's output over the format's
   // ceiling (kMaxPayloadBytes). Fuzzed values compress ~4x worse than real rooms at the encoder's
