@@ -221,11 +221,11 @@ int main(int argc, char** argv) {
   std::printf(
       "| lever | bytes/room (median / mean) | bits/vertex (median) | encode ms/room (median / "
       "mean) | decode ms/room (median / mean / max) |\n| --- | ---: | ---: | ---: | ---: |\n");
-  for (const Config& c : cs) {
+  for (const Config& lever : cs) {
     std::vector<double> b, bpv, e, d;
     for (const auto& m : patch) {
       std::vector<char> out;
-      e.push_back(median_ms(reps, [&] { out = encode(m, c); }));
+      e.push_back(median_ms(reps, [&] { out = encode(m, lever); }));
       b.push_back(out.size());
       bpv.push_back(8.0 * out.size() / m.vertex_count());
       d.push_back(median_ms(reps, [&] {
@@ -243,8 +243,8 @@ int main(int argc, char** argv) {
       enc_mean += x / e.size();
     for (double x : d)
       dec_mean += x / d.size();
-    std::printf("| %s | %.0f / %.0f | %.1f | %.3f / %.3f | %.3f / %.3f / %.3f |\n", c.name.c_str(),
-                median(b), mean, median(bpv), median(e), enc_mean, median(d), dec_mean,
-                *std::max_element(d.begin(), d.end()));
+    std::printf("| %s | %.0f / %.0f | %.1f | %.3f / %.3f | %.3f / %.3f / %.3f |\n",
+                lever.name.c_str(), median(b), mean, median(bpv), median(e), enc_mean, median(d),
+                dec_mean, *std::max_element(d.begin(), d.end()));
   }
 }
