@@ -219,7 +219,8 @@ int main(int argc, char** argv) {
   });
   variant("new, encoding speed 3, decoding speed 9", [](Config& v) { v.decoding_speed = 9; });
   std::printf(
-      "| lever | bytes/room (median / mean) | bits/vertex (median) | encode ms/room (median / "
+      "| lever | bytes/room (median / mean) | payload bits/vertex (median) | encode ms/room "
+      "(median / "
       "mean) | decode ms/room (median / mean / max) |\n| --- | ---: | ---: | ---: | ---: |\n");
   for (const Config& lever : cs) {
     std::vector<double> b, bpv, e, d;

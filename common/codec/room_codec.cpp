@@ -202,13 +202,13 @@ Result<std::vector<uint8_t>> encode(const RoomView& room, const EncodeOptions& o
   // Every attribute has one value per point, so no attribute has a seam: one connectivity serves
   // them all. Below speed 6 Draco would still build and encode a seam table per non-position
   // attribute (MeshAttributeCornerTable::InitFromAttribute on both sides), ~30% of the encode
-  // and ~25% of the decode of a patch room for nothing (docs/BENCHMARKS.md, "Room codec"). With
+  // and over 25% of the decode of a patch room for nothing (docs/BENCHMARKS.md, "Room codec"). With
   // one connectivity the payload has one attribute decoder holding all four attributes and no
   // attribute tables, which every Draco decoder reads.
   encoder.options().SetGlobalBool("split_mesh_on_seams", true);
   // Draco uses the plain edgebreaker for meshes under 1,000 triangles, whatever the speed; the
-  // valence coder it uses above that (speed < 5) makes a median patch room's connectivity ~100
-  // bytes (5% of the payload) smaller for ~0.03 ms more encoding.
+  // valence coder it uses above that (speed < 5) makes a median patch room's positions and
+  // connectivity ~10% smaller (~100 bytes) for ~0.01 ms more encoding.
   if (options.speed < 5) {
     encoder.options().SetGlobalInt("edgebreaker_method", draco::MESH_EDGEBREAKER_VALENCE_ENCODING);
   }

@@ -21,9 +21,10 @@ namespace grotto::grid {
 // 1/64 m (15.6 mm; positions within 7.8 mm per axis of the built mesh). The patch mesh is the
 // low-res shape the GPU tessellates and displaces by 5 cm to 1.5 m; its edges are 0.44 m long
 // (median; shortest 0.13 m, 1% under 0.21 m). Against the earlier 1/256 m the payload's positions
-// and connectivity fall from 22.0 to 16.1 bits a vertex and the room from 2,006 to 1,688 bytes
-// (docs/BENCHMARKS.md, "Room codec"). Changing it changes every room: the world digest folds it
-// in (proto::world_params_digest).
+// and connectivity fall from 22.0 to 16.1 bits a vertex and the room from 2,009 to 1,688 bytes
+// (docs/BENCHMARKS.md, "Room codec"). The detail level (lod 1, 0.25 m target edges, not streamed
+// by default) gets the same 7.8 mm. Changing it changes every room: the world digest folds it in
+// (proto::world_params_digest).
 inline constexpr int kStepLog2 = 6;
 inline constexpr double kStep = 1.0 / (1 << kStepLog2);  // metres
 // Offsets from a room's origin stay below this (2^(24 - kStepLog2) m) to be exact in float32.
