@@ -32,6 +32,10 @@ struct Config {
   int pos_pred = -1, nrm_pred = -1, chn_pred = -1, rim_pred = -1;
   int normal_bits = 8, channel_bits = 7;
   bool vertex_elements = false;
+  // > 0: off rims, send the normal Draco's geometric predictor will predict (area-weighted over the
+  // quantized positions, canonicalized as Draco does) when it is this close to the mesh's normal,
+  // so that its residual is zero.
+  double snap_normal_degrees = 0;
 };
 
 std::string exact_text(float v) {
@@ -57,10 +61,59 @@ std::vector<char> encode(const mesh::RoomMesh& m, const Config& c) {
   auto chn = mk(draco::GeometryAttribute::GENERIC, 2, draco::DT_FLOAT32);
   auto rim = mk(draco::GeometryAttribute::GENERIC, 2, draco::DT_UINT16);
   double lo[3] = {1e9, 1e9, 1e9}, hi[3] = {-1e9, -1e9, -1e9};
+  std::vector<mesh::core::float3> normals = m.normals;
+  if (c.snap_normal_degrees > 0) {
+    const double step = 1.0 / (1 << c.step_log2);
+    float org[3] = {1e9f, 1e9f, 1e9f};
+    for (const auto& p : m.positions) {
+      org[0] = std::min(org[0], p.x);
+      org[1] = std::min(org[1], p.y);
+      org[2] = std::min(org[2], p.z);
+    }
+    for (float& o : org)
+      o = static_cast<float>(std::floor(o / step) * step);
+    const float inv = static_cast<float>(1.0 / step);
+    std::vector<int64_t> q(3 * n);
+    for (size_t v = 0; v < n; ++v) {
+      const float pv[3] = {m.positions[v].x, m.positions[v].y, m.positions[v].z};
+      for (int k = 0; k < 3; ++k)
+        q[3 * v + k] = static_cast<int64_t>(std::floor((pv[k] - org[k]) * inv + 0.5f));
+    }
+    std::vector<int64_t> acc(3 * n, 0);
+    for (size_t t = 0; t < m.indices.size(); t += 3) {
+      for (int k = 0; k < 3; ++k) {
+        const uint32_t a = m.indices[t + k], b = m.indices[t + (k + 1) % 3],
+                       cc = m.indices[t + (k + 2) % 3];
+        int64_t u[3], w[3];
+        for (int j = 0; j < 3; ++j) {
+          u[j] = q[3 * b + j] - q[3 * a + j];
+          w[j] = q[3 * cc + j] - q[3 * a + j];
+        }
+        acc[3 * a] += u[1] * w[2] - u[2] * w[1];
+        acc[3 * a + 1] += u[2] * w[0] - u[0] * w[2];
+        acc[3 * a + 2] += u[0] * w[1] - u[1] * w[0];
+      }
+    }
+    const int64_t center = ((1 << c.normal_bits) - 2) / 2;
+    const double cos_tol = std::cos(c.snap_normal_degrees * 3.14159265358979 / 180.0);
+    for (size_t v = 0; v < n; ++v) {
+      if (m.rim_portal[v] >= 0) continue;
+      const int64_t* a = &acc[3 * v];
+      const int64_t abs_sum = std::llabs(a[0]) + std::llabs(a[1]) + std::llabs(a[2]);
+      if (abs_sum == 0) continue;
+      int64_t c0 = a[0] * center / abs_sum, c1 = a[1] * center / abs_sum;
+      int64_t c2 = center - std::llabs(c0) - std::llabs(c1);
+      if (a[2] < 0) c2 = -c2;
+      const double len = std::sqrt(double(c0 * c0 + c1 * c1 + c2 * c2));
+      const mesh::core::float3 cand = {float(c0 / len), float(c1 / len), float(c2 / len)};
+      const auto& o = m.normals[v];
+      if (cand.x * o.x + cand.y * o.y + cand.z * o.z >= cos_tol) normals[v] = cand;
+    }
+  }
   for (size_t v = 0; v < n; ++v) {
     draco::AttributeValueIndex i(v);
     auto p = m.positions[v];
-    auto q = m.normals[v];
+    auto q = normals[v];
     float pv[3] = {p.x, p.y, p.z}, nv[3] = {q.x, q.y, q.z}, cv[2] = {m.roughness[v], m.mineral[v]};
     uint16_t rv[2] = {uint16_t(m.rim_portal[v] + 1),
                       uint16_t(m.rim_portal[v] >= 0 ? m.rim_index[v] : 0)};
@@ -213,6 +266,10 @@ int main(int argc, char** argv) {
   variant("new, 7-bit normals", [](Config& v) { v.normal_bits = 7; });
   variant("new, 5-bit channels", [](Config& v) { v.channel_bits = 5; });
   variant("new, speed 0", [](Config& v) { v.speed = 0; });
+  variant("new, normals off rims snapped to Draco's prediction within 1 degree",
+          [](Config& v) { v.snap_normal_degrees = 1.0; });
+  variant("new, normals off rims snapped to Draco's prediction, always",
+          [](Config& v) { v.snap_normal_degrees = 180.0; });
   variant("new, speed 5", [](Config& v) {
     v.speed = 5;
     v.eb_method = -1;
