@@ -405,14 +405,17 @@ void Conversation::on_message(const proto::ErrorMessage& e, SteadyTime now, Acti
 
 // Rooms must arrive before the player reaches them: the horizon covers the time a room takes to
 // come (the p90 of recent latencies, doubled for its spread) and a second for decoding, a turn and
-// a sprint's start. Without samples (a new stream, or a server that sent nothing yet) it is the
-// maximum, so a slow start is not made slower.
-double Conversation::horizon_s() const {
+// a sprint's start. Rooms still in flight count with the time they have waited so far, so a
+// server that slows down widens the horizon before its late rooms arrive. Without samples (a new
+// stream, or a server that sent nothing yet) it is the maximum, so a slow start is not made slower.
+double Conversation::horizon_s(SteadyTime now) const {
   const double max = options_.plan.horizon_s;
   if (options_.min_horizon_s <= 0 || recent_latency_ms_.empty()) return max;
-  std::vector<double> sorted(recent_latency_ms_.begin(), recent_latency_ms_.end());
-  std::sort(sorted.begin(), sorted.end());
-  const double p90 = sorted[std::min(sorted.size() - 1, sorted.size() * 9 / 10)];
+  std::vector<double> waits(recent_latency_ms_.begin(), recent_latency_ms_.end());
+  for (const auto& [id, room] : in_flight_)
+    waits.push_back(ms_between(room.sent, now));
+  std::sort(waits.begin(), waits.end());
+  const double p90 = waits[std::min(waits.size() - 1, waits.size() * 9 / 10)];
   return std::clamp(1.0 + 2.0 * p90 / 1000.0, options_.min_horizon_s, max);
 }
 
@@ -440,7 +443,8 @@ void Conversation::plan(SteadyTime now, Actions& out) {
     return;
   }
   current_ = start;
-  const double horizon = horizon_s();
+  const double horizon = horizon_s(now);
+  horizon_s_ = horizon;
   PlanOptions wide = options_.plan;
   wide.horizon_s = horizon * options_.cancel_factor;
   auto keep = graph_.plan(*start, pose_, wide);
@@ -573,7 +577,7 @@ StreamStats Conversation::stats() const {
   s.in_flight = in_flight_.size();
   s.store_bytes = store_.bytes();
   s.store_rooms = store_.size();
-  s.horizon_s = horizon_s();
+  s.horizon_s = horizon_s_ > 0 ? horizon_s_ : options_.plan.horizon_s;
   return s;
 }
 

@@ -163,7 +163,8 @@ class Conversation {
   void on_message(const proto::Stats&, SteadyTime, Actions&) {}
 
   void plan(SteadyTime now, Actions& out);
-  double horizon_s() const;  // StreamOptions::min_horizon_s: from recent_latency_ms_
+  // StreamOptions::min_horizon_s: from recent_latency_ms_ and what is in flight at `now`.
+  double horizon_s(SteadyTime now) const;
   void send(proto::ClientMessage message, SteadyTime now, Actions& out);
   uint32_t batch_size() const;
   void count_failure(cave::RoomId id);
@@ -213,6 +214,7 @@ class Conversation {
   std::vector<RoomSample> samples_;
   std::deque<double> recent_latency_ms_;  // the last kLatencyWindow request->room latencies
   static constexpr size_t kLatencyWindow = 32;
+  double horizon_s_ = 0;  // the last plan's
   std::vector<cave::RoomId> evicted_;
   StreamStats stats_;
 };

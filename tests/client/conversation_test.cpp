@@ -897,6 +897,22 @@ TEST(Conversation, timers_limits_and_cancels_table) {
        [](const Harness& h) { EXPECT_NEAR(h.c.stats().horizon_s, 3.4, 1e-9); },
        {},
        adaptive},
+      {"adaptive horizon: a room still waiting counts too, so a slowing server widens it",
+       Start::kReady,
+       [](Harness& h) {
+         h.frame(frame_of(0));  // at once: 1.5 s, r4 asked for
+         h.now += seconds(2);   // r4 has waited 2 s: 1 + 2 x 2 s, at most 4 s
+         Pose p;
+         p.room = rid(0);
+         p.speed = 4.0;
+         h.c.set_pose(p);
+         return h.tick(milliseconds(0));
+       },
+       {"request 0.0.0.r1@0 0.0.0.r2@0 0.0.0.r3@0"},
+       StreamState::kReady,
+       [](const Harness& h) { EXPECT_DOUBLE_EQ(h.c.stats().horizon_s, 4.0); },
+       {},
+       adaptive},
       {"adaptive horizon: never past plan.horizon_s (r5 at 4.375 s stays unasked)",
        Start::kReady,
        [](Harness& h) {
