@@ -23,6 +23,7 @@
 #include <boost/asio/thread_pool.hpp>
 #include <boost/beast/core.hpp>
 #include <boost/beast/websocket.hpp>
+#include <condition_variable>
 #include <deque>
 #include <future>
 #include <mutex>
@@ -108,6 +109,8 @@ struct Stream::Impl : std::enable_shared_from_this<Stream::Impl> {
   mutable std::mutex mu;
   Conversation conversation;  // the protocol: everything but bytes and timers
   bool stopping = false;
+  // Notified when a room is stored and when the Stream fails or stops (wait_area_ready).
+  mutable std::condition_variable changed;
   std::atomic<bool> stop_called{false};
 
   // Strand only.
@@ -134,6 +137,7 @@ struct Stream::Impl : std::enable_shared_from_this<Stream::Impl> {
         std::lock_guard lock(self->mu);
         if (self->stopping) return;
         self->run(self->conversation.decoded(std::move(job), std::move(mesh), Clock::now()));
+        self->changed.notify_all();
       });
     });
   }
@@ -155,6 +159,7 @@ struct Stream::Impl : std::enable_shared_from_this<Stream::Impl> {
 
   void act(Fail& f) {
     spdlog::error("event=stream_failed url={}:{} reason=\"{}\"", url.host, url.port, f.why);
+    changed.notify_all();
     timer.cancel();
     tick.cancel();
     close_socket();
@@ -307,6 +312,7 @@ struct Stream::Impl : std::enable_shared_from_this<Stream::Impl> {
   void shut_down() {
     std::unique_lock lock(mu);
     stopping = true;
+    changed.notify_all();
     const bool welcomed = conversation.welcomed();
     conversation.stop();
     timer.cancel();
@@ -396,6 +402,26 @@ StreamStats Stream::stats() const {
 StreamState Stream::state() const {
   std::lock_guard lock(impl_->mu);
   return impl_->conversation.state();
+}
+
+AreaStatus Stream::area_status(Vec3 point, double radius_m, uint32_t max_lod) const {
+  std::lock_guard lock(impl_->mu);
+  return client::area_status(impl_->conversation.graph(), impl_->conversation.store(), point,
+                             radius_m, max_lod);
+}
+
+bool Stream::wait_area_ready(Vec3 point, double radius_m, uint32_t max_lod,
+                             std::chrono::milliseconds timeout) const {
+  const auto deadline = Clock::now() + timeout;
+  std::unique_lock lock(impl_->mu);
+  const Conversation& c = impl_->conversation;
+  while (true) {
+    if (client::area_status(c.graph(), c.store(), point, radius_m, max_lod).ready) return true;
+    if (impl_->stopping || c.state() == StreamState::kFailed) return false;
+    if (impl_->changed.wait_until(lock, deadline) == std::cv_status::timeout) {
+      return client::area_status(c.graph(), c.store(), point, radius_m, max_lod).ready;
+    }
+  }
 }
 
 }  // namespace grotto::client

@@ -20,6 +20,7 @@
 #include <vector>
 
 #include "cave/room_id.hpp"
+#include "client/stream/area.hpp"
 #include "client/stream/options.hpp"
 #include "client/stream/portal_graph.hpp"
 #include "client/stream/room_store.hpp"
@@ -75,6 +76,17 @@ class Stream {
 
   StreamStats stats() const;
   StreamState state() const;
+
+  // area_status (area.hpp) over the rooms held now: is everything within radius_m metres of
+  // `point`, along the portal graph, decoded at a lod <= max_lod? The rooms are those the
+  // prefetch plan asks for, so put the pose near `point` and keep radius_m within what the
+  // horizon reaches from it, else rooms beyond the horizon are never requested.
+  AreaStatus area_status(Vec3 point, double radius_m, uint32_t max_lod) const;
+  // Blocks until area_status(point, radius_m, max_lod).ready, the timeout passes, or the Stream
+  // fails or stops; returns whether the area is ready. It wakes when a room is stored, not by
+  // polling, and holds no lock while it waits.
+  bool wait_area_ready(Vec3 point, double radius_m, uint32_t max_lod,
+                       std::chrono::milliseconds timeout) const;
   // Closes the connection (normal close) and stops reconnecting. Idempotent; returns when the
   // Stream's handlers have finished.
   void stop();

@@ -456,6 +456,59 @@ TEST(Stream, keeps_its_store_within_budget_by_evicting_the_farthest_rooms) {
     EXPECT_FALSE(stream->ready(id));
 }
 
+// A game holds its spawn on wait_area_ready: it returns true once every room within 8 m of the
+// spawn point along the portal graph is held, and those are the rooms the layout itself puts
+// there.
+TEST(Stream, wait_area_ready_holds_until_the_ground_around_the_spawn_exists) {
+  auto server = start_server(test_config());
+  ASSERT_TRUE(server);
+  Runtime rt(1, 2);
+  StreamOptions o;
+  o.url = url_of(server->port());
+  o.plan.horizon_s = 6.0;  // 8 m is within 6 s at 4 m/s, behind the view too (x2)
+  auto stream = start_stream(o, rt);
+  ASSERT_TRUE(stream);
+  ASSERT_TRUE(wait_for([&] { return stream->spawn_point().has_value(); }));
+  const auto spawn = *stream->spawn_point();
+  EXPECT_FALSE(stream->area_status(spawn.position, 8.0, 0).ready) << "nothing decoded yet";
+  ASSERT_TRUE(stream->wait_area_ready(spawn.position, 8.0, 0, kWait)) << describe(stream->stats());
+  // The area by the layout's own graph (the plan at 1 m/s with no view weighting, as area.hpp
+  // measures): every room of it is held.
+  auto graph = layout_graph(7);
+  Pose pose;
+  pose.position = spawn.position;
+  pose.forward = {};
+  pose.speed = 1.0;
+  grotto::client::PlanOptions plan;
+  plan.horizon_s = 8.0;
+  plan.behind_weight = 0;
+  ASSERT_GT(graph.plan(spawn.room, pose, plan).size(), 1u);
+  for (const auto& room : graph.plan(spawn.room, pose, plan))
+    EXPECT_TRUE(stream->ready(room.id)) << room.id.to_string() << " at " << room.seconds << " m";
+  EXPECT_FALSE(stream->area_status(spawn.position, 8.0, 0).first_missing.has_value());
+}
+
+TEST(Stream, wait_area_ready_returns_false_at_its_timeout_and_at_once_after_stop) {
+  auto server = start_server(test_config());
+  ASSERT_TRUE(server);
+  Runtime rt(1, 2);
+  StreamOptions o;
+  o.url = url_of(server->port());
+  auto stream = start_stream(o, rt);
+  ASSERT_TRUE(stream);
+  // A point no room the stream will fetch holds: 10 km away.
+  const grotto::Vec3 far{10'000, 0, 0};
+  auto t0 = Clock::now();
+  EXPECT_FALSE(stream->wait_area_ready(far, 1.0, 0, 300ms));
+  auto waited = Clock::now() - t0;
+  EXPECT_GE(waited, 300ms);
+  EXPECT_LT(waited, 10s) << "bounded by the timeout, not by the network";
+  stream->stop();
+  t0 = Clock::now();
+  EXPECT_FALSE(stream->wait_area_ready(far, 1.0, 0, kWait));
+  EXPECT_LT(Clock::now() - t0, 10s) << "a stopped stream answers at once";
+}
+
 TEST(Stream, refuses_bad_urls_and_options_by_name) {
   Runtime rt(1, 1);
   for (const char* url : {"http://x:1/ws", "ws://", "ws://:80", "ws://host:0", "ws://host:99999",

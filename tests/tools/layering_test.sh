@@ -29,7 +29,7 @@ stages=(
   "client/stream"
   "shaders"
   "client/play client/render"
-  "client/app client/load"
+  "client/app client/load client/engine"
   "tools bench tests"
 )
 

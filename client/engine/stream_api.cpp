@@ -1,0 +1,213 @@
+// include/grotto/stream.hpp over client/stream: the installed library's C++ face. It translates
+// types and nothing else; the protocol, plan, store and threads are client::Stream's. Rooms are
+// handed over without copying their arrays: a grotto::Room's spans point into the decoded room,
+// which the RoomPtr keeps alive (shared_ptr's aliasing constructor).
+#include <chrono>
+#include <memory>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "cave/room_id.hpp"
+#include "client/stream/stream.hpp"
+#include "grotto/stream.hpp"
+
+namespace grotto {
+
+namespace {
+
+static_assert(sizeof(mesh::core::float3) == 3 * sizeof(float), "positions are read as floats");
+
+Vec3d to_public(Vec3 v) {
+  return {v.x, v.y, v.z};
+}
+Vec3 to_internal(Vec3d v) {
+  return {v.x, v.y, v.z};
+}
+
+// A public Room and the decoded room its spans point into.
+struct HeldRoom {
+  Room room;
+  std::shared_ptr<const client::ReadyRoom> source;
+};
+
+RoomPtr to_public(std::shared_ptr<const client::ReadyRoom> ready) {
+  if (!ready) return nullptr;
+  auto held = std::make_shared<HeldRoom>();
+  held->source = std::move(ready);
+  const client::ReadyRoom& r = *held->source;
+  Room& out = held->room;
+  out.key = r.room.id.packed();
+  out.id = r.room.id.to_string();
+  out.lod = r.lod;
+  out.origin = to_public(r.origin);
+  out.centre = to_public(r.room.sphere.centre);
+  out.radius = r.room.sphere.radius;
+  out.portals.reserve(r.room.portals.size());
+  for (const cave::Portal& p : r.room.portals) {
+    out.portals.push_back(
+        {p.neighbour.packed(), to_public(p.centre), to_public(p.normal), p.radius});
+  }
+  const codec::DecodedRoom& m = r.mesh;
+  out.positions = {reinterpret_cast<const float*>(m.positions.data()), 3 * m.positions.size()};
+  out.normals = {reinterpret_cast<const float*>(m.normals.data()), 3 * m.normals.size()};
+  out.roughness = m.roughness;
+  out.mineral = m.mineral;
+  out.indices = m.indices;
+  return RoomPtr(held, &held->room);
+}
+
+StreamState to_public(client::StreamState s) {
+  switch (s) {
+    case client::StreamState::kConnecting:
+      return StreamState::kConnecting;
+    case client::StreamState::kReady:
+      return StreamState::kReady;
+    case client::StreamState::kBackoff:
+      return StreamState::kBackoff;
+    case client::StreamState::kFailed:
+      return StreamState::kFailed;
+    case client::StreamState::kStopped:
+      return StreamState::kStopped;
+  }
+  return StreamState::kFailed;
+}
+
+}  // namespace
+
+// The Runtime is declared first so that it outlives the Stream that runs on it.
+struct Stream::Impl {
+  client::Runtime runtime;
+  std::unique_ptr<client::Stream> stream;
+
+  explicit Impl(int decode_threads) : runtime(1, decode_threads > 0 ? decode_threads : 2) {}
+};
+
+std::unique_ptr<Stream> Stream::start(const StreamConfig& config, std::string* error) {
+  client::StreamOptions o;
+  o.url = config.url;
+  o.seed = config.seed;
+  o.token = config.token;
+  o.name = config.name;
+  o.lod = config.lod;
+  o.plan.horizon_s = config.horizon_s;
+  o.min_horizon_s = config.min_horizon_s;
+  o.store_bytes = config.memory_budget_bytes;
+  std::string why;
+  if (config.decode_threads < 0 || config.decode_threads > 64) {
+    why = "decode_threads must be in [0, 64]";
+  } else if (!(config.min_horizon_s >= 0 && config.min_horizon_s <= config.horizon_s)) {
+    why = "min_horizon_s must be in [0, horizon_s]";
+  } else if (Status valid = client::validate_options(o); !valid) {
+    why = valid.error().message;
+  }
+  if (!why.empty()) {
+    if (error) *error = why;
+    return nullptr;
+  }
+  auto impl = std::make_unique<Impl>(config.decode_threads);
+  auto started = client::Stream::start(o, impl->runtime);
+  if (!started) {
+    if (error) *error = started.error().message;
+    return nullptr;
+  }
+  impl->stream = std::move(started).value();
+  return std::unique_ptr<Stream>(new Stream(std::move(impl)));
+}
+
+Stream::Stream(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+
+Stream::~Stream() {
+  // The client::Stream stops and goes before its Runtime (member order in Impl).
+  impl_->stream.reset();
+}
+
+void Stream::set_pose(const Pose& pose) {
+  client::Pose p;
+  p.position = to_internal(pose.position);
+  p.forward = to_internal(pose.forward);
+  p.speed = pose.speed;
+  impl_->stream->set_pose(p);
+}
+
+std::optional<SpawnPoint> Stream::spawn_point() const {
+  auto s = impl_->stream->spawn_point();
+  if (!s) return std::nullopt;
+  return SpawnPoint{s->room.packed(), to_public(s->position)};
+}
+
+std::vector<RoomPtr> Stream::poll_rooms() {
+  std::vector<RoomPtr> out;
+  for (auto& r : impl_->stream->take_new_rooms())
+    out.push_back(to_public(std::move(r)));
+  return out;
+}
+
+std::vector<RoomKey> Stream::poll_evicted() {
+  std::vector<RoomKey> out;
+  for (cave::RoomId id : impl_->stream->take_evicted())
+    out.push_back(id.packed());
+  return out;
+}
+
+RoomPtr Stream::room(RoomKey key) const {
+  auto id = cave::RoomId::unpack(key);
+  if (!id) return nullptr;
+  return to_public(impl_->stream->room(*id));
+}
+
+StreamStats Stream::stats() const {
+  client::StreamStats s = impl_->stream->stats();
+  StreamStats out;
+  out.state = to_public(s.state);
+  out.connects = s.connects;
+  out.reconnects = s.reconnects;
+  out.rooms_received = s.rooms_received;
+  out.rooms_ready = s.rooms_ready;
+  out.rooms_rejected = s.rooms_rejected;
+  out.rooms_evicted = s.rooms_evicted;
+  out.bytes_received = s.bytes_received;
+  out.in_flight = s.in_flight;
+  out.rooms_held = s.store_rooms;
+  out.memory_bytes = s.store_bytes;
+  out.horizon_s = s.horizon_s;
+  out.seed = s.seed;
+  out.last_error = s.last_error;
+  return out;
+}
+
+bool Stream::area_ready(Vec3d point, double radius_m, uint32_t max_lod) const {
+  return impl_->stream->area_status(to_internal(point), radius_m, max_lod).ready;
+}
+
+bool Stream::wait_area_ready(Vec3d point, double radius_m, uint32_t max_lod,
+                             std::chrono::milliseconds timeout) const {
+  return impl_->stream->wait_area_ready(to_internal(point), radius_m, max_lod, timeout);
+}
+
+void Stream::stop() {
+  impl_->stream->stop();
+}
+
+std::string room_name(RoomKey key) {
+  auto id = cave::RoomId::unpack(key);
+  return id ? id->to_string() : std::string();
+}
+
+const char* state_name(StreamState state) {
+  switch (state) {
+    case StreamState::kConnecting:
+      return "connecting";
+    case StreamState::kReady:
+      return "ready";
+    case StreamState::kBackoff:
+      return "backoff";
+    case StreamState::kFailed:
+      return "failed";
+    case StreamState::kStopped:
+      return "stopped";
+  }
+  return "unknown";
+}
+
+}  // namespace grotto
