@@ -205,4 +205,8 @@ const char* grotto_stream_state_name(int state) {
   return grotto::state_name(static_cast<grotto::StreamState>(state));
 }
 
+int grotto_set_log_level(const char* level) {
+  return level && grotto::set_log_level(level) ? 1 : 0;
+}
+
 }  // extern "C"

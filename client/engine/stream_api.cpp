@@ -2,9 +2,13 @@
 // types and nothing else; the protocol, plan, store and threads are client::Stream's. Rooms are
 // handed over without copying their arrays: a grotto::Room's spans point into the decoded room,
 // which the RoomPtr keeps alive (shared_ptr's aliasing constructor).
+#include <spdlog/spdlog.h>
+
+#include <array>
 #include <chrono>
 #include <memory>
 #include <string>
+#include <string_view>
 #include <utility>
 #include <vector>
 
@@ -208,6 +212,24 @@ const char* state_name(StreamState state) {
       return "stopped";
   }
   return "unknown";
+}
+
+bool set_log_level(std::string_view level) {
+  static constexpr std::array<std::pair<std::string_view, spdlog::level::level_enum>, 6> kLevels{{
+      {"trace", spdlog::level::trace},
+      {"debug", spdlog::level::debug},
+      {"info", spdlog::level::info},
+      {"warn", spdlog::level::warn},
+      {"error", spdlog::level::err},
+      {"off", spdlog::level::off},
+  }};
+  for (const auto& [name, value] : kLevels) {
+    if (name == level) {
+      spdlog::set_level(value);
+      return true;
+    }
+  }
+  return false;
 }
 
 }  // namespace grotto

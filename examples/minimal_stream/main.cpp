@@ -20,6 +20,7 @@ int main(int argc, char** argv) {
     return 2;
   }
   const double seconds = argc > 2 ? std::atof(argv[2]) : 10.0;
+  grotto::set_log_level("warn");  // the library's event lines: only trouble
   grotto::StreamConfig config;
   config.url = argv[1];
   std::string error;

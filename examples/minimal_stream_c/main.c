@@ -18,6 +18,7 @@ int main(int argc, char** argv) {
     return 2;
   }
   const double seconds = argc > 2 ? atof(argv[2]) : 10.0;
+  grotto_set_log_level("warn"); /* the library's event lines: only trouble */
   grotto_stream_config config = {0};
   config.url = argv[1];
   char error[256];

@@ -158,6 +158,12 @@ GROTTO_C_API const char* grotto_stream_last_error(grotto_stream* stream);
 /* "connecting", "ready", "backoff", "failed", "stopped"; "unknown" for other values. Static. */
 GROTTO_C_API const char* grotto_stream_state_name(int state);
 
+/* The library logs one key=value line per event through spdlog's default logger (stdout, level
+ * info, unless the process configured spdlog otherwise). Sets its level: "trace", "debug",
+ * "info", "warn", "error" or "off"; returns 0 (and changes nothing) for anything else or NULL.
+ * Process-wide and thread-safe. */
+GROTTO_C_API int grotto_set_log_level(const char* level);
+
 #ifdef __cplusplus
 }
 #endif

@@ -32,6 +32,7 @@
 #include <optional>
 #include <span>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #if defined(__GNUC__) || defined(__clang__)
@@ -41,9 +42,6 @@
 #endif
 
 namespace grotto {
-
-inline constexpr int kStreamVersionMajor = 0;
-inline constexpr int kStreamVersionMinor = 1;
 
 // A point or direction in world space, metres.
 struct Vec3d {
@@ -197,5 +195,12 @@ class GROTTO_STREAM_API Stream {
 GROTTO_STREAM_API std::string room_name(RoomKey key);
 // "connecting", "ready", "backoff", "failed", "stopped".
 GROTTO_STREAM_API const char* state_name(StreamState state);
+
+// The library logs one key=value line per event (a drop, a reconnect, a refusal) through spdlog's
+// default logger: stdout, level info, unless the process configured spdlog otherwise. Sets that
+// logger's level: "trace", "debug", "info", "warn", "error" or "off"; false (and no change) for
+// anything else. Process-wide: it is the level of every Stream, and of the game's own spdlog
+// logging if the game uses the same shared libspdlog. Thread-safe.
+GROTTO_STREAM_API bool set_log_level(std::string_view level);
 
 }  // namespace grotto

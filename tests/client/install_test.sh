@@ -12,6 +12,7 @@ set -u
 build=${1:?usage: install_test.sh <build dir> <source dir> <grotto-server>}
 src=${2:?}
 server_bin=${3:?}
+cmake=${CMAKE:-cmake}  # ctest passes the cmake that configured the build
 work=$(mktemp -d "${TMPDIR:-/tmp}/grotto-install.XXXXXX")
 server_pid=""
 cleanup() {
@@ -35,7 +36,7 @@ step() { echo "[$SECONDS s] $*"; }
 
 prefix=$work/prefix
 step "install into $prefix"
-cmake --install "$build" --prefix "$prefix" --component grotto_stream >"$work/install.log" 2>&1 ||
+"$cmake" --install "$build" --prefix "$prefix" --component grotto_stream >"$work/install.log" 2>&1 ||
   fail "cmake --install failed"
 
 # What a game gets: two headers, the library, the CMake package. Nothing else.
@@ -72,9 +73,9 @@ grep -q ' grotto::Stream::start(' "$work/symbols.log" || fail "grotto::Stream::s
 # from this build.
 for ex in minimal_stream minimal_stream_c; do
   step "build examples/$ex against the installed tree"
-  cmake -G "Unix Makefiles" -S "$src/examples/$ex" -B "$work/$ex" -DCMAKE_PREFIX_PATH="$prefix" \
+  "$cmake" -G "Unix Makefiles" -S "$src/examples/$ex" -B "$work/$ex" -DCMAKE_PREFIX_PATH="$prefix" \
     -DCMAKE_BUILD_TYPE=Release >"$work/$ex-configure.log" 2>&1 || fail "configuring $ex"
-  cmake --build "$work/$ex" >"$work/$ex-build.log" 2>&1 || fail "building $ex"
+  "$cmake" --build "$work/$ex" >"$work/$ex-build.log" 2>&1 || fail "building $ex"
   [[ -x $work/$ex/$ex ]] || fail "$ex was not built"
   # The game's link line names the one library: its dependencies stay private.
   link=$work/$ex/CMakeFiles/$ex.dir/link.txt
