@@ -8,7 +8,10 @@
 //
 // This header is the whole C++ interface, and it includes only the standard library: the
 // network (Boost.Beast), the room codec (Draco) and logging stay inside the shared library, whose
-// only exported symbols are the ones declared here and in grotto_stream.h.
+// only exported symbols are the ones declared here and in grotto_stream.h. Standard types
+// (std::string, std::vector, std::shared_ptr) cross the library's boundary, so the game must use
+// the same C++ standard library ABI as the library (on Debian: g++ or clang++ with libstdc++);
+// the C interface has no such condition.
 //
 // Threading: every function of a Stream may be called from any thread, concurrently; each takes
 // a mutex for microseconds (wait_area_ready sleeps without holding it). The Stream runs one
