@@ -49,7 +49,7 @@ typedef struct grotto_stream_config {
   double horizon_s;           /* 0: 4 s. Rooms reachable within this much walking are fetched */
   double min_horizon_s;       /* 0: fixed horizon; > 0: adapts to latency down to this */
   size_t memory_budget_bytes; /* 0: 256 MiB of decoded rooms held */
-  int decode_threads;         /* 0: two */
+  int decode_threads;         /* 0: two; at most 64 */
 } grotto_stream_config;
 
 /* The player. Zero forward: no view preference; zero speed: 4 m/s. */

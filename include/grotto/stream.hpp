@@ -99,7 +99,7 @@ struct StreamConfig {
   double horizon_s = 4.0;    // rooms reachable within this many seconds of walking are fetched
   double min_horizon_s = 0;  // > 0: the horizon adapts to the server's latency, down to this
   size_t memory_budget_bytes = size_t{256} << 20;  // decoded rooms held (a patch room: 20-100 KB)
-  int decode_threads = 0;                          // 0: two
+  int decode_threads = 0;                          // 0: two; at most 64
 };
 
 // Where the player is. The Stream fetches what is reachable from here within the horizon.
