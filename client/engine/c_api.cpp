@@ -93,6 +93,10 @@ void grotto_stream_destroy(grotto_stream* stream) {
   delete stream;
 }
 
+void grotto_stream_stop(grotto_stream* stream) {
+  if (stream) stream->stream->stop();
+}
+
 void grotto_stream_set_pose(grotto_stream* stream, const grotto_pose* pose) {
   if (!stream || !pose) return;
   grotto::Pose p;

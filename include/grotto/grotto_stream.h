@@ -91,7 +91,7 @@ enum {
   GROTTO_STATE_READY = 1,      /* connected: requesting and receiving rooms */
   GROTTO_STATE_BACKOFF = 2,    /* dropped; reconnecting after a delay (rooms held stay usable) */
   GROTTO_STATE_FAILED = 3,     /* refused for good (version, world, token): see last_error */
-  GROTTO_STATE_STOPPED = 4     /* destroyed or stopped */
+  GROTTO_STATE_STOPPED = 4     /* grotto_stream_stop was called */
 };
 
 typedef struct grotto_stream_stats {
@@ -116,8 +116,15 @@ GROTTO_C_API grotto_stream* grotto_stream_create(const grotto_stream_config* con
                                                  size_t error_size);
 
 /* Closes the connection, joins the stream's threads and frees it (within about 3 s). Every
- * pointer it handed out becomes invalid. NULL: nothing. */
+ * pointer it handed out becomes invalid. No other thread may be inside a call on `stream` (a
+ * grotto_stream_area_ready waiting in another thread included: grotto_stream_stop first). NULL:
+ * nothing. */
 GROTTO_C_API void grotto_stream_destroy(grotto_stream* stream);
+
+/* Closes the connection and stops reconnecting (state GROTTO_STATE_STOPPED), within about 3 s; a
+ * grotto_stream_area_ready waiting in another thread returns 0 at once. Pointers from the last
+ * poll stay valid; polls still hand out rooms decoded before. Idempotent. NULL: nothing. */
+GROTTO_C_API void grotto_stream_stop(grotto_stream* stream);
 
 /* The player's pose; call it every frame or on every move. Until a pose is set, the stream asks
  * the server for a spawn point and uses it. */

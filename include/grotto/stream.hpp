@@ -149,7 +149,9 @@ class GROTTO_STREAM_API Stream {
   // in *error when error is not null. A server that cannot be reached is no error here: the
   // Stream keeps trying (stats().state, stats().last_error).
   static std::unique_ptr<Stream> start(const StreamConfig& config, std::string* error = nullptr);
-  // Stops (stop()) and joins the Stream's threads. Rooms the caller holds stay valid.
+  // Stops (stop()) and joins the Stream's threads. Rooms the caller holds stay valid. No other
+  // thread may be inside a call on this Stream: call stop() first, which makes a
+  // wait_area_ready in another thread return at once, and let that call return.
   ~Stream();
   Stream(const Stream&) = delete;
   Stream& operator=(const Stream&) = delete;

@@ -167,6 +167,7 @@ TEST(CStream, a_null_stream_is_harmless) {
   uint64_t key;
   double p[3] = {0, 0, 0};
   grotto_stream_destroy(nullptr);
+  grotto_stream_stop(nullptr);
   grotto_stream_set_pose(nullptr, nullptr);
   EXPECT_EQ(grotto_stream_spawn_point(nullptr, p, &key), 0);
   EXPECT_EQ(grotto_stream_poll_rooms(nullptr, &room, 1), 0u);
@@ -234,6 +235,17 @@ TEST(CStream, polls_rooms_into_the_callers_array_a_few_at_a_time) {
   EXPECT_EQ(grotto_stream_poll_rooms(stream, rooms, 2), 0u) << "every room is handed out once";
   uint64_t evicted[4];
   EXPECT_EQ(grotto_stream_poll_evicted(stream, evicted, 4), 0u) << "256 MiB holds them all";
+  // A wait in another thread ends at once when the stream stops.
+  std::thread waiter([&] {
+    const auto start = Clock::now();
+    EXPECT_EQ(grotto_stream_area_ready(stream, far, 1.0, 0, 60'000), 0);
+    EXPECT_LT(Clock::now() - start, 20s);
+  });
+  std::this_thread::sleep_for(100ms);
+  grotto_stream_stop(stream);
+  waiter.join();
+  grotto_stream_get_stats(stream, &stats);
+  EXPECT_EQ(stats.state, GROTTO_STATE_STOPPED);
   grotto_stream_destroy(stream);
 }
 
