@@ -12,6 +12,8 @@
 #include <cstring>
 #include <memory>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "core/grid.hpp"
 
@@ -330,7 +332,9 @@ static_assert(kPositionId == 0 && kNormalId == 1 && kChannelsId == 2 && kRimId =
 //   u8 components, u8 normalized, varint unique id), then a u8 sequential decoder type each.
 // Only the four descriptors above, each once, pass; every other byte is Draco's to check. Values
 // read here are the values Draco reads: a varint that Draco would wrap is never an accepted one.
-Status check_attribute_descriptors(std::span<const uint8_t> in) {
+// Returns the sequential decoder type of each decoder's first attribute, in decoder order, for
+// LayoutCheckingDecoder: that attribute's values open the decoder's data.
+Result<std::vector<uint8_t>> check_attribute_descriptors(std::span<const uint8_t> in) {
   size_t at = 0;
   auto truncated = [] { return fail("truncated attribute descriptors"); };
   if (at >= in.size()) return truncated();
@@ -341,6 +345,7 @@ Status check_attribute_descriptors(std::span<const uint8_t> in) {
   }
   at += 3 * decoders;
   std::array<bool, kLayout.size()> seen{};
+  std::vector<uint8_t> sequential_types;
   size_t total = 0;
   for (size_t d = 0; d < decoders; ++d) {
     uint64_t count = 0;
@@ -367,17 +372,18 @@ Status check_attribute_descriptors(std::span<const uint8_t> in) {
       }
       seen[id] = true;
     }
-    at += count;  // sequential decoder types
+    if (count == 0 || at + count > in.size()) return truncated();
+    sequential_types.push_back(in[at]);  // the first attribute's
+    at += count;
     total += count;
   }
-  if (at > in.size()) return truncated();
   if (total != kLayout.size()) {
     return fail(str(total) + " attributes, expected " + str(kLayout.size()));
   }
   for (size_t id = 0; id < kLayout.size(); ++id) {
     if (!seen[id]) return fail(std::string("missing attribute: ") + kLayout[id].name);
   }
-  return {};
+  return sequential_types;
 }
 
 // Draco's edgebreaker decoder (what draco::Decoder creates for MESH_EDGEBREAKER_ENCODING) with
@@ -387,6 +393,20 @@ Status check_attribute_descriptors(std::span<const uint8_t> in) {
 // byte. This departs from STYLE.md habit 4 (draco::Decoder only) because draco::Decoder offers no
 // point between the descriptors and the values; finding the descriptors without Draco would mean
 // re-implementing its connectivity decoding (valence context symbols are rANS-coded).
+//
+// It also checks prediction methods before Draco reads them. Draco 1.5.5 (Debian 12's) casts an
+// attribute's method byte to its PredictionSchemeMethod enum unchecked
+// (SequentialIntegerAttributeDecoder::DecodeValues, and through it the quantization and normal
+// decoders); later Draco releases refuse a method outside PREDICTION_NONE..NUM_PREDICTION_SCHEMES
+// - 1. The fuzzer found it once Draco was built with UBSan
+// (tests/fuzz/seeds/room_decoder_fuzz/prediction_method_*). Only the first attribute of each
+// attribute decoder can be checked from here: its values open the decoder's data, while the next
+// attribute's start only once Draco has decoded the one before. encode_room puts all four in one
+// decoder (one connectivity: room_codec.hpp), so the normal, channel and rim methods stay
+// Draco's: an out-of-range value there reaches Draco's switch, whose default creates no
+// prediction scheme and fails the decode, in a build that does not assume enums in range (gcc and
+// clang without -fstrict-enums, Debian's build among them). The fuzz build compiles Draco with
+// -fno-sanitize=enum for that reason alone (tests/fuzz/run_fuzzers.sh).
 class LayoutCheckingDecoder final : public draco::MeshEdgebreakerDecoder {
  public:
   const Status& layout() const { return layout_; }
@@ -394,13 +414,45 @@ class LayoutCheckingDecoder final : public draco::MeshEdgebreakerDecoder {
  protected:
   bool DecodePointAttributes() override {
     const draco::DecoderBuffer* in = buffer();
-    layout_ = check_attribute_descriptors({reinterpret_cast<const uint8_t*>(in->data_head()),
-                                           static_cast<size_t>(in->remaining_size())});
-    return layout_ && draco::MeshEdgebreakerDecoder::DecodePointAttributes();
+    auto types = check_attribute_descriptors({reinterpret_cast<const uint8_t*>(in->data_head()),
+                                              static_cast<size_t>(in->remaining_size())});
+    if (!types) {
+      layout_ = types.error();
+      return false;
+    }
+    sequential_types_ = std::move(types.value());
+    return draco::MeshEdgebreakerDecoder::DecodePointAttributes();
+  }
+
+  // PointCloudDecoder::DecodeAllAttributes (one DecodeAttributes a decoder, in order) with the
+  // prediction method checked first. A decoder's data starts with its first attribute's values:
+  // for every sequential decoder but the generic one (raw values), with the method byte.
+  bool DecodeAllAttributes() override {
+    if (static_cast<size_t>(num_attributes_decoders()) != sequential_types_.size()) {
+      layout_ = fail("attribute decoders differ from their descriptors");
+      return false;
+    }
+    for (int i = 0; i < num_attributes_decoders(); ++i) {
+      const draco::DecoderBuffer* in = buffer();
+      if (sequential_types_[i] != draco::SEQUENTIAL_ATTRIBUTE_ENCODER_GENERIC &&
+          in->remaining_size() > 0) {
+        const auto method = static_cast<int8_t>(*in->data_head());
+        if (method < draco::PREDICTION_NONE || method >= draco::NUM_PREDICTION_SCHEMES) {
+          layout_ = fail("attribute decoder " + std::to_string(i) + ": prediction method " +
+                         std::to_string(method) + " is none of Draco's");
+          return false;
+        }
+      }
+      // attributes_decoder() hands out a const pointer to what this decoder owns, not const.
+      auto* att_decoder = const_cast<draco::AttributesDecoderInterface*>(attributes_decoder(i));
+      if (!att_decoder->DecodeAttributes(buffer())) return false;
+    }
+    return true;
   }
 
  private:
   Status layout_;
+  std::vector<uint8_t> sequential_types_;
 };
 
 // The attribute with `unique_id`, if its type, width, storage and point mapping are what

@@ -152,11 +152,13 @@ Result<std::vector<uint8_t>> encode_geometry_only(const RoomView& room,
 // header declares are checked before Draco allocates anything for them; Draco's edgebreaker
 // decoder parses the bytes, and when it reaches the attribute descriptors (after connectivity,
 // before any attribute value is allocated) they must be exactly the four of the layout above, or
-// decoding stops there; then the layout and every value are validated (finite positions within
-// kMaxOffset, rim vertices on the 1/256 m wire grid, unit normals, channels in [0, 1], rim slots
-// below limits.portal_count, indices in range, no degenerate triangle). Limits over the kMax*
-// ceilings count as the ceilings. Every failure is an invalid_argument Error whose message names
-// the problem; nothing throws or aborts. Deterministic: the same bytes decode to the same room.
+// decoding stops there; the prediction method at the start of each attribute decoder's data must
+// be one Draco defines before Draco reads it (Draco 1.5.5 does not check; see room_codec.cpp);
+// then the layout and every value are validated (finite positions within kMaxOffset, rim
+// vertices on the 1/256 m wire grid, unit normals, channels in [0, 1], rim slots below
+// limits.portal_count, indices in range, no degenerate triangle). Limits over the kMax* ceilings
+// count as the ceilings. Every failure is an invalid_argument Error whose message names the
+// problem; nothing throws or aborts. Deterministic: the same bytes decode to the same room.
 // Thread-safe.
 Result<DecodedRoom> decode_room(std::span<const uint8_t> payload, const DecodeLimits& limits = {});
 

@@ -52,8 +52,10 @@ inline std::vector<AttributeSpec> valid_layout() {
   };
 }
 
+// single_connectivity: Draco's "split_mesh_on_seams", every attribute in one attribute decoder.
 inline std::vector<uint8_t> draco_payload(const std::vector<AttributeSpec>& specs,
-                                          int method = draco::MESH_EDGEBREAKER_ENCODING) {
+                                          int method = draco::MESH_EDGEBREAKER_ENCODING,
+                                          bool single_connectivity = false) {
   draco::Mesh m;
   m.set_num_points(kOctahedronVertices);
   // Faces of the octahedron (+x=0, -x=1, +y=2, -y=3, +z=4, -z=5).
@@ -89,6 +91,7 @@ inline std::vector<uint8_t> draco_payload(const std::vector<AttributeSpec>& spec
   }
   draco::ExpertEncoder encoder(m);
   encoder.SetEncodingMethod(method);
+  if (single_connectivity) encoder.options().SetGlobalBool("split_mesh_on_seams", true);
   for (size_t i = 0; i < specs.size(); ++i) {
     if (specs[i].quantization_bits > 0) {
       encoder.SetAttributeQuantization(ids[i], specs[i].quantization_bits);

@@ -1,5 +1,7 @@
 // The room codec (common/codec): round trips of real patch rooms on the world grid, bit-identical
 // rims across rooms encoded alone, and a decoder that turns every malformed payload into an error.
+#include <draco/compression/config/compression_shared.h>
+#include <draco/compression/mesh/mesh_edgebreaker_decoder.h>
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -390,6 +392,14 @@ TEST(RoomCodecLayout, wrong_attribute_layouts_are_errors) {
   auto swapped = valid_layout();
   std::swap(swapped[0].unique_id, swapped[1].unique_id);
   expect_error(decode_room(draco_payload(swapped)), "has the wrong type");
+  // All four in one attribute decoder (what encode_room writes) and each in its own (what it wrote
+  // before issue 18) both decode.
+  auto shared = draco_payload(valid_layout(), draco::MESH_EDGEBREAKER_ENCODING, true);
+  ASSERT_FALSE(shared.empty());
+  EXPECT_TRUE(decode_room(shared).ok());
+  auto separate = draco_payload(valid_layout(), draco::MESH_EDGEBREAKER_ENCODING, false);
+  ASSERT_FALSE(separate.empty());
+  EXPECT_TRUE(decode_room(separate).ok());
 }
 
 TEST(RoomCodecLayout, bad_values_are_errors) {
@@ -430,6 +440,59 @@ TEST(RoomCodecLayout, other_draco_geometry_is_an_error) {
   auto point_cloud = draco_payload(valid_layout());
   point_cloud[7] = draco::POINT_CLOUD;
   expect_error(decode_room(point_cloud), "not a triangle mesh");
+}
+
+// Draco's own edgebreaker decoder, noting where each attribute decoder's data starts (the loop
+// of PointCloudDecoder::DecodeAllAttributes), so a test can change exactly that byte. A pointer,
+// not buffer()->decoded_size(): the edgebreaker decoder re-initializes its buffer mid-stream.
+class AttributeDataStarts final : public draco::MeshEdgebreakerDecoder {
+ public:
+  std::vector<const char*> starts;
+
+ protected:
+  bool DecodeAllAttributes() override {
+    for (int i = 0; i < num_attributes_decoders(); ++i) {
+      starts.push_back(buffer()->data_head());
+      auto* att_decoder = const_cast<draco::AttributesDecoderInterface*>(attributes_decoder(i));
+      if (!att_decoder->DecodeAttributes(buffer())) return false;
+    }
+    return true;
+  }
+};
+
+// The fuzzer, with Draco built with UBSan, found that Draco 1.5.5 casts an attribute's
+// prediction-method byte to its enum unchecked (values -86 and 30 in
+// tests/fuzz/seeds/room_decoder_fuzz/prediction_method_*). The decoder refuses a method outside
+// Draco's before Draco reads it, for the attribute that opens each attribute decoder: with one
+// decoder an attribute (Draco's default) all four, with encode_room's one shared decoder the
+// position's.
+void expect_opening_methods_checked(const std::vector<uint8_t>& payload, size_t decoders) {
+  draco::DecoderBuffer buffer;
+  buffer.Init(reinterpret_cast<const char*>(payload.data()), payload.size());
+  draco::Mesh m;
+  AttributeDataStarts data;
+  ASSERT_TRUE(data.Decode(draco::DecoderOptions(), &buffer, &m).ok());
+  ASSERT_EQ(data.starts.size(), decoders);
+  for (size_t i = 0; i < data.starts.size(); ++i) {
+    const auto at =
+        static_cast<size_t>(data.starts[i] - reinterpret_cast<const char*>(payload.data()));
+    ASSERT_LT(at, payload.size());
+    // What encode_room wrote there is a method Draco knows (so this is the method byte).
+    const auto written = static_cast<int8_t>(payload[at]);
+    ASSERT_GE(written, draco::PREDICTION_NONE) << "attribute decoder " << i;
+    ASSERT_LT(written, draco::NUM_PREDICTION_SCHEMES) << "attribute decoder " << i;
+    for (int method : {-86, 30, static_cast<int>(draco::NUM_PREDICTION_SCHEMES), -3}) {
+      auto bad = payload;
+      bad[at] = static_cast<uint8_t>(method);
+      expect_error(decode_room(bad), "attribute decoder " + std::to_string(i) +
+                                         ": prediction method " + std::to_string(method) +
+                                         " is none of Draco's");
+    }
+  }
+}
+
+TEST_F(RoomCodecTest, prediction_methods_draco_lacks_are_refused_before_draco_reads_them) {
+  expect_opening_methods_checked(encoded(any_room()), 1);
 }
 
 // --- The encoder's own contracts ------------------------------------------------------------
