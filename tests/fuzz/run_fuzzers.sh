@@ -63,7 +63,13 @@ if [[ -z "${GROTTO_FUZZERS:-}" || " $GROTTO_FUZZERS " == *" room_decoder_fuzz "*
   draco_flags="-O2 -gline-tables-only -fsanitize=fuzzer-no-link,address,undefined -fno-sanitize=enum"
   draco_flags+=" -fno-omit-frame-pointer -fno-sanitize-recover=undefined"
   draco="$build/draco"
-  draco_key="draco $version; $("$cxx" --version | head -1); $draco_flags; transcoder off; v1"
+  draco_cmake=(-DCMAKE_BUILD_TYPE=None -DCMAKE_C_COMPILER="$(dirname "$cxx")/clang"
+    -DCMAKE_CXX_COMPILER="$cxx" -DCMAKE_C_FLAGS="$draco_flags" -DCMAKE_CXX_FLAGS="$draco_flags"
+    -DCMAKE_EXE_LINKER_FLAGS="-fsanitize=address,undefined" -DBUILD_SHARED_LIBS=OFF
+    -DDRACO_TESTS=OFF -DDRACO_TRANSCODER_SUPPORTED=OFF
+    -DCMAKE_INSTALL_PREFIX="$draco/install" -DCMAKE_INSTALL_LIBDIR=lib)
+  # The build is kept while the source version, the compiler and these options stay the same.
+  draco_key="draco $version; $("$cxx" --version | head -1); ${draco_cmake[*]}"
   if [[ "$(cat "$draco/stamp" 2>/dev/null)" != "$draco_key" ]]; then
     echo "fuzz: building Draco $version from Debian's source with sanitizers (once per build directory)"
     start=$SECONDS
@@ -72,12 +78,7 @@ if [[ -z "${GROTTO_FUZZERS:-}" || " $GROTTO_FUZZERS " == *" room_decoder_fuzz "*
     # Draco installs its decoder and encoder programs too, so they are built (~20% of the time);
     # the install tree is what find_package(draco) reads.
     if ! { dpkg-source -x "$dsc" "$draco/src" &&
-           cmake -S "$draco/src" -B "$draco/build" -DCMAKE_BUILD_TYPE=None \
-             -DCMAKE_C_COMPILER="$(dirname "$cxx")/clang" -DCMAKE_CXX_COMPILER="$cxx" \
-             -DCMAKE_C_FLAGS="$draco_flags" -DCMAKE_CXX_FLAGS="$draco_flags" \
-             -DCMAKE_EXE_LINKER_FLAGS="-fsanitize=address,undefined" \
-             -DBUILD_SHARED_LIBS=OFF -DDRACO_TESTS=OFF -DDRACO_TRANSCODER_SUPPORTED=OFF \
-             -DCMAKE_INSTALL_PREFIX="$draco/install" -DCMAKE_INSTALL_LIBDIR=lib &&
+           cmake -S "$draco/src" -B "$draco/build" "${draco_cmake[@]}" &&
            cmake --build "$draco/build" -j "$jobs" &&
            cmake --install "$draco/build"; } >"$draco/build.log" 2>&1; then
       echo "fuzz: building Draco from $dsc failed:"; tail -20 "$draco/build.log"; exit 1
