@@ -54,8 +54,8 @@ if [[ -z "${GROTTO_FUZZERS:-}" || " $GROTTO_FUZZERS " == *" room_decoder_fuzz "*
   # What Debian's build does (debian/rules: dh's CMAKE_BUILD_TYPE=None, so -O2 and assert() on,
   # Draco's default codec options) but static, with the sanitizers and coverage of Grotto's fuzz
   # build, and without the glTF transcoder (file formats and scenes, nothing that decodes a
-  # Draco bitstream; it is half the build). -gline-tables-only: file:line in reports, at little
-  # cost in build time.
+  # Draco bitstream; it would need Eigen, stb and tinygltf installed). -gline-tables-only:
+  # file:line in reports without full debug information.
   # -fno-sanitize=enum: Draco 1.5.5 loads an unchecked prediction-method byte as an enum; the
   # decoder checks the byte that opens each attribute decoder's data, but the others are reachable
   # only through Draco (common/codec/room_codec.cpp, LayoutCheckingDecoder), and an out-of-range
