@@ -403,9 +403,9 @@ Result<std::vector<uint8_t>> check_attribute_descriptors(std::span<const uint8_t
 // attribute decoder can be checked from here: its values open the decoder's data, while the next
 // attribute's start only once Draco has decoded the one before. encode_room puts all four in one
 // decoder (one connectivity: room_codec.hpp), so the normal, channel and rim methods stay
-// Draco's: an out-of-range value there reaches Draco's switch, whose default creates no
-// prediction scheme and fails the decode, in a build that does not assume enums in range (gcc and
-// clang without -fstrict-enums, Debian's build among them). The fuzz build compiles Draco with
+// Draco's: an out-of-range value there falls to Draco's delta predictor in a build that does not
+// assume enums in range (gcc and clang without -fstrict-enums, Debian's among them), and what it
+// decodes then meets this file's value checks. The fuzz build compiles Draco with
 // -fno-sanitize=enum for that reason alone (tests/fuzz/run_fuzzers.sh).
 class LayoutCheckingDecoder final : public draco::MeshEdgebreakerDecoder {
  public:
