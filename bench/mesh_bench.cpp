@@ -20,6 +20,27 @@ namespace {
 using namespace grotto;
 using bench::median_ms;
 
+// FNV-1a over every byte of the meshes: equal digests before and after a change mean the change
+// kept the meshes bit-identical.
+struct Digest {
+  uint64_t h = 1469598103934665603ull;
+  template <class T>
+  void add(const std::vector<T>& v) {
+    const auto* p = reinterpret_cast<const unsigned char*>(v.data());
+    for (size_t i = 0; i < v.size() * sizeof(T); ++i)
+      h = (h ^ p[i]) * 1099511628211ull;
+  }
+  void add(const mesh::RoomMesh& m) {
+    add(m.positions);
+    add(m.normals);
+    add(m.roughness);
+    add(m.mineral);
+    add(m.rim_portal);
+    add(m.rim_index);
+    add(m.indices);
+  }
+};
+
 struct Deformed {
   std::vector<std::vector<mesh::core::float3>> positions;
   std::vector<std::vector<float>> clearance;
@@ -35,6 +56,7 @@ int main(int argc, char** argv) {
   int reps = 5, room_count = 100;
   uint64_t seed = 42;
   int lanes = 0;
+  std::string lod_name = "detail";
   app.add_option("--json", json_path, "Write the report here")->capture_default_str();
   app.add_option("--repetitions", reps, "Runs per measurement (the median is reported)")
       ->check(CLI::Range(1, 100))
@@ -47,11 +69,16 @@ int main(int argc, char** argv) {
                  "Vertices per OpenCL work item: 0 picks by device (8 on CPUs, 1 on GPUs)")
       ->check(CLI::IsMember(std::vector<int>{0, 1, 8}))
       ->capture_default_str();
+  app.add_option("--lod", lod_name,
+                 "Level of detail: detail (the thesis's cave) or patch (what "
+                 "the server streams)")
+      ->check(CLI::IsMember(std::vector<std::string>{"detail", "patch"}))
+      ->capture_default_str();
   CLI11_PARSE(app, argc, argv);
 
   cave::World world = cave::World::create(seed, cave::LayoutParams{}).value();
   mesh::MeshContext ctx = mesh::MeshContext::create(world, mesh::MeshParams{}).value();
-  const mesh::Lod lod = mesh::Lod::kDetail;
+  const mesh::Lod lod = lod_name == "patch" ? mesh::Lod::kPatch : mesh::Lod::kDetail;
 
   // Layout: enough sectors for the cave, timed as one stage.
   cave::Region region;
@@ -90,13 +117,16 @@ int main(int argc, char** argv) {
 
   mesh::AssembleStats stage{};
   size_t out_vertices = 0;
+  Digest digest;
   double assemble_ms = median_ms(reps, [&] {
     stage = {};
     out_vertices = 0;
+    digest = {};
     for (size_t i = 0; i < inputs.size(); ++i) {
       mesh::AssembleStats s;
       auto m = mesh::assemble_room(ctx, inputs[i], cpu.positions[i], cpu.clearance[i], &s);
       out_vertices += m.ok() ? m->vertex_count() : 0;
+      if (m.ok()) digest.add(*m);
       stage.cut_seconds += s.cut_seconds;
       stage.stitch_seconds += s.stitch_seconds;
       stage.normals_seconds += s.normals_seconds;
@@ -106,6 +136,11 @@ int main(int argc, char** argv) {
 
   nlohmann::json report;
   report["rooms"] = rooms.size();
+  report["lod"] = lod_name;
+  char digest_hex[17];
+  std::snprintf(digest_hex, sizeof digest_hex, "%016llx",
+                static_cast<unsigned long long>(digest.h));
+  report["mesh_digest"] = digest_hex;
   report["donor_vertices"] = donor_vertices;
   report["mesh_vertices"] = out_vertices;
   report["repetitions"] = reps;
@@ -199,8 +234,10 @@ int main(int argc, char** argv) {
                         {"smallest_room_vertices", inputs[smallest].donor->directions.size()}};
   }
 
-  std::printf("100-room cave (%zu rooms, %zu donor vertices, %zu mesh vertices), median of %d\n",
-              rooms.size(), donor_vertices, out_vertices, reps);
+  std::printf(
+      "100-room cave (%zu rooms, %s level, %zu donor vertices, %zu mesh vertices, mesh digest "
+      "%s), median of %d\n",
+      rooms.size(), lod_name.c_str(), donor_vertices, out_vertices, digest_hex, reps);
   std::printf("%-26s %10s\n", "stage", "ms");
   for (auto& [k, v] : report["stages_ms"].items())
     std::printf("%-26s %10.1f\n", k.c_str(), v.get<double>());

@@ -13,6 +13,7 @@
 #define GROTTO_CONSTANT __constant
 #define grotto_sqrt sqrt
 #define grotto_floor floor
+#define GROTTO_SPLAT(x) ((gfloat)(x))
 
 #if GROTTO_LANES == 1
 typedef float gfloat;

@@ -31,7 +31,9 @@ typedef float3 gfloat3;
 #define GROTTO_FN inline
 #define GROTTO_CONSTANT
 #define GROTTO_WRAP256(f) static_cast<guint>(static_cast<int>(f) & 255)
+#define GROTTO_SPLAT(x) (x)
 #include "mesh/deform_core.h"
+#undef GROTTO_SPLAT
 #undef GROTTO_WRAP256
 #undef GROTTO_CONSTANT
 #undef GROTTO_FN

@@ -19,10 +19,16 @@
  *   gfloat, guint        per-lane float and uint; gmask the type of a per-lane comparison
  *   gfloat3              a struct of three gfloat named x, y, z
  *   GROTTO_WRAP256(f)    (uint)((int)f & 255) in every lane, f already floored
+ *   GROTTO_SPLAT(x)      the float x in every lane of a gfloat (C++'s vector lanes, unlike
+ *                        OpenCL's, do not convert a scalar on initialization)
  *   grotto_sqrt, grotto_floor, and the type uint.
+ * The C++ lanes (common/mesh/deform_lanes.hpp) include this text a second time, in another
+ * namespace with vector types; GROTTO_CORE_TYPES keeps the shared structs to one definition.
  *
  * Only + - * / sqrt floor are used: no builtin dot/normalize/mix (they may fuse or use rsqrt). */
 
+#ifndef GROTTO_CORE_TYPES
+#define GROTTO_CORE_TYPES
 #define GROTTO_MAX_PORTALS 16
 #define GROTTO_MAX_OCTAVES 6
 
@@ -68,6 +74,7 @@ typedef struct {
   float passage_roundness; /* roundness of small rooms with two portals */
   float pad[8];
 } GrottoShape;
+#endif /* GROTTO_CORE_TYPES */
 
 /* Triples, component by component in a fixed order (a + b is a.x + b.x, ...). */
 GROTTO_FN gfloat3 grotto_v3(gfloat x, gfloat y, gfloat z) {
@@ -181,7 +188,7 @@ GROTTO_FN gfloat grotto_rim_radius(uint seed, GROTTO_CONSTANT const GrottoPortal
 /* Thesis §3.1.6: the surface octaves at noise-space point wp, metres along the outward direction.
  */
 GROTTO_FN gfloat grotto_surface_noise(uint seed, GROTTO_CONSTANT const GrottoShape* s, gfloat3 wp) {
-  gfloat d = 0.0f;
+  gfloat d = GROTTO_SPLAT(0.0f);
   for (uint k = 0; k < s->octaves; ++k) {
     d = d + s->amplitude[k] * grotto_noise3(seed, wp, s->frequency[k]);
   }
@@ -213,7 +220,7 @@ GROTTO_FN gfloat3 grotto_rim_direction(GROTTO_CONSTANT const GrottoPortal* p, gf
 /* The smallest height of p above the room's portal planes (negative: beyond a portal). */
 GROTTO_FN gfloat grotto_least_height(GROTTO_CONSTANT const GrottoPortal* portals, uint n,
                                      gfloat3 p) {
-  gfloat least = 3.4e38f;
+  gfloat least = GROTTO_SPLAT(3.4e38f);
   for (uint i = 0; i < n; ++i) {
     GROTTO_CONSTANT const GrottoPortal* q = portals + i;
     gfloat h = -grotto_dot(grotto_sub(p, grotto_portal_centre(q)), grotto_portal_normal(q));
@@ -264,7 +271,7 @@ GROTTO_FN gfloat3 grotto_deform_vertex(uint seed, GROTTO_CONSTANT const GrottoSh
    * each projection is to the vertex. The axis (the same spline through the disc centres) gives
    * the outward direction for noise. */
   gfloat3 sum = grotto_v3(0.0f, 0.0f, 0.0f), axis_sum = grotto_v3(0.0f, 0.0f, 0.0f);
-  gfloat weight_sum = 0.0f;
+  gfloat weight_sum = GROTTO_SPLAT(0.0f);
   for (uint i = 0; i < n; ++i) {
     for (uint j = i + 1u; j < n; ++j) {
       GROTTO_CONSTANT const GrottoPortal* pi = portals + i;
@@ -341,7 +348,7 @@ GROTTO_FN gfloat3 grotto_deform_vertex(uint seed, GROTTO_CONSTANT const GrottoSh
   out = grotto_select3(out_len > 1e-6f, grotto_div(out, out_len), dir);
   gfloat3 wp = grotto_add(w0, smooth_pos);
   gfloat noise = grotto_surface_noise(seed, s, wp);
-  gfloat near_sum = 0.0f, rim_sum = 0.0f;
+  gfloat near_sum = GROTTO_SPLAT(0.0f), rim_sum = GROTTO_SPLAT(0.0f);
   for (uint i = 0; i < n; ++i) {
     GROTTO_CONSTANT const GrottoPortal* p = portals + i;
     gfloat3 rel = grotto_sub(smooth_pos, grotto_portal_centre(p));
