@@ -9,9 +9,14 @@ namespace {
 
 constexpr uint64_t kNoiseStream = 0x6e6f697365000001ull;  // "noise"
 
+// v modulo the period in [0, period), a zero keeping v's sign: what fmod and one add of the
+// period to a negative remainder give, bit for bit, without fmod (a tenth of the detail channels'
+// time). The period is a power of two, so v / period, its floor and their product are exact, and
+// the one subtraction rounds the same exact value the add did.
+static_assert(kNoisePeriod == 16384.0, "wrap() needs a power-of-two period");
 double wrap(double v) {
-  double r = std::fmod(v, kNoisePeriod);
-  return r < 0 ? r + kNoisePeriod : r;
+  double r = v - std::floor(v * (1.0 / kNoisePeriod)) * kNoisePeriod;
+  return r == 0 ? std::copysign(0.0, v) : r;
 }
 
 }  // namespace

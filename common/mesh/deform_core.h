@@ -23,12 +23,10 @@
  *                        OpenCL's, do not convert a scalar on initialization)
  *   grotto_sqrt, grotto_floor, and the type uint.
  * The C++ lanes (common/mesh/deform_lanes.hpp) include this text a second time, in another
- * namespace with vector types; GROTTO_CORE_TYPES keeps the shared structs to one definition.
+ * namespace with vector types.
  *
  * Only + - * / sqrt floor are used: no builtin dot/normalize/mix (they may fuse or use rsqrt). */
 
-#ifndef GROTTO_CORE_TYPES
-#define GROTTO_CORE_TYPES
 #define GROTTO_MAX_PORTALS 16
 #define GROTTO_MAX_OCTAVES 6
 
@@ -74,7 +72,6 @@ typedef struct {
   float passage_roundness; /* roundness of small rooms with two portals */
   float pad[8];
 } GrottoShape;
-#endif /* GROTTO_CORE_TYPES */
 
 /* Triples, component by component in a fixed order (a + b is a.x + b.x, ...). */
 GROTTO_FN gfloat3 grotto_v3(gfloat x, gfloat y, gfloat z) {

@@ -9,6 +9,7 @@
 
 #include "core/detmath.hpp"
 #include "core/grid.hpp"
+#include "mesh/deform_lanes.hpp"
 
 namespace grotto::mesh {
 namespace {
@@ -165,14 +166,92 @@ DeformInput prepare_room(const MeshContext& ctx, const cave::Room& room, Lod lod
   return in;
 }
 
-void deform_cpu(const MeshContext& ctx, const DeformInput& input, std::span<float3> positions,
-                std::span<float> clearance) {
+GROTTO_LANES_CLONES void deform_cpu(const MeshContext& ctx, const DeformInput& input,
+                                    std::span<float3> positions, std::span<float> clearance) {
   assert(input.record.noise_seed == ctx.noise_seed());  // prepared for this world
+  // Four vertices per call in SIMD lanes (deform_lanes.hpp), each lane bit-identical to
+  // core::grotto_deform_vertex; the last group repeats its last vertex in the unused lanes.
+  namespace lanes = core::lanes;
+  const auto& dirs = input.donor->directions;
+  const size_t n = dirs.size();
+  const auto shape = lanes::table<lanes::GrottoShape>(ctx.shape(input.lod));
+  const auto record = lanes::table<lanes::GrottoRoom>(input.record);
+  lanes::GrottoPortal portals[GROTTO_MAX_PORTALS];
+  assert(input.portals.size() <= GROTTO_MAX_PORTALS);
+  for (size_t i = 0; i < input.portals.size(); ++i)
+    portals[i] = lanes::table<lanes::GrottoPortal>(input.portals[i]);
+  for (size_t i = 0; i < n; i += lanes::kLanes) {
+    lanes::gfloat3 dir{};
+    for (int k = 0; k < lanes::kLanes; ++k) {
+      const float3& d = dirs[std::min(i + k, n - 1)];
+      dir.x[k] = d.x;
+      dir.y[k] = d.y;
+      dir.z[k] = d.z;
+    }
+    lanes::gfloat least;
+    lanes::gfloat3 p =
+        lanes::grotto_deform_vertex(record.noise_seed, &shape, &record, portals, dir, &least);
+    for (int k = 0; k < lanes::kLanes && i + k < n; ++k) {
+      positions[i + k] = {p.x[k], p.y[k], p.z[k]};
+      clearance[i + k] = least[k];
+    }
+  }
+}
+
+void deform_reference(const MeshContext& ctx, const DeformInput& input, std::span<float3> positions,
+                      std::span<float> clearance) {
+  assert(input.record.noise_seed == ctx.noise_seed());
   const auto& dirs = input.donor->directions;
   for (size_t i = 0; i < dirs.size(); ++i) {
     positions[i] =
         core::grotto_deform_vertex(input.record.noise_seed, &ctx.shape(input.lod), &input.record,
                                    input.portals.data(), dirs[i], &clearance[i]);
+  }
+}
+
+GROTTO_LANES_CLONES void detail_channels(const MeshContext& ctx, Vec3 origin,
+                                         std::span<const float3> positions,
+                                         std::span<float> roughness, std::span<float> mineral) {
+  namespace lanes = core::lanes;
+  const MeshParams& p = ctx.params();
+  const uint32_t seed = ctx.noise_seed();
+  const auto f_rough = static_cast<float>(p.roughness_frequency);
+  const auto f_rough3 = static_cast<float>(3 * p.roughness_frequency);
+  const auto f_mineral = static_cast<float>(p.mineral_frequency);
+  const size_t n = positions.size();
+  for (size_t i = 0; i < n; i += lanes::kLanes) {
+    lanes::gfloat3 w{};
+    for (int k = 0; k < lanes::kLanes; ++k) {
+      const float3& q = positions[std::min(i + k, n - 1)];
+      float3 wk = ctx.noise_position(origin + Vec3{q.x, q.y, q.z});
+      w.x[k] = wk.x;
+      w.y[k] = wk.y;
+      w.z[k] = wk.z;
+    }
+    lanes::gfloat r = lanes::grotto_noise3(seed, w, f_rough);
+    lanes::gfloat r2 = lanes::grotto_noise3(seed, w, f_rough3);
+    lanes::gfloat rough = lanes::grotto_clamp01(0.5f + 0.7f * r + 0.3f * r2);
+    lanes::gfloat m = lanes::grotto_noise3(seed, w, f_mineral);
+    lanes::gfloat min = lanes::grotto_smooth((m - 0.2f) * 4.0f);
+    for (int k = 0; k < lanes::kLanes && i + k < n; ++k) {
+      roughness[i + k] = rough[k];
+      mineral[i + k] = min[k];
+    }
+  }
+}
+
+void detail_channels_reference(const MeshContext& ctx, Vec3 origin,
+                               std::span<const float3> positions, std::span<float> roughness,
+                               std::span<float> mineral) {
+  const MeshParams& p = ctx.params();
+  for (size_t v = 0; v < positions.size(); ++v) {
+    float3 w = ctx.noise_position(origin + Vec3{positions[v].x, positions[v].y, positions[v].z});
+    float r = core::grotto_noise3(ctx.noise_seed(), w, static_cast<float>(p.roughness_frequency));
+    float r2 =
+        core::grotto_noise3(ctx.noise_seed(), w, static_cast<float>(3 * p.roughness_frequency));
+    roughness[v] = core::grotto_clamp01(0.5f + 0.7f * r + 0.3f * r2);
+    float m = core::grotto_noise3(ctx.noise_seed(), w, static_cast<float>(p.mineral_frequency));
+    mineral[v] = core::grotto_smooth((m - 0.2f) * 4.0f);
   }
 }
 
@@ -367,18 +446,9 @@ Result<RoomMesh> assemble_room(const MeshContext& ctx, const DeformInput& input,
   lap(stats.normals_seconds);
 
   // Detail channels from world-space fields, so rim vertices agree across rooms.
-  const MeshParams& p = ctx.params();
   mesh.roughness.resize(mesh.positions.size());
   mesh.mineral.resize(mesh.positions.size());
-  for (size_t v = 0; v < mesh.positions.size(); ++v) {
-    float3 w = ctx.noise_position(mesh.world_position(v));
-    float r = core::grotto_noise3(ctx.noise_seed(), w, static_cast<float>(p.roughness_frequency));
-    float r2 =
-        core::grotto_noise3(ctx.noise_seed(), w, static_cast<float>(3 * p.roughness_frequency));
-    mesh.roughness[v] = core::grotto_clamp01(0.5f + 0.7f * r + 0.3f * r2);
-    float m = core::grotto_noise3(ctx.noise_seed(), w, static_cast<float>(p.mineral_frequency));
-    mesh.mineral[v] = core::grotto_smooth((m - 0.2f) * 4.0f);
-  }
+  detail_channels(ctx, mesh.origin, mesh.positions, mesh.roughness, mesh.mineral);
   lap(stats.channels_seconds);
   if (stats_out) *stats_out = stats;
   return mesh;

@@ -51,9 +51,23 @@ struct DeformInput {
 
 DeformInput prepare_room(const MeshContext& ctx, const cave::Room& room, Lod lod);
 
-// The CPU reference of the deformation: one position and clearance per donor vertex.
+// The deformation on the CPU: one position and clearance per donor vertex (spans of the donor's
+// size). Runs four vertices at a time in SIMD lanes; every result is bit-identical to
+// deform_reference's, and to the OpenCL kernel's (kernels/deform.hpp).
 void deform_cpu(const MeshContext& ctx, const DeformInput& input, std::span<core::float3> positions,
                 std::span<float> clearance);
+// The scalar reference of the deformation (the core one vertex per call), for tests.
+void deform_reference(const MeshContext& ctx, const DeformInput& input,
+                      std::span<core::float3> positions, std::span<float> clearance);
+
+// The detail channels of vertices at origin + positions[i] (world-space fields, so rim vertices
+// agree across rooms): roughness and mineral, spans of positions' size. SIMD lanes, bit-identical
+// to detail_channels_reference.
+void detail_channels(const MeshContext& ctx, Vec3 origin, std::span<const core::float3> positions,
+                     std::span<float> roughness, std::span<float> mineral);
+void detail_channels_reference(const MeshContext& ctx, Vec3 origin,
+                               std::span<const core::float3> positions, std::span<float> roughness,
+                               std::span<float> mineral);
 
 // Why a room could not be assembled; counted, never silent.
 struct AssembleStats {
