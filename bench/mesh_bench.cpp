@@ -12,6 +12,7 @@
 #include <nlohmann/json.hpp>
 
 #include "kernels/deform.hpp"
+#include "kernels/room_builder.hpp"
 #include "mesh/room_mesh.hpp"
 #include "timing.hpp"
 
@@ -118,21 +119,47 @@ int main(int argc, char** argv) {
   mesh::AssembleStats stage{};
   size_t out_vertices = 0;
   Digest digest;
-  double assemble_ms = median_ms(reps, [&] {
-    stage = {};
-    out_vertices = 0;
-    digest = {};
-    for (size_t i = 0; i < inputs.size(); ++i) {
-      mesh::AssembleStats s;
-      auto m = mesh::assemble_room(ctx, inputs[i], cpu.positions[i], cpu.clearance[i], &s);
-      out_vertices += m.ok() ? m->vertex_count() : 0;
-      if (m.ok()) digest.add(*m);
-      stage.cut_seconds += s.cut_seconds;
-      stage.stitch_seconds += s.stitch_seconds;
-      stage.normals_seconds += s.normals_seconds;
-      stage.channels_seconds += s.channels_seconds;
+  double assemble_cpu_time_ms = 0;
+  double assemble_ms = median_ms(
+      reps,
+      [&] {
+        stage = {};
+        out_vertices = 0;
+        digest = {};
+        for (size_t i = 0; i < inputs.size(); ++i) {
+          mesh::AssembleStats s;
+          auto m = mesh::assemble_room(ctx, inputs[i], cpu.positions[i], cpu.clearance[i], &s);
+          out_vertices += m.ok() ? m->vertex_count() : 0;
+          if (m.ok()) digest.add(*m);
+          stage.cut_seconds += s.cut_seconds;
+          stage.stitch_seconds += s.stitch_seconds;
+          stage.normals_seconds += s.normals_seconds;
+          stage.channels_seconds += s.channels_seconds;
+        }
+      },
+      &assemble_cpu_time_ms);
+
+  // The whole cave as a caller builds it (kernels::RoomBuilder: prepare, deform on the device or
+  // in the CPU's lanes, assemble) on 1 and 2 threads, plus the layout: the "whole cave".
+  nlohmann::json whole = nlohmann::json::array();
+  spdlog::set_level(spdlog::level::warn);
+  for (std::string device : {"auto", "none"}) {
+    for (int threads : {1, 2}) {
+      auto builder =
+          kernels::RoomBuilder::create(ctx, {kernels::DeviceConfig{.device = device}, threads});
+      (void)builder.build(rooms, lod);  // warm-up (PoCL compiles for the work-group size)
+      double cpu_ms = 0;
+      double ms = median_ms(
+          reps, [&] { (void)builder.build(rooms, lod); }, &cpu_ms);
+      whole.push_back({{"device", device},
+                       {"path", builder.path()},
+                       {"threads", threads},
+                       {"build_ms", ms},
+                       {"build_cpu_time_ms", cpu_ms},
+                       {"whole_cave_ms", layout_ms + ms}});
     }
-  });
+  }
+  spdlog::set_level(spdlog::level::info);
 
   nlohmann::json report;
   report["rooms"] = rooms.size();
@@ -154,6 +181,8 @@ int main(int argc, char** argv) {
                          {"assemble_total", assemble_ms}};
   double total_cpu = layout_ms + prepare_ms + deform_cpu_ms + assemble_ms;
   report["total_cpu_ms"] = total_cpu;
+  report["assemble_cpu_time_ms"] = assemble_cpu_time_ms;
+  report["whole_cave"] = whole;
   report["deform_cpu_time_ms"] = deform_cpu_time_ms;
 
   auto device = kernels::ComputeContext::create();
@@ -242,6 +271,15 @@ int main(int argc, char** argv) {
   for (auto& [k, v] : report["stages_ms"].items())
     std::printf("%-26s %10.1f\n", k.c_str(), v.get<double>());
   std::printf("%-26s %10.1f\n", "total (CPU, 1 thread)", total_cpu);
+  std::printf("%-26s %10.1f\n", "assemble CPU time", assemble_cpu_time_ms);
+  std::printf(
+      "whole cave through RoomBuilder (layout + build), wall and the process's CPU time:\n");
+  for (auto& w : whole) {
+    std::printf("  %-6s %d thread(s) %10.1f ms (build %.1f ms, CPU time %.1f ms)  %s\n",
+                w["device"].get<std::string>().c_str(), w["threads"].get<int>(),
+                w["whole_cave_ms"].get<double>(), w["build_ms"].get<double>(),
+                w["build_cpu_time_ms"].get<double>(), w["path"].get<std::string>().c_str());
+  }
   if (report["opencl"]["available"]) {
     auto& cl = report["opencl"];
     std::printf("%-26s %10.1f  (%.1fx the CPU; %d lanes)\n", "deform (OpenCL)",

@@ -2,10 +2,38 @@
 
 #include <spdlog/spdlog.h>
 
+#include <atomic>
 #include <cassert>
 #include <cstring>
+#include <functional>
+#include <thread>
 
 namespace grotto::kernels {
+namespace {
+
+// f(0) ... f(count - 1) on `threads` threads (the caller's one of them), each index once.
+void for_each_index(size_t count, int threads, const std::function<void(size_t)>& f) {
+  size_t extra = std::min(static_cast<size_t>(std::max(threads, 1)), count) - (count > 0);
+  if (extra == 0) {
+    for (size_t i = 0; i < count; ++i)
+      f(i);
+    return;
+  }
+  std::atomic<size_t> next{0};
+  auto work = [&] {
+    for (size_t i = next++; i < count; i = next++)
+      f(i);
+  };
+  std::vector<std::thread> pool;
+  pool.reserve(extra);
+  for (size_t t = 0; t < extra; ++t)
+    pool.emplace_back(work);
+  work();
+  for (std::thread& t : pool)
+    t.join();
+}
+
+}  // namespace
 
 RoomBuilder::RoomBuilder(const mesh::MeshContext& mesh_ctx) : mesh_ctx_(&mesh_ctx) {}
 RoomBuilder::RoomBuilder(RoomBuilder&&) noexcept = default;
@@ -14,6 +42,9 @@ RoomBuilder::~RoomBuilder() = default;
 
 RoomBuilder RoomBuilder::create(const mesh::MeshContext& mesh_ctx, const Options& options) {
   RoomBuilder b(mesh_ctx);
+  b.threads_ = options.threads > 0
+                   ? options.threads
+                   : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
   auto ctx = ComputeContext::create(options.device);
   if (!ctx) {
     b.path_ = "cpu: " + ctx.error().message;
@@ -82,19 +113,19 @@ std::vector<Result<mesh::RoomMesh>> RoomBuilder::build(
       spdlog::warn("event=deform_fallback rooms={} error=\"{}\"", inputs.size(), s.error().message);
     }
   }
-  if (!on_device) {
-    outputs.assign(inputs.size(), {});
-    for (size_t k = 0; k < inputs.size(); ++k) {
+  if (!on_device) outputs.assign(inputs.size(), {});
+  // Rooms are independent: each index writes its own output and mesh slot.
+  for_each_index(inputs.size(), threads_, [&](size_t k) {
+    const mesh::MeshContext& world = *worlds[slots[k]];
+    if (!on_device) {
       size_t n = inputs[k].donor->directions.size();
       outputs[k].positions.resize(n);
       outputs[k].clearance.resize(n);
-      mesh::deform_cpu(*worlds[slots[k]], inputs[k], outputs[k].positions, outputs[k].clearance);
+      mesh::deform_cpu(world, inputs[k], outputs[k].positions, outputs[k].clearance);
     }
-  }
-  for (size_t k = 0; k < inputs.size(); ++k) {
-    meshes[slots[k]] = mesh::assemble_room(*worlds[slots[k]], inputs[k], outputs[k].positions,
-                                           outputs[k].clearance);
-  }
+    meshes[slots[k]] =
+        mesh::assemble_room(world, inputs[k], outputs[k].positions, outputs[k].clearance);
+  });
   return meshes;
 }
 

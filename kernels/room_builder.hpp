@@ -18,6 +18,11 @@ class RoomBuilder {
  public:
   struct Options {
     DeviceConfig device{};  // device "none" forces the CPU reference
+    // Threads that deform (on the CPU path) and assemble the rooms of one build() call, the
+    // caller's included: 1 keeps it all on the caller's thread (the server, which already runs
+    // one build per worker thread, must not oversubscribe its cores); a whole cave built at once
+    // sets more; 0 means one per hardware thread. Meshes do not depend on it.
+    int threads = 1;
   };
 
   // Never fails: without a usable device the builder runs on the CPU.
@@ -51,6 +56,7 @@ class RoomBuilder {
   std::unique_ptr<ComputeContext> device_;
   std::optional<DeformKernel> kernel_;
   std::string path_;
+  int threads_ = 1;
   size_t fallbacks_ = 0;
   LaunchStats launches_;
 };

@@ -1,6 +1,7 @@
 #include "mesh/context.hpp"
 
 #include <cmath>
+#include <cstdint>
 
 #include "core/random.hpp"
 
@@ -10,12 +11,19 @@ namespace {
 constexpr uint64_t kNoiseStream = 0x6e6f697365000001ull;  // "noise"
 
 // v modulo the period in [0, period), a zero keeping v's sign: what fmod and one add of the
-// period to a negative remainder give, bit for bit, without fmod (a tenth of the detail channels'
-// time). The period is a power of two, so v / period, its floor and their product are exact, and
-// the one subtraction rounds the same exact value the add did.
+// period to a negative remainder give, bit for bit, without fmod or a floor call (a fifth of the
+// detail channels' time). The period is a power of two, so q = v / period is exact, its floor
+// (by truncation, exact below 2^62; beyond, q is already an integer) times the period is exact,
+// and the one subtraction rounds the same exact value the add did.
 static_assert(kNoisePeriod == 16384.0, "wrap() needs a power-of-two period");
 double wrap(double v) {
-  double r = v - std::floor(v * (1.0 / kNoisePeriod)) * kNoisePeriod;
+  double q = v * (1.0 / kNoisePeriod);
+  double f = q;
+  if (std::abs(q) < 0x1p62) {
+    f = static_cast<double>(static_cast<int64_t>(q));
+    if (f > q) f -= 1.0;
+  }
+  double r = v - f * kNoisePeriod;
   return r == 0 ? std::copysign(0.0, v) : r;
 }
 

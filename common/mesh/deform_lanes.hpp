@@ -70,6 +70,11 @@ inline __attribute__((always_inline)) gfloat grotto_floor(gfloat x) {
 inline __attribute__((always_inline)) gfloat splat(float x) {
   return gfloat{x, x, x, x};
 }
+inline __attribute__((always_inline)) gfloat load(const float* p) {
+  gfloat v;
+  std::memcpy(&v, p, sizeof v);
+  return v;
+}
 inline __attribute__((always_inline)) gfloat3 grotto_v3(float x, float y, float z) {
   return {splat(x), splat(y), splat(z)};
 }

@@ -181,13 +181,14 @@ GROTTO_LANES_CLONES void deform_cpu(const MeshContext& ctx, const DeformInput& i
   for (size_t i = 0; i < input.portals.size(); ++i)
     portals[i] = lanes::table<lanes::GrottoPortal>(input.portals[i]);
   for (size_t i = 0; i < n; i += lanes::kLanes) {
-    lanes::gfloat3 dir{};
+    float x[lanes::kLanes], y[lanes::kLanes], z[lanes::kLanes];
     for (int k = 0; k < lanes::kLanes; ++k) {
       const float3& d = dirs[std::min(i + k, n - 1)];
-      dir.x[k] = d.x;
-      dir.y[k] = d.y;
-      dir.z[k] = d.z;
+      x[k] = d.x;
+      y[k] = d.y;
+      z[k] = d.z;
     }
+    lanes::gfloat3 dir = {lanes::load(x), lanes::load(y), lanes::load(z)};
     lanes::gfloat least;
     lanes::gfloat3 p =
         lanes::grotto_deform_vertex(record.noise_seed, &shape, &record, portals, dir, &least);
@@ -220,14 +221,15 @@ GROTTO_LANES_CLONES void detail_channels(const MeshContext& ctx, Vec3 origin,
   const auto f_mineral = static_cast<float>(p.mineral_frequency);
   const size_t n = positions.size();
   for (size_t i = 0; i < n; i += lanes::kLanes) {
-    lanes::gfloat3 w{};
+    float x[lanes::kLanes], y[lanes::kLanes], z[lanes::kLanes];
     for (int k = 0; k < lanes::kLanes; ++k) {
       const float3& q = positions[std::min(i + k, n - 1)];
       float3 wk = ctx.noise_position(origin + Vec3{q.x, q.y, q.z});
-      w.x[k] = wk.x;
-      w.y[k] = wk.y;
-      w.z[k] = wk.z;
+      x[k] = wk.x;
+      y[k] = wk.y;
+      z[k] = wk.z;
     }
+    lanes::gfloat3 w = {lanes::load(x), lanes::load(y), lanes::load(z)};
     lanes::gfloat r = lanes::grotto_noise3(seed, w, f_rough);
     lanes::gfloat r2 = lanes::grotto_noise3(seed, w, f_rough3);
     lanes::gfloat rough = lanes::grotto_clamp01(0.5f + 0.7f * r + 0.3f * r2);
@@ -269,7 +271,7 @@ Result<RoomMesh> assemble_room(const MeshContext& ctx, const DeformInput& input,
   const size_t nv = donor.directions.size();
   const size_t np = input.portals.size();
   const double band = ctx.shape(input.lod).remove_band;
-  const std::string name = input.room.id.to_string();
+  auto name = [&] { return input.room.id.to_string(); };  // for errors only
 
   // Thesis §3.1.7: vertices on the wrong side of a portal go, and so does a band before it to
   // leave room for the stitch; so does every donor vertex that started beyond a portal, so each
@@ -278,6 +280,7 @@ Result<RoomMesh> assemble_room(const MeshContext& ctx, const DeformInput& input,
   Vec3 o{input.record.ox, input.record.oy, input.record.oz};
   for (size_t v = 0; v < nv; ++v) {
     removed[v] = clearance[v] < band;
+    if (removed[v]) continue;
     Vec3 donor_point = o + to_vec(donor.directions[v]) * input.record.radius;
     for (const auto& p : input.portals) {
       if (height(p, donor_point) < 0) removed[v] = 1;
@@ -292,19 +295,25 @@ Result<RoomMesh> assemble_room(const MeshContext& ctx, const DeformInput& input,
     std::vector<uint32_t> pinches;
     if (boundary_loops(donor, kept, loops, pinches)) break;
     if (pinches.empty() || round == kMaxCutRounds) {
-      return Error{ErrorCode::kInternal, "room " + name + ": the cut left an open boundary"};
+      return Error{ErrorCode::kInternal, "room " + name() + ": the cut left an open boundary"};
     }
     for (uint32_t v : pinches)
       removed[v] = 1;
     stats.pinches_removed += static_cast<int>(pinches.size());
   }
 
-  // The kept triangles, flipped to face the inside (the donor faces outwards).
+  // The kept triangles, flipped to face the inside (the donor faces outwards); room for the
+  // stitches (one triangle per hole and rim vertex).
+  size_t boundary = 0;
+  for (const auto& loop : loops)
+    boundary += loop.size();
   std::vector<uint32_t> tris;
+  tris.reserve(3 * (static_cast<size_t>(std::count(kept.begin(), kept.end(), 1)) + 2 * boundary));
   for (size_t t = 0; t < kept.size(); ++t) {
     if (kept[t]) {
-      tris.insert(tris.end(),
-                  {donor.indices[3 * t], donor.indices[3 * t + 2], donor.indices[3 * t + 1]});
+      tris.push_back(donor.indices[3 * t]);
+      tris.push_back(donor.indices[3 * t + 2]);
+      tris.push_back(donor.indices[3 * t + 1]);
     }
   }
 
@@ -323,7 +332,7 @@ Result<RoomMesh> assemble_room(const MeshContext& ctx, const DeformInput& input,
     }
     size_t portal = std::max_element(votes.begin(), votes.end()) - votes.begin();
     if (np == 0 || loop_of_portal[portal] >= 0) {
-      return Error{ErrorCode::kInternal, "room " + name + ": " + std::to_string(loops.size()) +
+      return Error{ErrorCode::kInternal, "room " + name() + ": " + std::to_string(loops.size()) +
                                              " holes for " + std::to_string(np) + " portals"};
     }
     loop_of_portal[portal] = static_cast<int>(l);
@@ -339,7 +348,7 @@ Result<RoomMesh> assemble_room(const MeshContext& ctx, const DeformInput& input,
   std::vector<uint16_t> rim_index(nv, 0);
   for (size_t i = 0; i < np; ++i) {
     if (loop_of_portal[i] < 0) {
-      return Error{ErrorCode::kInternal, "room " + name + ": no hole at portal to " +
+      return Error{ErrorCode::kInternal, "room " + name() + ": no hole at portal to " +
                                              input.room.portals[i].neighbour.to_string()};
     }
     const std::vector<uint32_t>& b = loops[loop_of_portal[i]];
@@ -408,6 +417,10 @@ Result<RoomMesh> assemble_room(const MeshContext& ctx, const DeformInput& input,
   mesh.origin = input.origin;
   for (uint32_t v : tris)
     remap[v] = 0;
+  const auto used = static_cast<size_t>(std::count(remap.begin(), remap.end(), 0u));
+  mesh.positions.reserve(used);
+  mesh.rim_portal.reserve(used);
+  mesh.rim_index.reserve(used);
   for (size_t v = 0; v < pos.size(); ++v) {
     if (remap[v] == UINT32_MAX) continue;
     remap[v] = static_cast<uint32_t>(mesh.positions.size());
@@ -415,9 +428,9 @@ Result<RoomMesh> assemble_room(const MeshContext& ctx, const DeformInput& input,
     mesh.rim_portal.push_back(rim_portal[v]);
     mesh.rim_index.push_back(rim_index[v]);
   }
-  mesh.indices.reserve(tris.size());
-  for (uint32_t v : tris)
-    mesh.indices.push_back(remap[v]);
+  mesh.indices.resize(tris.size());
+  for (size_t i = 0; i < tris.size(); ++i)
+    mesh.indices[i] = remap[tris[i]];
 
   // Normals (thesis §3.1.7): area-weighted face normals, summed per vertex; rim vertices take
   // the canonical rim normal, which the neighbour uses too, so shading is smooth across portals.

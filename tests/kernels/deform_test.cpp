@@ -243,6 +243,32 @@ TEST_F(DeformKernelTest, room_builder_falls_back_to_the_cpu_when_told_to) {
     EXPECT_TRUE(m.ok());
 }
 
+// Several threads per build (a whole cave at once) give every room the mesh one thread gives, on
+// both paths, and keep the rooms in order.
+TEST_F(DeformKernelTest, room_builder_threads_give_the_single_thread_meshes) {
+  std::vector<cave::Room> rooms(region_->rooms.begin(), region_->rooms.begin() + 24);
+  for (const char* device : {"auto", "none"}) {
+    RoomBuilder one = RoomBuilder::create(*mesh_, {DeviceConfig{.device = device}, 1});
+    RoomBuilder three = RoomBuilder::create(*mesh_, {DeviceConfig{.device = device}, 3});
+    auto a = one.build(rooms, mesh::Lod::kPatch);
+    auto b = three.build(rooms, mesh::Lod::kPatch);
+    ASSERT_EQ(a.size(), rooms.size());
+    ASSERT_EQ(b.size(), rooms.size());
+    for (size_t i = 0; i < rooms.size(); ++i) {
+      ASSERT_TRUE(a[i].ok() && b[i].ok()) << device << " " << rooms[i].id.to_string();
+      EXPECT_EQ(b[i]->id, rooms[i].id);
+      EXPECT_EQ(a[i]->indices, b[i]->indices) << device << " " << rooms[i].id.to_string();
+      ASSERT_EQ(a[i]->vertex_count(), b[i]->vertex_count());
+      for (size_t v = 0; v < a[i]->vertex_count(); ++v) {
+        ASSERT_TRUE(same_bits(a[i]->positions[v].x, b[i]->positions[v].x) &&
+                    same_bits(a[i]->normals[v].y, b[i]->normals[v].y) &&
+                    same_bits(a[i]->roughness[v], b[i]->roughness[v]))
+            << device << " " << rooms[i].id.to_string() << " vertex " << v;
+      }
+    }
+  }
+}
+
 // The child half of builds_rooms_on_the_cpu_without_any_opencl_platform (and meaningful on its
 // own): whatever OpenCL offers, the builder builds every room and says which path it took.
 TEST(RoomBuilderPath, builds_rooms_and_reports_its_path) {
