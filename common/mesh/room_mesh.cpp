@@ -39,40 +39,43 @@ std::vector<char> kept_triangles(const DonorSphere& donor, const std::vector<cha
                                  AssembleStats& stats) {
   const auto& in = donor.indices;
   const size_t nt = in.size() / 3;
-  std::vector<char> kept(nt, 0);
+  // piece[t]: kRemoved, kUnseen (kept, not reached yet), or the piece's number. One array and
+  // one test per neighbour, no branches on the removed flags: the fill is a tenth of assembling.
+  constexpr uint32_t kRemoved = UINT32_MAX - 1, kUnseen = UINT32_MAX;
+  std::vector<uint32_t> piece(nt);
   for (size_t t = 0; t < nt; ++t) {
-    kept[t] = !removed[in[3 * t]] && !removed[in[3 * t + 1]] && !removed[in[3 * t + 2]];
+    bool gone = (removed[in[3 * t]] | removed[in[3 * t + 1]] | removed[in[3 * t + 2]]) != 0;
+    piece[t] = gone ? kRemoved : kUnseen;
   }
-  // Flood fill over shared edges; keep the largest piece.
-  std::vector<uint32_t> piece(nt, UINT32_MAX), stack;
+  // Flood fill over shared edges; keep the largest piece (the first of the largest).
+  std::vector<uint32_t> stack(nt);
   std::vector<size_t> sizes;
   for (size_t seed = 0; seed < nt; ++seed) {
-    if (!kept[seed] || piece[seed] != UINT32_MAX) continue;
+    if (piece[seed] != kUnseen) continue;
     uint32_t id = static_cast<uint32_t>(sizes.size());
-    sizes.push_back(0);
-    stack.push_back(static_cast<uint32_t>(seed));
+    size_t size = 0, top = 0;
+    stack[top++] = static_cast<uint32_t>(seed);
     piece[seed] = id;
-    while (!stack.empty()) {
-      uint32_t t = stack.back();
-      stack.pop_back();
-      ++sizes[id];
+    while (top > 0) {
+      uint32_t t = stack[--top];
+      ++size;
       for (int k = 0; k < 3; ++k) {
         uint32_t n = donor.neighbours[3 * t + k];
-        if (kept[n] && piece[n] == UINT32_MAX) {
+        if (piece[n] == kUnseen) {
           piece[n] = id;
-          stack.push_back(n);
+          stack[top++] = n;
         }
       }
     }
+    sizes.push_back(size);
   }
+  std::vector<char> kept(nt, 0);
   if (sizes.empty()) return kept;
   uint32_t best =
       static_cast<uint32_t>(std::max_element(sizes.begin(), sizes.end()) - sizes.begin());
   for (size_t t = 0; t < nt; ++t) {
-    if (kept[t] && piece[t] != best) {
-      kept[t] = 0;
-      ++stats.fragments_dropped;
-    }
+    kept[t] = piece[t] == best;
+    stats.fragments_dropped += piece[t] != best && piece[t] != kRemoved;
   }
   return kept;
 }
@@ -307,13 +310,14 @@ Result<RoomMesh> assemble_room(const MeshContext& ctx, const DeformInput& input,
   size_t boundary = 0;
   for (const auto& loop : loops)
     boundary += loop.size();
-  std::vector<uint32_t> tris;
-  tris.reserve(3 * (static_cast<size_t>(std::count(kept.begin(), kept.end(), 1)) + 2 * boundary));
-  for (size_t t = 0; t < kept.size(); ++t) {
+  const auto kept_count = static_cast<size_t>(std::count(kept.begin(), kept.end(), 1));
+  std::vector<uint32_t> tris(3 * kept_count);
+  tris.reserve(3 * (kept_count + 2 * boundary));
+  for (size_t t = 0, j = 0; t < kept.size(); ++t) {
     if (kept[t]) {
-      tris.push_back(donor.indices[3 * t]);
-      tris.push_back(donor.indices[3 * t + 2]);
-      tris.push_back(donor.indices[3 * t + 1]);
+      tris[j++] = donor.indices[3 * t];
+      tris[j++] = donor.indices[3 * t + 2];
+      tris[j++] = donor.indices[3 * t + 1];
     }
   }
 
