@@ -61,20 +61,17 @@ RoomPtr to_public(std::shared_ptr<const client::ReadyRoom> ready) {
   return RoomPtr(held, &held->room);
 }
 
+// The public enum mirrors the library's, value for value, so one cast converts and one
+// state_name (client/stream/options.hpp) names both.
+static_assert(
+    static_cast<int>(StreamState::kConnecting) ==
+        static_cast<int>(client::StreamState::kConnecting) &&
+    static_cast<int>(StreamState::kReady) == static_cast<int>(client::StreamState::kReady) &&
+    static_cast<int>(StreamState::kBackoff) == static_cast<int>(client::StreamState::kBackoff) &&
+    static_cast<int>(StreamState::kFailed) == static_cast<int>(client::StreamState::kFailed) &&
+    static_cast<int>(StreamState::kStopped) == static_cast<int>(client::StreamState::kStopped));
 StreamState to_public(client::StreamState s) {
-  switch (s) {
-    case client::StreamState::kConnecting:
-      return StreamState::kConnecting;
-    case client::StreamState::kReady:
-      return StreamState::kReady;
-    case client::StreamState::kBackoff:
-      return StreamState::kBackoff;
-    case client::StreamState::kFailed:
-      return StreamState::kFailed;
-    case client::StreamState::kStopped:
-      return StreamState::kStopped;
-  }
-  return StreamState::kFailed;
+  return static_cast<StreamState>(s);
 }
 
 }  // namespace
@@ -199,19 +196,7 @@ std::string room_name(RoomKey key) {
 }
 
 const char* state_name(StreamState state) {
-  switch (state) {
-    case StreamState::kConnecting:
-      return "connecting";
-    case StreamState::kReady:
-      return "ready";
-    case StreamState::kBackoff:
-      return "backoff";
-    case StreamState::kFailed:
-      return "failed";
-    case StreamState::kStopped:
-      return "stopped";
-  }
-  return "unknown";
+  return client::state_name(static_cast<client::StreamState>(state));
 }
 
 bool set_log_level(std::string_view level) {
