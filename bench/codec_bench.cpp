@@ -135,6 +135,7 @@ int main(int argc, char** argv) {
   mesh::MeshContext ctx = mesh::MeshContext::create(world, mesh::MeshParams{}).value();
   cave::Region region = cave::generate_region(world, {0, 0, 0}, {0, 0, 0});
   std::vector<mesh::RoomMesh> patch, detail;
+  std::vector<std::vector<codec::PortalDisc>> discs;  // patch[i]'s portals, for version 2 decoding
   for (const cave::Room& r : region.rooms) {
     if (static_cast<int>(patch.size()) == room_count) break;
     auto p = mesh::build_room_mesh(ctx, r, mesh::Lod::kPatch);
@@ -142,6 +143,9 @@ int main(int argc, char** argv) {
     if (!p || !d) continue;
     patch.push_back(std::move(p).value());
     detail.push_back(std::move(d).value());
+    discs.emplace_back();
+    for (const cave::Portal& portal : r.portals)
+      discs.back().push_back({portal.centre, portal.normal});
   }
   spdlog::info("codec_bench rooms={} reps={}", patch.size(), reps);
   if (profile_loops > 0) {
@@ -166,15 +170,20 @@ int main(int argc, char** argv) {
   std::vector<Row> rows;
   auto measure_draco = [&](const std::string& name, codec::EncodeOptions opt) {
     Row row{name, {}, {}, {}, {}};
-    for (const mesh::RoomMesh& m : patch) {
+    codec::DecodeLimits limits;
+    limits.normals = opt.normals;
+    for (size_t i = 0; i < patch.size(); ++i) {
+      const mesh::RoomMesh& m = patch[i];
       std::vector<uint8_t> bytes;
       row.encode_ms.push_back(median_ms(reps, [&] { bytes = codec::encode_room(m, opt).value(); }));
       row.bytes.push_back(static_cast<double>(bytes.size()));
       row.geometry_bytes.push_back(
           static_cast<double>(codec::encode_geometry_only(codec::view_of(m), opt).value().size()));
+      // Version 2's decode includes deriving the normals, as a client does.
       row.decode_ms.push_back(median_ms(reps, [&] {
-        auto d = codec::decode_room(bytes);
+        auto d = codec::decode_room(bytes, limits);
         if (!d) std::abort();
+        if (!opt.normals && !codec::derive_normals(d.value(), m.origin, discs[i]).ok()) std::abort();
       }));
     }
     rows.push_back(std::move(row));
@@ -198,7 +207,10 @@ int main(int argc, char** argv) {
     opt.channel_bits = channel_bits;
     measure_draco(label(opt), opt);
   }
-  measure_draco(label(defaults) + " (default)", defaults);
+  measure_draco(label(defaults) + " (protocol 1)", defaults);
+  codec::EncodeOptions v2 = defaults;
+  v2.normals = false;
+  measure_draco("draco speed 3, no normals (derived on decode), channels 6 (protocol 2)", v2);
 
   // Draco's decoder alone (no validation, no copy into DecodedRoom), default settings.
   {

@@ -23,8 +23,18 @@
 
 namespace grotto::proto {
 
-// The protocol version this library speaks (negotiated in hello/welcome; the room frame's version).
-inline constexpr uint32_t kProtocolVersion = 1;
+// The protocol versions this library speaks, negotiated in hello/welcome (the highest in common
+// wins) and carried in every room frame. Version 2's room payload leaves the normals out
+// (PROTOCOL.md, "Versions"); everything else is version 1's.
+inline constexpr uint32_t kProtocolVersion = 2;     // the newest
+inline constexpr uint32_t kMinProtocolVersion = 1;  // the oldest still spoken
+constexpr bool speaks_version(uint64_t version) {
+  return version >= kMinProtocolVersion && version <= kProtocolVersion;
+}
+// Whether a room payload of this protocol version carries the normal attribute (common/codec).
+constexpr bool payload_has_normals(uint32_t version) {
+  return version < 2;
+}
 // The WebSocket endpoint's HTTP path.
 inline constexpr std::string_view kWebSocketPath = "/ws";
 

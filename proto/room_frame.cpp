@@ -100,14 +100,14 @@ Status validate_room_frame(const RoomFrame& frame, const Limits& limits) {
 }
 
 std::vector<uint8_t> encode_room_frame(const cave::Room& room, uint8_t lod, Vec3 origin,
-                                       std::span<const uint8_t> payload) {
+                                       std::span<const uint8_t> payload, uint32_t version) {
   assert(room.portals.size() <= static_cast<std::size_t>(cave::kMaxPortalsPerRoom));
   assert(payload.size() <= 0xffffffffu);
   std::vector<uint8_t> out;
   out.reserve(room_frame_size(room.portals.size(), payload.size()));
   for (uint8_t c : kFrameMagic)
     out.push_back(c);
-  le::append(out, kProtocolVersion, 2);
+  le::append(out, version, 2);
   le::append(out, kFrameTypeRoom, 1);
   le::append(out, room.id.is_gate() ? kFlagGate : 0, 1);
   le::append(out, room.id.packed(), 8);
@@ -130,7 +130,7 @@ std::vector<uint8_t> encode_room_frame(const cave::Room& room, uint8_t lod, Vec3
 }
 
 std::vector<uint8_t> encode_room_frame(const RoomFrame& frame) {
-  return encode_room_frame(frame.room, frame.lod, frame.origin, frame.payload);
+  return encode_room_frame(frame.room, frame.lod, frame.origin, frame.payload, frame.version);
 }
 
 Result<RoomFrame> decode_room_frame(std::span<const uint8_t> bytes, const Limits& limits) {
@@ -147,9 +147,10 @@ Result<RoomFrame> decode_room_frame(std::span<const uint8_t> bytes, const Limits
   }
   if (size >= kOffType) {
     uint64_t version = le::load(b + kOffVersion, 2);
-    if (version != kProtocolVersion) {
+    if (!speaks_version(version)) {
       return Error{ErrorCode::kUnsupportedVersion,
                    "room frame: version " + std::to_string(version) + ", this decoder reads " +
+                       std::to_string(kMinProtocolVersion) + ".." +
                        std::to_string(kProtocolVersion)};
     }
   }
@@ -186,6 +187,7 @@ Result<RoomFrame> decode_room_frame(std::span<const uint8_t> bytes, const Limits
   }
 
   RoomFrame frame;
+  frame.version = static_cast<uint32_t>(le::load(b + kOffVersion, 2));
   frame.room.id = *id;
   frame.lod = b[kOffLod];
   frame.origin = le::load_vec3(b + kOffOrigin);

@@ -30,6 +30,7 @@ inline constexpr double kNormalTolerance = 1e-6;       // | |normal| - 1 | allow
 inline constexpr double kMaxOriginOffset = 32768.0;
 
 struct RoomFrame {
+  uint32_t version = kProtocolVersion;  // the protocol version, kMinProtocolVersion..kProtocolVersion
   cave::Room room;               // id, sphere and portals, world coordinates
   uint8_t lod = 0;               // wire level of detail of the payload (proto/lod.hpp)
   Vec3 origin;                   // on the 1/256 m grid; payload positions are offsets from it
@@ -54,12 +55,14 @@ Status validate_room_frame(const RoomFrame& frame, const Limits& limits);
 // non-empty payload, lod ≤ max_lod).
 // The payload is passed separately so a server can send cached bytes without copying them first.
 std::vector<uint8_t> encode_room_frame(const cave::Room& room, uint8_t lod, Vec3 origin,
-                                       std::span<const uint8_t> payload);
+                                       std::span<const uint8_t> payload,
+                                       uint32_t version = kProtocolVersion);
 std::vector<uint8_t> encode_room_frame(const RoomFrame& frame);
 
 // Errors: kBadFrame (truncated, wrong magic, bad flags, counts or lengths, non-finite or
 // out-of-range numbers, non-unit normals, repeated portals, a lod over limits.max_lod),
-// kTooLarge (over limits.max_frame_bytes), kUnsupportedVersion (another frame version),
+// kTooLarge (over limits.max_frame_bytes), kUnsupportedVersion (a version this library does not
+// speak; which of its versions a session accepts is the session's to check),
 // kUnknownType (a frame type other than room), kInvalidRoomId (an id field that is no valid id).
 // Messages name the field ("portals[2].normal is not unit length").
 Result<RoomFrame> decode_room_frame(std::span<const uint8_t> bytes, const Limits& limits);

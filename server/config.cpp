@@ -402,7 +402,8 @@ CommandLine parse_command_line(int argc, const char* const* argv) {
     return out;
   }
   if (version) {
-    out.text = product_version() + " (protocol " + std::to_string(proto::kProtocolVersion) + ")";
+    out.text = product_version() + " (protocol " + std::to_string(proto::kMinProtocolVersion) +
+               " to " + std::to_string(proto::kProtocolVersion) + ")";
     return out;
   }
   ServerConfig config;

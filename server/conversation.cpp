@@ -225,15 +225,19 @@ void Conversation::on(const proto::Hello& m) {
   if (!config_.token.empty() && (!m.token || !proto::token_equals(config_.token, *m.token))) {
     return fail(Error{ErrorCode::kUnauthorized, m.token ? "wrong token" : "missing token"}, m.ref);
   }
-  uint32_t chosen = 0;
+  uint32_t chosen = 0;  // the highest version both speak
   for (uint32_t v : m.versions) {
-    if (v == proto::kProtocolVersion) chosen = v;
+    if (proto::speaks_version(v)) chosen = std::max(chosen, v);
   }
   if (chosen == 0) {
-    return fail(
-        Error{ErrorCode::kUnsupportedVersion, "no protocol version in common; this server speaks " +
-                                                  std::to_string(proto::kProtocolVersion)},
-        m.ref, {proto::kProtocolVersion});
+    std::vector<uint32_t> ours;
+    for (uint32_t v = proto::kMinProtocolVersion; v <= proto::kProtocolVersion; ++v)
+      ours.push_back(v);
+    return fail(Error{ErrorCode::kUnsupportedVersion,
+                      "no protocol version in common; this server speaks " +
+                          std::to_string(proto::kMinProtocolVersion) + " to " +
+                          std::to_string(proto::kProtocolVersion)},
+                m.ref, std::move(ours));
   }
   if (m.params && *m.params != config_.params_digest) {
     return fail(Error{ErrorCode::kWorldMismatch,
@@ -242,7 +246,7 @@ void Conversation::on(const proto::Hello& m) {
   }
   // The world: the one named, opened now if need be (--max-worlds), else the server's own.
   const uint64_t seed = m.seed.value_or(worlds_.own_seed());
-  auto client = worlds_.open(seed);
+  auto client = worlds_.open(seed, chosen);
   if (!client) return fail(client.error(), m.ref);
   client_ = *client;
   state_ = State::kOpen;

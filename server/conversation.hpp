@@ -42,9 +42,9 @@ class WorldPort {
  public:
   virtual ~WorldPort() = default;
   virtual uint64_t own_seed() const = 0;
-  // A client of world `seed`, whose deliveries reach Conversation::delivery. Errors:
-  // world_mismatch, overloaded (PROTOCOL.md's hello checks).
-  virtual Result<ClientId> open(uint64_t seed) = 0;
+  // A client of world `seed`, whose deliveries reach Conversation::delivery as frames of protocol
+  // `version`. Errors: world_mismatch, overloaded (PROTOCOL.md's hello checks).
+  virtual Result<ClientId> open(uint64_t seed, uint32_t version) = 0;
   virtual std::optional<cave::RoomId> locate(ClientId client, Vec3 point) = 0;
   virtual cave::Spawn spawn(ClientId client) = 0;
 };

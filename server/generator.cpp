@@ -80,6 +80,7 @@ struct Waiting {
 struct Client {
   ClientId id = 0;
   WorldPtr world;
+  uint32_t version = proto::kProtocolVersion;  // of the frames it gets
   Generator::DeliverFn deliver;
   std::map<RoomKey, Waiting, RoomKeyLess> wants;
   std::set<QueueEntry> queue;  // wants whose job is queued
@@ -341,7 +342,10 @@ struct Generator::State {
       }
       const mesh::RoomMesh& m = *meshes[k];
       auto t1 = Clock::now();
-      Result<std::vector<uint8_t>> payload = codec::encode_room(m);
+      const uint32_t version = batch[i]->key.version;
+      codec::EncodeOptions options;
+      options.normals = proto::payload_has_normals(version);
+      Result<std::vector<uint8_t>> payload = codec::encode_room(m, options);
       if (!payload) {
         spdlog::warn("event=room_encode_failed seed={} room={} lod={} error=\"{}\"",
                      batch[i]->key.seed, rooms[k].id.to_string(), lod, payload.error().message);
@@ -352,7 +356,7 @@ struct Generator::State {
       }
       auto encoded = std::make_shared<EncodedRoom>();
       encoded->key = batch[i]->key;
-      encoded->frame = proto::encode_room_frame(rooms[k], lod, m.origin, *payload);
+      encoded->frame = proto::encode_room_frame(rooms[k], lod, m.origin, *payload, version);
       encoded->build_seconds = build_each;
       encoded->encode_seconds = seconds_between(t1, Clock::now());
       metrics.build_seconds.observe(encoded->build_seconds);
@@ -501,7 +505,7 @@ ClientId Generator::add_client(DeliverFn deliver) {
   return *add_client(state_->home->world.seed(), std::move(deliver));  // its own world is open
 }
 
-Result<ClientId> Generator::add_client(uint64_t seed, DeliverFn deliver) {
+Result<ClientId> Generator::add_client(uint64_t seed, DeliverFn deliver, uint32_t version) {
   State& s = *state_;
   std::lock_guard lock(s.mutex);
   if (s.stopping && seed != s.home->world.seed()) {
@@ -513,6 +517,7 @@ Result<ClientId> Generator::add_client(uint64_t seed, DeliverFn deliver) {
   auto client = std::make_shared<Client>();
   client->id = s.next_client++;
   client->world = std::move(world).value();
+  client->version = version;
   ++client->world->clients;
   client->world->last_used = ++s.world_clock;
   client->deliver = std::move(deliver);
@@ -549,12 +554,12 @@ void Generator::request(ClientId id, std::span<const server::Want> wants) {
     if (!proto::mesh_lod(w.lod)) {
       ++client->delivering;
       out.push_back({client, error_delivery({w.id, static_cast<uint8_t>(std::min(w.lod, 255u)),
-                                             client->world->world.seed()},
+                                             client->world->world.seed(), client->version},
                                             invalid_argument("lod " + std::to_string(w.lod) +
                                                              " is not served"))});
       continue;
     }
-    RoomKey key{w.id, static_cast<uint8_t>(w.lod), client->world->world.seed()};
+    RoomKey key{w.id, static_cast<uint8_t>(w.lod), client->world->world.seed(), client->version};
     if (s.stopping) {
       ++client->delivering;
       out.push_back({client, error_delivery(key, Error{ErrorCode::kServiceRestart,
@@ -617,7 +622,7 @@ void Generator::cancel(ClientId id, std::span<const cave::RoomId> rooms) {
   Client& client = *c->second;
   for (cave::RoomId room : rooms) {
     // Every lod of the room: keys order by id first (and a client's wants are of one world).
-    auto it = client.wants.lower_bound(RoomKey{room, 0, 0});
+    auto it = client.wants.lower_bound(RoomKey{room, 0, 0, 0});
     while (it != client.wants.end() && it->first.id == room) {
       auto next = std::next(it);
       s.drop_want(client, it);

@@ -58,12 +58,14 @@ class Generator {
                                                    const GeneratorConfig& config, Metrics& metrics);
   ~Generator();  // shutdown() then join
 
-  // A client of the generator's own world.
+  // A client of the generator's own world, speaking the newest protocol version.
   ClientId add_client(DeliverFn deliver);
   // A client of the world `seed`, opened now if it is not open (same layout and mesh parameters
-  // as the generator's own). Errors: world_mismatch when max_worlds is 1 and the seed is not the
-  // generator's; overloaded when max_worlds worlds are open and each has clients.
-  Result<ClientId> add_client(uint64_t seed, DeliverFn deliver);
+  // as the generator's own), whose rooms are framed for protocol `version` (one proto::speaks).
+  // Errors: world_mismatch when max_worlds is 1 and the seed is not the generator's; overloaded
+  // when max_worlds worlds are open and each has clients.
+  Result<ClientId> add_client(uint64_t seed, DeliverFn deliver,
+                              uint32_t version = proto::kProtocolVersion);
   // Forgets the client: its queued wants are dropped (jobs nobody else wants are never built) and
   // nothing more is delivered to it once this returns.
   void remove_client(ClientId client);

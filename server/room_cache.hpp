@@ -13,7 +13,8 @@ namespace grotto::server {
 struct RoomKeyLess {
   bool operator()(const RoomKey& a, const RoomKey& b) const {
     if (a.id != b.id) return a.id < b.id;  // a room's keys are adjacent (cancel relies on it)
-    return a.lod != b.lod ? a.lod < b.lod : a.seed < b.seed;
+    if (a.lod != b.lod) return a.lod < b.lod;
+    return a.seed != b.seed ? a.seed < b.seed : a.version < b.version;
   }
 };
 

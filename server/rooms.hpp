@@ -11,6 +11,7 @@
 #include "cave/room_id.hpp"
 #include "core/result.hpp"
 #include "proto/lod.hpp"
+#include "proto/messages.hpp"
 
 namespace grotto::server {
 
@@ -21,11 +22,14 @@ using ClientId = uint64_t;
 // above this with invalid_argument.
 inline constexpr uint32_t kMaxServedLod = proto::kMaxWireLod;
 
-// A room of a world at a level of detail: the unit of building, caching and single flight.
+// A room of a world at a level of detail, framed for a protocol version: the unit of building,
+// caching and single flight. The version picks the payload's layout (proto::payload_has_normals),
+// so clients of two versions wanting one room get two builds.
 struct RoomKey {
   cave::RoomId id = cave::RoomId::interior({}, 0);
   uint8_t lod = 0;
   uint64_t seed = 0;  // the world
+  uint32_t version = proto::kProtocolVersion;
   friend bool operator==(const RoomKey&, const RoomKey&) = default;
 };
 

@@ -345,7 +345,7 @@ class WsSession : public std::enable_shared_from_this<WsSession>, private WorldP
 
   uint64_t own_seed() const override { return server_.generator->world().seed(); }
 
-  Result<ClientId> open(uint64_t seed) override {
+  Result<ClientId> open(uint64_t seed, uint32_t version) override {
     if (!player_) {
       if (!server_.promote()) {
         server_.metrics.connections_rejected.add();
@@ -364,7 +364,7 @@ class WsSession : public std::enable_shared_from_this<WsSession>, private WorldP
       net::post(executor, [weak, d = std::move(d)]() mutable {
         if (auto self = weak.lock()) self->on_delivery(std::move(d));
       });
-    });
+    }, version);
     if (client) client_ = *client;
     return client;
   }
@@ -683,9 +683,13 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
                      server_.metrics.render());
     }
     if (path == "/version") {
+      std::string versions;
+      for (uint32_t v = proto::kMinProtocolVersion; v <= proto::kProtocolVersion; ++v)
+        versions += (versions.empty() ? "" : ",") + std::to_string(v);
       return respond(req, http::status::ok, "application/json",
                      "{\"server\":\"" + product_version() +
-                         "\",\"protocol\":" + std::to_string(proto::kProtocolVersion) + "}\n");
+                         "\",\"protocol\":" + std::to_string(proto::kProtocolVersion) +
+                         ",\"protocols\":[" + versions + "]}\n");
     }
     if (path == proto::kWebSocketPath) {
       return respond(req, http::status::upgrade_required, "text/plain",

@@ -75,7 +75,8 @@ Actions Conversation::opened(SteadyTime now) {
   fatal_.clear();
   proto::Hello hello;
   hello.ref = next_ref_++;
-  hello.versions = {proto::kProtocolVersion};
+  for (uint32_t v = proto::kProtocolVersion; v >= proto::kMinProtocolVersion; --v)
+    hello.versions.push_back(v);
   hello.seed = options_.seed;
   hello.params = options_.params;
   hello.name = options_.name;
@@ -120,6 +121,18 @@ Actions Conversation::binary(std::span<const uint8_t> bytes, SteadyTime now) {
   proto::RoomFrame frame = std::move(decoded).value();
   const cave::RoomId id = frame.room.id;
   auto it = in_flight_.find(id);
+  if (frame.version != version_) {
+    // PROTOCOL.md "Versioning": every frame uses the version welcome chose.
+    ++stats_.rooms_rejected;
+    note_error("refused a room frame: version " + std::to_string(frame.version) +
+               ", the session's is " + std::to_string(version_));
+    if (it != in_flight_.end()) {
+      in_flight_.erase(it);
+      count_failure(id);
+    }
+    plan(now, out);
+    return out;
+  }
   // Cancelled while on the wire, or never asked for: not ours to use.
   if (it == in_flight_.end()) return out;
   if (frame.lod != it->second.lod) {
@@ -150,6 +163,7 @@ Actions Conversation::binary(std::span<const uint8_t> bytes, SteadyTime now) {
   DecodeRoom job;
   job.limits = frame.lod == 0 ? codec::DecodeLimits{} : codec::kDetailLimits;
   job.limits.portal_count = static_cast<int>(frame.room.portals.size());
+  job.limits.normals = proto::payload_has_normals(frame.version);
   job.frame = std::move(frame);
   job.sample = sample;
   job.epoch = epoch_;
@@ -279,11 +293,13 @@ void Conversation::stop() {
 
 void Conversation::on_message(const proto::Welcome& w, SteadyTime now, Actions& out) {
   if (welcomed_) return note_error("server sent a second welcome");
-  if (w.version != proto::kProtocolVersion) {
+  if (!proto::speaks_version(w.version)) {
     return fail("server chose protocol version " + std::to_string(w.version) +
-                    "; this client speaks only version " + std::to_string(proto::kProtocolVersion),
+                    "; this client speaks " + std::to_string(proto::kMinProtocolVersion) + " to " +
+                    std::to_string(proto::kProtocolVersion),
                 out);
   }
+  version_ = w.version;
   if (options_.seed && w.seed != *options_.seed) {
     return fail("server serves seed " + std::to_string(w.seed) + ", not the requested " +
                     std::to_string(*options_.seed),
@@ -589,6 +605,17 @@ std::vector<cave::RoomId> Conversation::take_evicted() {
 }
 std::vector<RoomSample> Conversation::take_samples() {
   return std::exchange(samples_, {});
+}
+
+Result<codec::DecodedRoom> decode_payload(const DecodeRoom& job) {
+  auto mesh = codec::decode_room(job.frame.payload, job.limits);
+  if (!mesh || job.limits.normals) return mesh;
+  std::vector<codec::PortalDisc> discs;
+  discs.reserve(job.frame.room.portals.size());
+  for (const cave::Portal& p : job.frame.room.portals)
+    discs.push_back({p.centre, p.normal});
+  if (Status s = codec::derive_normals(mesh.value(), job.frame.origin, discs); !s) return s.error();
+  return mesh;
 }
 
 }  // namespace grotto::client

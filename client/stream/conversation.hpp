@@ -55,14 +55,18 @@ using SteadyTime = std::chrono::steady_clock::time_point;
 struct SendMessage {
   proto::ClientMessage message;
 };
-// Decode a frame's payload off the I/O thread (codec::decode_room(frame.payload, limits)) and
-// hand the result back with Conversation::decoded().
+// Decode a frame's payload off the I/O thread (decode_payload below) and hand the result back
+// with Conversation::decoded().
 struct DecodeRoom {
   proto::RoomFrame frame;
-  codec::DecodeLimits limits;
+  codec::DecodeLimits limits;  // limits.normals: the frame's version carries them
   RoomSample sample;   // latency and size filled; decode_ms is the decoder's to measure
   uint64_t epoch = 0;  // the world the frame belongs to (a decode finishing later may be stale)
 };
+// What carrying out DecodeRoom means: codec::decode_room with the job's limits, then, for a
+// version 2 payload, codec::derive_normals from the frame's origin and portal discs. Pure and
+// thread-safe; the errors are decode_room's.
+Result<codec::DecodedRoom> decode_payload(const DecodeRoom& job);
 // Read messages of up to this many bytes from now on (welcome's max_frame_bytes and
 // max_message_bytes).
 struct SetReadLimit {
@@ -183,6 +187,7 @@ class Conversation {
   // This connection.
   bool open_ = false;
   bool welcomed_ = false;
+  uint32_t version_ = proto::kProtocolVersion;  // what welcome chose
   SteadyTime opened_at_;
   SteadyTime last_send_;
   SteadyTime hold_until_;  // after overloaded or limit_exceeded: no requests before this

@@ -130,7 +130,7 @@ struct Stream::Impl : std::enable_shared_from_this<Stream::Impl> {
   void act(DecodeRoom& job) {
     net::post(rt.workers, [self = shared_from_this(), job = std::move(job)]() mutable {
       auto start = Clock::now();
-      auto mesh = codec::decode_room(job.frame.payload, job.limits);
+      auto mesh = decode_payload(job);
       job.sample.decode_ms =
           std::chrono::duration<double, std::milli>(Clock::now() - start).count();
       net::post(self->strand, [self, job = std::move(job), mesh = std::move(mesh)]() mutable {

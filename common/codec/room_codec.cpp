@@ -51,9 +51,9 @@ std::string str(size_t v) {
 
 // The contracts of RoomView, checked before anything reaches Draco. The decoder checks the same
 // rules, so a room that decodes always encodes again (the fuzzer holds us to that).
-Status validate_view(const RoomView& r, int step_log2) {
+Status validate_view(const RoomView& r, int step_log2, bool normals) {
   const size_t n = r.positions.size();
-  if (r.normals.size() != n || r.roughness.size() != n || r.mineral.size() != n ||
+  if ((normals && r.normals.size() != n) || r.roughness.size() != n || r.mineral.size() != n ||
       r.rim_portal.size() != n || r.rim_index.size() != n) {
     return fail("per-vertex arrays differ in length");
   }
@@ -71,7 +71,7 @@ Status validate_view(const RoomView& r, int step_log2) {
     if (!finite(r.positions[v]) || !within_offset(r.positions[v])) {
       return fail("vertex " + str(v) + ": position not finite or beyond the room's frame");
     }
-    if (!finite(r.normals[v]) || !unit(r.normals[v])) {
+    if (normals && (!finite(r.normals[v]) || !unit(r.normals[v]))) {
       return fail("vertex " + str(v) + ": normal is not unit length");
     }
     if (!in_unit_range(r.roughness[v]) || !in_unit_range(r.mineral[v])) {
@@ -133,7 +133,8 @@ Result<std::vector<uint8_t>> encode(const RoomView& room, const EncodeOptions& o
   if (options.grid_step_log2 < 0 || options.grid_step_log2 > grid::kWireStepLog2) {
     return fail("grid step outside 2^-" + str(grid::kWireStepLog2) + "..1 m");
   }
-  if (Status s = validate_view(room, options.grid_step_log2); !s) return s.error();
+  const bool normals = options.normals && !geometry_only;
+  if (Status s = validate_view(room, options.grid_step_log2, normals); !s) return s.error();
 
   const size_t n = room.positions.size();
   draco::Mesh dm;
@@ -151,7 +152,7 @@ Result<std::vector<uint8_t>> encode(const RoomView& room, const EncodeOptions& o
   std::array<double, 3> hi = {-kMaxOffset, -kMaxOffset, -kMaxOffset};
   for (size_t v = 0; v < n; ++v) {
     const draco::AttributeValueIndex i(static_cast<uint32_t>(v));
-    const float3 p = room.positions[v], q = room.normals[v];
+    const float3 p = room.positions[v], q = normals ? room.normals[v] : float3{};
     const float pv[3] = {p.x, p.y, p.z}, nv[3] = {q.x, q.y, q.z};
     const float cv[2] = {room.roughness[v], room.mineral[v]};
     const int slot = room.rim_portal[v];
@@ -169,11 +170,13 @@ Result<std::vector<uint8_t>> encode(const RoomView& room, const EncodeOptions& o
   const int pos_id = dm.AddAttribute(std::move(pos));
   dm.attribute(pos_id)->set_unique_id(kPositionId);
   int nrm_id = -1, chn_id = -1;
-  if (!geometry_only) {
+  if (normals) {
     nrm_id = dm.AddAttribute(std::move(nrm));
+    dm.attribute(nrm_id)->set_unique_id(kNormalId);
+  }
+  if (!geometry_only) {
     chn_id = dm.AddAttribute(std::move(chn));
     const int rim_id = dm.AddAttribute(std::move(rim));
-    dm.attribute(nrm_id)->set_unique_id(kNormalId);
     dm.attribute(chn_id)->set_unique_id(kChannelsId);
     dm.attribute(rim_id)->set_unique_id(kRimId);
   }
@@ -223,8 +226,8 @@ Result<std::vector<uint8_t>> encode(const RoomView& room, const EncodeOptions& o
                                              exact_text(origin[2]));
   exact.SetString("quantization_range", exact_text(range));
   encoder.options().SetAttributeOptions(pos_id, exact);
+  if (normals) encoder.SetAttributeQuantization(nrm_id, options.normal_bits);
   if (!geometry_only) {
-    encoder.SetAttributeQuantization(nrm_id, options.normal_bits);
     encoder.SetAttributeExplicitQuantization(chn_id, options.channel_bits, 2, channel_origin, 1.0f);
   }
   draco::EncoderBuffer buffer;
@@ -334,14 +337,18 @@ static_assert(kPositionId == 0 && kNormalId == 1 && kChannelsId == 2 && kRimId =
 // read here are the values Draco reads: a varint that Draco would wrap is never an accepted one.
 // Returns the sequential decoder type of each decoder's first attribute, in decoder order, for
 // LayoutCheckingDecoder: that attribute's values open the decoder's data.
-Result<std::vector<uint8_t>> check_attribute_descriptors(std::span<const uint8_t> in) {
+Result<std::vector<uint8_t>> check_attribute_descriptors(std::span<const uint8_t> in,
+                                                        bool normals) {
+  // Which of kLayout's attributes the payload holds: all four, or version 2's three.
+  const std::array<bool, kLayout.size()> wanted = {true, normals, true, true};
+  const size_t expected = normals ? kLayout.size() : kLayout.size() - 1;
   size_t at = 0;
   auto truncated = [] { return fail("truncated attribute descriptors"); };
   if (at >= in.size()) return truncated();
   const size_t decoders = in[at++];
-  if (decoders < 1 || decoders > kLayout.size()) {
+  if (decoders < 1 || decoders > expected) {
     return fail("declares " + str(decoders) + " attribute decoders, expected 1.." +
-                str(kLayout.size()));
+                str(expected));
   }
   at += 3 * decoders;
   std::array<bool, kLayout.size()> seen{};
@@ -350,9 +357,9 @@ Result<std::vector<uint8_t>> check_attribute_descriptors(std::span<const uint8_t
   for (size_t d = 0; d < decoders; ++d) {
     uint64_t count = 0;
     if (!read_varint(in, at, count)) return truncated();
-    if (count < 1 || count > kLayout.size() - total) {
-      return fail("declares more than " + str(kLayout.size()) + " attributes, expected " +
-                  str(kLayout.size()));
+    if (count < 1 || count > expected - total) {
+      return fail("declares more than " + str(expected) + " attributes, expected " +
+                  str(expected));
     }
     for (uint64_t i = 0; i < count; ++i) {
       if (at + 4 > in.size()) return truncated();
@@ -363,6 +370,9 @@ Result<std::vector<uint8_t>> check_attribute_descriptors(std::span<const uint8_t
       if (!read_varint(in, at, id)) return truncated();
       if (id >= kLayout.size()) continue;  // reported below as the attribute it displaces
       const AttributeShape& want = kLayout[id];
+      if (!wanted[id]) {
+        return fail(std::string("attribute ") + want.name + " is not part of this layout");
+      }
       if (seen[id]) return fail(std::string("attribute ") + want.name + " appears twice");
       if (type != want.type || data_type != want.data_type || components != want.components ||
           normalized != 0) {
@@ -377,11 +387,9 @@ Result<std::vector<uint8_t>> check_attribute_descriptors(std::span<const uint8_t
     at += count;
     total += count;
   }
-  if (total != kLayout.size()) {
-    return fail(str(total) + " attributes, expected " + str(kLayout.size()));
-  }
+  if (total != expected) return fail(str(total) + " attributes, expected " + str(expected));
   for (size_t id = 0; id < kLayout.size(); ++id) {
-    if (!seen[id]) return fail(std::string("missing attribute: ") + kLayout[id].name);
+    if (wanted[id] && !seen[id]) return fail(std::string("missing attribute: ") + kLayout[id].name);
   }
   return sequential_types;
 }
@@ -409,13 +417,15 @@ Result<std::vector<uint8_t>> check_attribute_descriptors(std::span<const uint8_t
 // -fno-sanitize=enum for that reason alone (tests/fuzz/run_fuzzers.sh).
 class LayoutCheckingDecoder final : public draco::MeshEdgebreakerDecoder {
  public:
+  explicit LayoutCheckingDecoder(bool normals) : normals_(normals) {}
   const Status& layout() const { return layout_; }
 
  protected:
   bool DecodePointAttributes() override {
     const draco::DecoderBuffer* in = buffer();
     auto types = check_attribute_descriptors({reinterpret_cast<const uint8_t*>(in->data_head()),
-                                              static_cast<size_t>(in->remaining_size())});
+                                              static_cast<size_t>(in->remaining_size())},
+                                             normals_);
     if (!types) {
       layout_ = types.error();
       return false;
@@ -451,6 +461,7 @@ class LayoutCheckingDecoder final : public draco::MeshEdgebreakerDecoder {
   }
 
  private:
+  bool normals_;
   Status layout_;
   std::vector<uint8_t> sequential_types_;
 };
@@ -496,7 +507,8 @@ Result<DecodedRoom> decode_room(std::span<const uint8_t> payload, const DecodeLi
   // The ceilings bound the worst-case allocation the header documents, whatever a caller asks.
   const DecodeLimits limits = {std::min(asked.max_bytes, kMaxPayloadBytes),
                                std::min(asked.max_vertices, kMaxVertices),
-                               std::min(asked.max_triangles, kMaxTriangles), asked.portal_count};
+                               std::min(asked.max_triangles, kMaxTriangles), asked.portal_count,
+                               asked.normals};
   if (payload.empty()) return fail("empty");
   if (payload.size() > limits.max_bytes) {
     return fail(str(payload.size()) + " bytes, limit " + str(limits.max_bytes));
@@ -506,7 +518,7 @@ Result<DecodedRoom> decode_room(std::span<const uint8_t> payload, const DecodeLi
   draco::DecoderBuffer buffer;
   buffer.Init(reinterpret_cast<const char*>(payload.data()), payload.size());
   draco::Mesh m;
-  LayoutCheckingDecoder decoder;
+  LayoutCheckingDecoder decoder(limits.normals);
   const draco::Status status = decoder.Decode(draco::DecoderOptions(), &buffer, &m);
   if (!decoder.layout()) return decoder.layout().error();
   if (!status.ok()) return fail("Draco: " + status.error_msg_string());
@@ -519,14 +531,19 @@ Result<DecodedRoom> decode_room(std::span<const uint8_t> payload, const DecodeLi
   if (t < 1 || t > limits.max_triangles) {
     return fail(str(t) + " triangles, outside 1.." + str(limits.max_triangles));
   }
-  if (m.num_attributes() != 4) {
-    return fail(str(static_cast<size_t>(m.num_attributes())) + " attributes, expected 4");
+  const int attributes = limits.normals ? 4 : 3;
+  if (m.num_attributes() != attributes) {
+    return fail(str(static_cast<size_t>(m.num_attributes())) + " attributes, expected " +
+                str(static_cast<size_t>(attributes)));
   }
   using G = draco::GeometryAttribute;
   auto pos = find_attribute(m, kPositionId, G::POSITION, draco::DT_FLOAT32, 3, "position");
   if (!pos) return pos.error();
-  auto nrm = find_attribute(m, kNormalId, G::NORMAL, draco::DT_FLOAT32, 3, "normal");
-  if (!nrm) return nrm.error();
+  Result<const draco::PointAttribute*> nrm = nullptr;
+  if (limits.normals) {
+    nrm = find_attribute(m, kNormalId, G::NORMAL, draco::DT_FLOAT32, 3, "normal");
+    if (!nrm) return nrm.error();
+  }
   auto chn = find_attribute(m, kChannelsId, G::GENERIC, draco::DT_FLOAT32, 2, "channels");
   if (!chn) return chn.error();
   auto rim = find_attribute(m, kRimId, G::GENERIC, draco::DT_UINT16, 2, "rim");
@@ -534,25 +551,27 @@ Result<DecodedRoom> decode_room(std::span<const uint8_t> payload, const DecodeLi
 
   DecodedRoom out;
   out.positions.resize(n);
-  out.normals.resize(n);
+  if (limits.normals) out.normals.resize(n);
   out.roughness.resize(n);
   out.mineral.resize(n);
   out.rim_portal.resize(n);
   out.rim_index.resize(n);
   for (uint32_t v = 0; v < n; ++v) {
     const auto p = value<float, 3>(*pos, v);
-    const auto q = value<float, 3>(*nrm, v);
     const auto c = value<float, 2>(*chn, v);
     const auto r = value<uint16_t, 2>(*rim, v);
     out.positions[v] = {p[0], p[1], p[2]};
-    out.normals[v] = {q[0], q[1], q[2]};
     out.roughness[v] = c[0];
     out.mineral[v] = c[1];
     if (!finite(out.positions[v]) || !within_offset(out.positions[v])) {
       return fail("vertex " + str(v) + ": position not finite or beyond the room's frame");
     }
-    if (!finite(out.normals[v]) || !unit(out.normals[v])) {
-      return fail("vertex " + str(v) + ": normal is not unit length");
+    if (limits.normals) {
+      const auto q = value<float, 3>(*nrm, v);
+      out.normals[v] = {q[0], q[1], q[2]};
+      if (!finite(out.normals[v]) || !unit(out.normals[v])) {
+        return fail("vertex " + str(v) + ": normal is not unit length");
+      }
     }
     if (!in_unit_range(c[0]) || !in_unit_range(c[1])) {
       return fail("vertex " + str(v) + ": channel outside [0, 1]");
@@ -582,6 +601,46 @@ Result<DecodedRoom> decode_room(std::span<const uint8_t> payload, const DecodeLi
     }
   }
   return out;
+}
+
+Status derive_normals(DecodedRoom& room, Vec3 origin, std::span<const PortalDisc> portals) {
+  const size_t n = room.positions.size();
+  if (room.rim_portal.size() != n || room.rim_index.size() != n) {
+    return fail("per-vertex arrays differ in length");
+  }
+  auto at = [&](uint32_t v) {
+    const float3 p = room.positions[v];
+    return Vec3{p.x, p.y, p.z};
+  };
+  std::vector<Vec3> sum(n);
+  for (size_t i = 0; i + 2 < room.indices.size(); i += 3) {
+    const uint32_t a = room.indices[i], b = room.indices[i + 1], c = room.indices[i + 2];
+    if (a >= n || b >= n || c >= n) return fail("triangle " + str(i / 3) + ": index out of range");
+    const Vec3 pa = at(a), u = at(b) - pa, w = at(c) - pa;
+    const Vec3 face = {u.y * w.z - u.z * w.y, u.z * w.x - u.x * w.z, u.x * w.y - u.y * w.x};
+    sum[a] = sum[a] + face;
+    sum[b] = sum[b] + face;
+    sum[c] = sum[c] + face;
+  }
+  room.normals.resize(n);
+  for (size_t v = 0; v < n; ++v) {
+    Vec3 dir = sum[v];
+    if (const int slot = room.rim_portal[v]; slot >= 0) {
+      if (static_cast<size_t>(slot) >= portals.size()) {
+        return fail("vertex " + str(v) + ": rim slot " + str(static_cast<size_t>(slot)) +
+                    " has no portal disc");
+      }
+      const PortalDisc& disc = portals[slot];
+      const Vec3 d = origin + at(static_cast<uint32_t>(v)) - disc.centre;
+      const Vec3 radial = d - disc.normal * dot(d, disc.normal);
+      if (length_squared(radial) > 0) dir = -radial;
+    }
+    const double len = length(dir);
+    room.normals[v] = len > 0 ? float3{static_cast<float>(dir.x / len), static_cast<float>(dir.y / len),
+                                       static_cast<float>(dir.z / len)}
+                              : float3{0, 1, 0};
+  }
+  return {};
 }
 
 }  // namespace grotto::codec

@@ -13,9 +13,12 @@
 // Attribute layout (unique ids are part of the format):
 //   0  POSITION  float32 x3  explicit quantization: step 2^-EncodeOptions::grid_step_log2 m
 //                            (grid::kStep by default), origin a multiple of it
-//   1  NORMAL    float32 x3  octahedral, EncodeOptions::normal_bits
+//   1  NORMAL    float32 x3  octahedral, EncodeOptions::normal_bits; protocol version 1 only
 //   2  GENERIC   float32 x2  (roughness, mineral), explicit quantization of [0, 1]
 //   3  GENERIC   uint16  x2  (portal slot + 1 or 0 off rims, index on the portal's canonical loop)
+// Protocol version 2 leaves the normals out (a fifth of the bytes, a third of the decode): the
+// receiver derives them from the decoded surface and the frame's portal discs (derive_normals),
+// so that the two rooms of a portal get the same rim normals.
 #pragma once
 
 #include <cstddef>
@@ -72,6 +75,8 @@ struct EncodeOptions {
   // the room's origin and rim vertices must lie on it. The world grid by default; a decoded room
   // from another server may need the wire's finest (grid::kWireStepLog2) to encode again.
   int grid_step_log2 = grid::kStepLog2;
+  // Write the normal attribute (protocol version 1's layout); false: version 2's, without it.
+  bool normals = true;
 };
 
 // A room's geometry as spans, the codec's input. Views a mesh::RoomMesh or a DecodedRoom.
@@ -89,7 +94,8 @@ struct RoomView {
 // A decoded room: the same per-vertex data as mesh::RoomMesh, in the payload's vertex order.
 struct DecodedRoom {
   std::vector<mesh::core::float3> positions;  // metres from the room origin; exact for grid points
-  std::vector<mesh::core::float3> normals;    // unit within kNormalTolerance
+  std::vector<mesh::core::float3> normals;    // unit within kNormalTolerance; empty from a version
+                                              // 2 payload until derive_normals
   std::vector<float> roughness;               // 0-1
   std::vector<float> mineral;                 // 0-1
   std::vector<int8_t> rim_portal;             // slot below DecodeLimits::portal_count, or -1
@@ -108,6 +114,9 @@ struct DecodeLimits {
   uint32_t max_vertices = kPatchMaxVertices;
   uint32_t max_triangles = kPatchMaxTriangles;
   int portal_count = kMaxPortals;  // rim slots must be below this
+  // The payload carries normals (protocol version 1's layout). False: version 2's layout, without
+  // them; decode_room then leaves DecodedRoom::normals empty for derive_normals to fill.
+  bool normals = true;
 };
 // The format's ceilings, for detail payloads.
 inline constexpr DecodeLimits kDetailLimits = {kMaxPayloadBytes, kMaxVertices, kMaxTriangles,
@@ -160,6 +169,25 @@ Result<std::vector<uint8_t>> encode_geometry_only(const RoomView& room,
 // count as the ceilings. Every failure is an invalid_argument Error whose message names the
 // problem; nothing throws or aborts. Deterministic: the same bytes decode to the same room.
 // Thread-safe.
+// With limits.normals false, the payload must hold version 2's three attributes and `normals`
+// comes back empty.
 Result<DecodedRoom> decode_room(std::span<const uint8_t> payload, const DecodeLimits& limits = {});
+
+// A portal disc of the room's frame, world coordinates (proto/PROTOCOL.md, "Binary room frame").
+struct PortalDisc {
+  Vec3 centre;
+  Vec3 normal;  // unit; either orientation gives the same rim normals
+};
+
+// Protocol version 2's normals (proto/PROTOCOL.md, "Normals"), written into room.normals:
+// a vertex on a rim faces the portal's axis, -normalize(d - (d.n)n) with d = origin + position -
+// portal centre, computed in binary64 from values both rooms of the portal share bit for bit
+// (world positions of rim vertices, the disc's centre, its normal up to sign), so both derive the
+// same rim normals and shading is continuous across the portal; every other vertex takes the
+// normalized sum of its triangles' area-weighted face normals (cross(b - a, c - a), facing the
+// cave), or (0, 1, 0) when that sum is zero. `portals` are the frame's, in frame order (rim slots
+// index them). Errors: invalid_argument when a rim slot has no disc in `portals` or the arrays
+// differ in length. About 10 ns a triangle.
+Status derive_normals(DecodedRoom& room, Vec3 origin, std::span<const PortalDisc> portals);
 
 }  // namespace grotto::codec

@@ -130,7 +130,8 @@ std::string describe(const Action& action) {
           m.message);
     }
     std::string operator()(const DecodeRoom& d) const {
-      return "decode " + d.frame.room.id.to_string() + "@" + std::to_string(d.frame.lod);
+      return "decode " + d.frame.room.id.to_string() + "@" + std::to_string(d.frame.lod) +
+             (d.limits.normals ? " with normals" : "");
     }
     std::string operator()(const SetReadLimit& r) const {
       return "read_limit " + std::to_string(r.bytes);
@@ -310,12 +311,21 @@ TEST(Conversation, handshake_table) {
        Start::kHelloSent,
        [](Harness& h) {
          auto w = welcome();
-         w.version = 2;
+         w.version = 3;
          return h.msg(w);
        },
        {"fail"},
        StreamState::kFailed,
-       last_error_has("version 2")},
+       last_error_has("version 3")},
+      {"welcome of version 1 (an older server): ready",
+       Start::kHelloSent,
+       [](Harness& h) {
+         auto w = welcome();
+         w.version = 1;
+         return h.msg(w);
+       },
+       {kRead, "spawn"},
+       StreamState::kReady},
       {"welcome of another seed",
        Start::kHelloSent,
        [](Harness& h) { return h.msg(welcome()); },
@@ -712,6 +722,19 @@ TEST(Conversation, room_frames_table) {
        [](const Harness& h) {
          EXPECT_EQ(h.c.stats().rooms_received, 1u);
          in_flight_is({1, 2, 3, 4})(h);
+       }},
+      {"frame of another version than welcome's: refused, asked again",
+       Start::kReady,
+       [](Harness& h) {
+         return h.frame(proto::encode_room_frame(rooms().at(rid(0)), 0, Vec3{},
+                                                 std::vector<uint8_t>{1, 2, 3}, 1));
+       },
+       {"request 0.0.0.r0@0"},
+       StreamState::kReady,
+       [](const Harness& h) {
+         EXPECT_EQ(h.c.stats().rooms_rejected, 1u);
+         EXPECT_NE(h.c.stats().last_error.find("version 1, the session's is 2"),
+                   std::string::npos);
        }},
       {"frame of a room not in flight: dropped",
        Start::kReady,

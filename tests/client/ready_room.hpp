@@ -1,5 +1,6 @@
 // A room as a client holds it after its frame, for the client tests: the layout's descriptor
-// and the mesh through encode_room and decode_room with the frame's limits.
+// and the mesh through encode_room and the client's own decoding (decode_payload) of a frame of
+// the newest protocol version, normals derived on the client.
 #pragma once
 
 #include <gtest/gtest.h>
@@ -7,6 +8,7 @@
 #include <utility>
 
 #include "cave/layout.hpp"
+#include "client/stream/conversation.hpp"
 #include "client/stream/room_store.hpp"
 #include "codec/room_codec.hpp"
 #include "mesh/room_mesh.hpp"
@@ -18,11 +20,20 @@ inline ReadyRoom ready_room(const mesh::RoomMesh& m, const cave::Room& r) {
   out.room = r;
   out.lod = m.lod == mesh::Lod::kPatch ? 0 : 1;
   out.origin = m.origin;
-  auto bytes = codec::encode_room(m);
+  codec::EncodeOptions options;
+  options.normals = proto::payload_has_normals(proto::kProtocolVersion);
+  auto bytes = codec::encode_room(m, options);
   EXPECT_TRUE(bytes.ok()) << r.id.to_string();
-  codec::DecodeLimits limits = out.lod == 0 ? codec::DecodeLimits{} : codec::kDetailLimits;
-  limits.portal_count = static_cast<int>(r.portals.size());
-  auto decoded = codec::decode_room(bytes.value(), limits);
+  DecodeRoom job;
+  job.frame.version = proto::kProtocolVersion;
+  job.frame.room = r;
+  job.frame.lod = out.lod;
+  job.frame.origin = m.origin;
+  job.frame.payload = bytes.value();
+  job.limits = out.lod == 0 ? codec::DecodeLimits{} : codec::kDetailLimits;
+  job.limits.portal_count = static_cast<int>(r.portals.size());
+  job.limits.normals = options.normals;
+  auto decoded = decode_payload(job);
   EXPECT_TRUE(decoded.ok()) << r.id.to_string();
   out.mesh = std::move(decoded).value();
   out.payload_bytes = bytes.value().size();

@@ -535,7 +535,7 @@ TEST(Stream, refuses_bad_urls_and_options_by_name) {
 // ---- a server that misbehaves on purpose ----
 
 enum class Misbehaviour {
-  kOtherVersion,     // welcome names protocol version 2
+  kOtherVersion,     // welcome names protocol version 3
   kRefuseVersion,    // error unsupported_version (fatal), then close
   kCorruptRoom,      // every frame of one room has a payload byte flipped
   kCutMidFrameOnce,  // the first connection's first room frame is cut off halfway
@@ -627,7 +627,7 @@ class BadServer {
     }
     grotto::proto::Welcome w;
     w.ref = ref;
-    w.version = how_ == Misbehaviour::kOtherVersion ? 2 : 1;
+    w.version = how_ == Misbehaviour::kOtherVersion ? 3 : 2;
     w.server = "bad-server 0";
     w.seed = 7;
     w.params = 1;
@@ -690,8 +690,10 @@ class BadServer {
     for (const auto& room : rooms_) {
       if (room.id != id) continue;
       auto mesh = grotto::mesh::build_room_mesh(*ctx_, room, grotto::mesh::Lod::kPatch);
-      auto payload = grotto::codec::encode_room(*mesh);
-      return grotto::proto::encode_room_frame(room, 0, mesh->origin, *payload);
+      grotto::codec::EncodeOptions options;
+      options.normals = false;  // version 2's payload, the version this server's welcome names
+      auto payload = grotto::codec::encode_room(*mesh, options);
+      return grotto::proto::encode_room_frame(room, 0, mesh->origin, *payload, 2);
     }
     return {};
   }
@@ -768,7 +770,7 @@ TEST(StreamAgainstABadServer, stops_with_a_clear_error_when_the_server_picks_ano
   ASSERT_TRUE(wait_for([&] { return stream->state() == StreamState::kFailed; }))
       << describe(stream->stats());
   auto stats = stream->stats();
-  EXPECT_NE(stats.last_error.find("version 2"), std::string::npos) << stats.last_error;
+  EXPECT_NE(stats.last_error.find("version 3"), std::string::npos) << stats.last_error;
   std::this_thread::sleep_for(300ms);
   EXPECT_EQ(bad.connections(), 1) << "a refused version must not be retried";
 }

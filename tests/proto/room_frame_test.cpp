@@ -95,7 +95,11 @@ TEST(RoomFrame, header_bytes_are_the_documented_layout) {
   RoomFrame f = sample_frame("0.0.0.x0");
   std::vector<uint8_t> b = encode_room_frame(f);
   EXPECT_EQ(std::string(b.begin(), b.begin() + 4), "GRTO");
-  EXPECT_EQ(b[4] | b[5] << 8, 1);  // version
+  EXPECT_EQ(b[4] | b[5] << 8, 2);  // version: the newest by default
+  f.version = 1;
+  std::vector<uint8_t> v1 = encode_room_frame(f);
+  EXPECT_EQ(v1[4] | v1[5] << 8, 1);
+  EXPECT_EQ(decode_room_frame(v1, Limits{})->version, 1u) << "version 1 frames still decode";
   EXPECT_EQ(b[6], 1);              // type: room
   EXPECT_EQ(b[7], kFlagGate);
   uint64_t id = 0;
@@ -134,8 +138,10 @@ TEST(RoomFrame, wrong_magic_version_and_type_are_named) {
   b[0] = 'X';
   expect_error(b, ErrorCode::kBadFrame, "wrong magic");
   b = sample_bytes();
-  b[4] = 2;
-  expect_error(b, ErrorCode::kUnsupportedVersion, "version 2");
+  b[4] = 3;
+  expect_error(b, ErrorCode::kUnsupportedVersion, "version 3, this decoder reads 1..2");
+  b[4] = 0;
+  expect_error(b, ErrorCode::kUnsupportedVersion, "version 0");
   b = sample_bytes();
   b[6] = 9;
   expect_error(b, ErrorCode::kUnknownType, "unknown type 9");

@@ -32,8 +32,9 @@ cave::RoomId room(const char* text) {
 class FakeWorlds : public WorldPort {
  public:
   uint64_t own_seed() const override { return kSeed; }
-  Result<ClientId> open(uint64_t seed) override {
+  Result<ClientId> open(uint64_t seed, uint32_t version) override {
     if (auto it = refuse.find(seed); it != refuse.end()) return it->second;
+    opened_version = version;
     return ClientId{41};
   }
   std::optional<cave::RoomId> locate(ClientId, Vec3 point) override {
@@ -46,6 +47,7 @@ class FakeWorlds : public WorldPort {
     s.position = {1, 2, 3};
     return s;
   }
+  uint32_t opened_version = 0;  // the version the last client opened was framed for
   std::map<uint64_t, Error> refuse = {
       {8, Error{ErrorCode::kWorldMismatch, "this server serves seed 7, not 8"}},
       {9, Error{ErrorCode::kOverloaded, "every world is open and in use"}}};
@@ -88,7 +90,8 @@ std::string describe(const Action& action) {
       return ref ? " ref=" + std::to_string(*ref) : "";
     }
     static std::string describe_message(const proto::Welcome& m) {
-      return "welcome seed=" + std::to_string(m.seed) + ref_text(m.ref);
+      return "welcome v" + std::to_string(m.version) + " seed=" + std::to_string(m.seed) +
+             ref_text(m.ref);
     }
     static std::string describe_message(const proto::Located& m) {
       return "located " + (m.room ? m.room->to_string() : std::string("null")) + ref_text(m.ref);
@@ -261,12 +264,12 @@ TEST(Conversation, admission_and_the_handshake) {
       {"hello: welcome with the server's seed, then the idle timer",
        {admit()},
        text(kHello),
-       {"welcome seed=7 ref=1", "timer 60000"},
+       {"welcome v1 seed=7 ref=1", "timer 60000"},
        State::kOpen},
       {"hello naming another world that opens",
        {admit()},
        text(R"({"type":"hello","versions":[1,2],"seed":"11"})"),
-       {"welcome seed=11", "timer 60000"},
+       {"welcome v2 seed=11", "timer 60000"},
        State::kOpen},
       {"hello for a seed a one-world server does not serve: world_mismatch, 1008",
        {admit()},
@@ -286,12 +289,12 @@ TEST(Conversation, admission_and_the_handshake) {
       {"hello with its own digest is welcome",
        {admit()},
        text(R"({"type":"hello","versions":[1],"params":"1234abcd5678ef90"})"),
-       {"welcome seed=7", "timer 60000"},
+       {"welcome v1 seed=7", "timer 60000"},
        State::kOpen},
       {"no version in common: unsupported_version lists the server's",
        {admit()},
-       text(R"({"type":"hello","ref":3,"versions":[2,3]})"),
-       {"error unsupported_version fatal ref=3 v1", "close 1008 unsupported_version"},
+       text(R"({"type":"hello","ref":3,"versions":[3,4]})"),
+       {"error unsupported_version fatal ref=3 v1 v2", "close 1008 unsupported_version"},
        State::kClosed},
       {"a message before hello: out_of_order",
        {admit()},
@@ -352,7 +355,7 @@ TEST(Conversation, the_token_comes_before_everything_in_hello) {
           {"right token",
            {admit()},
            text(R"({"type":"hello","versions":[1],"token":"s3cret"})"),
-           {"welcome seed=7", "timer 60000"},
+           {"welcome v1 seed=7", "timer 60000"},
            State::kOpen},
       },
       config("s3cret"));
@@ -667,6 +670,30 @@ TEST(Conversation, the_bandwidth_cap) {
            State::kOpen},
       },
       capped);
+}
+
+// The highest version both speak is chosen, named in welcome, and the client's rooms are framed
+// for it (the world port hears it); unknown versions in the list are ignored.
+TEST(Conversation, the_highest_common_version_frames_the_rooms) {
+  const std::vector<std::pair<std::string, uint32_t>> cases = {
+      {R"({"type":"hello","versions":[1]})", 1},
+      {R"({"type":"hello","versions":[2]})", 2},
+      {R"({"type":"hello","versions":[9,1,2]})", 2},
+      {R"({"type":"hello","versions":[1,3]})", 1}};
+  for (const auto& [hello, version] : cases) {
+    SCOPED_TRACE(hello);
+    FakeWorlds worlds;
+    Conversation c(config(), worlds, nullptr);
+    admit()(c);
+    c.take();
+    c.text(hello);
+    std::vector<std::string> got;
+    for (const Action& a : c.take())
+      got.push_back(describe(a));
+    ASSERT_FALSE(got.empty());
+    EXPECT_EQ(got.front(), "welcome v" + std::to_string(version) + " seed=7");
+    EXPECT_EQ(worlds.opened_version, version);
+  }
 }
 
 // A client sending garbage in a loop gets every error, but the log gets ten lines and a count.

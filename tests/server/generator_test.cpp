@@ -165,52 +165,65 @@ TEST_P(GeneratorPathTest, delivered_frame_decodes_to_the_mesh_built_in_process) 
   }
 
   cave::RoomId id = existing_rooms(3)[2];
-  Inbox inbox;
-  ClientId c = gen->add_client(inbox.fn());
-  std::vector<Want> want = {{id, 0, 0}};
-  gen->request(c, want);
-  ASSERT_TRUE(inbox.wait_for(1));
-  Delivery d = inbox.got()[0];
-  ASSERT_FALSE(d.error) << d.error->message;
-  ASSERT_TRUE(d.room);
-  EXPECT_EQ(d.key.id, id);
-  EXPECT_FALSE(d.from_cache);
+  // A client of each protocol version: the newest (no normals in the payload) and version 1.
+  for (uint32_t version : {proto::kProtocolVersion, proto::kMinProtocolVersion}) {
+    SCOPED_TRACE("protocol version " + std::to_string(version));
+    Inbox inbox;
+    auto c = gen->add_client(test_world().seed(), inbox.fn(), version);
+    ASSERT_TRUE(c.ok());
+    std::vector<Want> want = {{id, 0, 0}};
+    gen->request(*c, want);
+    ASSERT_TRUE(inbox.wait_for(1));
+    Delivery d = inbox.got()[0];
+    ASSERT_FALSE(d.error) << d.error->message;
+    ASSERT_TRUE(d.room);
+    EXPECT_EQ(d.key.id, id);
+    EXPECT_EQ(d.key.version, version);
+    EXPECT_FALSE(d.from_cache) << "the other version's frame is not this one's";
 
-  auto frame = proto::decode_room_frame(d.room->frame, proto::Limits{.max_lod = 1});
-  ASSERT_TRUE(frame.ok()) << frame.error().message;
-  EXPECT_EQ(frame->lod, 0);
-  cave::Room expected_room = cave::room(test_world(), id).value();
-  std::vector<unsigned char> a, b;
-  cave::append_bytes(frame->room, a);
-  cave::append_bytes(expected_room, b);
-  EXPECT_EQ(a, b);
+    auto frame = proto::decode_room_frame(d.room->frame, proto::Limits{.max_lod = 1});
+    ASSERT_TRUE(frame.ok()) << frame.error().message;
+    EXPECT_EQ(frame->version, version);
+    EXPECT_EQ(frame->lod, 0);
+    cave::Room expected_room = cave::room(test_world(), id).value();
+    std::vector<unsigned char> a, b;
+    cave::append_bytes(frame->room, a);
+    cave::append_bytes(expected_room, b);
+    EXPECT_EQ(a, b);
 
-  // The same room built here, with a builder of the same options, encoded the same way.
-  auto ctx = mesh::MeshContext::create(test_world(), mesh::MeshParams{}).value();
-  auto builder = kernels::RoomBuilder::create(ctx, config.builder);
-  auto meshes = builder.build(std::span(&expected_room, 1), mesh::Lod::kPatch);
-  ASSERT_TRUE(meshes[0].ok());
-  EXPECT_EQ(frame->origin, meshes[0]->origin);
-  auto payload = codec::encode_room(*meshes[0]);
-  ASSERT_TRUE(payload.ok());
-  auto got = codec::decode_room(frame->payload);
-  auto want_room = codec::decode_room(*payload);
-  ASSERT_TRUE(got.ok()) << got.error().message;
-  ASSERT_TRUE(want_room.ok());
-  EXPECT_GT(got->vertex_count(), 100u);
-  EXPECT_EQ(got->positions.size(), want_room->positions.size());
-  EXPECT_TRUE(std::equal(got->positions.begin(), got->positions.end(), want_room->positions.begin(),
-                         want_room->positions.end(),
-                         [](auto p, auto q) { return p.x == q.x && p.y == q.y && p.z == q.z; }));
-  EXPECT_EQ(got->indices, want_room->indices);
-  EXPECT_EQ(got->rim_portal, want_room->rim_portal);
-  EXPECT_EQ(got->rim_index, want_room->rim_index);
-  EXPECT_EQ(got->roughness, want_room->roughness);
-  EXPECT_EQ(frame->payload, *payload);
-  EXPECT_EQ(metrics.rooms_built.value(), 1u);
-  EXPECT_EQ(metrics.batches.value(), 1u);
-  EXPECT_EQ(metrics.build_seconds.count(), 1u);
-  EXPECT_EQ(metrics.encode_seconds.count(), 1u);
+    // The same room built here, with a builder of the same options, encoded the same way.
+    auto ctx = mesh::MeshContext::create(test_world(), mesh::MeshParams{}).value();
+    auto builder = kernels::RoomBuilder::create(ctx, config.builder);
+    auto meshes = builder.build(std::span(&expected_room, 1), mesh::Lod::kPatch);
+    ASSERT_TRUE(meshes[0].ok());
+    EXPECT_EQ(frame->origin, meshes[0]->origin);
+    codec::EncodeOptions options;
+    options.normals = proto::payload_has_normals(version);
+    auto payload = codec::encode_room(*meshes[0], options);
+    ASSERT_TRUE(payload.ok());
+    codec::DecodeLimits limits;
+    limits.normals = options.normals;
+    auto got = codec::decode_room(frame->payload, limits);
+    auto want_room = codec::decode_room(*payload, limits);
+    ASSERT_TRUE(got.ok()) << got.error().message;
+    ASSERT_TRUE(want_room.ok());
+    EXPECT_GT(got->vertex_count(), 100u);
+    EXPECT_EQ(got->normals.size(), version == 1 ? got->vertex_count() : 0u);
+    EXPECT_EQ(got->positions.size(), want_room->positions.size());
+    EXPECT_TRUE(std::equal(got->positions.begin(), got->positions.end(),
+                           want_room->positions.begin(), want_room->positions.end(),
+                           [](auto p, auto q) { return p.x == q.x && p.y == q.y && p.z == q.z; }));
+    EXPECT_EQ(got->indices, want_room->indices);
+    EXPECT_EQ(got->rim_portal, want_room->rim_portal);
+    EXPECT_EQ(got->rim_index, want_room->rim_index);
+    EXPECT_EQ(got->roughness, want_room->roughness);
+    EXPECT_EQ(frame->payload, *payload);
+    gen->remove_client(*c);
+  }
+  EXPECT_EQ(metrics.rooms_built.value(), 2u);
+  EXPECT_EQ(metrics.batches.value(), 2u);
+  EXPECT_EQ(metrics.build_seconds.count(), 2u);
+  EXPECT_EQ(metrics.encode_seconds.count(), 2u);
   EXPECT_EQ(metrics.rooms_in_flight.value(), 0);
 }
 

@@ -160,10 +160,10 @@ beast::error_code Client::send_binary(const std::string& bytes) {
   return run([&](auto h) { ws_.async_write(net::buffer(bytes), h); });
 }
 
-grotto::proto::Welcome Client::hello(std::string name) {
+grotto::proto::Welcome Client::hello(std::string name, std::vector<uint32_t> versions) {
   grotto::proto::Hello h;
   h.ref = 1;
-  h.versions = {1};
+  h.versions = std::move(versions);
   h.name = std::move(name);
   EXPECT_FALSE(send(h));
   auto in = next_text();
@@ -286,9 +286,18 @@ void expect_player_gets_rooms(Client& player) {
         grotto::proto::Limits{});
     ASSERT_TRUE(frame.ok()) << frame.error().message;
     if (frame->room.id != room.id) continue;  // an earlier request's room
-    auto mesh = grotto::codec::decode_room(frame->payload);
+    grotto::codec::DecodeLimits limits;
+    limits.normals = grotto::proto::payload_has_normals(frame->version);
+    auto mesh = grotto::codec::decode_room(frame->payload, limits);
     ASSERT_TRUE(mesh.ok()) << mesh.error().message;
     EXPECT_GT(mesh->triangle_count(), 0u);
+    if (!limits.normals) {
+      std::vector<grotto::codec::PortalDisc> discs;
+      for (const auto& p : frame->room.portals)
+        discs.push_back({p.centre, p.normal});
+      ASSERT_TRUE(grotto::codec::derive_normals(mesh.value(), frame->origin, discs).ok());
+      EXPECT_EQ(mesh->normals.size(), mesh->vertex_count());
+    }
     return;
   }
 }

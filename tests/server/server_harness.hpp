@@ -85,9 +85,9 @@ class Client {
   beast::error_code send(const std::string& text);
   beast::error_code send(const grotto::proto::ClientMessage& m);
   beast::error_code send_binary(const std::string& bytes);
-  // hello, then the welcome (its seed is kept for expect_player_gets_rooms); fails the test
-  // otherwise.
-  grotto::proto::Welcome hello(std::string name = "test");
+  // hello offering `versions`, then the welcome (its seed is kept for expect_player_gets_rooms);
+  // fails the test otherwise.
+  grotto::proto::Welcome hello(std::string name = "test", std::vector<uint32_t> versions = {2, 1});
   // A ping answered: the connection still works.
   bool alive(uint64_t ref = 99);
   // The next error message.

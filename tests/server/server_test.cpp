@@ -93,15 +93,20 @@ TEST(ServerRooms, room_over_the_wire_decodes_to_the_in_process_mesh) {
     ASSERT_TRUE(frame.ok()) << frame.error().message;
     EXPECT_EQ(frame->room.id, rooms[i].id);
     EXPECT_EQ(frame->room.portals.size(), rooms[i].portals.size());
-    auto wire = grotto::codec::decode_room(frame->payload);
+    grotto::codec::DecodeLimits limits;
+    limits.normals = grotto::proto::payload_has_normals(frame->version);
+    auto wire = grotto::codec::decode_room(frame->payload, limits);
     ASSERT_TRUE(wire.ok()) << wire.error().message;
     auto local = grotto::mesh::build_room_mesh(*ctx, rooms[i], grotto::mesh::Lod::kPatch);
     ASSERT_TRUE(local.ok()) << local.error().message;
     EXPECT_EQ(frame->origin, local->origin);
     // The same mesh: the wire decodes exactly as the in-process mesh encoded and decoded again.
-    auto payload = grotto::codec::encode_room(*local);
+    grotto::codec::EncodeOptions options;
+    options.normals = limits.normals;
+    auto payload = grotto::codec::encode_room(*local, options);
     ASSERT_TRUE(payload.ok());
-    auto again = grotto::codec::decode_room(*payload);
+    EXPECT_EQ(frame->payload, *payload);
+    auto again = grotto::codec::decode_room(*payload, limits);
     ASSERT_TRUE(again.ok());
     EXPECT_EQ(wire->vertex_count(), local->vertex_count());
     EXPECT_EQ(wire->triangle_count(), local->triangle_count());
@@ -407,7 +412,7 @@ TEST(ServerBadInput, fatal_errors_close_only_that_connection) {
        },
        ErrorCode::kBadFrame, 1008},
       {"wrong protocol version",
-       [](Client& cl) { cl.send("{\"type\":\"hello\",\"ref\":1,\"versions\":[2,3]}"); },
+       [](Client& cl) { cl.send("{\"type\":\"hello\",\"ref\":1,\"versions\":[3,4]}"); },
        ErrorCode::kUnsupportedVersion, 1008},
       {"message before hello", [](Client& cl) { cl.send("{\"type\":\"spawn\",\"ref\":1}"); },
        ErrorCode::kOutOfOrder, 1008},
@@ -454,7 +459,7 @@ TEST(ServerBadInput, fatal_errors_close_only_that_connection) {
     EXPECT_EQ(e->code, fatal.code) << e->message;
     EXPECT_TRUE(e->fatal);
     if (fatal.code == ErrorCode::kUnsupportedVersion) {
-      EXPECT_EQ(e->versions, std::vector<uint32_t>{1});
+      EXPECT_EQ(e->versions, (std::vector<uint32_t>{1, 2}));
     }
     auto reason = client.wait_close();
     EXPECT_EQ(reason.code, fatal.close_code);
@@ -511,7 +516,7 @@ TEST(ServerHttp, endpoints_answer_and_plain_http_on_ws_is_426) {
   EXPECT_EQ(http_get(server->port(), "/healthz", 0, 9000).status, 431);
   auto v = http_get(server->port(), "/version");
   EXPECT_EQ(v.status, 200);
-  EXPECT_NE(v.body.find("\"protocol\":1"), std::string::npos) << v.body;
+  EXPECT_NE(v.body.find("\"protocol\":2,\"protocols\":[1,2]"), std::string::npos) << v.body;
   // A WebSocket upgrade on another path is refused too.
   Client wrong(server->port());
   EXPECT_TRUE(wrong.connect("/elsewhere"));
@@ -896,7 +901,7 @@ TEST(ServerWorlds, a_named_world_opens_and_with_all_in_use_another_is_overloaded
     }
     return got;
   };
-  const std::string hello8 = "{\"type\":\"hello\",\"ref\":1,\"versions\":[1],\"seed\":\"8\"}";
+  const std::string hello8 = "{\"type\":\"hello\",\"ref\":1,\"versions\":[2,1],\"seed\":\"8\"}";
   auto rooms8 = sector_rooms(8, {0, 0, 0});
   ASSERT_GE(rooms8.size(), 4u);
 
