@@ -9,6 +9,7 @@
 
 #include "cave/layout.hpp"
 #include "cave/svg.hpp"
+#include "glb.hpp"
 #include "kernels/room_builder.hpp"
 #include "preview.hpp"
 #include "proto/layout_json.hpp"
@@ -56,32 +57,78 @@ bool write_file(const std::string& path, const std::string& text) {
   return true;
 }
 
-// The region's room meshes, built on OpenCL or the CPU reference; failures are logged and left out.
-std::vector<grotto::mesh::RoomMesh> build_meshes(const grotto::cave::World& world,
-                                                 const grotto::cave::Region& region,
-                                                 grotto::mesh::Lod lod, bool& all_built) {
-  std::vector<grotto::mesh::RoomMesh> out;
+// The region's room meshes, built on OpenCL or the CPU reference. A room that cannot be built is
+// logged and left out of `built`; `errors` says why, one entry per region room (empty: built).
+struct RegionMeshes {
+  std::vector<grotto::mesh::RoomMesh> built;  // in region order
+  std::vector<std::string> errors;            // parallel to region.rooms
+  size_t failed = 0;
+  size_t first_failed = 0;  // index into region.rooms, when failed > 0
+};
+
+RegionMeshes build_meshes(const grotto::cave::World& world, const grotto::cave::Region& region,
+                          grotto::mesh::Lod lod) {
+  RegionMeshes out;
+  out.errors.resize(region.rooms.size());
+  auto note_failure = [&](size_t i, std::string why) {
+    if (out.failed++ == 0) out.first_failed = i;
+    out.errors[i] = std::move(why);
+  };
   auto ctx = grotto::mesh::MeshContext::create(world, grotto::mesh::MeshParams{});
   if (!ctx) {
     spdlog::error("{}", ctx.error().message);
-    all_built = false;
+    for (size_t i = 0; i < region.rooms.size(); ++i)
+      note_failure(i, ctx.error().message);
     return out;
   }
   auto builder = grotto::kernels::RoomBuilder::create(*ctx, {});
   auto meshes = builder.build(region.rooms, lod);
-  all_built = true;
   for (size_t i = 0; i < meshes.size(); ++i) {
     if (!meshes[i]) {
       spdlog::warn("event=room_mesh_failed room={} error=\"{}\"", region.rooms[i].id.to_string(),
                    meshes[i].error().message);
-      all_built = false;
+      note_failure(i, meshes[i].error().message);
       continue;
     }
-    out.push_back(std::move(meshes[i]).value());
+    out.built.push_back(std::move(meshes[i]).value());
   }
-  spdlog::info("event=meshes_built rooms={} lod={} compute_path=\"{}\"", out.size(),
+  spdlog::info("event=meshes_built rooms={} lod={} compute_path=\"{}\"", out.built.size(),
                grotto::mesh::lod_name(lod), builder.path());
   return out;
+}
+
+// glTF 2.0 binary: every room of the region a node, with its mesh where it could be built.
+grotto::Status write_glb(const std::string& path, const grotto::cave::World& world,
+                         const grotto::cave::Region& region, grotto::mesh::Lod lod,
+                         const RegionMeshes& meshes) {
+  const double size = world.params().sector_size;
+  grotto::tools::GlbSource source;
+  source.generator = std::string("grotto-layout ") + GROTTO_VERSION;
+  source.seed = world.seed();
+  source.sector_size = size;
+  source.lo = region.lo;
+  source.hi = region.hi;
+  source.lod = lod;
+  // The block's first corner, as --obj uses: translations stay within the block's few hundred
+  // metres, where float32 holds the 1/64 m grid exactly (when the sector size is on that grid,
+  // as the default 96 m is).
+  source.anchor = {region.lo.x * size, region.lo.y * size, region.lo.z * size};
+  std::vector<grotto::tools::GlbRoom> rooms(region.rooms.size());
+  size_t next = 0;
+  for (size_t i = 0; i < region.rooms.size(); ++i) {
+    rooms[i].room = &region.rooms[i];
+    if (meshes.errors[i].empty()) {
+      rooms[i].mesh = &meshes.built[next++];
+    } else {
+      rooms[i].mesh_error = meshes.errors[i];
+    }
+  }
+  auto bytes = grotto::tools::region_glb(source, rooms);
+  if (!bytes) return bytes.error();
+  if (auto s = grotto::tools::write_file_replacing(path, *bytes); !s) return s;
+  spdlog::info("event=glb_written path={} rooms={} meshes={} bytes={}", path, rooms.size(),
+               meshes.built.size(), bytes->size());
+  return {};
 }
 
 // Wavefront OBJ: one object per room, positions in metres relative to the block's first corner
@@ -122,9 +169,11 @@ bool write_obj(const std::string& path, const grotto::cave::World& world,
   return true;
 }
 
-int fail(const std::string& message) {
+// One line on stderr; exit code 2 for input the command line got wrong, 1 for what went wrong
+// after.
+int fail(const std::string& message, int code = 2) {
   std::fprintf(stderr, "grotto-layout: %s\n", message.c_str());
-  return 2;
+  return code;
 }
 
 }  // namespace
@@ -137,7 +186,7 @@ int main(int argc, char** argv) {
   std::string seed_text = std::to_string(grotto::cave::kDefaultSeed);
   std::string from_text = "0,0,0", to_text;
   int sectors = 2;
-  std::string svg_path, json_path, obj_path, png_path, room_text, character;
+  std::string svg_path, json_path, obj_path, glb_path, png_path, room_text, character;
   std::string lod_text = "patch";
   grotto::cave::LayoutParams params;
   std::optional<double> tunnel_chance, big_probability;
@@ -154,10 +203,14 @@ int main(int argc, char** argv) {
   app.add_option("--json", json_path, "Write the region as JSON to this file ('-' for stdout)");
   app.add_option("--obj", obj_path,
                  "Write the rooms' meshes as Wavefront OBJ (opens in Blender and most 3D tools)");
+  app.add_option("--glb", glb_path,
+                 "Write the rooms as glTF 2.0 binary: a node per room (portals in its extras), "
+                 "meshes Draco-compressed as streamed, with plain fallback data "
+                 "(docs/INTEGRATION.md, 'Exporting to glTF')");
   app.add_option("--png", png_path,
                  "Render the rooms' meshes to a PNG picture (software, no GPU or display needed)");
   app.add_option("--lod", lod_text,
-                 "Level of detail of --obj and --png: patch (streamed) or detail")
+                 "Level of detail of --obj, --glb and --png: patch (streamed) or detail")
       ->check(CLI::IsMember({"patch", "detail"}))
       ->capture_default_str();
   app.add_option("--room", room_text, "Print one room as JSON instead, e.g. 0.0.0.r3 or 0.0.0.x1");
@@ -261,22 +314,37 @@ int main(int argc, char** argv) {
     if (!write_file(json_path, grotto::proto::region_json(*world, region, 1))) return 1;
     if (json_path != "-") spdlog::info("event=json_written path={}", json_path);
   }
-  if (!obj_path.empty() || !png_path.empty()) {
+  if (!obj_path.empty() || !png_path.empty() || !glb_path.empty()) {
     auto lod = lod_text == "detail" ? grotto::mesh::Lod::kDetail : grotto::mesh::Lod::kPatch;
-    bool all_built = true;
-    auto meshes = build_meshes(*world, region, lod, all_built);
-    if (!obj_path.empty() && !write_obj(obj_path, *world, region, meshes)) return 1;
+    RegionMeshes meshes = build_meshes(*world, region, lod);
+    if (!obj_path.empty() && !write_obj(obj_path, *world, region, meshes.built)) return 1;
+    if (!glb_path.empty()) {
+      if (auto s = write_glb(glb_path, *world, region, lod, meshes); !s) {
+        return fail(s.error().message, 1);
+      }
+    }
     if (!png_path.empty()) {
       grotto::tools::PreviewOptions preview;
-      auto image = grotto::tools::render_preview(meshes, preview);
+      auto image = grotto::tools::render_preview(meshes.built, preview);
       if (auto s = grotto::tools::write_png(png_path, image, preview.width, preview.height); !s) {
         return fail(s.error().message);
       }
       spdlog::info("event=png_written path={}", png_path);
     }
-    if (!all_built) return 1;
+    if (meshes.failed > 0) {
+      // Mesh errors usually name their room already.
+      const std::string id = region.rooms[meshes.first_failed].id.to_string();
+      const std::string& why = meshes.errors[meshes.first_failed];
+      return fail(std::to_string(meshes.failed) + " of " + std::to_string(region.rooms.size()) +
+                      " rooms could not be meshed (first: " +
+                      (why.find(id) == std::string::npos ? id + ": " + why : why) +
+                      "); the files hold the others" +
+                      (glb_path.empty() ? "" : ", the glb their nodes without a mesh"),
+                  1);
+    }
   }
-  if (svg_path.empty() && json_path.empty() && obj_path.empty() && png_path.empty()) {
+  if (svg_path.empty() && json_path.empty() && obj_path.empty() && glb_path.empty() &&
+      png_path.empty()) {
     std::printf("%s\n", grotto::proto::region_json(*world, region, 1).c_str());
   }
   return 0;

@@ -1,0 +1,274 @@
+#include "glb.hpp"
+
+#include <unistd.h>
+#include <bit>
+#include <cassert>
+#include <cerrno>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <nlohmann/json.hpp>
+
+#include "codec/room_codec.hpp"
+#include "core/bytes.hpp"
+#include "proto/layout_json.hpp"
+
+namespace grotto::tools {
+namespace {
+
+// Key order as written, so the file reads asset first.
+using json = nlohmann::ordered_json;
+
+// glTF 2.0 enums (spec §5.1.3 accessor.componentType, §5.11.4 bufferView.target,
+// §5.24.4 primitive.mode).
+constexpr int kUnsignedShort = 5123;
+constexpr int kUnsignedInt = 5125;
+constexpr int kFloat = 5126;
+constexpr int kArrayBuffer = 34962;
+constexpr int kElementArrayBuffer = 34963;
+constexpr int kTriangles = 4;
+
+// The GLB container (spec §4.4): a 12-byte header, then chunks of (length, type, data), each
+// data padded to 4 bytes: JSON with spaces, BIN with zeros.
+constexpr uint32_t kGlbMagic = 0x46546C67;  // "glTF"
+constexpr uint32_t kGlbVersion = 2;
+constexpr uint32_t kChunkJson = 0x4E4F534A;  // "JSON"
+constexpr uint32_t kChunkBin = 0x004E4942;   // "BIN\0"
+
+constexpr const char* kDraco = "KHR_draco_mesh_compression";
+
+json vec3(Vec3 v) {
+  return json::array({v.x, v.y, v.z});
+}
+json sector(cave::SectorCoord s) {
+  return json::array({s.x, s.y, s.z});
+}
+
+void append_f32(std::vector<uint8_t>& out, float v) {
+  le::append(out, std::bit_cast<uint32_t>(v), 4);
+}
+
+// The binary chunk with its bufferViews and accessors, built together.
+struct Document {
+  std::vector<uint8_t> bin;
+  json buffer_views = json::array();
+  json accessors = json::array();
+
+  // A bufferView over `bytes`, starting on a 4-byte boundary: vertex elements must be 4-byte
+  // aligned (spec §3.6.2.4) and this also aligns every component type. target 0: none (the
+  // Draco payload, which only the extension reads).
+  size_t add_view(std::span<const uint8_t> bytes, int target) {
+    while (bin.size() % 4 != 0)
+      bin.push_back(0);
+    json view = {{"buffer", 0}, {"byteOffset", bin.size()}, {"byteLength", bytes.size()}};
+    if (target != 0) view["target"] = target;
+    bin.insert(bin.end(), bytes.begin(), bytes.end());
+    buffer_views.push_back(std::move(view));
+    return buffer_views.size() - 1;
+  }
+
+  // A tightly packed accessor over a whole bufferView of its own.
+  size_t add_accessor(std::span<const uint8_t> bytes, int target, int component_type, size_t count,
+                      const char* type) {
+    size_t view = add_view(bytes, target);
+    accessors.push_back({{"bufferView", view},
+                         {"componentType", component_type},
+                         {"count", count},
+                         {"type", type}});
+    return accessors.size() - 1;
+  }
+};
+
+// One room's mesh: the Draco payload the server would stream, and plain accessors from that
+// payload decoded, so both hold the same vertices in the same order. Returns the mesh's JSON.
+Result<json> add_room_mesh(Document& doc, const cave::Room& room, const mesh::RoomMesh& m,
+                           mesh::Lod lod) {
+  const std::string id = room.id.to_string();
+  Result<std::vector<uint8_t>> payload = codec::encode_room(m);  // the server's options
+  if (!payload)
+    return invalid_argument("room " + id + " cannot be encoded: " + payload.error().message);
+  codec::DecodeLimits limits =
+      lod == mesh::Lod::kDetail ? codec::kDetailLimits : codec::DecodeLimits{};
+  limits.portal_count = static_cast<int>(room.portals.size());
+  Result<codec::DecodedRoom> decoded = codec::decode_room(*payload, limits);
+  if (!decoded) {
+    return invalid_argument("room " + id +
+                            "'s payload does not decode: " + decoded.error().message);
+  }
+  const codec::DecodedRoom& d = *decoded;
+  const size_t n = d.vertex_count();
+  assert(n > 0);  // decode_room refuses a payload without triangles
+
+  size_t draco_view = doc.add_view(*payload, 0);
+
+  std::vector<uint8_t> bytes;
+  bytes.reserve(n * 12);
+  constexpr double kInf = std::numeric_limits<double>::infinity();
+  Vec3 lo{kInf, kInf, kInf}, hi{-kInf, -kInf, -kInf};
+  for (const mesh::core::float3& p : d.positions) {
+    append_f32(bytes, p.x);
+    append_f32(bytes, p.y);
+    append_f32(bytes, p.z);
+    lo = {std::min<double>(lo.x, p.x), std::min<double>(lo.y, p.y), std::min<double>(lo.z, p.z)};
+    hi = {std::max<double>(hi.x, p.x), std::max<double>(hi.y, p.y), std::max<double>(hi.z, p.z)};
+  }
+  size_t position = doc.add_accessor(bytes, kArrayBuffer, kFloat, n, "VEC3");
+  // The spec requires POSITION's bounds; doubles of float values print back to the same floats.
+  doc.accessors[position]["min"] = vec3(lo);
+  doc.accessors[position]["max"] = vec3(hi);
+
+  bytes.clear();
+  for (const mesh::core::float3& v : d.normals) {
+    append_f32(bytes, v.x);
+    append_f32(bytes, v.y);
+    append_f32(bytes, v.z);
+  }
+  size_t normal = doc.add_accessor(bytes, kArrayBuffer, kFloat, n, "VEC3");
+
+  bytes.clear();
+  for (size_t i = 0; i < n; ++i) {
+    append_f32(bytes, d.roughness[i]);
+    append_f32(bytes, d.mineral[i]);
+  }
+  size_t channels = doc.add_accessor(bytes, kArrayBuffer, kFloat, n, "VEC2");
+
+  // The payload's own rim values: portal slot + 1 (0 off rims), index on the canonical loop.
+  bytes.clear();
+  for (size_t i = 0; i < n; ++i) {
+    le::append(bytes, static_cast<uint16_t>(d.rim_portal[i] + 1), 2);
+    le::append(bytes, d.rim_index[i], 2);
+  }
+  size_t rim = doc.add_accessor(bytes, kArrayBuffer, kUnsignedShort, n, "VEC2");
+
+  bytes.clear();
+  const bool wide = n >= 65536;  // UNSIGNED_SHORT holds every index below 65,536
+  for (uint32_t index : d.indices)
+    le::append(bytes, index, wide ? 4 : 2);
+  size_t indices = doc.add_accessor(
+      bytes, kElementArrayBuffer, wide ? kUnsignedInt : kUnsignedShort, d.indices.size(), "SCALAR");
+
+  json draco = {{"bufferView", draco_view},
+                {"attributes",
+                 {{"POSITION", codec::kPositionId},
+                  {"NORMAL", codec::kNormalId},
+                  {kChannelsAttribute, codec::kChannelsId},
+                  {kRimAttribute, codec::kRimId}}}};
+  json primitive = {{"attributes",
+                     {{"POSITION", position},
+                      {"NORMAL", normal},
+                      {kChannelsAttribute, channels},
+                      {kRimAttribute, rim}}},
+                    {"indices", indices},
+                    {"material", 0},
+                    {"mode", kTriangles},
+                    {"extensions", {{kDraco, std::move(draco)}}}};
+  return json{{"name", id}, {"primitives", json::array({std::move(primitive)})}};
+}
+
+void append_chunk(std::vector<uint8_t>& out, uint32_t type, std::span<const uint8_t> data,
+                  uint8_t pad) {
+  size_t padded = (data.size() + 3) / 4 * 4;
+  le::append(out, padded, 4);
+  le::append(out, type, 4);
+  out.insert(out.end(), data.begin(), data.end());
+  out.resize(out.size() + (padded - data.size()), pad);
+}
+
+}  // namespace
+
+Result<std::vector<uint8_t>> region_glb(const GlbSource& source, std::span<const GlbRoom> rooms) {
+  Document doc;
+  json nodes = json::array(), meshes = json::array(), scene_nodes = json::array();
+  for (const GlbRoom& r : rooms) {
+    assert(r.room != nullptr);
+    // The portals as `grotto-layout --room` prints them: one view of a room (proto/).
+    json extras = json::parse(proto::room_json(*r.room), nullptr, false);
+    assert(!extras.is_discarded());
+    json node = {{"name", r.room->id.to_string()}};
+    if (r.mesh != nullptr) {
+      Result<json> mesh = add_room_mesh(doc, *r.room, *r.mesh, source.lod);
+      if (!mesh) return mesh.error();
+      Vec3 t = r.mesh->origin - source.anchor;
+      node["translation"] = vec3(t);
+      node["mesh"] = meshes.size();
+      meshes.push_back(std::move(mesh).value());
+    } else {
+      extras["mesh_error"] = r.mesh_error;
+    }
+    node["extras"] = std::move(extras);
+    scene_nodes.push_back(nodes.size());
+    nodes.push_back(std::move(node));
+  }
+
+  json doc_json = {{"asset", {{"version", "2.0"}, {"generator", source.generator}}}};
+  // Used, not required: every primitive also has plain accessors, for readers without Draco.
+  if (!meshes.empty()) doc_json["extensionsUsed"] = json::array({kDraco});
+  json scene = {{"name", "grotto seed " + std::to_string(source.seed)}};
+  if (!scene_nodes.empty()) scene["nodes"] = std::move(scene_nodes);
+  // Seed as text: JSON readers that hold numbers as doubles lose 64-bit integers.
+  scene["extras"] = {{"seed", std::to_string(source.seed)}, {"sector_size", source.sector_size},
+                     {"from", sector(source.lo)},           {"to", sector(source.hi)},
+                     {"lod", mesh::lod_name(source.lod)},   {"anchor", vec3(source.anchor)}};
+  doc_json["scene"] = 0;
+  doc_json["scenes"] = json::array({std::move(scene)});
+  // glTF arrays may not be empty: a region whose rooms all failed has nodes only.
+  if (!nodes.empty()) doc_json["nodes"] = std::move(nodes);
+  if (!meshes.empty()) {
+    doc_json["meshes"] = std::move(meshes);
+    // Grotto's triangles face into the cave (counter-clockwise seen from inside): single-sided,
+    // so a camera inside sees the walls and one outside looks through the near walls.
+    doc_json["materials"] = json::array({{{"name", "rock"},
+                                          {"pbrMetallicRoughness",
+                                           {{"baseColorFactor", {0.55, 0.50, 0.45, 1.0}},
+                                            {"metallicFactor", 0.0},
+                                            {"roughnessFactor", 0.9}}}}});
+    doc_json["accessors"] = std::move(doc.accessors);
+    doc_json["bufferViews"] = std::move(doc.buffer_views);
+    doc_json["buffers"] = json::array({{{"byteLength", doc.bin.size()}}});
+  }
+
+  const std::string text = doc_json.dump();
+  const auto* text_bytes = reinterpret_cast<const uint8_t*>(text.data());
+  size_t total = 12 + 8 + (text.size() + 3) / 4 * 4;
+  if (!doc.bin.empty()) total += 8 + (doc.bin.size() + 3) / 4 * 4;
+  if (total > std::numeric_limits<uint32_t>::max()) {
+    return invalid_argument("the glb would be " + std::to_string(total) +
+                            " bytes, over the format's 4 GiB");
+  }
+  std::vector<uint8_t> out;
+  out.reserve(total);
+  le::append(out, kGlbMagic, 4);
+  le::append(out, kGlbVersion, 4);
+  le::append(out, total, 4);
+  append_chunk(out, kChunkJson, {text_bytes, text.size()}, ' ');
+  if (!doc.bin.empty()) append_chunk(out, kChunkBin, doc.bin, 0);
+  assert(out.size() == total);
+  return out;
+}
+
+Status write_file_replacing(const std::string& path, std::span<const uint8_t> bytes) {
+  namespace fs = std::filesystem;
+  const fs::path target(path);
+  // Beside the target, so the rename stays on one file system; the pid keeps two writers apart.
+  const fs::path temp = target.parent_path() / ("." + target.filename().string() + "." +
+                                                std::to_string(::getpid()) + ".tmp");
+  std::ofstream f(temp, std::ios::binary | std::ios::trunc);
+  f.write(reinterpret_cast<const char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
+  f.close();
+  std::error_code ec;
+  if (!f) {
+    const std::string why = std::strerror(errno);
+    fs::remove(temp, ec);
+    return Error{ErrorCode::kUnavailable, "cannot write " + path + ": " + why};
+  }
+  fs::rename(temp, target, ec);
+  if (ec) {
+    std::error_code ignored;
+    fs::remove(temp, ignored);
+    return Error{ErrorCode::kUnavailable, "cannot write " + path + ": " + ec.message()};
+  }
+  return {};
+}
+
+}  // namespace grotto::tools

@@ -1,0 +1,57 @@
+// A region's rooms as one glTF 2.0 binary file (grotto-layout --glb, issue 19; docs/INTEGRATION.md,
+// "Exporting to glTF").
+//
+// Each room is a node (named by its id, translated by its origin minus the file's anchor, portals
+// in its extras) holding a mesh of one triangle primitive. The primitive carries
+// KHR_draco_mesh_compression whose bufferView is the room's Draco payload exactly as the server
+// streams it (codec::encode_room with default options), and, since the extension is used but not
+// required, plain accessors written from that payload decoded again (codec::decode_room): the same
+// vertices in the same order as the Draco data (Draco's edgebreaker reorders them).
+#pragma once
+
+#include <cstdint>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "cave/layout.hpp"
+#include "core/result.hpp"
+#include "mesh/room_mesh.hpp"
+
+namespace grotto::tools {
+
+// What the file says about where it comes from.
+struct GlbSource {
+  std::string generator;  // asset.generator, e.g. "grotto-layout 0.1.0"
+  uint64_t seed = 0;
+  double sector_size = 0;
+  cave::SectorCoord lo, hi;  // the block of sectors
+  mesh::Lod lod = mesh::Lod::kPatch;
+  // World metres that every node's translation is relative to (the scene's extras say it), so
+  // that float32 translations keep the grid's precision.
+  Vec3 anchor;
+};
+
+// One room of the file: its layout and its mesh, or why it has none (its node then has no mesh
+// and says the reason in extras.mesh_error).
+struct GlbRoom {
+  const cave::Room* room = nullptr;      // not null
+  const mesh::RoomMesh* mesh = nullptr;  // null when the room could not be meshed
+  std::string mesh_error;                // why, when mesh is null
+};
+
+// The glTF names of the payload's attributes besides POSITION and NORMAL (application-specific
+// attributes start with an underscore): roughness and mineral, and the rim (portal slot + 1 or 0,
+// index on the portal's canonical loop).
+inline constexpr const char* kChannelsAttribute = "_CHANNELS";
+inline constexpr const char* kRimAttribute = "_RIM";
+
+// The file's bytes. Fails when a room's mesh cannot be encoded or its payload does not decode
+// (the message names the room); a room without a mesh is not a failure.
+Result<std::vector<uint8_t>> region_glb(const GlbSource& source, std::span<const GlbRoom> rooms);
+
+// Writes `bytes` to `path` through a temporary file in the same directory and a rename, so the
+// path holds the old file or the whole new one, never a torn one.
+Status write_file_replacing(const std::string& path, std::span<const uint8_t> bytes);
+
+}  // namespace grotto::tools
