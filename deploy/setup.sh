@@ -22,6 +22,7 @@ packages=(
   dpkg-dev  # dpkg-source: unpacks Draco's source package with Debian's patches (tests/fuzz)
   nginx  # tests/deploy: the load balancer in front of grotto-server replicas
   python3-yaml systemd  # tests/deploy/manifests_test.sh: YAML checks, systemd-analyze verify
+  gltfpack  # tests/tools: a second, independent reader of grotto-layout --glb files
 )
 # kubectl (kustomize builds of deploy/k8s in tests/deploy): Debian's kubernetes-client, unless a
 # kubectl is already installed (another package owning /usr/bin/kubectl would clash with it).

@@ -1,34 +1,21 @@
 // grotto-layout as a user runs it: a real process, real files, real exit codes.
 #include <gtest/gtest.h>
 
-#include <sys/wait.h>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
 #include <string>
 
+#include "layout_process.hpp"
 #include "tools/png.hpp"
 
 namespace {
 
-struct ProcessResult {
-  int exit_code;
-  std::string output;  // stdout and stderr together
-};
+using grotto::testing::ProcessResult;
 
 ProcessResult run(const std::string& args, const char* device = "auto") {
-  std::string cmd = std::string("GROTTO_OPENCL_DEVICE=") + device + " '" + GROTTO_LAYOUT_BIN +
-                    "' " + args + " 2>&1";
-  FILE* p = popen(cmd.c_str(), "r");
-  ProcessResult r{-1, {}};
-  char buf[4096];
-  size_t n;
-  while ((n = std::fread(buf, 1, sizeof buf, p)) > 0)
-    r.output.append(buf, n);
-  int status = pclose(p);
-  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return r;
+  return grotto::testing::run_layout(args, device);
 }
 
 std::string read(const std::filesystem::path& path) {
@@ -41,7 +28,8 @@ std::string read(const std::filesystem::path& path) {
 TEST(GrottoLayout, help_documents_the_options) {
   ProcessResult r = run("--help");
   EXPECT_EQ(r.exit_code, 0);
-  for (const char* flag : {"--seed", "--svg", "--json", "--room", "--tunnel-chance", "--bias"}) {
+  for (const char* flag :
+       {"--seed", "--svg", "--json", "--obj", "--glb", "--room", "--tunnel-chance", "--bias"}) {
     EXPECT_NE(r.output.find(flag), std::string::npos) << flag;
   }
 }
@@ -145,7 +133,8 @@ TEST(GrottoLayout, bad_input_gets_a_clear_error) {
 // The command-line conventions every Grotto binary keeps: a flag it does not know or a value
 // its check refuses exits 2; the world is seed 7 unless told otherwise.
 TEST(GrottoLayout, a_bad_flag_exits_2_and_the_default_world_is_seed_7) {
-  for (const char* args : {"--no-such-flag", "--sectors 9", "--character lava", "--seed"}) {
+  for (const char* args : {"--no-such-flag", "--sectors 9", "--character lava", "--seed", "--glb",
+                           "--lod x --glb y"}) {
     ProcessResult r = run(args);
     EXPECT_EQ(r.exit_code, 2) << args << " said: " << r.output;
   }
