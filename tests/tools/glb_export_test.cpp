@@ -292,6 +292,49 @@ TEST_F(GlbExport, primitives_are_indexed_triangles_with_exact_position_bounds) {
   }
 }
 
+// glTF's front faces are counter-clockwise (§3.7.2.1); Grotto's face into the cave, so a viewer
+// inside sees them. Each triangle's counter-clockwise normal agrees with its vertex normals, and
+// nearly all look towards their room's centre (the rest are tunnel walls bent around a portal).
+TEST_F(GlbExport, front_faces_look_into_the_cave) {
+  size_t triangles = 0, agree = 0, inward = 0;
+  for (const json& node : doc()["nodes"]) {
+    const json& p = doc()["meshes"][node["mesh"].get<size_t>()]["primitives"][0];
+    std::vector<float> pos = floats(accessor_bytes(*glb_, p["attributes"]["POSITION"]));
+    std::vector<float> nrm = floats(accessor_bytes(*glb_, p["attributes"]["NORMAL"]));
+    const json& idx = doc()["accessors"][p["indices"].get<size_t>()];
+    std::vector<uint32_t> indices =
+        unsigneds(accessor_bytes(*glb_, p["indices"]), component_size(idx["componentType"]));
+    double centre[3];
+    for (int a = 0; a < 3; ++a)  // the room's centre in the mesh's frame
+      centre[a] = node["extras"]["centre"][a].get<double>() - node["translation"][a].get<double>() -
+                  doc()["scenes"][0]["extras"]["anchor"][a].get<double>();
+    for (size_t t = 0; t < indices.size(); t += 3) {
+      const float* a = &pos[3 * indices[t]];
+      const float* b = &pos[3 * indices[t + 1]];
+      const float* c = &pos[3 * indices[t + 2]];
+      double u[3], v[3], n[3] = {0, 0, 0};
+      for (int k = 0; k < 3; ++k) {
+        u[k] = b[k] - a[k];
+        v[k] = c[k] - a[k];
+        for (int corner = 0; corner < 3; ++corner)
+          n[k] += nrm[3 * indices[t + corner] + k];
+      }
+      double face[3] = {u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2],
+                        u[0] * v[1] - u[1] * v[0]};
+      double along_normals = 0, to_centre = 0;
+      for (int k = 0; k < 3; ++k) {
+        along_normals += face[k] * n[k];
+        to_centre += face[k] * (centre[k] - a[k]);
+      }
+      ++triangles;
+      agree += along_normals > 0;
+      inward += to_centre > 0;
+    }
+  }
+  EXPECT_EQ(agree, triangles);
+  EXPECT_GT(inward, triangles * 9 / 10) << inward << " of " << triangles;
+}
+
 TEST_F(GlbExport, draco_payload_decodes_to_the_fallback_arrays) {
   ASSERT_TRUE(doc().contains("extensionsUsed"));
   const json& used = doc()["extensionsUsed"];
