@@ -3,8 +3,9 @@
 //
 // Each room is a node (named by its id, translated by its origin minus the file's anchor, portals
 // in its extras) holding a mesh of one triangle primitive. The primitive carries
-// KHR_draco_mesh_compression whose bufferView is the room's Draco payload exactly as the server
-// streams it (codec::encode_room with default options), and, since the extension is used but not
+// KHR_draco_mesh_compression whose bufferView is the room's Draco payload exactly as a server
+// streams it to a protocol version 1 client (codec::encode_room with default options: normals
+// included, which glTF readers expect), and, since the extension is used but not
 // required, plain accessors written from that payload decoded again (codec::decode_room): the same
 // vertices in the same order as the Draco data (Draco's edgebreaker reorders them).
 #pragma once

@@ -205,7 +205,7 @@ int main(int argc, char** argv) {
                  "Write the rooms' meshes as Wavefront OBJ (opens in Blender and most 3D tools)");
   app.add_option("--glb", glb_path,
                  "Write the rooms as glTF 2.0 binary: a node per room (portals in its extras), "
-                 "meshes Draco-compressed as streamed, with plain fallback data "
+                 "meshes Draco-compressed as streamed (protocol 1, with normals), with plain fallback data "
                  "(docs/INTEGRATION.md, 'Exporting to glTF')");
   app.add_option("--png", png_path,
                  "Render the rooms' meshes to a PNG picture (software, no GPU or display needed)");
