@@ -91,6 +91,7 @@ int main(int argc, char** argv) {
   so.seed = o.seed;
   so.token = o.token;
   so.name = "grotto-client";
+  so.protocol_version = o.protocol_version;
   so.spawn = !o.pose.has_value();
   auto stream_or = client::Stream::start(so, runtime);
   if (!stream_or) return fail(stream_or.error().message);

@@ -64,6 +64,12 @@ std::optional<int> parse_options(int argc, char** argv, Options& o) {
   app.add_option("--seed", o.seed,
                  "World seed (unsigned 64-bit): the in-process server's world, or the world "
                  "asked of --server (default: the server's)");
+  app.add_option("--protocol", o.protocol_version,
+                 "Protocol version offered in hello: 0 every version (the server picks the "
+                 "highest), 1 or 2 that one alone (version 2's rooms come without normals, the "
+                 "client derives them)")
+      ->check(CLI::Range(0, 2))
+      ->capture_default_str();
   app.add_option("--device", o.device,
                  "In-process server's OpenCL device: auto, gpu, accelerator, cpu, none (CPU "
                  "reference)")

@@ -23,6 +23,7 @@ struct Pose5 {
 struct Options {
   std::string server_url;  // empty: an in-process server
   std::optional<uint64_t> seed;
+  uint32_t protocol_version = 0;  // offered in hello: 0 every version, else that one
   std::string device = "auto";
   int width = 1280;
   int height = 720;

@@ -81,6 +81,12 @@ CommandLine parse_command_line(int argc, const char* const* argv) {
                  "Adaptive prefetch: the horizon follows the rooms' latency (1 s + 2 x its recent "
                  "p90) between this and --horizon; 0: always --horizon (walk, soak)")
       ->capture_default_str();
+  app.add_option("--protocol", o.protocol_version,
+                 "Protocol version offered in hello: 0 every version this client speaks (the "
+                 "server picks the highest), 1 or 2 that one alone (2 leaves normals out of the "
+                 "room payload; proto/PROTOCOL.md)")
+      ->check(CLI::Range(0, 2))
+      ->capture_default_str();
   app.add_option("--radius", o.radius_m,
                  "burst mode: metres of walking distance wanted around each player")
       ->capture_default_str();

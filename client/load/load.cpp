@@ -164,6 +164,7 @@ Result<LoadReport> run_load(const LoadOptions& options) {
   report.speed = options.speed;
   report.horizon_s = burst ? options.radius_m / options.speed : options.horizon_s;
   report.min_horizon_s = burst ? 0 : options.min_horizon_s;
+  report.protocol_version = options.protocol_version;
   report.radius_m = burst ? options.radius_m : 0;
   report.duration_s = duration;
   report.max_stalls = options.max_stalls;
@@ -233,6 +234,7 @@ Result<LoadReport> run_load(const LoadOptions& options) {
     so.token = options.token;
     so.plan = plan_options;
     if (!burst) so.min_horizon_s = options.min_horizon_s;
+    so.protocol_version = options.protocol_version;
     so.spawn = !options.spread;
     so.store_bytes = options.store_bytes;
     auto stream = Stream::start(so, runtime);

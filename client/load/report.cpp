@@ -249,6 +249,7 @@ std::string to_json_text(const LoadReport& r) {
       {"speed_m_s", r.speed},
       {"horizon_s", r.horizon_s},
       {"min_horizon_s", r.min_horizon_s},
+      {"protocol_version_offered", r.protocol_version},
       {"final_horizon_s", to_json(r.final_horizon_s)},
       {"radius_m", r.radius_m},
       {"duration_s", r.duration_s},

@@ -92,6 +92,7 @@ struct LoadReport {
   double rooms_per_room_entered = 0;
   Distribution final_horizon_s;  // each player's horizon at the end (adaptive with --min-horizon)
   double min_horizon_s = 0;
+  uint32_t protocol_version = 0;  // offered (0: every version the client speaks)
   uint64_t stalls = 0;
   double stall_total_s = 0;
   uint64_t reconnects = 0, drops = 0, streams_failed = 0;

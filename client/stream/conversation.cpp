@@ -75,8 +75,9 @@ Actions Conversation::opened(SteadyTime now) {
   fatal_.clear();
   proto::Hello hello;
   hello.ref = next_ref_++;
-  for (uint32_t v = proto::kProtocolVersion; v >= proto::kMinProtocolVersion; --v)
-    hello.versions.push_back(v);
+  for (uint32_t v = proto::kProtocolVersion; v >= proto::kMinProtocolVersion; --v) {
+    if (options_.protocol_version == 0 || options_.protocol_version == v) hello.versions.push_back(v);
+  }
   hello.seed = options_.seed;
   hello.params = options_.params;
   hello.name = options_.name;

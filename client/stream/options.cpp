@@ -30,6 +30,11 @@ Status validate_options(const StreamOptions& options) {
   if (options.replan_interval.count() < 1) return invalid("replan_interval must be at least 1 ms");
   if (options.max_room_failures < 1) return invalid("max_room_failures must be at least 1");
   if (options.lod > 255) return invalid("lod must be in [0, 255] (PROTOCOL.md: max_lod <= 255)");
+  if (options.protocol_version != 0 && !proto::speaks_version(options.protocol_version)) {
+    return invalid("protocol_version must be 0 (all) or one of " +
+                   std::to_string(proto::kMinProtocolVersion) + ".." +
+                   std::to_string(proto::kProtocolVersion));
+  }
   if (!options.token.empty()) {
     if (auto st = proto::check_token(options.token); !st)
       return invalid("token " + st.error().message);

@@ -44,12 +44,16 @@ struct StreamOptions {
   std::chrono::milliseconds replan_interval{100};     // at most this often on pose changes
   int max_room_failures = 3;  // corrupt or failed deliveries of one room before giving up on it
   bool spawn = true;          // ask the server for a spawn point when no pose was set
+  // The protocol version offered in hello: 0 offers every version this library speaks
+  // (proto::kMinProtocolVersion..kProtocolVersion, the server picks the highest); 1 or 2 offers
+  // that one alone (to measure or test one version against a server that speaks both).
+  uint32_t protocol_version = 0;
 };
 
 // Whether Stream::start would take `options`: the url parses (url.hpp), the horizon is a positive
 // number of seconds, cancel_factor >= 1, max_in_flight >= 1, 1 ms <= backoff_initial <=
 // backoff_max, connect_timeout, request_timeout and replan_interval >= 1 ms, max_room_failures >=
-// 1, lod <= 255, and the token, when there is one, is what proto/token.hpp accepts. Errors
+// 1, lod <= 255, protocol_version 0 or one this library speaks, and the token, when there is one, is what proto/token.hpp accepts. Errors
 // (kInvalidArgument) name the option.
 Status validate_options(const StreamOptions& options);
 

@@ -11,6 +11,7 @@
 #include <boost/beast/http.hpp>
 #include <boost/beast/websocket.hpp>
 #include <chrono>
+#include <cmath>
 #include <functional>
 #include <map>
 #include <set>
@@ -18,6 +19,7 @@
 
 #include "cave/layout.hpp"
 #include "client/stream/stream.hpp"
+#include "client/stream/verify.hpp"
 #include "codec/room_codec.hpp"
 #include "mesh/context.hpp"
 #include "mesh/room_mesh.hpp"
@@ -172,6 +174,54 @@ TEST(Stream, spawns_and_prefetches_every_room_within_the_horizon) {
   for (const auto& s : samples)
     EXPECT_GT(s.latency_ms, 0.0);
   EXPECT_TRUE(stream->take_new_rooms().empty());
+}
+
+// Both protocol versions against one server: version 1's rooms carry normals, version 2's come
+// without and the client derives them; either way the same rooms arrive, every vertex has a unit
+// normal, and the rims of neighbours held by one Stream agree bit for bit, normals included
+// (verify_seam). Version 2's payloads are smaller.
+TEST(Stream, both_protocol_versions_stream_rooms_whose_seams_agree) {
+  auto server = start_server(test_config());
+  ASSERT_TRUE(server);
+  Runtime rt(1, 2);
+  std::map<uint32_t, size_t> payload_bytes, seams;
+  std::map<uint32_t, std::set<RoomId>> received;
+  for (uint32_t version : {1u, 2u}) {
+    SCOPED_TRACE("protocol " + std::to_string(version));
+    StreamOptions o;
+    o.url = url_of(server->port());
+    o.plan.horizon_s = 5.0;
+    o.protocol_version = version;
+    auto stream = start_stream(o, rt);
+    ASSERT_TRUE(stream);
+    ASSERT_TRUE(wait_for([&] { return stream->spawn_point().has_value(); }))
+        << describe(stream->stats());
+    auto expected = expected_rooms(7, *stream->spawn_point(), o.plan.horizon_s);
+    ASSERT_TRUE(wait_for([&] { return all_ready(*stream, expected); })) << describe(stream->stats());
+    EXPECT_EQ(stream->stats().rooms_rejected, 0u);
+    std::map<RoomId, std::shared_ptr<const grotto::client::ReadyRoom>> rooms;
+    for (const auto& r : stream->take_new_rooms()) {
+      rooms[r->room.id] = r;
+      received[version].insert(r->room.id);
+      payload_bytes[version] += r->payload_bytes;
+      ASSERT_EQ(r->mesh.normals.size(), r->mesh.vertex_count());
+      for (const auto& n : r->mesh.normals)
+        ASSERT_NEAR(std::sqrt(n.x * n.x + n.y * n.y + n.z * n.z), 1.0, 1e-3);
+      EXPECT_TRUE(grotto::client::verify_room(*r).ok()) << r->room.id.to_string();
+    }
+    for (const auto& [id, r] : rooms) {
+      for (const auto& portal : r->room.portals) {
+        auto other = rooms.find(portal.neighbour);
+        if (other == rooms.end() || !(id < portal.neighbour)) continue;
+        grotto::Status s = grotto::client::verify_seam(*r, *other->second);
+        EXPECT_TRUE(s.ok()) << s.error().message;
+        ++seams[version];
+      }
+    }
+    EXPECT_GT(seams[version], 3u);
+  }
+  EXPECT_EQ(received[1], received[2]) << "the same rooms either way";
+  EXPECT_LT(payload_bytes[2] * 10, payload_bytes[1] * 9) << "version 2 saves over a tenth";
 }
 
 // A server with tight limits: the Stream never asks for more in flight, or puts more in one
