@@ -212,6 +212,22 @@ int main(int argc, char** argv) {
   v2.normals = false;
   measure_draco("draco speed 3, no normals (derived on decode), channels 6 (protocol 2)", v2);
 
+  // Protocol 2's normals alone: derive_normals on a decoded room.
+  {
+    Row row{"codec::derive_normals alone (protocol 2's decode includes it)", {}, {}, {}, {}};
+    codec::DecodeLimits limits;
+    limits.normals = false;
+    for (size_t i = 0; i < patch.size(); ++i) {
+      std::vector<uint8_t> bytes = codec::encode_room(patch[i], v2).value();
+      codec::DecodedRoom d = codec::decode_room(bytes, limits).value();
+      row.bytes.push_back(static_cast<double>(bytes.size()));
+      row.decode_ms.push_back(median_ms(reps, [&] {
+        if (!codec::derive_normals(d, patch[i].origin, discs[i]).ok()) std::abort();
+      }));
+    }
+    rows.push_back(std::move(row));
+  }
+
   // Draco's decoder alone (no validation, no copy into DecodedRoom), default settings.
   {
     Row row{"draco::Decoder alone, default settings", {}, {}, {}, {}};

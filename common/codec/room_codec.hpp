@@ -187,7 +187,7 @@ struct PortalDisc {
 // normalized sum of its triangles' area-weighted face normals (cross(b - a, c - a), facing the
 // cave), or (0, 1, 0) when that sum is zero. `portals` are the frame's, in frame order (rim slots
 // index them). Errors: invalid_argument when a rim slot has no disc in `portals` or the arrays
-// differ in length. About 10 ns a triangle.
+// differ in length. About 20 ns a triangle (0.018 ms for a median patch room, codec_bench).
 Status derive_normals(DecodedRoom& room, Vec3 origin, std::span<const PortalDisc> portals);
 
 }  // namespace grotto::codec
