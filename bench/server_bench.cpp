@@ -14,6 +14,7 @@
 #include <thread>
 
 #include "cave/layout.hpp"
+#include "proto/messages.hpp"
 #include "server/generator.hpp"
 #include "server/metrics.hpp"
 #include "server/sector_cache.hpp"
@@ -52,7 +53,7 @@ struct PipelineRun {
 
 // One client wants every room at once (cache off, so each is built), lod 0 (patch).
 PipelineRun run_pipeline(const cave::World& world, const std::vector<cave::RoomId>& ids,
-                         server::GeneratorConfig config) {
+                         server::GeneratorConfig config, uint32_t version) {
   config.cache_bytes = 0;
   server::Metrics metrics;
   auto gen = server::Generator::create(world, mesh::MeshParams{}, config, metrics);
@@ -63,7 +64,7 @@ PipelineRun run_pipeline(const cave::World& world, const std::vector<cave::RoomI
   std::mutex m;
   std::condition_variable cv;
   size_t got = 0, failed = 0, bytes = 0;
-  server::ClientId c = (*gen)->add_client([&](server::Delivery d) {
+  server::ClientId c = *(*gen)->add_client(world.seed(), [&](server::Delivery d) {
     std::lock_guard lock(m);
     ++got;
     if (d.room) {
@@ -72,7 +73,7 @@ PipelineRun run_pipeline(const cave::World& world, const std::vector<cave::RoomI
       ++failed;
     }
     cv.notify_all();
-  });
+  }, version);
   std::vector<server::Want> wants;
   for (size_t i = 0; i < ids.size(); ++i)
     wants.push_back({ids[i], 0, static_cast<uint32_t>(i)});
@@ -109,6 +110,7 @@ int main(int argc, char** argv) {
   size_t batch = 32;
   int repetitions = 3;
   std::vector<std::string> devices = {"", "none"};
+  uint32_t version = proto::kProtocolVersion;
   app.add_option("--json", json_path, "Write the report here")->capture_default_str();
   app.add_option("--rooms", rooms, "Rooms per run")
       ->check(CLI::Range(1, 100000))
@@ -124,6 +126,10 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--devices", devices,
                  "OpenCL device choices to run (\"\": $GROTTO_OPENCL_DEVICE or auto; none: CPU)");
+  app.add_option("--protocol", version,
+                 "Protocol version the rooms are framed for (1: payloads with normals, 2: without)")
+      ->check(CLI::Range(1, 2))
+      ->capture_default_str();
   CLI11_PARSE(app, argc, argv);
   spdlog::set_level(spdlog::level::warn);
 
@@ -152,6 +158,7 @@ int main(int argc, char** argv) {
   nlohmann::json report;
   report["rooms"] = rooms;
   report["repetitions"] = repetitions;
+  report["protocol"] = version;
   report["hardware_threads"] = std::thread::hardware_concurrency();
   report["layout"] = {{"cave_room_ms_per_room", uncached_ms},
                       {"sector_cache_cold_ms_per_room", cold_ms},
@@ -174,7 +181,7 @@ int main(int argc, char** argv) {
       // The run with the median time (the machine may be shared; medians resist that).
       std::vector<PipelineRun> reps;
       for (int i = 0; i < repetitions; ++i)
-        reps.push_back(run_pipeline(world, ids, config));
+        reps.push_back(run_pipeline(world, ids, config, version));
       std::sort(reps.begin(), reps.end(),
                 [](const PipelineRun& a, const PipelineRun& b) { return a.seconds < b.seconds; });
       PipelineRun r = reps[reps.size() / 2];
