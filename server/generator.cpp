@@ -75,6 +75,7 @@ struct Waiting {
   uint64_t seq = 0;
   Clock::time_point received;
   bool queued = false;  // in the client's queue (its job has not started)
+  Clock::time_point due;  // when the player can reach the room: the last request's time + priority
 };
 
 struct Client {
@@ -253,9 +254,17 @@ struct Generator::State {
   }
 
   // Moves up to `limit` queued jobs into `batch`, one per client in turn, starting after the
-  // client served last. All jobs of a batch share the lod of its first job; worlds may mix (one
-  // launch serves them all).
+  // client served last: first only urgent wants (GeneratorConfig::urgent_within), then any. A
+  // client's turn takes its smallest priority. All jobs of a batch share the lod of its first
+  // job; worlds may mix (one launch serves them all).
   void take(std::vector<JobPtr>& batch, size_t limit) {
+    const auto urgent_until = Clock::now() + config.urgent_within;
+    if (config.urgent_within.count() > 0) take(batch, limit, true, urgent_until);
+    take(batch, limit, false, urgent_until);
+  }
+
+  void take(std::vector<JobPtr>& batch, size_t limit, bool urgent_only,
+            Clock::time_point urgent_until) {
     while (batch.size() < limit && queued_jobs > 0) {
       bool progress = false;
       auto start = clients.upper_bound(rr_cursor);
@@ -269,6 +278,7 @@ struct Generator::State {
             ++e;
         }
         if (e == c.queue.end()) continue;
+        if (urgent_only && c.wants.at(e->key).due > urgent_until) continue;
         JobPtr job = jobs.at(e->key);
         assert(job->stage == Job::Stage::kQueued);
         job->stage = Job::Stage::kBuilding;
@@ -574,6 +584,7 @@ void Generator::request(ClientId id, std::span<const server::Want> wants) {
         client->queue.insert({w.priority, want.seq, key});
       }
       want.priority = w.priority;
+      want.due = now + std::chrono::milliseconds(w.priority);
       continue;
     }
     if (RoomPtr hit = s.cache.find(key)) {
@@ -587,7 +598,7 @@ void Generator::request(ClientId id, std::span<const server::Want> wants) {
       out.push_back({client, std::move(d)});
       continue;
     }
-    Waiting want{w.priority, s.next_seq++, now, false};
+    Waiting want{w.priority, s.next_seq++, now, false, now + std::chrono::milliseconds(w.priority)};
     auto j = s.jobs.find(key);
     if (j != s.jobs.end()) {
       s.metrics.rooms_deduplicated.add();

@@ -41,6 +41,12 @@ struct GeneratorConfig {
   size_t max_batch_rooms = 32;                     // rooms per build call (one kernel launch)
   std::chrono::milliseconds max_batch_wait{2};     // a worker waits at most this for a fuller batch
   std::chrono::milliseconds job_deadline{30'000};  // queued longer than this: overloaded error
+  // Deadline classes: a want due within this (received + priority, the priority being the
+  // milliseconds until its player can reach the room) is urgent. Urgent wants are taken first,
+  // round-robin across clients, then the rest, round-robin: a player about to walk into a room
+  // goes before another's far prefetch, and a client calling everything urgent still gets only
+  // its turn among the urgent. 0: one class (plain round-robin).
+  std::chrono::milliseconds urgent_within{1'000};
   kernels::RoomBuilder::Options builder{};  // OpenCL device choice (each worker has a builder)
 };
 

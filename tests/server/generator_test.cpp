@@ -379,6 +379,52 @@ TEST(GeneratorTest, a_client_asking_few_rooms_is_not_starved_by_one_asking_many)
   EXPECT_EQ(s.gen->queue_depth(), 0u);
 }
 
+// Deadline classes: B's two rooms are due now, A's six are far prefetch. Round-robin alone would
+// build A, B, A, B...; with urgent_within, both of B's go first. Without it (0), one of A's far
+// rooms comes between them.
+TEST(GeneratorTest, rooms_due_soon_go_before_other_clients_far_prefetch) {
+  for (int urgent_ms : {1000, 0}) {
+    SCOPED_TRACE("urgent_within " + std::to_string(urgent_ms));
+    GeneratorConfig config = cpu_config();
+    config.max_batch_rooms = 1;
+    config.max_batch_wait = std::chrono::milliseconds(0);
+    config.urgent_within = std::chrono::milliseconds(urgent_ms);
+    Stalled s(config);
+    std::vector<cave::RoomId> ids = existing_rooms(9);
+    std::mutex m;
+    std::string order;
+    auto record = [&](char who) {
+      return [&, who](Delivery) {
+        std::lock_guard lock(m);
+        order += who;
+      };
+    };
+    ClientId a = s.gen->add_client(record('A'));
+    ClientId b = s.gen->add_client(record('B'));
+    std::vector<Want> far;
+    for (size_t i = 1; i <= 6; ++i)
+      far.push_back({ids[i], 0, 60'000});
+    s.gen->request(a, far);
+    std::vector<Want> soon = {{ids[7], 0, 0}, {ids[8], 0, 200}};
+    s.gen->request(b, soon);
+    s.gate.open();
+    for (int i = 0; i < 500; ++i) {
+      {
+        std::lock_guard lock(m);
+        if (order.size() == 8) break;
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    }
+    std::lock_guard lock(m);
+    ASSERT_EQ(order.size(), 8u) << order;
+    if (urgent_ms > 0) {
+      EXPECT_EQ(order.substr(0, 2), "BB") << order;
+    } else {
+      EXPECT_NE(order.substr(0, 2), "BB") << order << " (round-robin alone)";
+    }
+  }
+}
+
 TEST(GeneratorTest, priorities_are_honoured_within_a_client) {
   GeneratorConfig config = cpu_config();
   config.max_batch_rooms = 1;
