@@ -2,9 +2,12 @@
 # Renders docs/GALLERY.md's pictures: each pose with the relief on and off (--no-displacement),
 # under Xvfb with Mesa's llvmpipe, from an in-process server (CPU reference). ~8 s a picture.
 # Usage: bash docs/gallery/render.sh [build dir, default build]  (from the repository root)
+# GALLERY_OUT (default docs/images/gallery) is where the pictures go; GALLERY_FLAGS, more client
+# flags for every picture (docs/gallery/protocol.sh passes --protocol 1 or 2).
 set -euo pipefail
 build=${1:-build}
-out=docs/images/gallery
+out=${GALLERY_OUT:-docs/images/gallery}
+read -r -a more <<< "${GALLERY_FLAGS:-}"
 mkdir -p "$out"
 client="$build/bin/grotto-client"
 layout="$build/bin/grotto-layout"
@@ -24,7 +27,7 @@ shoot() {  # name seed extra-args...
     [[ $relief == off ]] && flags=(--no-displacement)
     xvfb-run -a -s "-screen 0 1280x1024x24" "$client" --device none --seed "$seed" \
       --width 480 --height 270 --tess-max 8 --lod distance --frames 3 --wait 120 --no-motion-blur \
-      --screenshot "$out/$name-$relief.png" "${flags[@]}" "$@" >/dev/null
+      --screenshot "$out/$name-$relief.png" "${flags[@]}" "${more[@]}" "$@" >/dev/null
   done
   echo "gallery: $name"
 }
