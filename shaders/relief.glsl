@@ -15,7 +15,9 @@
 //                whole cell, on a lattice turned off the world axes, 55 % of the cells), so a
 //                stalagmite stands under every stalactite (thesis §5.5: underside bias from the
 //                world-space normal), longer in bigger rooms.
-// Zero on portal rims (rim weight 1), so the seams between rooms stay where the server put them.
+// The displacement is zero on portal rims (rim weight 1), so the seams between rooms stay where
+// the server put them; the shading (gradient, cavity) is not faded there, so the rim is no smooth
+// pale strip (docs/GALLERY.md, "The rim strip").
 #ifndef RELIEF_FN
 #define RELIEF_FN
 #endif
@@ -91,7 +93,8 @@ RELIEF_FN float relief_bound(float strength, float room_radius) {
 
 struct Relief {
   float height;   // metres along the normal (into the cave when positive)
-  vec3 gradient;  // of height with respect to world position (for the displaced normal)
+  vec3 gradient;  // of height with respect to world position (for the displaced normal); near
+                  // rims that of the rock and flowstone before their height fades (see relief_at)
   float cavity;   // 0 in the rock's hollows, 1 on its crests (occlusion, tint)
   float spike;    // 0-1: how far up a speleothem the point is (pale, glossy tips)
 };
@@ -106,10 +109,16 @@ RELIEF_FN Relief relief_at(vec3 p, vec3 n, float roughness, float rim, float roo
   r.gradient = vec3(0.0f);
   r.cavity = 0.5f;
   r.spike = 0.0f;
+  if (!(strength > 0.0f)) return r;
+  // Near a rim the rock's and the flowstone's heights fade (exactly zero on the rim, whatever
+  // rounding did to the rim weight: the neighbouring room puts the same vertex there), but not
+  // their gradient and cavity: faded with the height they left a smooth, evenly lit strip along
+  // every rim that showed as a pale line. The lighting bends over rock that is flatter than it
+  // looks there; the rock's gradient and cavity depend on p, n and roughness alone, the same in
+  // both rooms, so the shading stays continuous across the seam. Speleothems fade whole: their
+  // length depends on the room's radius, which the two rooms do not share.
   float keep = 1.0f - clamp(rim, 0.0f, 1.0f);
-  // Exactly zero on rims and when off, whatever rounding did to the rim weight.
-  if (!(strength > 0.0f) || keep < 1e-4f) return r;
-  keep = keep * keep * (3.0f - 2.0f * keep);
+  keep = keep < 1e-4f ? 0.0f : keep * keep * (3.0f - 2.0f * keep);
   float variety = relief_variety(p);
   float up = n.y;
   float under = smoothstep(0.3f, 0.8f, -up);
@@ -139,13 +148,13 @@ RELIEF_FN Relief relief_at(vec3 p, vec3 n, float roughness, float rim, float roo
   // Floors are sediment (smoother), ceilings the roughest.
   float rock_amplitude = strength * kReliefRock * mix(0.35f, 1.0f, clamp(roughness, 0.0f, 1.0f)) *
                          mix(0.5f, 1.35f, variety) * mix(1.0f, 0.45f, ground) *
-                         mix(1.0f, 1.2f, under) * keep;
-  r.height = rock_amplitude * rock;
+                         mix(1.0f, 1.2f, under);
+  r.height = keep * rock_amplitude * rock;
   r.gradient = rock_amplitude * rock_gradient;
   r.cavity = clamp(0.5f + 0.6f * rock, 0.0f, 1.0f);
 
   // Flowstone: curtains hanging down walls where the variety field is high.
-  float flow_zone = smoothstep(0.35f, 0.65f, variety) * wall * keep;
+  float flow_zone = smoothstep(0.35f, 0.65f, variety) * wall;
   if (flow_zone > 0.0f) {
     vec3 scale = vec3(2.4f, 0.38f, 2.4f);
     vec4 f = relief_noise(p * scale + vec3(0.0f, 0.0f, 73.0f));
@@ -154,7 +163,7 @@ RELIEF_FN Relief relief_at(vec3 p, vec3 n, float roughness, float rim, float roo
     float c = 1.0f - f_soft;
     float f_sign = f.x / f_soft;
     float amplitude = strength * kReliefFlowstone * flow_zone;
-    r.height += amplitude * c * c * c;
+    r.height += keep * amplitude * c * c * c;
     r.gradient += amplitude * 3.0f * c * c * -f_sign * relief_gradient(f) * scale;
   }
 
