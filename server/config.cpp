@@ -203,6 +203,11 @@ const std::vector<Setting>& settings() {
     t.push_back(ms_setting(
         "job-deadline-ms", "Queued longer than this: overloaded error", 1, kMaxInt,
         [](ServerConfig & c) -> auto& { return c.generator.job_deadline; }));
+    t.push_back(ms_setting(
+        "urgent-ms",
+        "Rooms a player can reach within this many ms are built before others' far prefetch "
+        "(round-robin within each class); 0: one class",
+        0, 600'000, [](ServerConfig & c) -> auto& { return c.generator.urgent_within; }));
     t.push_back(string_setting(
         "opencl-device",
         "OpenCL device: auto, gpu, accelerator, cpu, none (CPU reference) or a name substring; "

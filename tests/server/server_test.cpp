@@ -737,7 +737,7 @@ TEST(ServerProgram, help_lists_every_option_and_exits_0) {
        {"--config", "--bind", "--port", "--io-threads", "--seed", "--max-connections",
         "--send-queue-bytes", "--max-rooms-in-flight", "--idle-timeout-ms",
         "--handshake-timeout-ms", "--workers", "--cache-bytes", "--batch-rooms", "--batch-wait-ms",
-        "--job-deadline-ms", "--opencl-device", "--drain-timeout-ms", "--log-level"}) {
+        "--job-deadline-ms", "--urgent-ms", "--opencl-device", "--drain-timeout-ms", "--log-level"}) {
     EXPECT_NE(text.find(flag), std::string::npos) << flag;
   }
 }
