@@ -6,6 +6,7 @@
 #include <cmath>
 #include <utility>
 
+#include "client/stream/area.hpp"
 #include "core/bytes.hpp"
 
 namespace grotto::client {
@@ -224,7 +225,13 @@ Actions Conversation::decoded(DecodeRoom job, Result<codec::DecodedRoom> mesh, S
   samples_.push_back(job.sample);
   failures_.erase(id);
   ++stats_.rooms_ready;
-  auto gone = store_.evict(pose_.position, wanted_);
+  // Neither what the pose's plan wants nor what a caller waits for (the pinned areas).
+  std::set<cave::RoomId> merged;
+  if (!pinned_.empty()) {
+    merged = wanted_;
+    merged.insert(pinned_.begin(), pinned_.end());
+  }
+  auto gone = store_.evict(pose_.position, pinned_.empty() ? wanted_ : merged);
   stats_.rooms_evicted += gone.size();
   // Their descriptors go too, so a long walk keeps the graph as bounded as the store; coming
   // back asks for the rooms again, descriptors included.
@@ -263,6 +270,7 @@ Actions Conversation::tick(SteadyTime now) {
       ++it;
     }
   }
+  if (expire_pins(now)) replan = true;
   if (hold_until_ != SteadyTime{} && now >= hold_until_) {
     hold_until_ = {};
     replan = true;
@@ -288,6 +296,23 @@ void Conversation::set_pose(const Pose& pose) {
 void Conversation::stop() {
   if (stats_.state != StreamState::kFailed) stats_.state = StreamState::kStopped;
   open_ = false;
+}
+
+uint64_t Conversation::pin_area(const AreaPin& pin) {
+  const uint64_t handle = next_pin_++;
+  pins_[handle].pin = pin;
+  pose_dirty_ = true;  // the next tick plans it
+  return handle;
+}
+
+void Conversation::unpin_area(uint64_t handle) {
+  if (pins_.erase(handle) == 0) return;
+  plan_areas({}, nullptr);  // its rooms may be evicted from now on
+  pose_dirty_ = true;  // and cancelled at the next tick when the pose's plan has no use for them
+}
+
+bool Conversation::expire_pins(SteadyTime now) {
+  return std::erase_if(pins_, [&](const auto& p) { return now >= p.second.pin.deadline; }) != 0;
 }
 
 // ---- messages ----
@@ -321,6 +346,9 @@ void Conversation::on_message(const proto::Welcome& w, SteadyTime now, Actions& 
     given_up_.clear();
     current_.reset();
     wanted_.clear();
+    pinned_.clear();
+    for (auto& [handle, area] : pins_)
+      area.located.reset();  // the old world's room
     if (pose_from_spawn_) {  // the old world's spawn point means nothing here
       pose_set_ = false;
       pose_from_spawn_ = false;
@@ -372,7 +400,14 @@ void Conversation::on_message(const proto::SpawnPoint& s, SteadyTime now, Action
 
 void Conversation::on_message(const proto::Located& l, SteadyTime now, Actions& out) {
   if (!welcomed_) return;
-  if (l.room) current_ = l.room;
+  if (auto it = l.ref ? pin_locates_.find(*l.ref) : pin_locates_.end(); it != pin_locates_.end()) {
+    // A pinned area's point, not the player's. Null: in rock or beyond the sector range, and so
+    // it stays on this connection (the world is deterministic).
+    if (auto pin = pins_.find(it->second); pin != pins_.end()) pin->second.located = l.room;
+    pin_locates_.erase(it);
+  } else if (l.room) {
+    current_ = l.room;
+  }
   plan(now, out);
 }
 
@@ -444,62 +479,76 @@ void Conversation::send(proto::ClientMessage message, SteadyTime now, Actions& o
 void Conversation::plan(SteadyTime now, Actions& out) {
   if (!open_ || !welcomed_) return;
   pose_dirty_ = false;
+  expire_pins(now);
   std::optional<cave::RoomId> start = pose_.room;
   if (!start) start = graph_.room_at(pose_.position);
   if (!start) start = current_;
   if (!start && spawn_) start = spawn_->room;
-  if (!start) {
-    if (pose_set_ &&
-        (last_locate_ == SteadyTime{} || now - last_locate_ > std::chrono::seconds(1))) {
-      last_locate_ = now;
-      proto::Locate l;
-      l.ref = next_ref_++;
-      l.point = pose_.position;
-      send(l, now, out);
-    }
-    return;
+  if (!start && pose_set_ &&
+      (last_locate_ == SteadyTime{} || now - last_locate_ > std::chrono::seconds(1))) {
+    last_locate_ = now;
+    proto::Locate l;
+    l.ref = next_ref_++;
+    l.point = pose_.position;
+    send(l, now, out);
   }
-  current_ = start;
-  const double horizon = horizon_s(now);
-  horizon_s_ = horizon;
-  PlanOptions wide = options_.plan;
-  wide.horizon_s = horizon * options_.cancel_factor;
-  auto keep = graph_.plan(*start, pose_, wide);
-  std::set<cave::RoomId> keep_ids;
-  wanted_.clear();
-  for (const auto& p : keep) {
-    keep_ids.insert(p.id);
-    if (p.seconds <= horizon) wanted_.insert(p.id);
-  }
+  const std::vector<PlannedRoom> areas = plan_areas(now, &out);
+  // The pose's plan, when the pose has a room: what it keeps in flight and what it wants.
+  std::vector<PlannedRoom> keep;
+  const double horizon = start ? horizon_s(now) : 0;
   const uint32_t batch = batch_size();
-  std::vector<cave::RoomId> cancels;
-  for (auto it = in_flight_.begin(); it != in_flight_.end();) {
-    if (keep_ids.count(it->first)) {
-      ++it;
-      continue;
+  if (start) {
+    current_ = start;
+    horizon_s_ = horizon;
+    PlanOptions wide = options_.plan;
+    wide.horizon_s = horizon * options_.cancel_factor;
+    keep = graph_.plan(*start, pose_, wide);
+    std::set<cave::RoomId> keep_ids;
+    wanted_.clear();
+    for (const auto& p : keep) {
+      keep_ids.insert(p.id);
+      if (p.seconds <= horizon) wanted_.insert(p.id);
     }
-    cancels.push_back(it->first);
-    it = in_flight_.erase(it);
-  }
-  for (size_t i = 0; i < cancels.size(); i += batch) {
-    proto::Cancel c;
-    c.ref = next_ref_++;
-    c.rooms.assign(cancels.begin() + i,
-                   cancels.begin() + std::min(cancels.size(), size_t{i + batch}));
-    stats_.cancels_sent += c.rooms.size();
-    send(std::move(c), now, out);
+    std::vector<cave::RoomId> cancels;
+    for (auto it = in_flight_.begin(); it != in_flight_.end();) {
+      if (keep_ids.count(it->first) || pinned_.count(it->first)) {
+        ++it;
+        continue;
+      }
+      cancels.push_back(it->first);
+      it = in_flight_.erase(it);
+    }
+    for (size_t i = 0; i < cancels.size(); i += batch) {
+      proto::Cancel c;
+      c.ref = next_ref_++;
+      c.rooms.assign(cancels.begin() + i,
+                     cancels.begin() + std::min(cancels.size(), size_t{i + batch}));
+      stats_.cancels_sent += c.rooms.size();
+      send(std::move(c), now, out);
+    }
   }
   if (now < hold_until_) return;
   const size_t cap = std::min(options_.max_in_flight, limits_.max_rooms_in_flight);
   std::vector<proto::RoomWant> wants;
+  std::set<cave::RoomId> asked;
+  // Whether `id` is worth asking for now (false also when it was just added to wants).
+  auto missing = [&](cave::RoomId id) {
+    return !store_.contains(id) && !in_flight_.count(id) && !decoding_.count(id) &&
+           !given_up_.count(id) && !asked.count(id);
+  };
+  // A caller waits for the pinned areas: their rooms first, priority 0 (the soonest).
+  for (const auto& p : areas) {
+    if (in_flight_.size() + wants.size() >= cap) break;
+    if (!missing(p.id)) continue;
+    asked.insert(p.id);
+    wants.push_back({p.id, lod_, 0});
+  }
   for (const auto& p : keep) {
     if (in_flight_.size() + wants.size() >= cap) break;
     if (p.seconds > horizon) break;
-    if (store_.contains(p.id) || in_flight_.count(p.id) || decoding_.count(p.id) ||
-        given_up_.count(p.id)) {
-      continue;
-    }
+    if (!missing(p.id)) continue;
     const double ms = std::min(p.seconds * 1000.0, 4294967295.0);
+    asked.insert(p.id);
     wants.push_back({p.id, lod_, static_cast<uint32_t>(ms)});
   }
   for (size_t i = 0; i < wants.size(); i += batch) {
@@ -517,6 +566,41 @@ void Conversation::plan(SteadyTime now, Actions& out) {
   // Refs are answered only by a refusal, which comes before later replies: keep a bounded tail.
   while (pending_.size() > 256)
     pending_.erase(pending_.begin());
+}
+
+std::vector<PlannedRoom> Conversation::plan_areas(SteadyTime now, Actions* out) {
+  pinned_.clear();
+  std::vector<PlannedRoom> rooms;
+  for (auto& [handle, area] : pins_) {
+    // Rooms come at the session's lod only (one lod a session): nothing fetched could make an
+    // area asked for below it ready.
+    if (area.pin.max_lod < lod_) continue;
+    std::optional<cave::RoomId> start = graph_.room_at(area.pin.point);
+    if (!start) start = area.located;
+    if (!start) {
+      const Vec3 p = area.pin.point;
+      const bool valid = std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z) &&
+                         std::abs(p.x) <= proto::kMaxCoordinate &&
+                         std::abs(p.y) <= proto::kMaxCoordinate &&
+                         std::abs(p.z) <= proto::kMaxCoordinate;
+      if (out && valid && !area.asked) {
+        area.asked = true;
+        proto::Locate l;
+        l.ref = next_ref_++;
+        l.point = p;
+        pin_locates_[*l.ref] = handle;
+        send(l, now, *out);
+      }
+      continue;
+    }
+    for (const PlannedRoom& room : area_rooms(graph_, *start, area.pin.point, area.pin.radius_m))
+      if (pinned_.insert(room.id).second) rooms.push_back(room);
+  }
+  // Nearest first across areas (each area's own list already is).
+  std::stable_sort(rooms.begin(), rooms.end(), [](const PlannedRoom& a, const PlannedRoom& b) {
+    return a.seconds < b.seconds;
+  });
+  return rooms;
 }
 
 // Rooms per request or cancel: the server's limit, and what fits in max_message_bytes (an entry
@@ -569,6 +653,9 @@ void Conversation::end_connection() {
   in_flight_.clear();
   pending_.clear();
   hold_until_ = {};
+  pin_locates_.clear();
+  for (auto& [handle, area] : pins_)
+    area.asked = false;  // locate again on the next connection
 }
 
 void Conversation::reconnect(const std::string& why, bool restart, Actions& out) {

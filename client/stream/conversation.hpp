@@ -12,7 +12,8 @@
 // max_rooms_in_flight and max_rooms_per_request), the prefetch plan over the portal graph
 // (portal_graph.hpp) that drives requests and cancels, frame acceptance (a frame for a room not in
 // flight, or at another lod than requested, is not used), the failure and reconnect policy, and
-// the decoded rooms (room_store.hpp).
+// the decoded rooms (room_store.hpp), and the pinned areas: areas a caller waits for
+// (Stream::wait_area_ready), whose rooms are requested ahead of the pose's and never evicted.
 //
 // One lod a session: rooms of lod 0 next to rooms of lod 1 do not share rims (PROTOCOL.md
 // "Levels of detail"), so every room requested or held is at lod() = min(options.lod,
@@ -60,7 +61,7 @@ struct SendMessage {
 struct DecodeRoom {
   proto::RoomFrame frame;
   codec::DecodeLimits limits;  // limits.normals: the frame's version carries them
-  RoomSample sample;   // latency and size filled; decode_ms is the decoder's to measure
+  RoomSample sample;           // latency and size filled; decode_ms is the decoder's to measure
   uint64_t epoch = 0;  // the world the frame belongs to (a decode finishing later may be stale)
 };
 // What carrying out DecodeRoom means: codec::decode_room with the job's limits, then, for a
@@ -84,6 +85,22 @@ struct Fail {
 };
 using Action = std::variant<SendMessage, DecodeRoom, SetReadLimit, Reconnect, Fail>;
 using Actions = std::vector<Action>;
+
+// An area a caller waits for (Stream::wait_area_ready). While it is pinned, every plan requests
+// its rooms: area_rooms (area.hpp) from the room holding `point`, found among the rooms known
+// (PortalGraph::room_at) or else by asking the server (`locate`, once a connection; a point in
+// rock or beyond the sector range stays unlocated). They go ahead of the pose's rooms, with
+// priority 0, within the same cap on rooms in flight; they are not cancelled and the store never
+// evicts them (so a pinned area larger than store_bytes holds the store over its budget). They
+// are requested at the session's lod(): an area with max_lod below it cannot be ready in this
+// session and fetches nothing. Once unpinned (or past its deadline) its rooms are ordinary again:
+// the next plan cancels those in flight outside the pose's plan, and the store may evict them.
+struct AreaPin {
+  Vec3 point;
+  double radius_m = 0;   // area_rooms's radius: below 0 or NaN, the room holding point alone
+  uint32_t max_lod = 0;  // as area_status's
+  SteadyTime deadline;   // the pin lapses at the first tick or plan at or after it
+};
 
 // One room of the ledger.
 struct InFlightRoom {
@@ -134,6 +151,13 @@ class Conversation {
   void set_pose(const Pose& pose);
   // stop() was called: no further actions; state kStopped unless kFailed.
   void stop();
+  // Pins an area (AreaPin) until unpin_area(handle) or its deadline; the plan follows at the
+  // next tick, as for set_pose. Returns its handle, never 0. Pins survive reconnects (they are
+  // located again on the new connection) and world changes.
+  uint64_t pin_area(const AreaPin& pin);
+  // Unpins it (an unknown handle: nothing). Its rooms stop being kept now; in-flight ones
+  // outside the pose's plan are cancelled at the next tick.
+  void unpin_area(uint64_t handle);
 
   // ---- what it knows ----
 
@@ -146,6 +170,10 @@ class Conversation {
   const std::map<cave::RoomId, InFlightRoom>& in_flight() const { return in_flight_; }
   const std::set<cave::RoomId>& given_up() const { return given_up_; }
   const std::set<cave::RoomId>& wanted() const { return wanted_; }
+  // The rooms of the pinned areas as of the last plan (or unpin): requested ahead of wanted(),
+  // never cancelled or evicted.
+  const std::set<cave::RoomId>& pinned() const { return pinned_; }
+  size_t pinned_areas() const { return pins_.size(); }
   std::optional<proto::SpawnPoint> spawn_point() const { return spawn_; }
   std::shared_ptr<const ReadyRoom> room(cave::RoomId id) const { return store_.find(id); }
   const RoomStore& store() const { return store_; }
@@ -167,6 +195,10 @@ class Conversation {
   void on_message(const proto::Stats&, SteadyTime, Actions&) {}
 
   void plan(SteadyTime now, Actions& out);
+  // The pinned areas' rooms, nearest first (fills pinned_); with `out`, asks the server where a
+  // pinned point lies when no known room holds it.
+  std::vector<PlannedRoom> plan_areas(SteadyTime now, Actions* out);
+  bool expire_pins(SteadyTime now);  // drops pins past their deadline; whether any went
   // StreamOptions::min_horizon_s: from recent_latency_ms_ and what is in flight at `now`.
   double horizon_s(SteadyTime now) const;
   void send(proto::ClientMessage message, SteadyTime now, Actions& out);
@@ -215,6 +247,15 @@ class Conversation {
   std::map<cave::RoomId, int> failures_;
   std::set<cave::RoomId> given_up_;
   std::set<cave::RoomId> wanted_;  // the last plan, within the horizon
+  struct PinnedArea {
+    AreaPin pin;
+    std::optional<cave::RoomId> located;  // the server's answer to our locate
+    bool asked = false;                   // a locate was sent on this connection
+  };
+  std::map<uint64_t, PinnedArea> pins_;  // by handle
+  uint64_t next_pin_ = 1;
+  std::map<uint64_t, uint64_t> pin_locates_;  // locate ref -> pin handle (this connection)
+  std::set<cave::RoomId> pinned_;             // the pinned areas' rooms, as of the last plan
   std::vector<std::shared_ptr<const ReadyRoom>> fresh_;
   std::vector<RoomSample> samples_;
   std::deque<double> recent_latency_ms_;  // the last kLatencyWindow request->room latencies

@@ -14,8 +14,10 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
 #include <functional>
 #include <map>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -38,6 +40,9 @@ RoomId rid(int index) {
 // from r0 the first hop costs 5 m / 4 m/s = 1.25 s times the view factor (1 ahead, 1.5 sideways,
 // 2 behind): r4 1.25 s, r1 and r2 1.875 s, r3 2.5 s; r5 1.875 + 2.5 = 4.375 s, past the 4 s
 // horizon but within 1.5 x 4 s, so it is kept in flight but never requested.
+// Far away, and not connected to those (another sector's rooms, as far as the client knows), a
+// chain r10 (x = 100), r11 (x = 110), r12 (x = 120): no plan from the pose reaches them, only a
+// pinned area (AreaPin).
 std::map<RoomId, Room> make_rooms() {
   std::map<RoomId, Room> rooms;
   auto room = [&](int i, Vec3 c) {
@@ -50,6 +55,9 @@ std::map<RoomId, Room> make_rooms() {
   room(3, {0, 0, 10});
   room(4, {0, 0, -10});
   room(5, {20, 0, 0});
+  room(10, {100, 0, 0});
+  room(11, {110, 0, 0});
+  room(12, {120, 0, 0});
   auto link = [&](int a, int b) {
     Room& ra = rooms.at(rid(a));
     Room& rb = rooms.at(rid(b));
@@ -63,6 +71,8 @@ std::map<RoomId, Room> make_rooms() {
   link(0, 3);
   link(0, 4);
   link(1, 5);
+  link(10, 11);
+  link(11, 12);
   return rooms;
 }
 
@@ -733,8 +743,7 @@ TEST(Conversation, room_frames_table) {
        StreamState::kReady,
        [](const Harness& h) {
          EXPECT_EQ(h.c.stats().rooms_rejected, 1u);
-         EXPECT_NE(h.c.stats().last_error.find("version 1, the session's is 2"),
-                   std::string::npos);
+         EXPECT_NE(h.c.stats().last_error.find("version 1, the session's is 2"), std::string::npos);
        }},
       {"frame of a room not in flight: dropped",
        Start::kReady,
@@ -1132,6 +1141,245 @@ TEST(Conversation, stop_ends_every_action) {
   EXPECT_TRUE(h.c.lost("x", h.now).empty());
   EXPECT_TRUE(h.decode_ok(rid(0)).empty());
   EXPECT_EQ(h.c.state(), StreamState::kStopped);
+}
+
+// ---- pinned areas (Stream::wait_area_ready) ----
+
+// The ref of the (first) locate among `actions`, for the located reply.
+uint64_t locate_ref(const Actions& actions) {
+  for (const auto& a : actions) {
+    const auto* m = std::get_if<SendMessage>(&a);
+    if (!m) continue;
+    if (const auto* l = std::get_if<proto::Locate>(&m->message)) return l->ref.value_or(0);
+  }
+  ADD_FAILURE() << "no locate";
+  return 0;
+}
+
+proto::Located located(uint64_t ref, std::optional<RoomId> room) {
+  proto::Located l;
+  l.ref = ref;
+  l.room = room;
+  return l;
+}
+
+// An area around r10's centre, 6 m along the portal graph: r10, and r11 (its portal is 5 m away);
+// r12 is 5 + 10 = 15 m away. The player stands at the origin, from where no plan reaches r10.
+AreaPin far_area(const Harness& h, double radius_m = 6.0, uint32_t max_lod = 0,
+                 std::chrono::milliseconds for_how_long = seconds(10)) {
+  return AreaPin{{100, 0, 0}, radius_m, max_lod, h.now + for_how_long};
+}
+
+// The pin, its locate and the server's answer (r10): r10 requested.
+Actions pin_and_locate(Harness& h, AreaPin pin) {
+  h.c.pin_area(pin);
+  const uint64_t ref = locate_ref(h.tick(milliseconds(100)));
+  return h.msg(located(ref, rid(10)));
+}
+
+TEST(Conversation, pinned_areas_table) {
+  StreamOptions two;
+  two.max_in_flight = 2;
+  run_table({
+      {"an area no known room holds: the server is asked where its point lies",
+       Start::kKnown,
+       [](Harness& h) {
+         h.c.pin_area(far_area(h));
+         return h.tick(milliseconds(100));
+       },
+       {"locate"},
+       StreamState::kReady,
+       [](const Harness& h) { EXPECT_EQ(h.c.pinned_areas(), 1u); }},
+      {"located: the room holding the point is requested, priority 0, though the pose is 100 m "
+       "away",
+       Start::kKnown,
+       [](Harness& h) { return pin_and_locate(h, far_area(h)); },
+       {"request 0.0.0.r10@0"},
+       StreamState::kReady,
+       [](const Harness& h) {
+         EXPECT_EQ(h.c.in_flight().at(rid(10)).priority, 0u);
+         EXPECT_EQ(h.c.pinned(), std::set<RoomId>{rid(10)});
+         EXPECT_FALSE(h.c.wanted().count(rid(10)));
+       }},
+      {"its frame extends the area: the neighbours within the radius are requested",
+       Start::kKnown,
+       [](Harness& h) {
+         pin_and_locate(h, far_area(h));
+         return h.frame(frame_of(10));
+       },
+       {"decode 0.0.0.r10@0", "request 0.0.0.r11@0"},
+       StreamState::kReady,
+       [](const Harness& h) {
+         EXPECT_EQ(h.c.pinned(), (std::set<RoomId>{rid(10), rid(11)}));
+       }},
+      {"the area ends at its radius: r12, 15 m away, is not asked for",
+       Start::kKnown,
+       [](Harness& h) {
+         pin_and_locate(h, far_area(h));
+         h.frame(frame_of(10));
+         return h.frame(frame_of(11));
+       },
+       {"decode 0.0.0.r11@0"},
+       StreamState::kReady},
+      {"a larger radius takes r12 too",
+       Start::kKnown,
+       [](Harness& h) {
+         pin_and_locate(h, far_area(h, 15.0));
+         h.frame(frame_of(10));
+         return h.frame(frame_of(11));
+       },
+       {"decode 0.0.0.r11@0", "request 0.0.0.r12@0"},
+       StreamState::kReady},
+      {"within the cap on rooms in flight, the area's rooms go before the pose's",
+       Start::kReady,
+       [](Harness& h) {
+         // r0 (the spawn) and r10 fill the two slots; r0's frame frees one for the pose's r4.
+         EXPECT_EQ(describe(pin_and_locate(h, far_area(h))),
+                   std::vector<std::string>{"request 0.0.0.r10@0"});
+         EXPECT_EQ(describe(h.frame(frame_of(0))),
+                   (std::vector<std::string>{"decode 0.0.0.r0@0", "request 0.0.0.r4@0"}));
+         // r10's frame frees the other: the area's r11 comes before the pose's r1, r2, r3.
+         return h.frame(frame_of(10));
+       },
+       {"decode 0.0.0.r10@0", "request 0.0.0.r11@0"},
+       StreamState::kReady,
+       in_flight_is({4, 11}),
+       {},
+       two},
+      {"turning away cancels the pose's rooms, not the area's",
+       Start::kKnown,
+       [](Harness& h) {
+         pin_and_locate(h, far_area(h));
+         Pose p;
+         p.room = rid(0);
+         p.forward = {-1, 0, 0};
+         p.speed = 1.0;
+         h.c.set_pose(p);
+         return h.tick(milliseconds(100));
+       },
+       {"cancel 0.0.0.r1 0.0.0.r3 0.0.0.r4"},
+       StreamState::kReady,
+       in_flight_is({2, 10})},
+      {"unpinned: the area's rooms in flight are ordinary, and cancelled at the next tick",
+       Start::kKnown,
+       [](Harness& h) {
+         h.c.pin_area(far_area(h));
+         const uint64_t pin = h.c.pin_area(far_area(h));  // two waits on one area
+         h.msg(located(locate_ref(h.tick(milliseconds(100))), rid(10)));
+         h.c.unpin_area(pin);
+         EXPECT_TRUE(describe(h.tick(milliseconds(100))).empty()) << "the other wait goes on";
+         h.c.unpin_area(1);
+         EXPECT_TRUE(h.c.pinned().empty());
+         return h.tick(milliseconds(100));
+       },
+       {"cancel 0.0.0.r10"},
+       StreamState::kReady,
+       in_flight_is({1, 2, 3, 4})},
+      {"past its deadline a pin lapses by itself",
+       Start::kKnown,
+       [](Harness& h) {
+         pin_and_locate(h, far_area(h, 6.0, 0, seconds(1)));
+         return h.tick(seconds(1));
+       },
+       {"cancel 0.0.0.r10"},
+       StreamState::kReady,
+       [](const Harness& h) { EXPECT_EQ(h.c.pinned_areas(), 0u); }},
+      {"a point a known room holds needs no locate: its area's rooms are known or in flight",
+       Start::kKnown,
+       [](Harness& h) {
+         h.c.pin_area({{0, 0, 0}, 16.0, 0, h.now + seconds(10)});
+         return h.tick(milliseconds(100));
+       },
+       {},
+       StreamState::kReady,
+       [](const Harness& h) {
+         EXPECT_EQ(h.c.pinned(), (std::set<RoomId>{rid(0), rid(1), rid(2), rid(3), rid(4)}));
+       }},
+      {"in rock: not asked again on this connection",
+       Start::kKnown,
+       [](Harness& h) {
+         h.c.pin_area(far_area(h));
+         h.msg(located(locate_ref(h.tick(milliseconds(100))), std::nullopt));
+         return h.tick(seconds(2));
+       },
+       {},
+       StreamState::kReady},
+      {"located again after a reconnect",
+       Start::kKnown,
+       [](Harness& h) {
+         h.c.pin_area(far_area(h));
+         h.msg(located(locate_ref(h.tick(milliseconds(100))), std::nullopt));
+         h.c.lost("reading: eof", h.now);
+         h.open();
+         return h.msg(welcome());
+       },
+       {kRead, "locate", kAll4},
+       StreamState::kReady},
+      {"a point beyond the protocol's coordinates is never sent",
+       Start::kKnown,
+       [](Harness& h) {
+         h.c.pin_area({{1e300, 0, 0}, 1.0, 0, h.now + seconds(10)});
+         h.c.pin_area({{std::nan(""), 0, 0}, 1.0, 0, h.now + seconds(10)});
+         return h.tick(milliseconds(100));
+       },
+       {},
+       StreamState::kReady},
+      {"an area asked for below the session's lod fetches nothing (one lod a session)",
+       Start::kReady,
+       [](Harness& h) {
+         h.c.pin_area(far_area(h, 6.0, /*max_lod=*/0));
+         return h.tick(milliseconds(100));
+       },
+       {},
+       StreamState::kReady,
+       nullptr,
+       max_lod(1),
+       with_lod(1)},
+      {"at or above it, the area comes at the session's lod",
+       Start::kReady,
+       [](Harness& h) { return pin_and_locate(h, far_area(h, 6.0, /*max_lod=*/5)); },
+       {"request 0.0.0.r10@1"},
+       StreamState::kReady,
+       nullptr,
+       max_lod(1),
+       with_lod(1)},
+  });
+}
+
+// The store keeps a pinned area's rooms however far they are from the player and however small
+// its budget, and evicts them like any other room once the area is unpinned.
+TEST(Conversation, a_pinned_areas_rooms_are_not_evicted_until_it_is_unpinned) {
+  StreamOptions o;
+  o.store_bytes = 1;  // every room is over budget: only what a plan keeps stays
+  Harness h(o);
+  reach(h, Start::kKnown, {});
+  ASSERT_TRUE(h.c.room(rid(0))) << "the pose's room is wanted";
+  const uint64_t pin = h.c.pin_area(far_area(h));
+  pin_and_locate(h, far_area(h));  // a second pin on the same area, lapsing with the first
+  h.frame(frame_of(10));
+  h.decode_ok(rid(10));
+  h.frame(frame_of(11));
+  h.decode_ok(rid(11));
+  EXPECT_TRUE(h.c.room(rid(10)));
+  EXPECT_TRUE(h.c.room(rid(11)));
+  EXPECT_TRUE(h.c.take_evicted().empty());
+  // The player's neighbours still arrive and stay (wanted); the area's rooms, 94 and 104 m from
+  // the player, are the farthest, and still stay.
+  h.frame(frame_of(4));
+  h.decode_ok(rid(4));
+  EXPECT_TRUE(h.c.take_evicted().empty());
+  EXPECT_EQ(h.c.store().size(), 4u);
+
+  h.c.unpin_area(pin);
+  h.c.unpin_area(pin + 1);
+  ASSERT_EQ(h.c.pinned_areas(), 0u);
+  h.frame(frame_of(1));
+  h.decode_ok(rid(1));
+  EXPECT_EQ(h.c.take_evicted(), (std::vector<RoomId>{rid(11), rid(10)})) << "farthest first";
+  EXPECT_FALSE(h.c.room(rid(10)));
+  EXPECT_EQ(h.c.graph().find(rid(10)), nullptr) << "the descriptors go with them";
+  EXPECT_TRUE(h.c.room(rid(0)));
+  EXPECT_TRUE(h.c.room(rid(4)));
 }
 
 }  // namespace
