@@ -412,15 +412,30 @@ AreaStatus Stream::area_status(Vec3 point, double radius_m, uint32_t max_lod) co
 
 bool Stream::wait_area_ready(Vec3 point, double radius_m, uint32_t max_lod,
                              std::chrono::milliseconds timeout) const {
-  const auto deadline = Clock::now() + timeout;
+  // A year is forever here, and milliseconds::max() would overflow the deadline.
+  const auto deadline =
+      Clock::now() + std::min(timeout, milliseconds(std::chrono::hours(24 * 365)));
   std::unique_lock lock(impl_->mu);
-  const Conversation& c = impl_->conversation;
+  Conversation& c = impl_->conversation;
+  auto ready = [&] {
+    return client::area_status(c.graph(), c.store(), point, radius_m, max_lod).ready;
+  };
+  if (ready()) return true;
+  if (timeout <= milliseconds(0)) return false;
+  // While this call waits, the plan requests the area's rooms and the store keeps them
+  // (Conversation::pin_area); the pin goes when the call returns, whichever way (the guard is
+  // destroyed while `lock` still holds the mutex).
+  struct Unpin {
+    Conversation& c;
+    uint64_t handle;
+    ~Unpin() { c.unpin_area(handle); }
+  } pin{c, c.pin_area({point, radius_m, max_lod, deadline})};
   while (true) {
-    if (client::area_status(c.graph(), c.store(), point, radius_m, max_lod).ready) return true;
     if (impl_->stopping || c.state() == StreamState::kFailed) return false;
-    if (impl_->changed.wait_until(lock, deadline) == std::cv_status::timeout) {
-      return client::area_status(c.graph(), c.store(), point, radius_m, max_lod).ready;
-    }
+    // One lod a session: rooms come at lod(), so an area asked for below it never completes.
+    if (c.welcomed() && c.lod() > max_lod) return false;
+    if (impl_->changed.wait_until(lock, deadline) == std::cv_status::timeout) return ready();
+    if (ready()) return true;
   }
 }
 

@@ -78,13 +78,16 @@ class Stream {
   StreamState state() const;
 
   // area_status (area.hpp) over the rooms held now: is everything within radius_m metres of
-  // `point`, along the portal graph, decoded at a lod <= max_lod? The rooms are those the
-  // prefetch plan asks for, so put the pose near `point` and keep radius_m within what the
-  // horizon reaches from it, else rooms beyond the horizon are never requested.
+  // `point`, along the portal graph, decoded at a lod <= max_lod? Only answers: it fetches
+  // nothing beyond what the pose's plan (or a wait_area_ready in progress) asks for.
   AreaStatus area_status(Vec3 point, double radius_m, uint32_t max_lod) const;
   // Blocks until area_status(point, radius_m, max_lod).ready, the timeout passes, or the Stream
-  // fails or stops; returns whether the area is ready. It wakes when a room is stored, not by
-  // polling, and holds no lock while it waits.
+  // fails or stops; returns whether the area is ready. While it waits the area is pinned
+  // (Conversation::pin_area): its rooms are requested ahead of the pose's, wherever the point
+  // lies (located with the server when no known room holds it), and are not evicted; when it
+  // returns they are ordinary rooms again. A timeout <= 0 only answers. It returns false at once
+  // when the session's lod is above max_lod (those rooms never come). It wakes when a room is
+  // stored, not by polling, and holds no lock while it waits.
   bool wait_area_ready(Vec3 point, double radius_m, uint32_t max_lod,
                        std::chrono::milliseconds timeout) const;
   // Closes the connection (normal close) and stops reconnecting. Idempotent; returns when the

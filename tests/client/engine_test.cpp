@@ -14,8 +14,10 @@
 #include <set>
 #include <string>
 #include <thread>
+#include <utility>
 #include <vector>
 
+#include "cave/layout.hpp"
 #include "server/embedded.hpp"
 
 namespace {
@@ -48,6 +50,27 @@ struct Server {
   }
   const std::string& url() const { return embedded.url; }
 };
+
+// A point well inside a room of sector (1,0,0) about 100 m from `spawn` (the default world, seed
+// 7), and that room's key: another sector, far beyond the pose's fetch plan.
+std::pair<grotto::Vec3d, grotto::RoomKey> far_point(const double spawn[3]) {
+  auto world = grotto::cave::World::create(grotto::cave::kDefaultSeed, {});
+  EXPECT_TRUE(world.ok());
+  const auto sector = grotto::cave::generate_sector(*world, {1, 0, 0});
+  const grotto::Vec3 from{spawn[0], spawn[1], spawn[2]};
+  std::pair<grotto::Vec3d, grotto::RoomKey> best{};
+  double best_error = 1e9;
+  for (const auto& room : sector.rooms) {
+    const grotto::Vec3 p = grotto::cave::interior_point(room);
+    const double error = std::abs(grotto::distance(p, from) - 100.0);
+    if (error < best_error) {
+      best_error = error;
+      best = {{p.x, p.y, p.z}, room.id.packed()};
+    }
+  }
+  EXPECT_LT(best_error, 20.0);
+  return best;
+}
 
 // The contract of a room's arrays (stream.hpp, Room).
 void expect_well_formed(const grotto::Room& r) {
@@ -200,7 +223,9 @@ TEST(CStream, polls_rooms_into_the_callers_array_a_few_at_a_time) {
       wait_for([&] { return grotto_stream_spawn_point(stream, pose.position, &spawn_room); }));
   grotto_stream_set_pose(stream, &pose);
   ASSERT_EQ(grotto_stream_area_ready(stream, pose.position, 8.0, 0, 30'000), 1);
-  const double far[3] = {10'000, 0, 0};  // no room the stream fetches holds it
+  // No room holds it: beyond the sector range (65,535 sectors of 96 m), within the protocol's
+  // coordinates, so the server locates it nowhere and the waits below run to their timeouts.
+  const double far[3] = {16'000'000, 0, 0};
   const auto t0 = Clock::now();
   EXPECT_EQ(grotto_stream_area_ready(stream, far, 1.0, 0, 0), 0);
   EXPECT_EQ(grotto_stream_area_ready(stream, far, 1.0, 0, 200), 0);
@@ -246,6 +271,34 @@ TEST(CStream, polls_rooms_into_the_callers_array_a_few_at_a_time) {
   waiter.join();
   grotto_stream_get_stats(stream, &stats);
   EXPECT_EQ(stats.state, GROTTO_STATE_STOPPED);
+  grotto_stream_destroy(stream);
+}
+
+// grotto_stream_area_ready fetches what it waits for: the ground 100 m away, in another sector,
+// with the player standing at the spawn point. timeout 0 only answers.
+TEST(CStream, area_ready_fetches_an_area_far_from_the_pose) {
+  Server server;
+  ASSERT_FALSE(server.url().empty());
+  grotto_stream_config config{};
+  config.url = server.url().c_str();
+  char error[128] = "";
+  grotto_stream* stream = grotto_stream_create(&config, error, sizeof error);
+  ASSERT_NE(stream, nullptr) << error;
+  grotto_pose pose{};
+  ASSERT_TRUE(wait_for([&] { return grotto_stream_spawn_point(stream, pose.position, nullptr); }));
+  grotto_stream_set_pose(stream, &pose);
+  const auto [far, far_key] = far_point(pose.position);
+  const double point[3] = {far.x, far.y, far.z};
+  EXPECT_EQ(grotto_stream_area_ready(stream, point, 8.0, 0, 0), 0);
+  ASSERT_EQ(grotto_stream_area_ready(stream, point, 8.0, 0, 30'000), 1)
+      << grotto_stream_last_error(stream);
+  bool far_room_polled = false;
+  grotto_room rooms[16];
+  for (size_t n; (n = grotto_stream_poll_rooms(stream, rooms, 16)) != 0;) {
+    for (size_t i = 0; i < n; ++i)
+      far_room_polled = far_room_polled || rooms[i].key == far_key;
+  }
+  EXPECT_TRUE(far_room_polled) << grotto::room_name(far_key) << " was not handed out";
   grotto_stream_destroy(stream);
 }
 

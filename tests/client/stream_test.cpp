@@ -16,6 +16,7 @@
 #include <map>
 #include <set>
 #include <thread>
+#include <vector>
 
 #include "cave/layout.hpp"
 #include "client/stream/stream.hpp"
@@ -537,6 +538,117 @@ TEST(Stream, wait_area_ready_holds_until_the_ground_around_the_spawn_exists) {
   EXPECT_FALSE(stream->area_status(spawn.position, 8.0, 0).first_missing.has_value());
 }
 
+// A room of sector (1,0,0) about 100 m from the spawn point (seed 7), and a point well inside it.
+struct FarRoom {
+  RoomId id = RoomId::interior({}, 0);
+  grotto::Vec3 point;
+};
+FarRoom far_room(const grotto::Vec3& spawn) {
+  auto world = grotto::cave::World::create(7, {});
+  EXPECT_TRUE(world.ok());
+  const auto sector = grotto::cave::generate_sector(*world, {1, 0, 0});
+  FarRoom best;
+  double best_error = 1e9;
+  for (const auto& room : sector.rooms) {
+    const grotto::Vec3 p = grotto::cave::interior_point(room);
+    const double error = std::abs(grotto::distance(p, spawn) - 100.0);
+    if (error < best_error) {
+      best_error = error;
+      best = {room.id, p};
+    }
+  }
+  EXPECT_LT(best_error, 20.0);
+  return best;
+}
+
+// The rooms of the area around `point` by the layout's own graph (area.hpp's walk).
+std::vector<RoomId> layout_area(const grotto::client::PortalGraph& graph, grotto::Vec3 point,
+                                double radius_m) {
+  std::vector<RoomId> ids;
+  const auto start = graph.room_at(point);
+  EXPECT_TRUE(start.has_value());
+  if (!start) return ids;
+  for (const auto& p : grotto::client::area_rooms(graph, *start, point, radius_m))
+    ids.push_back(p.id);
+  return ids;
+}
+
+// A game waiting for the ground somewhere else (a teleport target, another player's spawn): the
+// point lies in another sector, ~100 m from the player, who stays at the spawn point and whose
+// plan (16 m at most) never reaches it. The wait itself locates the point and requests its area.
+TEST(Stream, wait_area_ready_fetches_an_area_far_from_the_pose) {
+  auto server = start_server(test_config());
+  ASSERT_TRUE(server);
+  Runtime rt(1, 2);
+  StreamOptions o;
+  o.url = url_of(server->port());
+  auto stream = start_stream(o, rt);
+  ASSERT_TRUE(stream);
+  ASSERT_TRUE(wait_for([&] { return stream->spawn_point().has_value(); }));
+  const auto spawn = *stream->spawn_point();
+  Pose pose;
+  pose.position = spawn.position;
+  pose.room = spawn.room;
+  stream->set_pose(pose);
+  const FarRoom far = far_room(spawn.position);
+  ASSERT_FALSE(stream->area_status(far.point, 8.0, 0).located);
+  ASSERT_TRUE(stream->wait_area_ready(far.point, 8.0, 0, kWait)) << describe(stream->stats());
+  const auto area = layout_area(layout_graph(7), far.point, 8.0);
+  ASSERT_GT(area.size(), 1u);
+  EXPECT_EQ(area.front(), far.id);
+  for (auto id : area)
+    EXPECT_TRUE(stream->ready(id)) << id.to_string();
+  EXPECT_EQ(stream->stats().state, StreamState::kReady);
+}
+
+// While a wait pins its area the store keeps those rooms, however far from the player and however
+// small the budget; once it returned they are ordinary rooms, evicted like any other. With a
+// budget of one byte every room that no plan keeps is evicted as the next one arrives, so the
+// area completes only if its rooms are kept together.
+TEST(Stream, a_waited_for_area_is_not_evicted_until_the_wait_returns) {
+  auto server = start_server(test_config());
+  ASSERT_TRUE(server);
+  Runtime rt(1, 2);
+  StreamOptions o;
+  o.url = url_of(server->port());
+  o.store_bytes = 1;
+  auto stream = start_stream(o, rt);
+  ASSERT_TRUE(stream);
+  ASSERT_TRUE(wait_for([&] { return stream->spawn_point().has_value(); }));
+  const auto spawn = *stream->spawn_point();
+  Pose pose;
+  pose.position = spawn.position;
+  pose.room = spawn.room;
+  stream->set_pose(pose);
+  const FarRoom far = far_room(spawn.position);
+  ASSERT_TRUE(stream->wait_area_ready(far.point, 8.0, 0, kWait)) << describe(stream->stats());
+  // A second wait, around the spawn and wider than the pose's plan, brings rooms that push the
+  // first area's out: they are the farthest from the player and nothing keeps them now.
+  ASSERT_TRUE(stream->wait_area_ready(spawn.position, 30.0, 0, kWait)) << describe(stream->stats());
+  for (auto id : layout_area(layout_graph(7), far.point, 8.0))
+    EXPECT_FALSE(stream->ready(id)) << id.to_string();
+  EXPECT_GT(stream->stats().rooms_evicted, 0u);
+}
+
+// One lod a session: a stream of detail rooms (lod 1) never holds an area at lod 0, so a wait for
+// one answers false at once instead of running to its timeout.
+TEST(Stream, wait_area_ready_below_the_sessions_lod_returns_false_at_once) {
+  auto config = test_config();
+  config.limits.max_lod = 1;
+  auto server = start_server(config);
+  ASSERT_TRUE(server);
+  Runtime rt(1, 2);
+  StreamOptions o;
+  o.url = url_of(server->port());
+  o.lod = 1;
+  auto stream = start_stream(o, rt);
+  ASSERT_TRUE(stream);
+  ASSERT_TRUE(wait_for([&] { return stream->spawn_point().has_value(); }));
+  const auto t0 = Clock::now();
+  EXPECT_FALSE(stream->wait_area_ready(stream->spawn_point()->position, 8.0, 0, kWait));
+  EXPECT_LT(Clock::now() - t0, 10s) << describe(stream->stats());
+}
+
 TEST(Stream, wait_area_ready_returns_false_at_its_timeout_and_at_once_after_stop) {
   auto server = start_server(test_config());
   ASSERT_TRUE(server);
@@ -545,8 +657,9 @@ TEST(Stream, wait_area_ready_returns_false_at_its_timeout_and_at_once_after_stop
   o.url = url_of(server->port());
   auto stream = start_stream(o, rt);
   ASSERT_TRUE(stream);
-  // A point no room the stream will fetch holds: 10 km away.
-  const grotto::Vec3 far{10'000, 0, 0};
+  // A point no room holds, whatever the stream fetches: beyond the sector range (65,535 sectors
+  // of 96 m), within the protocol's coordinates (2^24 m), so the server locates it nowhere.
+  const grotto::Vec3 far{16'000'000, 0, 0};
   auto t0 = Clock::now();
   EXPECT_FALSE(stream->wait_area_ready(far, 1.0, 0, 300ms));
   auto waited = Clock::now() - t0;
