@@ -148,10 +148,16 @@ GROTTO_C_API size_t grotto_stream_poll_evicted(grotto_stream* stream, uint64_t* 
                                                size_t capacity);
 
 /* 1 when the room holding `point` and every room within radius_m metres of it along the portal
- * graph are held at a lod <= max_lod, waiting up to timeout_ms for it (0: answer now); 0 at the
- * timeout, or at once when the stream failed or stopped. Rooms come only as the fetch plan asks,
- * so set the pose near `point` first and keep radius_m within horizon_s x speed / 2. A game
- * holds its spawn on it. */
+ * graph are held at a lod <= max_lod, waiting up to timeout_ms for it; 0 at the timeout, and 0 at
+ * once when the stream failed or stopped or when max_lod is below the session's lod (the config's
+ * lod, capped by the server). While it waits it fetches the area, wherever `point` lies: the
+ * stream asks the server which room holds the point and requests the rooms within radius_m of
+ * it, ahead of the pose's, and keeps them from eviction until the call returns (an area larger
+ * than memory_budget_bytes holds the stream over its budget meanwhile); then they are ordinary
+ * rooms again. They arrive through grotto_stream_poll_rooms like any other. timeout_ms 0 only
+ * answers and fetches nothing. A point in rock or outside the world is never ready. Any number
+ * of threads may wait at once; a game holds its spawn (or a teleport) on it.
+ * grotto/stream.hpp's Stream::wait_area_ready says more. */
 GROTTO_C_API int grotto_stream_area_ready(grotto_stream* stream, const double point[3],
                                           double radius_m, uint32_t max_lod, uint32_t timeout_ms);
 

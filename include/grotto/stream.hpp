@@ -175,13 +175,33 @@ class GROTTO_STREAM_API Stream {
 
   // Whether the ground exists around `point`: the room that holds it and every room within
   // radius_m metres of it along the portal graph (through portal centres) are held, at a lod
-  // <= max_lod. False while no room holding `point` has arrived. Rooms come only as the fetch
-  // plan asks for them, so set the pose at (or near) `point` first and keep radius_m within
-  // horizon_s x speed / 2; a larger area may never complete. radius_m < 0 counts as 0.
+  // <= max_lod. False while no room holding `point` has arrived. Only answers: it fetches
+  // nothing, so by itself it sees the rooms the pose's fetch plan brings (within horizon_s of
+  // walking from the pose) and those of a wait_area_ready in progress. radius_m < 0 or NaN
+  // counts as 0.
   bool area_ready(Vec3d point, double radius_m, uint32_t max_lod = 255) const;
-  // The same, waiting up to `timeout` for the area to complete: returns true as soon as it is,
-  // false at the timeout or at once when the Stream has failed or stopped. Wakes on every room
-  // stored (no polling) and holds no lock while it sleeps; a game holds its spawn on it.
+  // The same, fetching the area and waiting up to `timeout` for it: returns true as soon as it
+  // is complete, false at the timeout, and false at once when the Stream has failed or stopped
+  // or when max_lod is below the session's lod (StreamConfig::lod, capped by the server: rooms
+  // come at that lod only, so the area could never complete).
+  //   What it fetches: while it waits, the area is pinned. The Stream asks the server which room
+  // holds `point` (when no room it knows does), then requests that room and, ring by ring as
+  // their portals arrive, every room within radius_m of `point`, whether or not the pose is
+  // near: a teleport target, another player's spawn, an area larger than the horizon. These
+  // requests go ahead of the pose's (they share the connection's cap on rooms in flight, so the
+  // pose's prefetch slows while the area loads), and the rooms are handed out by poll_rooms like
+  // any other. The call itself does not block the Stream, and any number of threads may wait at
+  // once, for the same area or different ones.
+  //   Memory: a pinned area's rooms are never evicted, so an area larger than
+  // memory_budget_bytes holds the Stream over its budget until the wait returns. Once it
+  // returns, whatever the result, the area is unpinned and its rooms are ordinary: evicted when
+  // over budget and away from the pose, and those still in flight are cancelled unless the
+  // pose's plan wants them. A game that wants to keep an area should set the pose there.
+  //   Time: the area's rooms take a round trip per ring of rooms plus the server's generation
+  // time (on a local server, about 100-300 ms for an 8 m area 100 m away); a point in rock or
+  // outside the world is never ready, and the call runs to its timeout. timeout <= 0 only
+  // answers, as area_ready does, and fetches nothing. Wakes on every room stored (no polling),
+  // holds no lock while it sleeps; a game holds its spawn on it.
   bool wait_area_ready(Vec3d point, double radius_m, uint32_t max_lod,
                        std::chrono::milliseconds timeout) const;
 
