@@ -1,11 +1,34 @@
-/* Grotto::stream from C: connect, stand at the server's spawn point, hold until the ground within
- * 8 m exists, then print rooms as they arrive for a few seconds.
+/* Grotto::stream from C: connect, stand at the server's spawn point until the ground within 8 m
+ * exists, then walk away from it portal by portal, printing rooms as they arrive.
  * Usage: minimal_stream_c ws://host:port/ws [seconds] */
 #include <grotto/grotto_stream.h>
 
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <time.h>
+
+/* What the walk keeps of a room: a poll's pointers are valid only until the next poll. */
+typedef struct seen_room {
+  uint64_t key;
+  char id[32];
+  int visited;
+  size_t portal_count;
+  grotto_portal portals[16]; /* a Grotto room has at most 16 */
+} seen_room;
+static seen_room seen[4096];
+static size_t seen_count;
+
+static seen_room* find(uint64_t key) {
+  for (size_t i = 0; i < seen_count; ++i)
+    if (seen[i].key == key) return &seen[i];
+  return NULL;
+}
+
+static double distance(const double a[3], const double b[3]) {
+  return sqrt((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) +
+              (a[2] - b[2]) * (a[2] - b[2]));
+}
 
 static void sleep_ms(long ms) {
   struct timespec t = {ms / 1000, (ms % 1000) * 1000000L};
@@ -29,10 +52,11 @@ int main(int argc, char** argv) {
   }
 
   grotto_pose pose = {{0}};
-  uint64_t spawn_room = 0;
+  double spawn[3];
+  uint64_t here = 0; /* the room the player is in */
   int spawned = 0;
   for (int i = 0; i < 500 && !spawned; ++i) { /* the server's answer: up to 10 s */
-    spawned = grotto_stream_spawn_point(stream, pose.position, &spawn_room);
+    spawned = grotto_stream_spawn_point(stream, spawn, &here);
     if (!spawned) sleep_ms(20);
   }
   if (!spawned) {
@@ -40,26 +64,61 @@ int main(int argc, char** argv) {
     grotto_stream_destroy(stream);
     return 1;
   }
+  for (int k = 0; k < 3; ++k)
+    pose.position[k] = spawn[k];
   grotto_stream_set_pose(stream, &pose);
-  int ground = grotto_stream_area_ready(stream, pose.position, 8.0, 0, 20000);
-  printf("spawn at %.2f %.2f %.2f, ground within 8 m: %s\n", pose.position[0], pose.position[1],
-         pose.position[2], ground ? "ready" : "not ready");
+  int ground = grotto_stream_area_ready(stream, spawn, 8.0, 0, 20000);
+  printf("spawn at %.2f %.2f %.2f, ground within 8 m: %s\n", spawn[0], spawn[1], spawn[2],
+         ground ? "ready" : "not ready");
 
   grotto_room rooms[16];
   uint64_t evicted[16];
-  for (double t = 0; t < seconds; t += 0.05) {
+  const grotto_portal* target = NULL; /* the portal the player walks to */
+  const double dt = 0.05, speed = 4.0;
+  for (double t = 0; t < seconds; t += dt) {
     size_t n = grotto_stream_poll_rooms(stream, rooms, 16);
     for (size_t i = 0; i < n; ++i) {
-      /* The first vertex in world space: the room's origin plus a float offset, added in double. */
       const grotto_room* r = &rooms[i];
-      printf(
-          "room %s lod %u: %zu vertices, %zu triangles, %zu portals, first vertex %.2f %.2f "
-          "%.2f\n",
-          r->id, r->lod, r->vertex_count, r->index_count / 3, r->portal_count,
-          r->origin[0] + r->positions[0], r->origin[1] + r->positions[1],
-          r->origin[2] + r->positions[2]);
+      /* How far the walk has brought the stream: from the spawn point to the room's sphere. */
+      printf("room %s lod %u: %zu vertices, %zu triangles, %zu portals, %.1f m from the spawn\n",
+             r->id, r->lod, r->vertex_count, r->index_count / 3, r->portal_count,
+             fmax(0.0, distance(r->centre, spawn) - r->radius));
+      if (find(r->key) || seen_count == sizeof seen / sizeof seen[0]) continue;
+      seen_room* s = &seen[seen_count++];
+      s->key = r->key;
+      snprintf(s->id, sizeof s->id, "%s", r->id);
+      s->portal_count = r->portal_count < 16 ? r->portal_count : 16;
+      for (size_t p = 0; p < s->portal_count; ++p)
+        s->portals[p] = r->portals[p];
     }
-    grotto_stream_poll_evicted(stream, evicted, 16);
+    grotto_stream_poll_evicted(stream, evicted, 16); /* a renderer frees their buffers */
+
+    seen_room* room = find(here);
+    if (!target && room) {
+      /* Onwards: the unvisited neighbour farthest from the spawn, else any way out. */
+      room->visited = 1;
+      for (size_t p = 0; p < room->portal_count; ++p) {
+        const grotto_portal* q = &room->portals[p];
+        const seen_room* next = find(q->neighbour);
+        if (next && next->visited) continue;
+        if (!target || distance(q->centre, spawn) > distance(target->centre, spawn)) target = q;
+      }
+      if (!target && room->portal_count) target = &room->portals[rand() % room->portal_count];
+    }
+    if (target) { /* a step towards the portal; through it once the next room has arrived */
+      const double left = distance(target->centre, pose.position), step = speed * dt;
+      for (int k = 0; k < 3; ++k) {
+        pose.forward[k] = target->centre[k] - pose.position[k];
+        pose.position[k] += left <= step ? pose.forward[k] : pose.forward[k] / left * step;
+      }
+      pose.speed = speed;
+      grotto_stream_set_pose(stream, &pose);
+      if (left <= step && find(target->neighbour)) {
+        here = target->neighbour;
+        printf("entered %s\n", find(here)->id);
+        target = NULL;
+      }
+    }
     sleep_ms(50);
   }
   grotto_stream_stats stats;

@@ -5,7 +5,8 @@
 # public functions), then build examples/minimal_stream (C++) and examples/minimal_stream_c (C) as
 # separate projects with find_package(Grotto) against that prefix, and run each for a few seconds
 # against a real grotto-server on 127.0.0.1 (an ephemeral port, the CPU reference): each must
-# print the ground around the spawn ready and rooms as they arrive.
+# print the ground around the spawn ready and rooms as they arrive, and walk into other rooms;
+# the C example's walk must bring rooms that standing at the spawn point never fetches.
 #
 # Usage: install_test.sh <build dir> <source dir> <grotto-server binary>
 set -u
@@ -98,17 +99,24 @@ port=$(sed -n 's|.*listening on http://127\.0\.0\.1:\([0-9]*\).*|\1|p' "$work/se
 [[ -n $port ]] || fail "grotto-server printed no port: $(head -c 200 "$work/server.out")"
 url="ws://127.0.0.1:$port/ws"
 
-# The C++ example walks: 6 s leave it time to reach its first portal (a few metres from the
-# spawn point at 4 m/s) even on a loaded machine. The C example stands still.
+# Both examples walk from the spawn point at 4 m/s: 6 s (C++) and 8 s (C) leave them time to
+# pass a few portals even on a loaded machine.
 for ex in minimal_stream minimal_stream_c; do
-  seconds=3
-  [[ $ex == minimal_stream ]] && seconds=6
+  seconds=6
+  [[ $ex == minimal_stream_c ]] && seconds=8
   step "run $ex $url $seconds"
   timeout 60 "$work/$ex/$ex" "$url" "$seconds" >"$work/$ex-run.log" 2>&1 || fail "$ex exited $?"
   grep -q "ground within 8 m: ready" "$work/$ex-run.log" || fail "$ex: the ground never got ready"
   rooms=$(grep -c '^room ' "$work/$ex-run.log")
   ((rooms >= 3)) || fail "$ex printed $rooms rooms (at least 3 expected)"
   echo "  $ex: $rooms rooms, $(grep -c '^entered ' "$work/$ex-run.log") rooms entered"
+  grep -q '^entered ' "$work/$ex-run.log" || fail "$ex never left its room"
 done
-grep -q '^entered ' "$work/minimal_stream-run.log" || fail "minimal_stream never left its room"
+# The C example's walk made the stream fetch what standing at the spawn point never would: a room
+# more than 16 m from it (the prefetch horizon, 4 s at 4 m/s; every path to such a room is longer).
+farthest=$(sed -n 's/^room .*, \([0-9.]*\) m from the spawn$/\1/p' "$work/minimal_stream_c-run.log" |
+  sort -g | tail -n 1)
+echo "  minimal_stream_c: farthest room ${farthest:-none} m from the spawn"
+awk -v d="${farthest:-0}" 'BEGIN { exit !(d > 16) }' ||
+  fail "minimal_stream_c: no room beyond 16 m of the spawn arrived (farthest: ${farthest:-none} m)"
 step "pass"
