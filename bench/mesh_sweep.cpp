@@ -186,7 +186,8 @@ int main(int argc, char** argv) {
   }
   char hex[17];
   std::snprintf(hex, sizeof hex, "%016llx", static_cast<unsigned long long>(digest));
-  report["mesh_digest"] = hex;
+  const std::string digest_hex = hex;
+  report["mesh_digest"] = digest_hex;
   report["lods"] = lod_names;
   report["threads"] = threads;
   report["wall_s"] =
@@ -200,7 +201,7 @@ int main(int argc, char** argv) {
       f << o.room << ' ' << o.lod << ' ' << (o.ok ? std::string(hex) : "error: " + o.error) << '\n';
     }
   }
-  spdlog::info("event=sweep_done meshes={} digest={} wall_s={:.1f} json={}", all.size(), hex,
+  spdlog::info("event=sweep_done meshes={} digest={} wall_s={:.1f} json={}", all.size(), digest_hex,
                report["wall_s"].get<double>(), json_path);
   return 0;
 }
