@@ -80,44 +80,107 @@ std::vector<char> kept_triangles(const DonorSphere& donor, const std::vector<cha
   return kept;
 }
 
+// The boundary edge that leaves vertex `a` across the same gap of a's fan as the boundary edge
+// that arrives at `a` from donor corner `e` (triangle e / 3, edge a -> b in the donor's order,
+// flipped b -> a): turn about `a` through the removed triangles until a kept one. Returns its
+// corner. Where a's fan has one kept wedge this is the only edge leaving `a`; at a pinch (two
+// kept wedges, two holes meeting at `a`) it keeps each loop on its own hole.
+uint32_t next_boundary_edge(const DonorSphere& donor, const std::vector<char>& kept, uint32_t e) {
+  const auto& in = donor.indices;
+  const uint32_t a = in[e];
+  auto corner_of = [&](uint32_t t) { return in[3 * t] == a ? 0u : (in[3 * t + 1] == a ? 1u : 2u); };
+  for (uint32_t r = donor.neighbours[e];;) {
+    uint32_t t = donor.neighbours[3 * r + corner_of(r)];  // across r's edge leaving a
+    if (kept[t]) return 3 * t + (corner_of(t) + 2) % 3;   // t's edge arriving at a
+    r = t;
+  }
+}
+
 // Boundary loops of the kept triangles, each following the direction of the inside-facing
-// (flipped) triangles. Vertices where loops touch (pinches) are returned instead, for the caller
-// to cut away.
-bool boundary_loops(const DonorSphere& donor, const std::vector<char>& kept,
+// (flipped) triangles, as donor vertex indices. A vertex where holes touch (a pinch) is in each
+// of their loops (twice in one loop where a hole touches itself); `pinches` lists those vertices.
+void boundary_loops(const DonorSphere& donor, const std::vector<char>& kept,
                     std::vector<std::vector<uint32_t>>& loops, std::vector<uint32_t>& pinches) {
   const auto& in = donor.indices;
-  std::vector<uint32_t> next(donor.directions.size(), UINT32_MAX);
+  // out[b]: the donor corner of the one boundary edge leaving b; kPinch where several leave.
+  constexpr uint32_t kNone = UINT32_MAX, kPinch = UINT32_MAX - 1;
+  std::vector<uint32_t> out(donor.directions.size(), kNone);
   std::vector<uint32_t> starts;
   for (size_t t = 0; t < kept.size(); ++t) {
     if (!kept[t]) continue;
     for (int k = 0; k < 3; ++k) {
       if (kept[donor.neighbours[3 * t + k]]) continue;
       // Donor edge a->b is b->a in the flipped triangle.
-      uint32_t a = in[3 * t + k], b = in[3 * t + (k + 1) % 3];
-      if (next[b] != UINT32_MAX) {
+      const auto e = static_cast<uint32_t>(3 * t + k);
+      uint32_t b = in[3 * t + (k + 1) % 3];
+      if (out[b] == kNone) {
+        out[b] = e;
+      } else if (out[b] != kPinch) {
+        out[b] = kPinch;
         pinches.push_back(b);
-      } else {
-        next[b] = a;
-        starts.push_back(b);
       }
+      starts.push_back(e);
     }
   }
-  if (!pinches.empty()) return false;
-  std::vector<char> used(next.size(), 0);
+  std::vector<char> used(in.size(), 0);
   for (uint32_t start : starts) {
     if (used[start]) continue;
     std::vector<uint32_t> loop;
-    uint32_t v = start;
-    while (!used[v]) {
-      used[v] = 1;
-      loop.push_back(v);
-      v = next[v];
-      if (v == UINT32_MAX) return false;  // an open chain: not a closed boundary
+    for (uint32_t e = start; !used[e];) {
+      used[e] = 1;
+      uint32_t from = in[e - e % 3 + (e % 3 + 1) % 3];
+      loop.push_back(from);
+      uint32_t to = in[e];
+      assert(out[to] != kNone);  // a closed donor: a boundary edge into `to` has one out of it
+      e = out[to] == kPinch ? next_boundary_edge(donor, kept, e) : out[to];
     }
-    if (v != start) return false;
     loops.push_back(std::move(loop));
   }
-  return true;
+}
+
+// The portal a hole belongs to: the one whose plane most of its vertices are nearest (the first
+// of those with most votes; 0 for a room without portals).
+size_t portal_of_loop(const DeformInput& input, std::span<const float3> positions,
+                      const std::vector<uint32_t>& loop) {
+  const size_t np = input.portals.size();
+  std::vector<int> votes(np, 0);
+  for (uint32_t v : loop) {
+    size_t best = 0;
+    double best_h = 1e300;
+    for (size_t i = 0; i < np; ++i) {
+      double h = std::abs(height(input.portals[i], to_vec(positions[v])));
+      if (h < best_h) best = i, best_h = h;
+    }
+    ++votes[best];
+  }
+  return static_cast<size_t>(std::max_element(votes.begin(), votes.end()) - votes.begin());
+}
+
+// The pinches to cut away: all but those where the holes of different portals meet. Thesis
+// §3.1.7 makes one hole per portal; where two portals lie close together the wall between their
+// holes can narrow to one vertex, and cutting that vertex away merged the two holes into one,
+// leaving a portal without a hole (seed 7, 676.1.-2.r5). Such a vertex stays, in both loops, and
+// each stitch closes its side of the vertex's fan. A hole touching itself, or two pieces of one
+// portal's hole, is cut as before.
+std::vector<uint32_t> pinches_to_cut(const DeformInput& input, std::span<const float3> positions,
+                                     const std::vector<std::vector<uint32_t>>& loops,
+                                     const std::vector<uint32_t>& pinches) {
+  std::vector<uint32_t> cut;
+  std::map<size_t, size_t> portal;  // loop -> its portal, for loops through a pinch
+  for (uint32_t v : pinches) {
+    std::vector<size_t> seen;  // the portals of v's loops, one entry per visit
+    for (size_t l = 0; l < loops.size(); ++l) {
+      for (uint32_t u : loops[l]) {
+        if (u != v) continue;
+        auto [at, added] = portal.try_emplace(l, 0);
+        if (added) at->second = portal_of_loop(input, positions, loops[l]);
+        seen.push_back(at->second);
+      }
+    }
+    std::sort(seen.begin(), seen.end());
+    if (std::adjacent_find(seen.begin(), seen.end()) != seen.end()) cut.push_back(v);
+  }
+  return cut;
 }
 
 }  // namespace
@@ -296,13 +359,17 @@ Result<RoomMesh> assemble_room(const MeshContext& ctx, const DeformInput& input,
     kept = kept_triangles(donor, removed, stats);
     loops.clear();
     std::vector<uint32_t> pinches;
-    if (boundary_loops(donor, kept, loops, pinches)) break;
-    if (pinches.empty() || round == kMaxCutRounds) {
-      return Error{ErrorCode::kInternal, "room " + name() + ": the cut left an open boundary"};
+    boundary_loops(donor, kept, loops, pinches);
+    std::vector<uint32_t> cut = pinches_to_cut(input, positions, loops, pinches);
+    stats.pinches_kept = static_cast<int>(pinches.size() - cut.size());
+    if (cut.empty()) break;
+    if (round == kMaxCutRounds) {
+      return Error{ErrorCode::kInternal, "room " + name() + ": holes still touch after " +
+                                             std::to_string(kMaxCutRounds) + " cuts"};
     }
-    for (uint32_t v : pinches)
+    for (uint32_t v : cut)
       removed[v] = 1;
-    stats.pinches_removed += static_cast<int>(pinches.size());
+    stats.pinches_removed += static_cast<int>(cut.size());
   }
 
   // The kept triangles, flipped to face the inside (the donor faces outwards); room for the
@@ -324,17 +391,7 @@ Result<RoomMesh> assemble_room(const MeshContext& ctx, const DeformInput& input,
   // Each boundary loop belongs to the portal whose plane its vertices are nearest.
   std::vector<int> loop_of_portal(np, -1);
   for (size_t l = 0; l < loops.size(); ++l) {
-    std::vector<int> votes(np, 0);
-    for (uint32_t v : loops[l]) {
-      size_t best = 0;
-      double best_h = 1e300;
-      for (size_t i = 0; i < np; ++i) {
-        double h = std::abs(height(input.portals[i], to_vec(positions[v])));
-        if (h < best_h) best = i, best_h = h;
-      }
-      ++votes[best];
-    }
-    size_t portal = std::max_element(votes.begin(), votes.end()) - votes.begin();
+    size_t portal = portal_of_loop(input, positions, loops[l]);
     if (np == 0 || loop_of_portal[portal] >= 0) {
       return Error{ErrorCode::kInternal, "room " + name() + ": " + std::to_string(loops.size()) +
                                              " holes for " + std::to_string(np) + " portals"};
