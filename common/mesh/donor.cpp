@@ -79,6 +79,9 @@ std::shared_ptr<const DonorSphere> build(int n) {
     }
   }
   std::sort(edges.begin(), edges.end());
+  d->corner.resize(d->directions.size());
+  for (uint32_t c = 0; c < d->indices.size(); ++c)
+    d->corner[d->indices[c]] = c;
   d->neighbours.resize(d->indices.size());
   for (uint32_t t = 0; t < nt; ++t) {
     for (int k = 0; k < 3; ++k) {

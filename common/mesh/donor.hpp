@@ -16,6 +16,8 @@ struct DonorSphere {
   std::vector<uint32_t> indices;         // triangles, counter-clockwise seen from outside
   // neighbours[3t + k]: the triangle across edge (indices[3t + k], indices[3t + (k + 1) % 3]).
   std::vector<uint32_t> neighbours;
+  // corner[v]: a corner 3t + k of a triangle at vertex v (indices[3t + k] == v).
+  std::vector<uint32_t> corner;
 };
 
 // The frequency that gives edges of about `edge_length` on a sphere of `radius`.

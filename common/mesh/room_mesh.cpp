@@ -33,10 +33,16 @@ double height(const core::GrottoPortal& p, Vec3 v) {
   return -((v.x - p.cx) * p.nx + (v.y - p.cy) * p.ny + (v.z - p.cz) * p.nz);
 }
 
+// Labels of donor triangles: kept, or the portal whose hole a triangle is in, or one of these.
+constexpr uint8_t kKeptLabel = 255;
+constexpr uint8_t kOtherLabel = 254;  // a hole of no portal, or of several at once
+constexpr uint8_t kCutLabel = 253;    // not kept, its hole not known yet
+static_assert(GROTTO_MAX_PORTALS < kCutLabel);
+
 // The kept part of the donor: triangles with no removed vertex, restricted to the largest
-// edge-connected piece. Returns one flag per donor triangle.
-std::vector<char> kept_triangles(const DonorSphere& donor, const std::vector<char>& removed,
-                                 AssembleStats& stats) {
+// edge-connected piece. Returns one label per donor triangle: kKeptLabel or kCutLabel.
+std::vector<uint8_t> kept_triangles(const DonorSphere& donor, const std::vector<char>& removed,
+                                    AssembleStats& stats) {
   const auto& in = donor.indices;
   const size_t nt = in.size() / 3;
   // piece[t]: kRemoved, kUnseen (kept, not reached yet), or the piece's number. One array and
@@ -69,57 +75,127 @@ std::vector<char> kept_triangles(const DonorSphere& donor, const std::vector<cha
     }
     sizes.push_back(size);
   }
-  std::vector<char> kept(nt, 0);
+  std::vector<uint8_t> kept(nt, kCutLabel);
   if (sizes.empty()) return kept;
   uint32_t best =
       static_cast<uint32_t>(std::max_element(sizes.begin(), sizes.end()) - sizes.begin());
   for (size_t t = 0; t < nt; ++t) {
-    kept[t] = piece[t] == best;
+    kept[t] = piece[t] == best ? kKeptLabel : kCutLabel;
     stats.fragments_dropped += piece[t] != best && piece[t] != kRemoved;
   }
   return kept;
 }
 
-// The boundary edge that leaves vertex `a` across the same gap of a's fan as the boundary edge
-// that arrives at `a` from donor corner `e` (triangle e / 3, edge a -> b in the donor's order,
-// flipped b -> a): turn about `a` through the removed triangles until a kept one. Returns its
-// corner. Where a's fan has one kept wedge this is the only edge leaving `a`; at a pinch (two
-// kept wedges, two holes meeting at `a`) it keeps each loop on its own hole.
-uint32_t next_boundary_edge(const DonorSphere& donor, const std::vector<char>& kept, uint32_t e) {
+// Labels the holes of a cut (kept_triangles' labels; thesis §3.1.7: one hole per portal). A
+// portal's hole grows from its cap (the donor vertices that started beyond the portal; a vertex
+// of each in cap_vertex, or UINT32_MAX) across edges with a removed end, then takes in the rest
+// of the cut next to it (triangles joined to it only by edges between kept vertices: a band
+// vertex's fan, a dropped fragment). Where two portals lie close, their holes can meet across
+// such an edge, with kept vertices between them but no triangle (seed 42,
+// 33666.-46459.64248.r89); they stay two holes and the edge is in both loops. Holes joined
+// through a removed vertex, which no loop can pass, are one hole of several portals
+// (kOtherLabel, as are holes of no portal's cap). Returns whether two holes meet at an edge.
+bool label_holes(const DonorSphere& donor, const std::vector<char>& removed,
+                 const std::vector<uint32_t>& cap_vertex, std::vector<uint8_t>& label) {
+  const auto& in = donor.indices;
+  const size_t np = cap_vertex.size();
+  std::vector<char> shared(np, 0);  // the portal's hole meets another's through a removed vertex
+  bool any_shared = false, fronts = false;
+  std::vector<uint32_t> queue;
+  for (size_t i = 0; i < np; ++i) {
+    if (cap_vertex[i] == UINT32_MAX) continue;
+    uint32_t t = donor.corner[cap_vertex[i]] / 3;  // not kept: it has a removed vertex
+    if (label[t] == kCutLabel) {
+      label[t] = static_cast<uint8_t>(i);
+      queue.push_back(t);
+    } else {
+      shared[label[t]] = shared[i] = any_shared = true;
+    }
+  }
+  // First across edges with a removed end only, then (where any triangle is left) across any.
+  const auto cut =
+      static_cast<size_t>(label.size() - std::count(label.begin(), label.end(), kKeptLabel));
+  for (bool any_edge : {false, true}) {
+    if (any_edge && queue.size() == cut) break;
+    for (size_t head = 0; head < queue.size(); ++head) {
+      uint32_t t = queue[head];
+      for (int k = 0; k < 3; ++k) {
+        uint32_t n = donor.neighbours[3 * t + k];
+        if (label[n] == kKeptLabel || label[n] == label[t]) continue;
+        bool removed_end = removed[in[3 * t + k]] || removed[in[3 * t + (k + 1) % 3]];
+        if (label[n] == kCutLabel) {
+          if (!removed_end && !any_edge) continue;
+          label[n] = label[t];
+          queue.push_back(n);
+        } else if (removed_end) {
+          shared[label[n]] = shared[label[t]] = any_shared = true;
+        } else {
+          fronts = true;
+        }
+      }
+    }
+  }
+  if (any_shared || queue.size() < cut) {
+    for (uint8_t& l : label) {
+      if (l == kCutLabel || (l < np && shared[l])) l = kOtherLabel;
+    }
+  }
+  return fronts;
+}
+
+// The boundary edge that leaves vertex `a` along the boundary of the hole across donor corner
+// `e` (triangle e / 3, outside the hole, edge a -> b in the donor's order, flipped b -> a): turn
+// about `a` through the hole's triangles until one outside it. Returns that triangle's corner.
+// Where a's fan meets one hole once this is the only edge leaving `a`; where holes meet at `a`
+// (a pinch, or an edge between two holes) it keeps each loop on its own hole.
+uint32_t next_boundary_edge(const DonorSphere& donor, const std::vector<uint8_t>& label,
+                            uint32_t e) {
   const auto& in = donor.indices;
   const uint32_t a = in[e];
   auto corner_of = [&](uint32_t t) { return in[3 * t] == a ? 0u : (in[3 * t + 1] == a ? 1u : 2u); };
+  const uint8_t hole = label[donor.neighbours[e]];
   for (uint32_t r = donor.neighbours[e];;) {
-    uint32_t t = donor.neighbours[3 * r + corner_of(r)];  // across r's edge leaving a
-    if (kept[t]) return 3 * t + (corner_of(t) + 2) % 3;   // t's edge arriving at a
+    uint32_t t = donor.neighbours[3 * r + corner_of(r)];          // across r's edge leaving a
+    if (label[t] != hole) return 3 * t + (corner_of(t) + 2) % 3;  // t's edge arriving at a
     r = t;
   }
 }
 
-// Boundary loops of the kept triangles, each following the direction of the inside-facing
-// (flipped) triangles, as donor vertex indices. A vertex where holes touch (a pinch) is in each
-// of their loops (twice in one loop where a hole touches itself); `pinches` lists those vertices.
-void boundary_loops(const DonorSphere& donor, const std::vector<char>& kept,
-                    std::vector<std::vector<uint32_t>>& loops, std::vector<uint32_t>& pinches) {
+// Boundary loops of the holes, each following the direction of the inside-facing (flipped)
+// triangles, as donor vertex indices, with the label of each loop's hole. A vertex where holes
+// meet is in each of their loops (twice in one loop where a hole touches itself); `pinches`
+// lists those vertices.
+void boundary_loops(const DonorSphere& donor, const std::vector<uint8_t>& label, bool fronts,
+                    std::vector<std::vector<uint32_t>>& loops, std::vector<uint8_t>& loop_labels,
+                    std::vector<uint32_t>& pinches) {
   const auto& in = donor.indices;
   // out[b]: the donor corner of the one boundary edge leaving b; kPinch where several leave.
   constexpr uint32_t kNone = UINT32_MAX, kPinch = UINT32_MAX - 1;
   std::vector<uint32_t> out(donor.directions.size(), kNone);
   std::vector<uint32_t> starts;
-  for (size_t t = 0; t < kept.size(); ++t) {
-    if (!kept[t]) continue;
+  auto add = [&](size_t t, int k) {
+    // Donor edge a->b is b->a in the flipped triangle.
+    const auto e = static_cast<uint32_t>(3 * t + k);
+    uint32_t b = in[3 * t + (k + 1) % 3];
+    if (out[b] == kNone) {
+      out[b] = e;
+    } else if (out[b] != kPinch) {
+      out[b] = kPinch;
+      pinches.push_back(b);
+    }
+    starts.push_back(e);
+  };
+  for (size_t t = 0; t < label.size(); ++t) {
+    if (label[t] != kKeptLabel) continue;
     for (int k = 0; k < 3; ++k) {
-      if (kept[donor.neighbours[3 * t + k]]) continue;
-      // Donor edge a->b is b->a in the flipped triangle.
-      const auto e = static_cast<uint32_t>(3 * t + k);
-      uint32_t b = in[3 * t + (k + 1) % 3];
-      if (out[b] == kNone) {
-        out[b] = e;
-      } else if (out[b] != kPinch) {
-        out[b] = kPinch;
-        pinches.push_back(b);
-      }
-      starts.push_back(e);
+      if (label[donor.neighbours[3 * t + k]] != kKeptLabel) add(t, k);
+    }
+  }
+  for (size_t t = 0; fronts && t < label.size(); ++t) {  // edges between two holes
+    if (label[t] == kKeptLabel) continue;
+    for (int k = 0; k < 3; ++k) {
+      uint8_t hole = label[donor.neighbours[3 * t + k]];
+      if (hole != kKeptLabel && hole != label[t]) add(t, k);
     }
   }
   std::vector<char> used(in.size(), 0);
@@ -132,53 +208,34 @@ void boundary_loops(const DonorSphere& donor, const std::vector<char>& kept,
       loop.push_back(from);
       uint32_t to = in[e];
       assert(out[to] != kNone);  // a closed donor: a boundary edge into `to` has one out of it
-      e = out[to] == kPinch ? next_boundary_edge(donor, kept, e) : out[to];
+      e = out[to] == kPinch ? next_boundary_edge(donor, label, e) : out[to];
     }
     loops.push_back(std::move(loop));
+    loop_labels.push_back(label[donor.neighbours[start]]);
   }
-}
-
-// The portal a hole belongs to: the one whose plane most of its vertices are nearest (the first
-// of those with most votes; 0 for a room without portals).
-size_t portal_of_loop(const DeformInput& input, std::span<const float3> positions,
-                      const std::vector<uint32_t>& loop) {
-  const size_t np = input.portals.size();
-  std::vector<int> votes(np, 0);
-  for (uint32_t v : loop) {
-    size_t best = 0;
-    double best_h = 1e300;
-    for (size_t i = 0; i < np; ++i) {
-      double h = std::abs(height(input.portals[i], to_vec(positions[v])));
-      if (h < best_h) best = i, best_h = h;
-    }
-    ++votes[best];
-  }
-  return static_cast<size_t>(std::max_element(votes.begin(), votes.end()) - votes.begin());
 }
 
 // The pinches to cut away: all but those where the holes of different portals meet. Thesis
 // §3.1.7 makes one hole per portal; where two portals lie close together the wall between their
 // holes can narrow to one vertex, and cutting that vertex away merged the two holes into one,
 // leaving a portal without a hole (seed 7, 676.1.-2.r5). Such a vertex stays, in both loops, and
-// each stitch closes its side of the vertex's fan. A hole touching itself, or two pieces of one
-// portal's hole, is cut as before.
-std::vector<uint32_t> pinches_to_cut(const DeformInput& input, std::span<const float3> positions,
-                                     const std::vector<std::vector<uint32_t>>& loops,
-                                     const std::vector<uint32_t>& pinches) {
+// each stitch closes its side of the vertex's fan (so do the ends of an edge between two holes,
+// label_holes). A hole touching itself, or a hole that is no single portal's, is cut as before.
+std::vector<uint32_t> pinches_to_cut(const std::vector<std::vector<uint32_t>>& loops,
+                                     const std::vector<uint8_t>& loop_labels,
+                                     const std::vector<uint32_t>& pinches, size_t np) {
   std::vector<uint32_t> cut;
-  std::map<size_t, size_t> portal;  // loop -> its portal, for loops through a pinch
   for (uint32_t v : pinches) {
-    std::vector<size_t> seen;  // the portals of v's loops, one entry per visit
+    std::vector<uint8_t> seen;  // the labels of v's loops, one entry per visit
     for (size_t l = 0; l < loops.size(); ++l) {
       for (uint32_t u : loops[l]) {
-        if (u != v) continue;
-        auto [at, added] = portal.try_emplace(l, 0);
-        if (added) at->second = portal_of_loop(input, positions, loops[l]);
-        seen.push_back(at->second);
+        if (u == v) seen.push_back(loop_labels[l]);
       }
     }
     std::sort(seen.begin(), seen.end());
-    if (std::adjacent_find(seen.begin(), seen.end()) != seen.end()) cut.push_back(v);
+    bool portals_apart =
+        seen.back() < np && std::adjacent_find(seen.begin(), seen.end()) == seen.end();
+    if (!portals_apart) cut.push_back(v);
   }
   return cut;
 }
@@ -342,25 +399,33 @@ Result<RoomMesh> assemble_room(const MeshContext& ctx, const DeformInput& input,
   // Thesis §3.1.7: vertices on the wrong side of a portal go, and so does a band before it to
   // leave room for the stitch; so does every donor vertex that started beyond a portal, so each
   // portal gets a hole even where the deformation pulled vertices back.
+  // cap_vertex[i]: a donor vertex that started beyond portal i, where its hole grows from.
   std::vector<char> removed(nv, 0);
+  std::vector<uint32_t> cap_vertex(np, UINT32_MAX);
+  size_t caps_found = 0;
   Vec3 o{input.record.ox, input.record.oy, input.record.oz};
   for (size_t v = 0; v < nv; ++v) {
     removed[v] = clearance[v] < band;
-    if (removed[v]) continue;
+    if (removed[v] && caps_found == np) continue;
     Vec3 donor_point = o + to_vec(donor.directions[v]) * input.record.radius;
-    for (const auto& p : input.portals) {
-      if (height(p, donor_point) < 0) removed[v] = 1;
+    for (size_t i = 0; i < np; ++i) {
+      if (height(input.portals[i], donor_point) < 0) {
+        removed[v] = 1;
+        if (cap_vertex[i] == UINT32_MAX) cap_vertex[i] = static_cast<uint32_t>(v), ++caps_found;
+      }
     }
   }
 
-  std::vector<char> kept;
+  std::vector<uint8_t> label;  // per donor triangle: kept, or the hole it is in
   std::vector<std::vector<uint32_t>> loops;
   for (int round = 0;; ++round) {
-    kept = kept_triangles(donor, removed, stats);
+    label = kept_triangles(donor, removed, stats);
+    bool fronts = label_holes(donor, removed, cap_vertex, label);
     loops.clear();
+    std::vector<uint8_t> loop_labels;
     std::vector<uint32_t> pinches;
-    boundary_loops(donor, kept, loops, pinches);
-    std::vector<uint32_t> cut = pinches_to_cut(input, positions, loops, pinches);
+    boundary_loops(donor, label, fronts, loops, loop_labels, pinches);
+    std::vector<uint32_t> cut = pinches_to_cut(loops, loop_labels, pinches, np);
     stats.pinches_kept = static_cast<int>(pinches.size() - cut.size());
     if (cut.empty()) break;
     if (round == kMaxCutRounds) {
@@ -377,11 +442,11 @@ Result<RoomMesh> assemble_room(const MeshContext& ctx, const DeformInput& input,
   size_t boundary = 0;
   for (const auto& loop : loops)
     boundary += loop.size();
-  const auto kept_count = static_cast<size_t>(std::count(kept.begin(), kept.end(), 1));
+  const auto kept_count = static_cast<size_t>(std::count(label.begin(), label.end(), kKeptLabel));
   std::vector<uint32_t> tris(3 * kept_count);
   tris.reserve(3 * (kept_count + 2 * boundary));
-  for (size_t t = 0, j = 0; t < kept.size(); ++t) {
-    if (kept[t]) {
+  for (size_t t = 0, j = 0; t < label.size(); ++t) {
+    if (label[t] == kKeptLabel) {
       tris[j++] = donor.indices[3 * t];
       tris[j++] = donor.indices[3 * t + 2];
       tris[j++] = donor.indices[3 * t + 1];
@@ -391,7 +456,17 @@ Result<RoomMesh> assemble_room(const MeshContext& ctx, const DeformInput& input,
   // Each boundary loop belongs to the portal whose plane its vertices are nearest.
   std::vector<int> loop_of_portal(np, -1);
   for (size_t l = 0; l < loops.size(); ++l) {
-    size_t portal = portal_of_loop(input, positions, loops[l]);
+    std::vector<int> votes(np, 0);
+    for (uint32_t v : loops[l]) {
+      size_t best = 0;
+      double best_h = 1e300;
+      for (size_t i = 0; i < np; ++i) {
+        double h = std::abs(height(input.portals[i], to_vec(positions[v])));
+        if (h < best_h) best = i, best_h = h;
+      }
+      ++votes[best];
+    }
+    size_t portal = std::max_element(votes.begin(), votes.end()) - votes.begin();
     if (np == 0 || loop_of_portal[portal] >= 0) {
       return Error{ErrorCode::kInternal, "room " + name() + ": " + std::to_string(loops.size()) +
                                              " holes for " + std::to_string(np) + " portals"};

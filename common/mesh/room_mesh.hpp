@@ -73,7 +73,7 @@ void detail_channels_reference(const MeshContext& ctx, Vec3 origin,
 struct AssembleStats {
   int loops_stitched = 0;
   int pinches_removed = 0;    // boundary vertices where holes touch, cut away
-  int pinches_kept = 0;       // ... where the holes of two portals touch, kept in both loops
+  int pinches_kept = 0;       // ... where the holes of two portals meet, kept in both loops
   int fragments_dropped = 0;  // triangles outside the main component
   // Seconds per stage, for the thesis's stage table (Figure 3-10).
   double cut_seconds = 0;       // wrong-side removal and hole boundaries ("fix triangles")

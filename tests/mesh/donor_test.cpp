@@ -32,6 +32,11 @@ TEST(DonorSphere, is_a_closed_outward_facing_geodesic_sphere) {
       EXPECT_EQ(count, 1);
       EXPECT_EQ(directed.count({e.second, e.first}), 1u) << "edge without a twin";
     }
+    ASSERT_EQ(d->corner.size(), d->directions.size()) << n;
+    for (uint32_t v = 0; v < d->corner.size(); ++v) {
+      ASSERT_LT(d->corner[v], d->indices.size());
+      EXPECT_EQ(d->indices[d->corner[v]], v) << "corner of vertex " << v;
+    }
   }
 }
 
