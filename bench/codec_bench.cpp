@@ -183,7 +183,8 @@ int main(int argc, char** argv) {
       row.decode_ms.push_back(median_ms(reps, [&] {
         auto d = codec::decode_room(bytes, limits);
         if (!d) std::abort();
-        if (!opt.normals && !codec::derive_normals(d.value(), m.origin, discs[i]).ok()) std::abort();
+        if (!opt.normals && !codec::derive_normals(d.value(), m.origin, discs[i]).ok())
+          std::abort();
       }));
     }
     rows.push_back(std::move(row));

@@ -64,16 +64,19 @@ PipelineRun run_pipeline(const cave::World& world, const std::vector<cave::RoomI
   std::mutex m;
   std::condition_variable cv;
   size_t got = 0, failed = 0, bytes = 0;
-  server::ClientId c = *(*gen)->add_client(world.seed(), [&](server::Delivery d) {
-    std::lock_guard lock(m);
-    ++got;
-    if (d.room) {
-      bytes += d.room->frame.size();
-    } else {
-      ++failed;
-    }
-    cv.notify_all();
-  }, version);
+  server::ClientId c = *(*gen)->add_client(
+      world.seed(),
+      [&](server::Delivery d) {
+        std::lock_guard lock(m);
+        ++got;
+        if (d.room) {
+          bytes += d.room->frame.size();
+        } else {
+          ++failed;
+        }
+        cv.notify_all();
+      },
+      version);
   std::vector<server::Want> wants;
   for (size_t i = 0; i < ids.size(); ++i)
     wants.push_back({ids[i], 0, static_cast<uint32_t>(i)});

@@ -30,7 +30,8 @@ inline constexpr double kNormalTolerance = 1e-6;       // | |normal| - 1 | allow
 inline constexpr double kMaxOriginOffset = 32768.0;
 
 struct RoomFrame {
-  uint32_t version = kProtocolVersion;  // the protocol version, kMinProtocolVersion..kProtocolVersion
+  uint32_t version =
+      kProtocolVersion;          // the protocol version, kMinProtocolVersion..kProtocolVersion
   cave::Room room;               // id, sphere and portals, world coordinates
   uint8_t lod = 0;               // wire level of detail of the payload (proto/lod.hpp)
   Vec3 origin;                   // on the 1/256 m grid; payload positions are offsets from it

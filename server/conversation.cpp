@@ -233,11 +233,11 @@ void Conversation::on(const proto::Hello& m) {
     std::vector<uint32_t> ours;
     for (uint32_t v = proto::kMinProtocolVersion; v <= proto::kProtocolVersion; ++v)
       ours.push_back(v);
-    return fail(Error{ErrorCode::kUnsupportedVersion,
-                      "no protocol version in common; this server speaks " +
-                          std::to_string(proto::kMinProtocolVersion) + " to " +
-                          std::to_string(proto::kProtocolVersion)},
-                m.ref, std::move(ours));
+    return fail(
+        Error{ErrorCode::kUnsupportedVersion, "no protocol version in common; this server speaks " +
+                                                  std::to_string(proto::kMinProtocolVersion) +
+                                                  " to " + std::to_string(proto::kProtocolVersion)},
+        m.ref, std::move(ours));
   }
   if (m.params && *m.params != config_.params_digest) {
     return fail(Error{ErrorCode::kWorldMismatch,

@@ -74,7 +74,7 @@ struct Waiting {
   uint32_t priority = 0;
   uint64_t seq = 0;
   Clock::time_point received;
-  bool queued = false;  // in the client's queue (its job has not started)
+  bool queued = false;    // in the client's queue (its job has not started)
   Clock::time_point due;  // when the player can reach the room: the last request's time + priority
 };
 

@@ -358,13 +358,16 @@ class WsSession : public std::enable_shared_from_this<WsSession>, private WorldP
     std::weak_ptr<WsSession> weak = weak_from_this();
     auto executor = ws_.get_executor();
     auto gate = server_.gate;
-    auto client = server_.generator->add_client(seed, [weak, executor, gate](Delivery d) {
-      std::lock_guard lock(gate->mutex);
-      if (!gate->open) return;
-      net::post(executor, [weak, d = std::move(d)]() mutable {
-        if (auto self = weak.lock()) self->on_delivery(std::move(d));
-      });
-    }, version);
+    auto client = server_.generator->add_client(
+        seed,
+        [weak, executor, gate](Delivery d) {
+          std::lock_guard lock(gate->mutex);
+          if (!gate->open) return;
+          net::post(executor, [weak, d = std::move(d)]() mutable {
+            if (auto self = weak.lock()) self->on_delivery(std::move(d));
+          });
+        },
+        version);
     if (client) client_ = *client;
     return client;
   }

@@ -203,10 +203,11 @@ int main(int argc, char** argv) {
   app.add_option("--json", json_path, "Write the region as JSON to this file ('-' for stdout)");
   app.add_option("--obj", obj_path,
                  "Write the rooms' meshes as Wavefront OBJ (opens in Blender and most 3D tools)");
-  app.add_option("--glb", glb_path,
-                 "Write the rooms as glTF 2.0 binary: a node per room (portals in its extras), "
-                 "meshes Draco-compressed as streamed (protocol 1, with normals), with plain fallback data "
-                 "(docs/INTEGRATION.md, 'Exporting to glTF')");
+  app.add_option(
+      "--glb", glb_path,
+      "Write the rooms as glTF 2.0 binary: a node per room (portals in its extras), "
+      "meshes Draco-compressed as streamed (protocol 1, with normals), with plain fallback data "
+      "(docs/INTEGRATION.md, 'Exporting to glTF')");
   app.add_option("--png", png_path,
                  "Render the rooms' meshes to a PNG picture (software, no GPU or display needed)");
   app.add_option("--lod", lod_text,

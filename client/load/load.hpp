@@ -26,12 +26,12 @@ struct LoadOptions {
   std::string url;  // ws://host:port/ws; empty: start a server in-process on 127.0.0.1
   Mode mode = Mode::kWalk;
   int players = 4;
-  double duration_s = 0;     // 0: the mode's default (walk 20, soak 600, burst 60: a bound)
-  double speed = 4.0;        // m/s walking (bursts of running: walker.burst_factor)
-  double horizon_s = 4.0;    // the Streams' prefetch horizon (walk and soak)
-  double min_horizon_s = 0;  // > 0: adaptive horizon within [this, horizon_s] (StreamOptions)
+  double duration_s = 0;          // 0: the mode's default (walk 20, soak 600, burst 60: a bound)
+  double speed = 4.0;             // m/s walking (bursts of running: walker.burst_factor)
+  double horizon_s = 4.0;         // the Streams' prefetch horizon (walk and soak)
+  double min_horizon_s = 0;       // > 0: adaptive horizon within [this, horizon_s] (StreamOptions)
   uint32_t protocol_version = 0;  // offered in hello: 0 every version, else that one
-  double radius_m = 60;      // burst mode: the radius wanted (horizon = radius / speed)
+  double radius_m = 60;           // burst mode: the radius wanted (horizon = radius / speed)
   // The world. Embedded: the seed it serves (absent: ServerConfig's default). Remote: the world
   // asked for in hello (absent: the server's); --spread needs it to lay out the start rooms.
   std::optional<uint64_t> seed;

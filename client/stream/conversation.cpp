@@ -77,7 +77,8 @@ Actions Conversation::opened(SteadyTime now) {
   proto::Hello hello;
   hello.ref = next_ref_++;
   for (uint32_t v = proto::kProtocolVersion; v >= proto::kMinProtocolVersion; --v) {
-    if (options_.protocol_version == 0 || options_.protocol_version == v) hello.versions.push_back(v);
+    if (options_.protocol_version == 0 || options_.protocol_version == v)
+      hello.versions.push_back(v);
   }
   hello.seed = options_.seed;
   hello.params = options_.params;

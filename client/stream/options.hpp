@@ -53,8 +53,8 @@ struct StreamOptions {
 // Whether Stream::start would take `options`: the url parses (url.hpp), the horizon is a positive
 // number of seconds, cancel_factor >= 1, max_in_flight >= 1, 1 ms <= backoff_initial <=
 // backoff_max, connect_timeout, request_timeout and replan_interval >= 1 ms, max_room_failures >=
-// 1, lod <= 255, protocol_version 0 or one this library speaks, and the token, when there is one, is what proto/token.hpp accepts. Errors
-// (kInvalidArgument) name the option.
+// 1, lod <= 255, protocol_version 0 or one this library speaks, and the token, when there is one,
+// is what proto/token.hpp accepts. Errors (kInvalidArgument) name the option.
 Status validate_options(const StreamOptions& options);
 
 enum class StreamState {

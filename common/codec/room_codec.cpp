@@ -338,7 +338,7 @@ static_assert(kPositionId == 0 && kNormalId == 1 && kChannelsId == 2 && kRimId =
 // Returns the sequential decoder type of each decoder's first attribute, in decoder order, for
 // LayoutCheckingDecoder: that attribute's values open the decoder's data.
 Result<std::vector<uint8_t>> check_attribute_descriptors(std::span<const uint8_t> in,
-                                                        bool normals) {
+                                                         bool normals) {
   // Which of kLayout's attributes the payload holds: all four, or version 2's three.
   const std::array<bool, kLayout.size()> wanted = {true, normals, true, true};
   const size_t expected = normals ? kLayout.size() : kLayout.size() - 1;
@@ -347,8 +347,7 @@ Result<std::vector<uint8_t>> check_attribute_descriptors(std::span<const uint8_t
   if (at >= in.size()) return truncated();
   const size_t decoders = in[at++];
   if (decoders < 1 || decoders > expected) {
-    return fail("declares " + str(decoders) + " attribute decoders, expected 1.." +
-                str(expected));
+    return fail("declares " + str(decoders) + " attribute decoders, expected 1.." + str(expected));
   }
   at += 3 * decoders;
   std::array<bool, kLayout.size()> seen{};
@@ -358,8 +357,7 @@ Result<std::vector<uint8_t>> check_attribute_descriptors(std::span<const uint8_t
     uint64_t count = 0;
     if (!read_varint(in, at, count)) return truncated();
     if (count < 1 || count > expected - total) {
-      return fail("declares more than " + str(expected) + " attributes, expected " +
-                  str(expected));
+      return fail("declares more than " + str(expected) + " attributes, expected " + str(expected));
     }
     for (uint64_t i = 0; i < count; ++i) {
       if (at + 4 > in.size()) return truncated();
@@ -505,10 +503,9 @@ std::array<T, N> value(const draco::PointAttribute* att, uint32_t point) {
 
 Result<DecodedRoom> decode_room(std::span<const uint8_t> payload, const DecodeLimits& asked) {
   // The ceilings bound the worst-case allocation the header documents, whatever a caller asks.
-  const DecodeLimits limits = {std::min(asked.max_bytes, kMaxPayloadBytes),
-                               std::min(asked.max_vertices, kMaxVertices),
-                               std::min(asked.max_triangles, kMaxTriangles), asked.portal_count,
-                               asked.normals};
+  const DecodeLimits limits = {
+      std::min(asked.max_bytes, kMaxPayloadBytes), std::min(asked.max_vertices, kMaxVertices),
+      std::min(asked.max_triangles, kMaxTriangles), asked.portal_count, asked.normals};
   if (payload.empty()) return fail("empty");
   if (payload.size() > limits.max_bytes) {
     return fail(str(payload.size()) + " bytes, limit " + str(limits.max_bytes));
@@ -636,9 +633,10 @@ Status derive_normals(DecodedRoom& room, Vec3 origin, std::span<const PortalDisc
       if (length_squared(radial) > 0) dir = -radial;
     }
     const double len = length(dir);
-    room.normals[v] = len > 0 ? float3{static_cast<float>(dir.x / len), static_cast<float>(dir.y / len),
-                                       static_cast<float>(dir.z / len)}
-                              : float3{0, 1, 0};
+    room.normals[v] = len > 0
+                          ? float3{static_cast<float>(dir.x / len), static_cast<float>(dir.y / len),
+                                   static_cast<float>(dir.z / len)}
+                          : float3{0, 1, 0};
   }
   return {};
 }

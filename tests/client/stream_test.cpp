@@ -198,7 +198,8 @@ TEST(Stream, both_protocol_versions_stream_rooms_whose_seams_agree) {
     ASSERT_TRUE(wait_for([&] { return stream->spawn_point().has_value(); }))
         << describe(stream->stats());
     auto expected = expected_rooms(7, *stream->spawn_point(), o.plan.horizon_s);
-    ASSERT_TRUE(wait_for([&] { return all_ready(*stream, expected); })) << describe(stream->stats());
+    ASSERT_TRUE(wait_for([&] { return all_ready(*stream, expected); }))
+        << describe(stream->stats());
     EXPECT_EQ(stream->stats().rooms_rejected, 0u);
     std::map<RoomId, std::shared_ptr<const grotto::client::ReadyRoom>> rooms;
     for (const auto& r : stream->take_new_rooms()) {

@@ -264,7 +264,8 @@ TEST_F(RoomCodecTest, derived_normals_follow_the_mesh_normals) {
       ASSERT_NE(o, UINT32_MAX);
       const float3 a = d->normals[v], b = m.normals[o];
       EXPECT_NEAR(std::sqrt(a.x * a.x + a.y * a.y + a.z * a.z), 1.0, 1e-6);
-      const double c = std::clamp(double{a.x} * b.x + double{a.y} * b.y + double{a.z} * b.z, -1.0, 1.0);
+      const double c =
+          std::clamp(double{a.x} * b.x + double{a.y} * b.y + double{a.z} * b.z, -1.0, 1.0);
       angles.push_back(std::acos(c) * 180.0 / 3.14159265358979);
     }
   }

@@ -100,7 +100,7 @@ TEST(RoomFrame, header_bytes_are_the_documented_layout) {
   std::vector<uint8_t> v1 = encode_room_frame(f);
   EXPECT_EQ(v1[4] | v1[5] << 8, 1);
   EXPECT_EQ(decode_room_frame(v1, Limits{})->version, 1u) << "version 1 frames still decode";
-  EXPECT_EQ(b[6], 1);              // type: room
+  EXPECT_EQ(b[6], 1);  // type: room
   EXPECT_EQ(b[7], kFlagGate);
   uint64_t id = 0;
   for (int i = 7; i >= 0; --i)

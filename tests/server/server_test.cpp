@@ -733,11 +733,11 @@ TEST(ServerProgram, help_lists_every_option_and_exits_0) {
   text += read_until(p.out, "\x01", 500ms);
   EXPECT_EQ(wait_exit(p.pid, 10s), 0);
   close(p.out);
-  for (const char* flag :
-       {"--config", "--bind", "--port", "--io-threads", "--seed", "--max-connections",
-        "--send-queue-bytes", "--max-rooms-in-flight", "--idle-timeout-ms",
-        "--handshake-timeout-ms", "--workers", "--cache-bytes", "--batch-rooms", "--batch-wait-ms",
-        "--job-deadline-ms", "--urgent-ms", "--opencl-device", "--drain-timeout-ms", "--log-level"}) {
+  for (const char* flag : {"--config", "--bind", "--port", "--io-threads", "--seed",
+                           "--max-connections", "--send-queue-bytes", "--max-rooms-in-flight",
+                           "--idle-timeout-ms", "--handshake-timeout-ms", "--workers",
+                           "--cache-bytes", "--batch-rooms", "--batch-wait-ms", "--job-deadline-ms",
+                           "--urgent-ms", "--opencl-device", "--drain-timeout-ms", "--log-level"}) {
     EXPECT_NE(text.find(flag), std::string::npos) << flag;
   }
 }
