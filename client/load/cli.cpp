@@ -124,6 +124,12 @@ CommandLine parse_command_line(int argc, const char* const* argv) {
                  "Seed of the players' walks (player i uses rng-seed + i): same seed, same "
                  "choices")
       ->capture_default_str();
+  app.add_option("--ramp", o.ramp_s,
+                 "Players join over this many seconds, player i at i x ramp / players (0: all "
+                 "at once); time to first room counts from each player's own join")
+      ->check(CLI::Range(0.0, 3600.0))
+      ->type_name("SECONDS")
+      ->capture_default_str();
   app.add_flag("--spread", o.spread,
                "Player i starts in room 0 of sector (3i, 0, 0) instead of the spawn point, so "
                "players share no rooms (with --server, give --seed or --seeds)");

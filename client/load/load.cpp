@@ -51,7 +51,10 @@ double seconds_since(Clock::time_point t0, Clock::time_point t) {
 
 struct Player {
   int index = 0;
-  std::unique_ptr<Stream> stream;
+  double join_at_s = 0;            // --ramp: when its Stream starts
+  double joined_s = 0;             // when it did
+  std::unique_ptr<Stream> stream;  // null until the player joins
+  bool joined() const { return stream != nullptr; }
   std::unique_ptr<Walker> walker;
   std::optional<cave::RoomId> start;
   PortalGraph graph;  // burst mode: the rooms received, for the plan over the radius
@@ -93,6 +96,12 @@ Status check(const LoadOptions& o) {
   }
   if (!(o.radius_m > 0)) return invalid_argument("--radius must be > 0");
   if (!(o.duration_s >= 0)) return invalid_argument("--duration must be >= 0");
+  if (!(o.ramp_s >= 0)) return invalid_argument("--ramp must be >= 0");
+  if (o.ramp_s > 0 && o.mode == Mode::kBurst)
+    return invalid_argument("--ramp is for walk and soak (burst ends when every player is done)");
+  const double duration = o.duration_s > 0 ? o.duration_s : default_duration_s(o.mode);
+  if (o.ramp_s >= duration)
+    return invalid_argument("--ramp must be shorter than the run (--duration)");
   if (!(o.tick_hz > 0)) return invalid_argument("tick_hz must be > 0");
   if (o.seed && !o.seeds.empty()) return invalid_argument("--seeds conflicts with --seed");
   if (o.seeds.size() > 1 && o.url.empty()) {
@@ -113,7 +122,10 @@ void print_progress(double t, const std::vector<Player>& players, uint64_t laten
                     uint64_t verify_failures) {
   uint64_t rooms = 0, bytes = 0, errors = 0, stalls = 0, waiting = 0;
   double stall_s = 0;
+  size_t joined = 0;
   for (const auto& p : players) {
+    if (!p.joined()) continue;
+    ++joined;
     StreamStats s = p.stream->stats();
     rooms += s.rooms_ready;
     bytes += s.bytes_received;
@@ -133,7 +145,7 @@ void print_progress(double t, const std::vector<Player>& players, uint64_t laten
       t, static_cast<unsigned long long>(rooms), t > 0 ? static_cast<double>(rooms) / t : 0,
       t > 0 ? static_cast<double>(bytes) / 1e6 / t : 0,
       static_cast<unsigned long long>(latency_p50_ms), static_cast<unsigned long long>(stalls),
-      stall_s, static_cast<unsigned long long>(waiting), players.size(),
+      stall_s, static_cast<unsigned long long>(waiting), joined,
       static_cast<unsigned long long>(errors),
       verify_failures ? (" verify failures " + std::to_string(verify_failures)).c_str() : "");
   std::fflush(stderr);
@@ -141,7 +153,7 @@ void print_progress(double t, const std::vector<Player>& players, uint64_t laten
 
 // Burst mode: is everything within the player's radius known and ready?
 void check_burst(Player& p, double t, const PlanOptions& plan_options) {
-  if (p.burst_complete_s >= 0 || p.walker->state() == WalkerState::kWaiting) return;
+  if (!p.joined() || p.burst_complete_s >= 0 || p.walker->state() == WalkerState::kWaiting) return;
   auto plan = p.graph.plan(*p.walker->room(), p.walker->pose(), plan_options);
   p.burst_rooms = plan.size();
   for (const auto& room : plan) {
@@ -167,6 +179,7 @@ Result<LoadReport> run_load(const LoadOptions& options) {
   report.protocol_version = options.protocol_version;
   report.radius_m = burst ? options.radius_m : 0;
   report.duration_s = duration;
+  report.ramp_s = options.ramp_s;
   report.max_stalls = options.max_stalls;
   report.max_errors = options.max_errors;
   report.max_p99_ms = options.max_p99_ms;
@@ -221,12 +234,9 @@ Result<LoadReport> run_load(const LoadOptions& options) {
   // the embedded server so that its shutdown is no error of theirs.
   Runtime runtime(options.io_threads, options.decode_workers);
   std::vector<Player> players(static_cast<size_t>(options.players));
-  // Time zero is before the first Stream starts connecting: time to first room includes the
-  // connection, the welcome and the spawn point.
-  const auto t0 = Clock::now();
-  for (int i = 0; i < options.players; ++i) {
-    Player& p = players[static_cast<size_t>(i)];
-    p.index = i;
+  // Player i's Stream, walker and start; called when its join time comes (--ramp).
+  auto join = [&](Player& p, double t) -> Status {
+    const int i = p.index;
     StreamOptions so;
     so.url = url;
     so.seed = seed_of(i);
@@ -240,6 +250,7 @@ Result<LoadReport> run_load(const LoadOptions& options) {
     auto stream = Stream::start(so, runtime);
     if (!stream) return stream.error();
     p.stream = std::move(stream).value();
+    p.joined_s = t;
     Stream* s = p.stream.get();
     WorldView view{[s](cave::RoomId id) { return s->descriptor(id); },
                    [s](cave::RoomId id) { return s->ready(id); }};
@@ -253,6 +264,17 @@ Result<LoadReport> run_load(const LoadOptions& options) {
       p.walker->place(room, position);
       p.stream->set_pose(p.walker->pose());
     }
+    return {};
+  };
+  // Time zero is before the first Stream starts connecting: time to first room includes the
+  // connection, the welcome and the spawn point (a walker's clock starts at its join).
+  const auto t0 = Clock::now();
+  for (int i = 0; i < options.players; ++i) {
+    Player& p = players[static_cast<size_t>(i)];
+    p.index = i;
+    p.join_at_s = options.ramp_s * i / options.players;
+    if (p.join_at_s > 0) continue;
+    if (Status st = join(p, 0); !st) return st.error();
   }
 
   std::unique_ptr<Verifier> verifier;
@@ -263,6 +285,8 @@ Result<LoadReport> run_load(const LoadOptions& options) {
   }
 
   std::vector<double> latencies, decodes;
+  std::vector<std::vector<double>> latencies_by_second;
+  double t = 0;  // seconds since t0, as of the loop's current step
   auto drain = [&](Player& p) {
     for (auto& room : p.stream->take_new_rooms()) {
       if (burst) (void)p.graph.add(room->room);  // disagreements: --verify counts them
@@ -271,6 +295,9 @@ Result<LoadReport> run_load(const LoadOptions& options) {
     for (const auto& sample : p.stream->take_samples()) {
       latencies.push_back(sample.latency_ms);
       decodes.push_back(sample.decode_ms);
+      const auto second = static_cast<size_t>(std::max(0.0, t));
+      if (latencies_by_second.size() <= second) latencies_by_second.resize(second + 1);
+      latencies_by_second[second].push_back(sample.latency_ms);
     }
   };
 
@@ -280,7 +307,6 @@ Result<LoadReport> run_load(const LoadOptions& options) {
   double next_progress = 1.0, next_burst_check = 0;
   // Each player's peak bandwidth: bytes over windows of (at least) one second.
   double window_start = 0;
-  double t = 0;
   for (;;) {
     const auto now = Clock::now();
     const double dt = seconds_since(last, now);
@@ -288,6 +314,13 @@ Result<LoadReport> run_load(const LoadOptions& options) {
     t = seconds_since(t0, now);
     bool waiting = false, all_failed = true;
     for (auto& p : players) {
+      if (!p.joined() && t >= p.join_at_s) {
+        if (Status st = join(p, t); !st) return st.error();
+      }
+      if (!p.joined()) {
+        all_failed = false;  // not every player has had its chance
+        continue;
+      }
       if (!p.walker->placed()) {
         if (auto spawn = p.stream->spawn_point()) {
           p.start = spawn->room;
@@ -319,6 +352,7 @@ Result<LoadReport> run_load(const LoadOptions& options) {
     }
     if (t - window_start >= 1.0) {
       for (auto& p : players) {
+        if (!p.joined()) continue;
         const uint64_t bytes = p.stream->stats().bytes_received;
         p.peak_kbps = std::max(p.peak_kbps, static_cast<double>(bytes - p.window_bytes) * 8.0 /
                                                 1000.0 / (t - window_start));
@@ -347,6 +381,7 @@ Result<LoadReport> run_load(const LoadOptions& options) {
   report.elapsed_s = seconds_since(t0, Clock::now());
 
   for (auto& p : players) {
+    if (!p.joined()) continue;  // a run cut short (all others failed) before its join
     StreamStats before = p.stream->stats();
     p.final_state = before.state;
     p.final_error = before.last_error;
@@ -358,6 +393,7 @@ Result<LoadReport> run_load(const LoadOptions& options) {
 
   std::vector<double> first_rooms, stalls;
   for (auto& p : players) {
+    if (!p.joined()) continue;
     const StreamStats& s = p.final_stats;
     const WalkerStats& w = p.walker->stats();
     PlayerReport pr;
@@ -365,6 +401,7 @@ Result<LoadReport> run_load(const LoadOptions& options) {
     pr.seed = seed_of(p.index);
     if (!pr.seed) pr.seed = s.seed;  // the world the server said it serves
     if (p.start) pr.start_room = p.start->to_string();
+    pr.joined_s = p.joined_s;
     if (w.first_room_s) {
       pr.first_room_ms = *w.first_room_s * 1000.0;
       first_rooms.push_back(pr.first_room_ms);
@@ -373,8 +410,8 @@ Result<LoadReport> run_load(const LoadOptions& options) {
     pr.rooms_received = s.rooms_received;
     pr.bytes = s.bytes_received;
     pr.horizon_s = s.horizon_s;
-    pr.mean_kbps =
-        report.elapsed_s > 0 ? static_cast<double>(pr.bytes) * 8.0 / 1000.0 / report.elapsed_s : 0;
+    const double connected_s = report.elapsed_s - p.joined_s;
+    pr.mean_kbps = connected_s > 0 ? static_cast<double>(pr.bytes) * 8.0 / 1000.0 / connected_s : 0;
     // A run shorter than a second has no whole window: its mean is its peak.
     pr.peak_kbps = std::max(p.peak_kbps, pr.mean_kbps);
     pr.requests = s.requests_sent;
@@ -416,6 +453,8 @@ Result<LoadReport> run_load(const LoadOptions& options) {
   }
   report.first_room_ms = summarize(std::move(first_rooms));
   report.latency_ms = summarize(std::move(latencies));
+  for (auto& second : latencies_by_second)
+    report.latency_by_second_ms.push_back(summarize(std::move(second)));
   report.decode_ms = summarize(std::move(decodes));
   report.stall_ms = summarize(std::move(stalls));
   // Without --seed the report names the world the server served (welcome.seed).

@@ -26,6 +26,10 @@ struct LoadOptions {
   std::string url;  // ws://host:port/ws; empty: start a server in-process on 127.0.0.1
   Mode mode = Mode::kWalk;
   int players = 4;
+  // Players join over this many seconds, player i at i x ramp_s / players (0: all at once, the
+  // mass start a fresh replica sees when every player reconnects to it). The run's duration
+  // counts from the first join; each player's time to first room from its own.
+  double ramp_s = 0;
   double duration_s = 0;          // 0: the mode's default (walk 20, soak 600, burst 60: a bound)
   double speed = 4.0;             // m/s walking (bursts of running: walker.burst_factor)
   double horizon_s = 4.0;         // the Streams' prefetch horizon (walk and soak)

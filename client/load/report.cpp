@@ -122,6 +122,7 @@ std::string format_table(const LoadReport& r) {
   appendf(out, "  world seed %s, %s; speed %.1f m/s, horizon %.1f s\n",
           r.seed ? std::to_string(*r.seed).c_str() : "(the server's)",
           r.server.empty() ? "server unknown" : r.server.c_str(), r.speed, r.horizon_s);
+  if (r.ramp_s > 0) appendf(out, "  players joined over %.1f s\n", r.ramp_s);
   if (!r.compute.empty()) appendf(out, "  embedded server compute: %s\n", r.compute.c_str());
   appendf(out, "\n  %-22s %8s %9s %9s %9s %9s %9s\n", "", "count", "mean", "p50", "p90", "p99",
           "max");
@@ -200,6 +201,7 @@ std::string to_json_text(const LoadReport& r) {
         {{"index", p.index},
          {"seed", p.seed ? nlohmann::json(std::to_string(*p.seed)) : nlohmann::json(nullptr)},
          {"start_room", p.start_room},
+         {"joined_s", p.joined_s},
          {"first_room_ms", p.first_room_ms},
          {"rooms_ready", p.rooms_ready},
          {"rooms_received", p.rooms_received},
@@ -234,6 +236,9 @@ std::string to_json_text(const LoadReport& r) {
   nlohmann::json by_seed = nlohmann::json::object();
   for (const auto& [seed, n] : r.rooms_received_by_seed)
     by_seed[std::to_string(seed)] = n;
+  nlohmann::json by_second = nlohmann::json::array();
+  for (const Distribution& d : r.latency_by_second_ms)
+    by_second.push_back(to_json(d));
   nlohmann::json doc = {
       {"tool", "grotto-load"},
       {"mode", r.mode},
@@ -253,9 +258,11 @@ std::string to_json_text(const LoadReport& r) {
       {"final_horizon_s", to_json(r.final_horizon_s)},
       {"radius_m", r.radius_m},
       {"duration_s", r.duration_s},
+      {"ramp_s", r.ramp_s},
       {"elapsed_s", r.elapsed_s},
       {"first_room_ms", to_json(r.first_room_ms)},
       {"latency_ms", to_json(r.latency_ms)},
+      {"latency_by_second_ms", by_second},
       {"decode_ms", to_json(r.decode_ms)},
       {"stall_ms", to_json(r.stall_ms)},
       {"rooms",

@@ -25,11 +25,12 @@ struct PlayerReport {
   int index = 0;
   std::optional<uint64_t> seed;  // the world it asked for, else the one the server served
   std::string start_room;        // text id; empty when the player never got a start
-  double first_room_ms = -1;     // start of the run → start room ready; -1: never
+  double joined_s = 0;           // when its Stream started, seconds into the run (--ramp)
+  double first_room_ms = -1;     // its join → start room ready; -1: never
   uint64_t rooms_ready = 0;      // rooms decoded and stored by its Stream
   uint64_t rooms_received = 0;   // room frames accepted
   uint64_t bytes = 0;            // bytes received
-  double mean_kbps = 0;          // bytes x 8 / 1000 over the run's elapsed time
+  double mean_kbps = 0;          // bytes x 8 / 1000 over the time since it joined
   double horizon_s = 0;          // the prefetch horizon in use at the end (--min-horizon)
   double peak_kbps = 0;          // the most received in one whole second of the run, x 8 / 1000
   uint64_t requests = 0;         // rooms requested
@@ -74,11 +75,15 @@ struct LoadReport {
   double horizon_s = 0;
   double radius_m = 0;    // burst mode
   double duration_s = 0;  // asked for
+  double ramp_s = 0;      // players joined over this (0: all at once)
   double elapsed_s = 0;   // measured, start of the run to the Streams' stop
 
   // Figures over all players.
   Distribution first_room_ms;  // per player, the players who got one
   Distribution latency_ms;     // request → room frame, every sample
+  // The same samples by the second of the run in which the room was taken from its Stream
+  // (index 0: [0, 1) s): where in the run the tail is, e.g. the start of a crowd.
+  std::vector<Distribution> latency_by_second_ms;
   Distribution decode_ms;
   Distribution stall_ms;  // every stall (finished or open at the end)
   uint64_t rooms_ready = 0, rooms_received = 0, rooms_rejected = 0, rooms_evicted = 0,

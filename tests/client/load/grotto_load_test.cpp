@@ -67,7 +67,7 @@ TEST(GrottoLoad, help_describes_every_option) {
         "--io-threads", "--decode-workers", "--rng-seed",   "--spread",     "--verify",
         "--max-stalls", "--tick-hz",        "--turn-back",  "--burst-rate", "--json",
         "--quiet",      "--log-level",      "--token-file", "GROTTO_TOKEN", "--seeds",
-        "Exit codes"}) {
+        "--ramp",       "Exit codes"}) {
     EXPECT_NE(r.output.find(flag), std::string::npos) << flag;
   }
 }
@@ -95,6 +95,9 @@ TEST(GrottoLoad, bad_flags_exit_2_with_a_message_naming_the_flag) {
       {"--seeds 7,,8 --server ws://127.0.0.1:1/ws", "--seeds: ''"},
       {"--seeds 7 --seed 7", "--seeds conflicts with --seed"},
       {"--seeds 7,8", "--seeds with more than one seed needs --server"},
+      {"--ramp -1", "--ramp"},
+      {"--ramp 5 --duration 5", "--ramp must be shorter than the run"},
+      {"--ramp 1 --mode burst", "--ramp is for walk and soak"},
   };
   for (const auto& [args, flag] : cases) {
     ProcessResult r = run(args);
@@ -180,6 +183,38 @@ TEST(GrottoLoad, four_players_walk_the_embedded_server_without_errors_or_stalls)
   }
   EXPECT_EQ(j["player_kbps"]["count"], 4);
   EXPECT_GT(j["rooms_per_room_entered"].get<double>(), 0);
+  std::filesystem::remove_all(dir);
+}
+
+// --ramp: player i's Stream starts at i x ramp / players; its time to first room and its mean
+// bandwidth count from then, and the per-second latencies hold every sample.
+TEST(GrottoLoad, players_join_over_the_ramp) {
+  auto dir = temp_dir("grotto-load-ramp");
+  auto json = dir / "out.json";
+  ProcessResult r =
+      run("--players 4 --spread --ramp 2 --duration 4 --device none --server-workers 2 "
+          "--max-stalls 0 --json '" +
+          json.string() + "'");
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("players joined over 2.0 s"), std::string::npos) << r.output;
+  auto j = read_json(json);
+  expect_consistent(j, 4);
+  EXPECT_EQ(j["ramp_s"].get<double>(), 2.0);
+  const double elapsed = j["elapsed_s"].get<double>();
+  for (int i = 0; i < 4; ++i) {
+    const auto& p = j["per_player"][static_cast<size_t>(i)];
+    const double joined = p["joined_s"].get<double>();
+    EXPECT_GE(joined, 0.5 * i) << "player " << i << " joined before its time";
+    EXPECT_LT(joined, 0.5 * i + 0.5) << "player " << i << " joined late";
+    EXPECT_NEAR(p["mean_kbps"].get<double>(),
+                p["bytes"].get<double>() * 8 / 1000 / (elapsed - joined), 1e-6);
+  }
+  uint64_t by_second = 0;
+  for (const auto& second : j["latency_by_second_ms"])
+    by_second += second["count"].get<uint64_t>();
+  EXPECT_EQ(by_second, j["latency_ms"]["count"].get<uint64_t>());
+  // Players joined until 1.5 s and walked on to 4 s: rooms came in the last seconds too.
+  EXPECT_GE(j["latency_by_second_ms"].size(), 4u);
   std::filesystem::remove_all(dir);
 }
 
