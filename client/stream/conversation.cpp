@@ -647,6 +647,13 @@ std::chrono::milliseconds Conversation::backoff_delay(int attempt) {
   return std::chrono::milliseconds(static_cast<int64_t>(base * jitter(rng_)));
 }
 
+std::chrono::milliseconds Conversation::restart_delay() {
+  std::uniform_real_distribution<double> spread(
+      static_cast<double>(options_.backoff_initial.count()) / 2,
+      static_cast<double>(options_.restart_spread.count()));
+  return std::chrono::milliseconds(static_cast<int64_t>(spread(rng_)));
+}
+
 void Conversation::end_connection() {
   if (open_ || stats_.state == StreamState::kConnecting) ++stats_.drops;
   open_ = false;
@@ -664,7 +671,7 @@ void Conversation::reconnect(const std::string& why, bool restart, Actions& out)
   end_connection();
   note_error(why);
   stats_.state = StreamState::kBackoff;
-  const auto delay = backoff_delay(restart ? 0 : attempts_++);
+  const auto delay = restart ? restart_delay() : backoff_delay(attempts_++);
   out.emplace_back(std::in_place_type<Reconnect>, Reconnect{delay, why});
 }
 

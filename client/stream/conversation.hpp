@@ -185,6 +185,8 @@ class Conversation {
   // The reconnect delay after `attempt` failed attempts: backoff_initial x 2^attempt, capped at
   // backoff_max, times a jitter in [0.5, 1) ("equal jitter").
   std::chrono::milliseconds backoff_delay(int attempt);
+  // The reconnect delay after service_restart: uniform in [backoff_initial / 2, restart_spread].
+  std::chrono::milliseconds restart_delay();
 
  private:
   void on_message(const proto::Welcome& w, SteadyTime now, Actions& out);

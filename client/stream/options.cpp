@@ -24,6 +24,8 @@ Status validate_options(const StreamOptions& options) {
   if (options.backoff_initial.count() < 1 || options.backoff_max < options.backoff_initial) {
     return invalid("backoff: need 1 ms <= initial <= max");
   }
+  if (options.restart_spread < options.backoff_initial)
+    return invalid("restart_spread must be at least backoff_initial");
   // A zero interval would spin the tick timer; zero timeouts would drop every connection.
   if (options.connect_timeout.count() < 1) return invalid("connect_timeout must be at least 1 ms");
   if (options.request_timeout.count() < 1) return invalid("request_timeout must be at least 1 ms");

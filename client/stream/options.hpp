@@ -37,8 +37,14 @@ struct StreamOptions {
                                            // cancel_factor × horizon (or it is unreachable)
   uint32_t max_in_flight = 64;             // own cap; the server's max_rooms_in_flight also applies
   size_t store_bytes = size_t{256} << 20;  // RoomStore budget
-  std::chrono::milliseconds backoff_initial{100};     // first reconnect delay (before jitter)
-  std::chrono::milliseconds backoff_max{5'000};       // reconnect delays double up to this
+  std::chrono::milliseconds backoff_initial{100};  // first reconnect delay (before jitter)
+  std::chrono::milliseconds backoff_max{5'000};    // reconnect delays double up to this
+  // After service_restart (a drain) the reconnect waits a delay drawn uniformly from
+  // [backoff_initial / 2, restart_spread]: the players a drained replica sends away reach the
+  // replica taking them over spread across this time instead of in the same 50 ms, which a
+  // replica absorbs (docs/BENCHMARKS.md: 300 joins over 2 s, p99 12 ms; at once, 500 ms). The
+  // rooms held are kept meanwhile. At least backoff_initial.
+  std::chrono::milliseconds restart_spread{1'000};
   std::chrono::milliseconds connect_timeout{5'000};   // TCP connect + upgrade + welcome
   std::chrono::milliseconds request_timeout{30'000};  // a room in flight this long is re-requested
   std::chrono::milliseconds replan_interval{100};     // at most this often on pose changes
@@ -52,9 +58,10 @@ struct StreamOptions {
 
 // Whether Stream::start would take `options`: the url parses (url.hpp), the horizon is a positive
 // number of seconds, cancel_factor >= 1, max_in_flight >= 1, 1 ms <= backoff_initial <=
-// backoff_max, connect_timeout, request_timeout and replan_interval >= 1 ms, max_room_failures >=
-// 1, lod <= 255, protocol_version 0 or one this library speaks, and the token, when there is one,
-// is what proto/token.hpp accepts. Errors (kInvalidArgument) name the option.
+// backoff_max, restart_spread >= backoff_initial, connect_timeout, request_timeout and
+// replan_interval >= 1 ms, max_room_failures >= 1, lod <= 255, protocol_version 0 or one this
+// library speaks, and the token, when there is one, is what proto/token.hpp accepts. Errors
+// (kInvalidArgument) name the option.
 Status validate_options(const StreamOptions& options);
 
 enum class StreamState {

@@ -1046,18 +1046,48 @@ TEST(Conversation, reconnect_backoff_doubles_with_jitter_up_to_the_cap_and_reset
   int64_t d = delay_of(h.c.lost("reading: eof", h.now));
   EXPECT_GE(d, 50);
   EXPECT_LE(d, 100);
-  // service_restart reconnects after the shortest delay, however many attempts failed before.
+  // service_restart reconnects within restart_spread, however many attempts failed before.
   for (int i = 0; i < 4; ++i) {
     h.c.connecting();
     h.c.lost("connecting: refused", h.now);
   }
   h.open();
   d = delay_of(h.c.closed(kCloseGoingAway, "service_restart", h.now));
-  EXPECT_LE(d, 100);
+  EXPECT_GE(d, 50);
+  EXPECT_LE(d, 1000);
   // Same seed, same delays: the jitter is the generator's, not the clock's.
   Conversation a(o, 7), b(o, 7);
   for (int i = 0; i < 5; ++i)
     EXPECT_EQ(a.backoff_delay(i), b.backoff_delay(i));
+}
+
+// The players a drained replica sends away come back spread over restart_spread, not all within
+// the first 100 ms (what a replica taking 300 of them over cannot absorb at once).
+TEST(Conversation, restart_reconnects_spread_over_restart_spread) {
+  StreamOptions o;
+  o.restart_spread = milliseconds(2000);
+  std::vector<int64_t> delays;
+  for (uint64_t seed = 0; seed < 200; ++seed) {
+    Conversation c(o, seed);
+    c.connecting();
+    c.opened(SteadyTime{});
+    Actions a = c.closed(kCloseGoingAway, "service_restart", SteadyTime{});
+    ASSERT_EQ(a.size(), 1u);
+    ASSERT_TRUE(std::holds_alternative<Reconnect>(a[0]));
+    delays.push_back(std::get<Reconnect>(a[0]).delay.count());
+  }
+  std::sort(delays.begin(), delays.end());
+  EXPECT_GE(delays.front(), 50);
+  EXPECT_LE(delays.back(), 2000);
+  // Uniform: a quarter of them in each quarter of [50, 2000] ms, give or take.
+  const auto in = [&](int64_t lo, int64_t hi) {
+    return std::count_if(delays.begin(), delays.end(),
+                         [&](int64_t d) { return d >= lo && d < hi; });
+  };
+  EXPECT_GT(in(50, 537), 30);
+  EXPECT_GT(in(1512, 2001), 30);
+  o.restart_spread = milliseconds(99);  // below backoff_initial (100 ms)
+  EXPECT_FALSE(validate_options(o));
 }
 
 // ---- one lod a session ----
