@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "client/app/bench_report.hpp"
+#include "client/app/camera_aim.hpp"
 #include "tools/png.hpp"
 
 namespace grotto::app {
@@ -32,12 +33,6 @@ int fail(const std::string& message) {
 
 double seconds_since(Clock::time_point t) {
   return std::chrono::duration<double>(Clock::now() - t).count();
-}
-
-void look_along(render::Camera& camera, Vec3 f) {
-  const double horizontal = std::sqrt(f.x * f.x + f.z * f.z);
-  camera.yaw = std::atan2(f.x, -f.z);
-  camera.pitch = std::clamp(std::atan2(f.y, horizontal), -89 * kPi / 180, 89 * kPi / 180);
 }
 
 // The room whose space holds p by the cave's rule, among the rooms on the GPU.
@@ -96,9 +91,7 @@ bool try_plan_path(Session& s) {
 
 // The camera at `seconds` along the scripted path.
 void follow_path(Session& s, double seconds) {
-  const play::PathPose pose = s.path->at(kPathSpeed * seconds);
-  s.camera.position = pose.position;
-  look_along(s.camera, pose.forward);
+  app::follow_path(s.camera, s.aim_room, *s.path, seconds);
 }
 
 }  // namespace
@@ -143,20 +136,7 @@ void pump(Session& s, double speed) {
     s.cache.evict(id);
     s.world.evict(id);
   }
-  // At the spawn point the camera looks through the spawn room's widest portal, into the cave
-  // rather than at the nearest wall, once the room's descriptor has arrived.
-  if (s.aim_room) {
-    if (auto room = s.stream.descriptor(*s.aim_room)) {
-      s.aim_room.reset();
-      const cave::Portal* widest = nullptr;
-      for (const auto& portal : room->portals)
-        if (widest == nullptr || portal.radius > widest->radius) widest = &portal;
-      if (widest != nullptr) {
-        look_along(s.camera, widest->centre - s.camera.position);
-        s.camera.pitch = std::clamp(s.camera.pitch, -kPi / 4, kPi / 4);
-      }
-    }
-  }
+  aim_when_known(s.camera, s.aim_room, [&](cave::RoomId id) { return s.stream.descriptor(id); });
   if (!s.placed && s.pose_room) {
     // --pose room:<id>: the stream plans from that room until its descriptor is here, then the
     // camera starts inside it, looking through its widest portal.
