@@ -6,6 +6,7 @@
 // positions and connectivity alone (codec::encode_geometry_only). Writes a JSON report and prints
 // a Markdown table; --profile-loops only encodes and decodes, for a profiler. Command and results:
 // docs/BENCHMARKS.md ("Room codec"); bench/codec_levers.cpp compares Draco's levers one by one.
+// --grid-step-log2 measures another world grid for the encoder (coarser_grid.hpp).
 #include <draco/compression/decode.h>
 #include <meshoptimizer.h>
 #include <spdlog/spdlog.h>
@@ -20,6 +21,7 @@
 #include <functional>
 #include <nlohmann/json.hpp>
 
+#include "coarser_grid.hpp"
 #include "codec/room_codec.hpp"
 #include "core/grid.hpp"
 #include "mesh/room_mesh.hpp"
@@ -65,15 +67,15 @@ struct PeerEncoded {
   size_t vertex_count = 0, index_count = 0;
 };
 
-PeerEncoded peer_encode(const mesh::RoomMesh& m) {
+PeerEncoded peer_encode(const mesh::RoomMesh& m, double step) {
   float lo[3] = {1e30f, 1e30f, 1e30f};
   for (const auto& p : m.positions) {
     lo[0] = std::min(lo[0], p.x);
     lo[1] = std::min(lo[1], p.y);
     lo[2] = std::min(lo[2], p.z);
   }
-  auto q16 = [](float v, float origin) {
-    return static_cast<uint16_t>(std::lround((v - origin) / grid::kStep));
+  auto q16 = [step](float v, float origin) {
+    return static_cast<uint16_t>(std::lround((v - origin) / step));
   };
   auto s8 = [](float v) { return static_cast<int8_t>(std::lround(v * 127.0f)); };
   auto u8 = [](float v) { return static_cast<uint8_t>(std::lround(v * 255.0f)); };
@@ -117,6 +119,7 @@ int main(int argc, char** argv) {
   int reps = 5, room_count = 100;
   uint64_t seed = 42;
   int profile_loops = 0;
+  int grid_step_log2 = grid::kStepLog2;
   app.add_option("--json", json_path, "Write the report here")->capture_default_str();
   app.add_option("--repetitions", reps, "Runs per room and setting (the median is kept)")
       ->check(CLI::Range(1, 100))
@@ -129,6 +132,12 @@ int main(int argc, char** argv) {
                  "Only encode and decode every room this many times with the defaults, for a "
                  "profiler (perf record, callgrind), and report nothing")
       ->check(CLI::Range(0, 100000));
+  app.add_option(
+         "--grid-step-log2", grid_step_log2,
+         "Quantize positions on the world grid of step 2^-N m (EncodeOptions::grid_step_log2); "
+         "below the mesh's grid, origins and rims are snapped to it first")
+      ->check(CLI::Range(0, grid::kStepLog2))
+      ->capture_default_str();
   CLI11_PARSE(app, argc, argv);
 
   cave::World world = cave::World::create(seed, cave::LayoutParams{}).value();
@@ -141,18 +150,21 @@ int main(int argc, char** argv) {
     auto p = mesh::build_room_mesh(ctx, r, mesh::Lod::kPatch);
     auto d = mesh::build_room_mesh(ctx, r, mesh::Lod::kDetail);
     if (!p || !d) continue;
-    patch.push_back(std::move(p).value());
+    patch.push_back(bench::on_coarser_grid(p.value(), grid_step_log2));
     detail.push_back(std::move(d).value());
     discs.emplace_back();
     for (const cave::Portal& portal : r.portals)
       discs.back().push_back({portal.centre, portal.normal});
   }
-  spdlog::info("codec_bench rooms={} reps={}", patch.size(), reps);
+  spdlog::info("codec_bench rooms={} reps={} grid_step_log2={}", patch.size(), reps,
+               grid_step_log2);
+  codec::EncodeOptions defaults;
+  defaults.grid_step_log2 = grid_step_log2;
   if (profile_loops > 0) {
     size_t total = 0;
     for (int i = 0; i < profile_loops; ++i) {
       for (const mesh::RoomMesh& m : patch) {
-        std::vector<uint8_t> bytes = codec::encode_room(m).value();
+        std::vector<uint8_t> bytes = codec::encode_room(m, defaults).value();
         total += codec::decode_room(bytes).value().vertex_count();
       }
     }
@@ -194,7 +206,6 @@ int main(int argc, char** argv) {
            ", channels " + std::to_string(o.channel_bits);
   };
   // Speed (edgebreaker traversal and prediction schemes) at the default quantization.
-  const codec::EncodeOptions defaults;
   for (int speed : {0, 3, 5, 7, 9}) {
     codec::EncodeOptions opt = defaults;
     opt.speed = speed;
@@ -233,7 +244,7 @@ int main(int argc, char** argv) {
   {
     Row row{"draco::Decoder alone, default settings", {}, {}, {}, {}};
     for (const mesh::RoomMesh& m : patch) {
-      std::vector<uint8_t> bytes = codec::encode_room(m).value();
+      std::vector<uint8_t> bytes = codec::encode_room(m, defaults).value();
       row.bytes.push_back(static_cast<double>(bytes.size()));
       row.decode_ms.push_back(median_ms(reps, [&] {
         draco::DecoderBuffer buffer;
@@ -251,7 +262,8 @@ int main(int argc, char** argv) {
         "meshoptimizer vertex+index codec (16-bit grid positions, 8-bit normals)", {}, {}, {}, {}};
     for (const mesh::RoomMesh& m : patch) {
       PeerEncoded enc;
-      row.encode_ms.push_back(median_ms(reps, [&] { enc = peer_encode(m); }));
+      row.encode_ms.push_back(
+          median_ms(reps, [&] { enc = peer_encode(m, 1.0 / (1 << grid_step_log2)); }));
       row.bytes.push_back(static_cast<double>(enc.vertices.size() + enc.indices.size()));
       std::vector<PeerVertex> verts(enc.vertex_count);
       std::vector<unsigned int> indices(enc.index_count);
@@ -271,6 +283,7 @@ int main(int argc, char** argv) {
   report["rooms"] = patch.size();
   report["repetitions"] = reps;
   report["seed"] = seed;
+  report["grid_step_log2"] = grid_step_log2;
   report["patch_vertices_per_room_median"] = median(patch_vertices);
   report["raw_detail_bytes_per_room_median"] = median(raw_detail);
   report["raw_detail_bytes_per_room_mean"] = mean(raw_detail);
