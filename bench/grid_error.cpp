@@ -114,8 +114,7 @@ bool same_multiset(std::vector<float3> a, std::vector<float3> b) {
 
 // Twice the triangle's area along its normal (the orientation the mesh's winding gives).
 Vec3 face(Vec3 a, Vec3 b, Vec3 c) {
-  const Vec3 u = b - a, w = c - a;
-  return {u.y * w.z - u.z * w.y, u.z * w.x - u.x * w.z, u.x * w.y - u.y * w.x};
+  return cross(b - a, c - a);
 }
 
 }  // namespace

@@ -26,12 +26,11 @@
 #include <map>
 #include <mutex>
 #include <nlohmann/json.hpp>
-#include <set>
 #include <thread>
 #include <unordered_map>
 
-#include "core/random.hpp"
 #include "mesh/room_mesh.hpp"
+#include "sector_sample.hpp"
 
 namespace {
 
@@ -43,23 +42,14 @@ constexpr double kDegrees = 180.0 / 3.14159265358979323846;
 Vec3 vec(float3 p) {
   return {p.x, p.y, p.z};
 }
-Vec3 cross3(Vec3 a, Vec3 b) {
-  return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
-}
-double dot3(Vec3 a, Vec3 b) {
-  return a.x * b.x + a.y * b.y + a.z * b.z;
-}
-double len3(Vec3 a) {
-  return std::sqrt(dot3(a, a));
-}
 
 // Distance from p (room frame) to a portal's disc, and its height above the plane (room side +).
 std::pair<double, double> portal_distance(const mesh::core::GrottoPortal& g, Vec3 p) {
   Vec3 c{g.cx, g.cy, g.cz}, n{g.nx, g.ny, g.nz};
   Vec3 rel = p - c;
-  double h = -dot3(rel, n);
+  double h = -dot(rel, n);
   Vec3 in_plane = rel + n * h;
-  double beyond = std::max(0.0, len3(in_plane) - g.radius);
+  double beyond = std::max(0.0, length(in_plane) - g.radius);
   return {std::sqrt(h * h + beyond * beyond), h};
 }
 
@@ -106,8 +96,8 @@ void find_folds(const mesh::RoomMesh& m, const mesh::DeformInput& in, double fol
   std::vector<double> worst(nt, 0.0);
   for (size_t t = 0; t < nt; ++t) {
     Vec3 a = vec(m.positions[m.indices[3 * t]]);
-    face[t] = cross3(vec(m.positions[m.indices[3 * t + 1]]) - a,
-                     vec(m.positions[m.indices[3 * t + 2]]) - a);
+    face[t] = cross(vec(m.positions[m.indices[3 * t + 1]]) - a,
+                    vec(m.positions[m.indices[3 * t + 2]]) - a);
   }
   std::unordered_map<uint64_t, std::pair<uint32_t, uint32_t>> edges;
   edges.reserve(2 * nt);
@@ -121,9 +111,9 @@ void find_folds(const mesh::RoomMesh& m, const mesh::DeformInput& in, double fol
   }
   for (const auto& [key, tt] : edges) {
     if (tt.second == UINT32_MAX) continue;
-    double la = len3(face[tt.first]), lb = len3(face[tt.second]);
+    double la = length(face[tt.first]), lb = length(face[tt.second]);
     if (la == 0 || lb == 0) continue;
-    double c = std::clamp(dot3(face[tt.first], face[tt.second]) / (la * lb), -1.0, 1.0);
+    double c = std::clamp(dot(face[tt.first], face[tt.second]) / (la * lb), -1.0, 1.0);
     double angle = std::acos(c) * kDegrees;
     worst[tt.first] = std::max(worst[tt.first], angle);
     worst[tt.second] = std::max(worst[tt.second], angle);
@@ -139,11 +129,11 @@ void find_folds(const mesh::RoomMesh& m, const mesh::DeformInput& in, double fol
       stitch = stitch || m.rim_portal[v] >= 0;
       centroid = centroid + vec(m.positions[v]) * (1.0 / 3.0);
     }
-    if (!(dot3(face[t], vn) < 0) && !(worst[t] > fold_degrees)) continue;
+    if (!(dot(face[t], vn) < 0) && !(worst[t] > fold_degrees)) continue;
     FoldedTriangle f;
     f.stitch = stitch;
     f.worst_dihedral = worst[t];
-    f.area = 0.5 * len3(face[t]);
+    f.area = 0.5 * length(face[t]);
     f.portal_distance = 1e300;
     f.plane_height = 1e300;
     for (const auto& g : in.portals) {
@@ -167,7 +157,7 @@ std::vector<char> donor_folds(const mesh::DonorSphere& d, std::span<const float3
   std::vector<Vec3> face(nt), vn(d.directions.size(), Vec3{0, 0, 0});
   for (size_t t = 0; t < nt; ++t) {
     uint32_t a = d.indices[3 * t], b = d.indices[3 * t + 1], c = d.indices[3 * t + 2];
-    face[t] = cross3(vec(pos[b]) - vec(pos[a]), vec(pos[c]) - vec(pos[a]));
+    face[t] = cross(vec(pos[b]) - vec(pos[a]), vec(pos[c]) - vec(pos[a]));
     if (!kept[t]) continue;
     for (uint32_t v : {a, b, c})
       vn[v] = vn[v] + face[t];
@@ -176,12 +166,12 @@ std::vector<char> donor_folds(const mesh::DonorSphere& d, std::span<const float3
   for (size_t t = 0; t < nt; ++t) {
     if (!kept[t]) continue;
     Vec3 s = vn[d.indices[3 * t]] + vn[d.indices[3 * t + 1]] + vn[d.indices[3 * t + 2]];
-    bool fold = dot3(face[t], s) < 0;
+    bool fold = dot(face[t], s) < 0;
     for (int k = 0; k < 3 && !fold; ++k) {
       uint32_t u = d.neighbours[3 * t + k];
-      double la = len3(face[t]), lb = len3(face[u]);
+      double la = length(face[t]), lb = length(face[u]);
       if (!kept[u] || la == 0 || lb == 0) continue;
-      double angle = std::acos(std::clamp(dot3(face[t], face[u]) / (la * lb), -1.0, 1.0));
+      double angle = std::acos(std::clamp(dot(face[t], face[u]) / (la * lb), -1.0, 1.0));
       fold = angle * kDegrees > fold_degrees;
     }
     out[t] = fold;
@@ -246,21 +236,9 @@ int main(int argc, char** argv) {
     mesh::MeshContext flat = mesh::MeshContext::create(*world, flat_params).value();
 
     // mesh_sweep's draw: the same sample seed gives the same sectors.
-    std::vector<cave::SectorCoord> sectors;
-    Rng rng(hash_words(sample_seed, seed));
-    for (int i = 0; i < sample; ++i) {
-      cave::SectorCoord s;
-      for (int a = 0; a < 3; ++a)
-        s[a] = static_cast<int32_t>(rng.below(static_cast<uint32_t>(2 * spread + 1))) - spread;
-      sectors.push_back(s);
-    }
-    std::vector<cave::Room> rooms;
-    std::set<cave::RoomId> seen;
-    for (cave::SectorCoord s : sectors) {
-      for (cave::Room& r : cave::generate_region(*world, s, s).rooms) {
-        if (seen.insert(r.id).second) rooms.push_back(std::move(r));
-      }
-    }
+    const std::vector<cave::SectorCoord> sectors =
+        bench::sample_sectors(seed, sample_seed, sample, spread);
+    std::vector<cave::Room> rooms = bench::rooms_of(*world, sectors);
     for (const std::string& lod_name : lod_names) {
       const mesh::Lod lod = lod_name == "patch" ? mesh::Lod::kPatch : mesh::Lod::kDetail;
       std::vector<RoomFolds> out(rooms.size());
@@ -283,7 +261,7 @@ int main(int argc, char** argv) {
           }
           f.room_radius = r.sphere.radius;
           f.portals = static_cast<int>(r.portals.size());
-          if (r.portals.size() == 2) f.facing = -dot3(r.portals[0].normal, r.portals[1].normal);
+          if (r.portals.size() == 2) f.facing = -dot(r.portals[0].normal, r.portals[1].normal);
           for (const cave::Portal& p : r.portals)
             f.largest_portal_ratio = std::max(f.largest_portal_ratio, p.radius / r.sphere.radius);
           find_folds(*m, in, fold_degrees, f);
@@ -336,11 +314,11 @@ int main(int argc, char** argv) {
             for (int k = 0; k < 3; ++k) {
               uint32_t v = d.indices[3 * dt + k], w = d.indices[3 * dt + (k + 1) % 3];
               disp[k] = vec(pos[v]) - vec(p_smooth[v]);
-              noise = std::max(noise, len3(disp[k]));
-              edge = std::max(edge, len3(vec(p_smooth[v]) - vec(p_smooth[w])));
+              noise = std::max(noise, length(disp[k]));
+              edge = std::max(edge, length(vec(p_smooth[v]) - vec(p_smooth[w])));
             }
             for (int k = 0; k < 3; ++k)
-              spread_noise = std::max(spread_noise, len3(disp[k] - disp[(k + 1) % 3]));
+              spread_noise = std::max(spread_noise, length(disp[k] - disp[(k + 1) % 3]));
             t.axis_offset = 1e300;
             const Vec3 o{in.record.ox, in.record.oy, in.record.oz};
             for (int k = 0; k < 3; ++k) {
@@ -349,7 +327,7 @@ int main(int argc, char** argv) {
                 const auto& g = in.portals[pi];
                 const Vec3 n{g.nx, g.ny, g.nz};
                 const Vec3 rel = sp - Vec3{g.cx, g.cy, g.cz};
-                const double off = len3(rel - n * dot3(rel, n));
+                const double off = length(rel - n * dot(rel, n));
                 if (off < t.axis_offset) t.axis_offset = off, t.axis_portal = static_cast<int>(pi);
               }
             }

@@ -12,11 +12,10 @@
 #include <fstream>
 #include <mutex>
 #include <nlohmann/json.hpp>
-#include <set>
 #include <thread>
 
-#include "core/random.hpp"
 #include "mesh/room_mesh.hpp"
+#include "sector_sample.hpp"
 #include "timing.hpp"
 
 namespace {
@@ -116,21 +115,9 @@ int main(int argc, char** argv) {
     }
     mesh::MeshContext ctx = mesh::MeshContext::create(*world, mesh::MeshParams{}).value();
     std::vector<cave::SectorCoord> sectors = extra;
-    Rng rng(hash_words(sample_seed, seed));
-    for (int i = 0; i < sample; ++i) {
-      cave::SectorCoord s;
-      for (int a = 0; a < 3; ++a)
-        s[a] = static_cast<int32_t>(rng.below(static_cast<uint32_t>(2 * spread + 1))) - spread;
+    for (cave::SectorCoord s : bench::sample_sectors(seed, sample_seed, sample, spread))
       sectors.push_back(s);
-    }
-    // A sector's interior rooms and the gates of its faces, each room once.
-    std::vector<cave::Room> rooms;
-    std::set<cave::RoomId> seen;
-    for (cave::SectorCoord s : sectors) {
-      for (cave::Room& r : cave::generate_region(*world, s, s).rooms) {
-        if (seen.insert(r.id).second) rooms.push_back(std::move(r));
-      }
-    }
+    std::vector<cave::Room> rooms = bench::rooms_of(*world, sectors);
     std::vector<mesh::Lod> lods;
     for (const std::string& name : lod_names)
       lods.push_back(name == "patch" ? mesh::Lod::kPatch : mesh::Lod::kDetail);

@@ -5,13 +5,6 @@
 #include <limits>
 
 namespace grotto::tools {
-namespace {
-
-Vec3 cross(Vec3 a, Vec3 b) {
-  return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
-}
-
-}  // namespace
 
 std::vector<unsigned char> render_preview(const std::vector<mesh::RoomMesh>& meshes,
                                           const PreviewOptions& o) {

@@ -19,10 +19,6 @@ double portal_wall_radius(double portal_radius) {
 
 constexpr double kCell = 1.0;  // metres: a patch triangle spans about one to three cells
 
-Vec3 cross(Vec3 a, Vec3 b) {
-  return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
-}
-
 bool boxes_overlap(Vec3 lo_a, Vec3 hi_a, Vec3 lo_b, Vec3 hi_b) {
   for (int i = 0; i < 3; ++i)
     if (hi_a[i] < lo_b[i] || hi_b[i] < lo_a[i]) return false;

@@ -34,10 +34,6 @@ glm::vec3 to_vec3(Vec3 v) {
   return {static_cast<float>(v.x), static_cast<float>(v.y), static_cast<float>(v.z)};
 }
 
-Vec3 cross(Vec3 a, Vec3 b) {
-  return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
-}
-
 Vec3 normalized(Vec3 v) {
   double n = std::sqrt(v.x * v.x + v.y * v.y + v.z * v.z);
   return n > 0 ? Vec3{v.x / n, v.y / n, v.z / n} : Vec3{0, 0, 0};

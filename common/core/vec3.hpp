@@ -38,6 +38,9 @@ constexpr Vec3 hadamard(Vec3 a, Vec3 b) {
 constexpr double dot(Vec3 a, Vec3 b) {
   return a.x * b.x + a.y * b.y + a.z * b.z;
 }
+constexpr Vec3 cross(Vec3 a, Vec3 b) {
+  return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
+}
 constexpr double length_squared(Vec3 a) {
   return dot(a, a);
 }

@@ -7,13 +7,6 @@
 #include "core/grid.hpp"
 
 namespace grotto::mesh {
-namespace {
-
-Vec3 cross(Vec3 a, Vec3 b) {
-  return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
-}
-
-}  // namespace
 
 int rim_vertex_count(double radius, double edge_length) {
   return std::max(8, static_cast<int>(std::ceil(2.0 * detmath::kPi * radius / edge_length)));

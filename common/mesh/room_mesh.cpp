@@ -24,10 +24,6 @@ Vec3 to_vec(float3 f) {
 float3 to_f3(Vec3 v) {
   return {static_cast<float>(v.x), static_cast<float>(v.y), static_cast<float>(v.z)};
 }
-Vec3 cross(Vec3 a, Vec3 b) {
-  return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
-}
-
 // Height of a room-frame point above a portal plane, on the room's side positive.
 double height(const core::GrottoPortal& p, Vec3 v) {
   return -((v.x - p.cx) * p.nx + (v.y - p.cy) * p.ny + (v.z - p.cz) * p.nz);
