@@ -146,10 +146,11 @@ void Conversation::delivery(Delivery d) {
     return send_error(std::move(e));
   }
   if (config_.limits.max_kbps == 0) {
+    const uint64_t due = it->second.due_ms;
     in_flight_.erase(it);
     ++rooms_sent_;
     if (metrics_) metrics_->rooms_served.add();
-    return emit(act::SendRoom{std::move(d.room)});
+    return emit(act::SendRoom{std::move(d.room), due});
   }
   // Asked again while waiting, it may be delivered twice: it waits once.
   if (!it->second.ready) ++waiting_;
@@ -180,12 +181,13 @@ void Conversation::send_ready() {
       }
     }
     RoomPtr room = std::move(next->second.ready);
+    const uint64_t due = next->second.due_ms;
     in_flight_.erase(next);
     --waiting_;
     bytes_tokens_ -= static_cast<double>(room->frame.size());
     ++rooms_sent_;
     if (metrics_) metrics_->rooms_served.add();
-    emit(act::SendRoom{std::move(room)});
+    emit(act::SendRoom{std::move(room), due});
   }
   if (waiting_ > 0) {
     if (metrics_) metrics_->bandwidth_waits.add();
@@ -331,9 +333,11 @@ void Conversation::on(const proto::Request& m) {
         m.ref));
   }
   std::vector<cave::RoomId> relod;
+  const uint64_t now = config_.steady_ms();
   for (const auto& w : m.rooms) {
     auto [it, inserted] =
-        in_flight_.try_emplace(w.id.packed(), InFlight{w.lod, w.priority, m.ref, nullptr});
+        in_flight_.try_emplace(w.id.packed(), InFlight{w.lod, w.priority, m.ref, 0, nullptr});
+    it->second.due_ms = now + w.priority;
     // Re-requested: the generator replaces its priority; a new lod replaces the old one, so the
     // old lod's want goes (and a room of the old lod waiting for bandwidth). An error about the
     // room names the latest request.

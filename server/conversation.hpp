@@ -57,6 +57,9 @@ struct SendText {  // a control message (JSON text frame)
 };
 struct SendRoom {  // a room frame (binary), shared with the cache
   RoomPtr room;
+  // When the player can reach the room (steady ms: its request's arrival + priority): the send
+  // queue puts frames due sooner first (send_queue.hpp).
+  uint64_t due_ms = 0;
   friend bool operator==(const SendRoom&, const SendRoom&) = default;
 };
 struct Want {  // Generator::request, in this order (sorted by priority, stable)
@@ -146,6 +149,7 @@ class Conversation {
     uint32_t lod = 0;
     uint32_t priority = 0;
     proto::Ref ref;  // of the request that named it, copied into an error about the room
+    uint64_t due_ms = 0;  // steady_ms of the latest request naming it + its priority
     RoomPtr ready;   // built, waiting for bandwidth (Limits::max_kbps); it is still in flight
   };
 

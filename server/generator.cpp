@@ -256,11 +256,17 @@ struct Generator::State {
   // Moves up to `limit` queued jobs into `batch`, one per client in turn, starting after the
   // client served last: first only urgent wants (GeneratorConfig::urgent_within), then any. A
   // client's turn takes its smallest priority. All jobs of a batch share the lod of its first
-  // job; worlds may mix (one launch serves them all).
-  void take(std::vector<JobPtr>& batch, size_t limit) {
+  // job; worlds may mix (one launch serves them all). A batch holding urgent jobs is not topped
+  // up with prefetch (`urgent` says it holds some): its rooms are built, encoded and delivered
+  // before far ones, each as soon as it is encoded, while the other workers take the prefetch.
+  void take(std::vector<JobPtr>& batch, size_t limit, bool& urgent) {
     const auto urgent_until = Clock::now() + config.urgent_within;
-    if (config.urgent_within.count() > 0) take(batch, limit, true, urgent_until);
-    take(batch, limit, false, urgent_until);
+    if (config.urgent_within.count() > 0) {
+      const size_t before = batch.size();
+      take(batch, limit, true, urgent_until);
+      if (batch.size() > before) urgent = true;
+    }
+    if (!urgent) take(batch, limit, false, urgent_until);
   }
 
   void take(std::vector<JobPtr>& batch, size_t limit, bool urgent_only,
@@ -315,10 +321,16 @@ struct Generator::State {
 
   // ---- outside the lock ----
 
-  // Layout, build, encode: one outcome per job, in order.
-  std::vector<Result<RoomPtr>> build(kernels::RoomBuilder& builder,
-                                     const std::vector<JobPtr>& batch) {
-    std::vector<Result<RoomPtr>> results(batch.size(), Result<RoomPtr>(RoomPtr{}));
+  // Layout and build: a mesh (or the error) per job of the batch, in order, and each job's room.
+  struct Built {
+    std::vector<Result<mesh::RoomMesh>> meshes;
+    std::vector<cave::Room> rooms;  // rooms[i] is batch[i]'s when meshes[i] holds a mesh
+    double build_each = 0;          // seconds per room of the one build call
+  };
+  Built build(kernels::RoomBuilder& builder, const std::vector<JobPtr>& batch) {
+    Built out;
+    out.meshes.assign(batch.size(), Result<mesh::RoomMesh>(mesh::RoomMesh{}));
+    out.rooms.resize(batch.size());
     std::vector<cave::Room> rooms;
     std::vector<const mesh::MeshContext*> contexts;  // rooms[k]'s world's
     std::vector<size_t> slots;
@@ -326,55 +338,59 @@ struct Generator::State {
       WorldSlot& world = *batch[i]->world;
       Result<cave::Room> room = world.sectors.room(batch[i]->key.id);
       if (!room) {
-        results[i] = room.error();
+        out.meshes[i] = room.error();
         continue;
       }
       rooms.push_back(std::move(room).value());
       contexts.push_back(&world.mesh_ctx);
       slots.push_back(i);
     }
-    if (rooms.empty()) return results;
+    if (rooms.empty()) return out;
     uint8_t lod = batch.front()->key.lod;
     auto t0 = Clock::now();
     std::vector<Result<mesh::RoomMesh>> meshes =
         builder.build(contexts, rooms, *proto::mesh_lod(lod));
-    double build_each = seconds_between(t0, Clock::now()) / static_cast<double>(rooms.size());
+    out.build_each = seconds_between(t0, Clock::now()) / static_cast<double>(rooms.size());
     metrics.batches.add();
     for (size_t k = 0; k < rooms.size(); ++k) {
       size_t i = slots[k];
       if (!meshes[k]) {
         spdlog::warn("event=room_build_failed seed={} room={} lod={} error=\"{}\"",
                      batch[i]->key.seed, rooms[k].id.to_string(), lod, meshes[k].error().message);
-        results[i] =
+        out.meshes[i] =
             Error{ErrorCode::kInternal, "room " + rooms[k].id.to_string() +
                                             " could not be built: " + meshes[k].error().message};
         continue;
       }
-      const mesh::RoomMesh& m = *meshes[k];
-      auto t1 = Clock::now();
-      const uint32_t version = batch[i]->key.version;
-      codec::EncodeOptions options;
-      options.normals = proto::payload_has_normals(version);
-      Result<std::vector<uint8_t>> payload = codec::encode_room(m, options);
-      if (!payload) {
-        spdlog::warn("event=room_encode_failed seed={} room={} lod={} error=\"{}\"",
-                     batch[i]->key.seed, rooms[k].id.to_string(), lod, payload.error().message);
-        results[i] =
-            Error{ErrorCode::kInternal, "room " + rooms[k].id.to_string() +
-                                            " could not be encoded: " + payload.error().message};
-        continue;
-      }
-      auto encoded = std::make_shared<EncodedRoom>();
-      encoded->key = batch[i]->key;
-      encoded->frame = proto::encode_room_frame(rooms[k], lod, m.origin, *payload, version);
-      encoded->build_seconds = build_each;
-      encoded->encode_seconds = seconds_between(t1, Clock::now());
-      metrics.build_seconds.observe(encoded->build_seconds);
-      metrics.encode_seconds.observe(encoded->encode_seconds);
-      metrics.rooms_built.add();
-      results[i] = RoomPtr(std::move(encoded));
+      out.meshes[i] = std::move(meshes[k]);
+      out.rooms[i] = std::move(rooms[k]);
     }
-    return results;
+    return out;
+  }
+
+  // Encodes one built room into its frame.
+  Result<RoomPtr> encode(const Job& job, const cave::Room& room, const mesh::RoomMesh& m,
+                         double build_seconds) {
+    auto t1 = Clock::now();
+    const uint32_t version = job.key.version;
+    codec::EncodeOptions options;
+    options.normals = proto::payload_has_normals(version);
+    Result<std::vector<uint8_t>> payload = codec::encode_room(m, options);
+    if (!payload) {
+      spdlog::warn("event=room_encode_failed seed={} room={} lod={} error=\"{}\"", job.key.seed,
+                   room.id.to_string(), job.key.lod, payload.error().message);
+      return Error{ErrorCode::kInternal, "room " + room.id.to_string() +
+                                             " could not be encoded: " + payload.error().message};
+    }
+    auto encoded = std::make_shared<EncodedRoom>();
+    encoded->key = job.key;
+    encoded->frame = proto::encode_room_frame(room, job.key.lod, m.origin, *payload, version);
+    encoded->build_seconds = build_seconds;
+    encoded->encode_seconds = seconds_between(t1, Clock::now());
+    metrics.build_seconds.observe(encoded->build_seconds);
+    metrics.encode_seconds.observe(encoded->encode_seconds);
+    metrics.rooms_built.add();
+    return RoomPtr(std::move(encoded));
   }
 
   void worker_main(size_t index) {
@@ -401,7 +417,8 @@ struct Generator::State {
         continue;
       }
       std::vector<JobPtr> batch;
-      take(batch, max_batch);
+      bool urgent = false;
+      take(batch, max_batch, urgent);
       // Work this batch cannot take (another lod): another worker's, now.
       if (queued_jobs > 0) work_cv.notify_one();
       if (batch.size() < max_batch && !batch.empty() && config.max_batch_wait.count() > 0) {
@@ -409,9 +426,9 @@ struct Generator::State {
         auto until = Clock::now() + config.max_batch_wait;
         while (batch.size() < max_batch && !stopping &&
                work_cv.wait_until(lock, until) == std::cv_status::no_timeout) {
-          take(batch, max_batch);
+          take(batch, max_batch, urgent);
         }
-        take(batch, max_batch);
+        take(batch, max_batch, urgent);
       }
       if (queued_jobs > 0) work_cv.notify_one();  // work left: wake another worker
       // Jobs cancelled by everyone while the batch filled are not built.
@@ -426,15 +443,24 @@ struct Generator::State {
         continue;
       }
       lock.unlock();
-      std::vector<Result<RoomPtr>> results = build(builder, batch);
-      lock.lock();
+      Built built = build(builder, batch);
+      // Each room goes to its players as soon as it is encoded (the batch is in take's order:
+      // urgent first), not when the whole batch is.
       for (size_t i = 0; i < batch.size(); ++i) {
-        if (results[i]) {
-          cache.insert(*results[i]);
-          finish_job(batch[i], *results[i], std::nullopt, out);
+        Result<RoomPtr> result =
+            built.meshes[i] ? encode(*batch[i], built.rooms[i], *built.meshes[i], built.build_each)
+                            : Result<RoomPtr>(built.meshes[i].error());
+        lock.lock();
+        if (result) {
+          cache.insert(*result);
+          finish_job(batch[i], *result, std::nullopt, out);
         } else {
           metrics.rooms_failed.add();
-          finish_job(batch[i], nullptr, results[i].error(), out);
+          finish_job(batch[i], nullptr, result.error(), out);
+        }
+        if (i + 1 < batch.size()) {
+          deliver(lock, out);
+          lock.unlock();
         }
       }
       deliver(lock, out);

@@ -36,6 +36,7 @@
 #include "proto/token.hpp"
 #include "proto/world_digest.hpp"
 #include "server/conversation.hpp"
+#include "server/send_queue.hpp"
 
 namespace grotto::server {
 namespace {
@@ -293,12 +294,6 @@ class WsSession : public std::enable_shared_from_this<WsSession>, private WorldP
   }
 
  private:
-  struct Outgoing {
-    std::string text;  // a control message, or
-    RoomPtr room;      // a room frame (shared with the cache, not copied)
-    size_t size() const { return room ? room->frame.size() : text.size(); }
-  };
-
   std::string endpoint_text() {
     beast::error_code ec;
     auto ep = beast::get_lowest_layer(ws_).socket().remote_endpoint(ec);
@@ -392,8 +387,8 @@ class WsSession : public std::enable_shared_from_this<WsSession>, private WorldP
     }
   }
 
-  void carry_out(act::SendText& a) { enqueue(Outgoing{std::move(a.text), nullptr}); }
-  void carry_out(act::SendRoom& a) { enqueue(Outgoing{{}, std::move(a.room)}); }
+  void carry_out(act::SendText& a) { enqueue(Outgoing{std::move(a.text), nullptr, 0}); }
+  void carry_out(act::SendRoom& a) { enqueue(Outgoing{{}, std::move(a.room), a.due_ms}); }
   void carry_out(act::Want& a) { server_.generator->request(a.client, a.rooms); }
   void carry_out(act::Drop& a) { server_.generator->cancel(a.client, a.rooms); }
   void carry_out(act::Release& a) {
@@ -413,7 +408,7 @@ class WsSession : public std::enable_shared_from_this<WsSession>, private WorldP
     close_code_ = websocket::close_reason(static_cast<websocket::close_code>(a.code), a.reason);
     close_after_flush_ = true;
     begin_closing(dropped_ ? kCloseGrace : server_.config.http_timeout);
-    if (!writing_) do_write();
+    if (!queue_.writing()) do_write();
   }
 
   void on_timer(beast::error_code ec) {
@@ -469,27 +464,26 @@ class WsSession : public std::enable_shared_from_this<WsSession>, private WorldP
     do_read();
   }
 
-  // ---- writing: one async_write in flight, the rest queued up to send_queue_bytes ----
+  // ---- writing: one async_write in flight, the rest queued (SendQueue: the most urgent room
+  // first) up to send_queue_bytes ----
 
   void enqueue(Outgoing out) {
     if (dropped_) return;
-    queued_bytes_ += out.size();
-    queue_.push_back(std::move(out));
+    queue_.push(std::move(out));
     // A single message larger than the limit still goes out when nothing else waits.
-    if (queue_.size() > 1 && queued_bytes_ > server_.config.send_queue_bytes) {
+    if (queue_.size() > 1 && queue_.bytes() > server_.config.send_queue_bytes) {
       drop_slow_client();
       return;
     }
-    if (!writing_) do_write();
+    if (!queue_.writing()) do_write();
   }
 
   void do_write() {
     if (queue_.empty()) {
-      writing_ = false;
       if (close_after_flush_) do_close();
       return;
     }
-    writing_ = true;
+    queue_.start_write();
     const Outgoing& front = queue_.front();
     if (front.room) {
       ws_.binary(true);
@@ -504,7 +498,7 @@ class WsSession : public std::enable_shared_from_this<WsSession>, private WorldP
 
   void on_write(beast::error_code ec, std::size_t bytes) {
     if (ec) {
-      writing_ = false;
+      queue_.pop_front();  // Beast is done with its buffer
       closing_ = true;
       timer_.cancel();
       pace_timer_.cancel();
@@ -513,7 +507,6 @@ class WsSession : public std::enable_shared_from_this<WsSession>, private WorldP
     }
     conversation_->sent(bytes);
     server_.metrics.bytes_sent.add(bytes);
-    queued_bytes_ -= queue_.front().size();
     queue_.pop_front();
     do_write();
   }
@@ -523,11 +516,8 @@ class WsSession : public std::enable_shared_from_this<WsSession>, private WorldP
   void drop_slow_client() {
     dropped_ = true;
     // The front is being written (Beast holds its buffer); everything behind it goes now.
-    while (queue_.size() > 1) {
-      queued_bytes_ -= queue_.back().size();
-      queue_.pop_back();
-    }
-    conversation_->slow_client(queued_bytes_);
+    queue_.drop_waiting();
+    conversation_->slow_client(queue_.bytes());
     apply();
   }
 
@@ -566,10 +556,7 @@ class WsSession : public std::enable_shared_from_this<WsSession>, private WorldP
       conversation_->transport_closed();
       apply_releases();
     }
-    if (!writing_) {
-      queue_.clear();
-      queued_bytes_ = 0;
-    }
+    if (!queue_.writing()) queue_.clear();
   }
 
   // After the transport is gone only releases are carried out; nothing more is sent.
@@ -593,12 +580,10 @@ class WsSession : public std::enable_shared_from_this<WsSession>, private WorldP
   ClientId client_ = 0;  // the generator's client, until the conversation releases it
   bool closing_ = false;
   bool dropped_ = false;
-  bool writing_ = false;
   bool close_after_flush_ = false;
   bool close_started_ = false;
   websocket::close_reason close_code_;
-  std::deque<Outgoing> queue_;
-  size_t queued_bytes_ = 0;
+  SendQueue queue_;
 };
 
 // ---- HTTP session: health, metrics, version, and the upgrade to /ws ----

@@ -71,7 +71,12 @@ grotto_stream* grotto_stream_create(const grotto_stream_config* config, char* er
     if (config->name) c.name = config->name;
     c.lod = config->lod;
     if (config->horizon_s != 0) c.horizon_s = config->horizon_s;
-    c.min_horizon_s = config->min_horizon_s;
+    // Zero means the default (adaptive, grotto::StreamConfig's floor); negative, fixed.
+    if (config->min_horizon_s < 0) {
+      c.min_horizon_s = 0;
+    } else if (config->min_horizon_s != 0) {
+      c.min_horizon_s = config->min_horizon_s;
+    }
     if (config->memory_budget_bytes != 0) c.memory_budget_bytes = config->memory_budget_bytes;
     c.decode_threads = config->decode_threads;
     std::string why;

@@ -5,6 +5,7 @@
 #include <spdlog/spdlog.h>
 
 #include <array>
+#include <cmath>
 #include <chrono>
 #include <memory>
 #include <string>
@@ -97,8 +98,8 @@ std::unique_ptr<Stream> Stream::start(const StreamConfig& config, std::string* e
   std::string why;
   if (config.decode_threads < 0 || config.decode_threads > 64) {
     why = "decode_threads must be in [0, 64]";
-  } else if (!(config.min_horizon_s >= 0 && config.min_horizon_s <= config.horizon_s)) {
-    why = "min_horizon_s must be in [0, horizon_s]";
+  } else if (!(config.min_horizon_s >= 0) || !std::isfinite(config.min_horizon_s)) {
+    why = "min_horizon_s must be 0 (fixed horizon) or a positive number of seconds";
   } else if (Status valid = client::validate_options(o); !valid) {
     why = valid.error().message;
   }

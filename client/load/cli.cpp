@@ -78,8 +78,9 @@ CommandLine parse_command_line(int argc, const char* const* argv) {
                  "soak)")
       ->capture_default_str();
   app.add_option("--min-horizon", o.min_horizon_s,
-                 "Adaptive prefetch: the horizon follows the rooms' latency (1 s + 2 x its recent "
-                 "p90) between this and --horizon; 0: always --horizon (walk, soak)")
+                 "Adaptive prefetch (the default): the horizon follows the latency of the rooms "
+                 "due within a second (1 s + 2 x their recent p90) between this and --horizon, "
+                 "starting here; 0: the fixed horizon, always --horizon (walk, soak)")
       ->capture_default_str();
   app.add_option("--protocol", o.protocol_version,
                  "Protocol version offered in hello: 0 every version this client speaks (the "

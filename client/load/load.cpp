@@ -3,6 +3,7 @@
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
+#include <cmath>
 #include <chrono>
 #include <cstdio>
 #include <map>
@@ -91,8 +92,8 @@ Status check(const LoadOptions& o) {
     return invalid_argument("--players must be in [1, 10000]");
   if (!(o.speed > 0)) return invalid_argument("--speed must be > 0");
   if (!(o.horizon_s > 0)) return invalid_argument("--horizon must be > 0");
-  if (!(o.min_horizon_s >= 0 && o.min_horizon_s <= o.horizon_s)) {
-    return invalid_argument("--min-horizon must be in [0, --horizon]");
+  if (!(o.min_horizon_s >= 0) || !std::isfinite(o.min_horizon_s)) {
+    return invalid_argument("--min-horizon must be 0 (fixed horizon) or a positive number");
   }
   if (!(o.radius_m > 0)) return invalid_argument("--radius must be > 0");
   if (!(o.duration_s >= 0)) return invalid_argument("--duration must be >= 0");
@@ -243,7 +244,7 @@ Result<LoadReport> run_load(const LoadOptions& options) {
     so.name = "grotto-load";
     so.token = options.token;
     so.plan = plan_options;
-    if (!burst) so.min_horizon_s = options.min_horizon_s;
+    so.min_horizon_s = burst ? 0 : options.min_horizon_s;  // burst wants its radius at once
     so.protocol_version = options.protocol_version;
     so.spawn = !options.spread;
     so.store_bytes = options.store_bytes;

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "client/load/report.hpp"
+#include "client/stream/options.hpp"
 #include "client/load/walker.hpp"
 #include "core/result.hpp"
 
@@ -33,7 +34,9 @@ struct LoadOptions {
   double duration_s = 0;          // 0: the mode's default (walk 20, soak 600, burst 60: a bound)
   double speed = 4.0;             // m/s walking (bursts of running: walker.burst_factor)
   double horizon_s = 4.0;         // the Streams' prefetch horizon (walk and soak)
-  double min_horizon_s = 0;       // > 0: adaptive horizon within [this, horizon_s] (StreamOptions)
+  // Adaptive horizon within [min(this, horizon_s), horizon_s] (StreamOptions::min_horizon_s,
+  // the default); 0: the fixed horizon_s.
+  double min_horizon_s = kDefaultMinHorizonS;
   uint32_t protocol_version = 0;  // offered in hello: 0 every version, else that one
   double radius_m = 60;           // burst mode: the radius wanted (horizon = radius / speed)
   // The world. Embedded: the seed it serves (absent: ServerConfig's default). Remote: the world

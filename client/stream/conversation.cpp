@@ -151,8 +151,11 @@ Actions Conversation::binary(std::span<const uint8_t> bytes, SteadyTime now) {
   sample.id = id;
   sample.frame_bytes = bytes.size();
   sample.latency_ms = ms_between(it->second.sent, now);
-  recent_latency_ms_.push_back(sample.latency_ms);
-  if (recent_latency_ms_.size() > kLatencyWindow) recent_latency_ms_.pop_front();
+  const SteadyTime due = it->second.sent + std::chrono::milliseconds(it->second.priority);
+  if (it->second.priority <= kUrgentPriorityMs) {
+    recent_latency_ms_.push_back({now, sample.latency_ms});
+    if (recent_latency_ms_.size() > kLatencyWindow) recent_latency_ms_.pop_front();
+  }
   in_flight_.erase(it);
   if (auto added = graph_.add(frame.room); !added) {
     ++stats_.rooms_rejected;
@@ -170,6 +173,7 @@ Actions Conversation::binary(std::span<const uint8_t> bytes, SteadyTime now) {
   job.frame = std::move(frame);
   job.sample = sample;
   job.epoch = epoch_;
+  job.due = due;
   out.emplace_back(std::in_place_type<DecodeRoom>, std::move(job));
   plan(now, out);  // the new descriptor's portals extend the graph
   return out;
@@ -458,18 +462,27 @@ void Conversation::on_message(const proto::ErrorMessage& e, SteadyTime now, Acti
 
 // Rooms must arrive before the player reaches them: the horizon covers the time a room takes to
 // come (the p90 of recent latencies, doubled for its spread) and a second for decoding, a turn and
-// a sprint's start. Rooms still in flight count with the time they have waited so far, so a
-// server that slows down widens the horizon before its late rooms arrive. Without samples (a new
-// stream, or a server that sent nothing yet) it is the maximum, so a slow start is not made slower.
+// a sprint's start. Only the urgent class counts (rooms requested with a priority within
+// kUrgentPriorityMs): those are what the player walks into next, and the server takes them before
+// everyone's far prefetch, so their latency is how long the next room takes. Far rooms' latency
+// is the server's backlog of prefetch; widening the horizon on it would ask for more of what
+// makes the backlog (a crowd arriving at once drove every horizon to the maximum, and the backlog
+// to 10-14 s). Urgent rooms still in flight count with the time they have waited so far, so a
+// server that slows down widens the horizon before its late rooms arrive. A stream starts at the
+// floor: its first rooms are the nearest, and their latency says what the server can do.
 double Conversation::horizon_s(SteadyTime now) const {
   const double max = options_.plan.horizon_s;
-  if (options_.min_horizon_s <= 0 || recent_latency_ms_.empty()) return max;
-  std::vector<double> waits(recent_latency_ms_.begin(), recent_latency_ms_.end());
+  if (options_.min_horizon_s <= 0) return max;
+  const double floor = std::min(options_.min_horizon_s, max);
+  std::vector<double> waits;
+  for (const auto& [at, ms] : recent_latency_ms_)
+    if (now - at <= kLatencyWindowTime) waits.push_back(ms);
   for (const auto& [id, room] : in_flight_)
-    waits.push_back(ms_between(room.sent, now));
+    if (room.priority <= kUrgentPriorityMs) waits.push_back(ms_between(room.sent, now));
+  if (waits.empty()) return floor;
   std::sort(waits.begin(), waits.end());
   const double p90 = waits[std::min(waits.size() - 1, waits.size() * 9 / 10)];
-  return std::clamp(1.0 + 2.0 * p90 / 1000.0, options_.min_horizon_s, max);
+  return std::clamp(1.0 + 2.0 * p90 / 1000.0, floor, max);
 }
 
 void Conversation::send(proto::ClientMessage message, SteadyTime now, Actions& out) {

@@ -63,6 +63,9 @@ struct DecodeRoom {
   codec::DecodeLimits limits;  // limits.normals: the frame's version carries them
   RoomSample sample;           // latency and size filled; decode_ms is the decoder's to measure
   uint64_t epoch = 0;  // the world the frame belongs to (a decode finishing later may be stale)
+  // When the player can reach the room (the request's time + its priority): decodes waiting for
+  // a worker go earliest due first (decode_queue.hpp).
+  SteadyTime due;
 };
 // What carrying out DecodeRoom means: codec::decode_room with the job's limits, then, for a
 // version 2 payload, codec::derive_normals from the frame's origin and portal discs. Pure and
@@ -260,8 +263,11 @@ class Conversation {
   std::set<cave::RoomId> pinned_;             // the pinned areas' rooms, as of the last plan
   std::vector<std::shared_ptr<const ReadyRoom>> fresh_;
   std::vector<RoomSample> samples_;
-  std::deque<double> recent_latency_ms_;  // the last kLatencyWindow request->room latencies
+  // The last kLatencyWindow urgent request->room latencies (arrival, ms); those older than
+  // kLatencyWindowTime are not used: a crowd's start says nothing about the minutes after it.
+  std::deque<std::pair<SteadyTime, double>> recent_latency_ms_;
   static constexpr size_t kLatencyWindow = 32;
+  static constexpr std::chrono::seconds kLatencyWindowTime{10};
   double horizon_s_ = 0;  // the last plan's
   std::vector<cave::RoomId> evicted_;
   StreamStats stats_;

@@ -14,8 +14,10 @@ Status validate_options(const StreamOptions& options) {
   if (!(options.plan.horizon_s > 0) || !std::isfinite(options.plan.horizon_s)) {
     return invalid("horizon must be a positive number of seconds");
   }
-  if (!(options.min_horizon_s >= 0 && options.min_horizon_s <= options.plan.horizon_s)) {
-    return invalid("min_horizon_s must be in [0, horizon] seconds");
+  // A floor above the horizon means the horizon alone (a fixed one): no error, so that a caller
+  // who shortens the horizon need not know the default floor.
+  if (!(options.min_horizon_s >= 0) || !std::isfinite(options.min_horizon_s)) {
+    return invalid("min_horizon_s must be 0 (fixed horizon) or a positive number of seconds");
   }
   if (!(options.cancel_factor >= 1) || !std::isfinite(options.cancel_factor)) {
     return invalid("cancel_factor must be at least 1");

@@ -16,6 +16,13 @@
 
 namespace grotto::client {
 
+// The adaptive horizon's floor by default (StreamOptions::min_horizon_s): at 10 m/s, 15 m of
+// path, the rooms around and in front of a player (docs/BENCHMARKS.md "Capacity").
+inline constexpr double kDefaultMinHorizonS = 1.5;
+// Requests with a priority (milliseconds to reach) up to this are the urgent class: the server
+// takes them first (grotto-server --urgent-ms), and the adaptive horizon follows their latency.
+inline constexpr uint32_t kUrgentPriorityMs = 1'000;
+
 // Everything a Stream needs; brace-init plus a url works.
 struct StreamOptions {
   std::string url;                     // ws://host:port/ws (path optional, default /ws)
@@ -27,12 +34,16 @@ struct StreamOptions {
   // session: rooms of lod 0 and lod 1 do not share rims, so neighbours must be of one lod.
   uint32_t lod = 0;
   PlanOptions plan{};  // horizon and view weighting
-  // Adaptive prefetch: with min_horizon_s > 0 the horizon follows how long rooms take to come,
-  // 1 s + 2 x the p90 of the last 32 request->room latencies, kept within [min_horizon_s,
-  // plan.horizon_s]; before the first room arrives it is plan.horizon_s. A healthy server then
-  // gets asked for fewer rooms the player may never enter, and a slow one for as many as before.
-  // 0: always plan.horizon_s.
-  double min_horizon_s = 0;
+  // Adaptive prefetch (the default): the horizon follows how long the rooms a player needs soon
+  // take to come, 1 s + 2 x the p90 of the last 32 request->room latencies of rooms requested
+  // with a priority within kUrgentPriorityMs (reachable within a second; rooms still in flight
+  // count with their wait so far), kept within [min(min_horizon_s, plan.horizon_s),
+  // plan.horizon_s]; a stream starts at the floor. A healthy server then gets asked for fewer
+  // rooms the player may never enter, a uniformly slow one for as many as a fixed horizon asks,
+  // and a server busy with everyone's far prefetch is not asked for more of it (its near rooms
+  // go first and stay quick, so the horizon stays low and the backlog drains).
+  // 0: always plan.horizon_s (the fixed horizon).
+  double min_horizon_s = kDefaultMinHorizonS;
   double cancel_factor = 1.5;              // cancel a room in flight once its cost exceeds
                                            // cancel_factor × horizon (or it is unreachable)
   uint32_t max_in_flight = 64;             // own cap; the server's max_rooms_in_flight also applies
@@ -57,7 +68,8 @@ struct StreamOptions {
 };
 
 // Whether Stream::start would take `options`: the url parses (url.hpp), the horizon is a positive
-// number of seconds, cancel_factor >= 1, max_in_flight >= 1, 1 ms <= backoff_initial <=
+// number of seconds, min_horizon_s >= 0 (any floor: one above the horizon makes it fixed),
+// cancel_factor >= 1, max_in_flight >= 1, 1 ms <= backoff_initial <=
 // backoff_max, restart_spread >= backoff_initial, connect_timeout, request_timeout and
 // replan_interval >= 1 ms, max_room_failures >= 1, lod <= 255, protocol_version 0 or one this
 // library speaks, and the token, when there is one, is what proto/token.hpp accepts. Errors

@@ -31,6 +31,7 @@
 #include <thread>
 
 #include "client/stream/conversation.hpp"
+#include "client/stream/decode_queue.hpp"
 #include "codec/room_codec.hpp"
 
 namespace grotto::client {
@@ -49,6 +50,7 @@ struct Runtime::Impl {
   net::executor_work_guard<net::io_context::executor_type> work{ioc.get_executor()};
   std::vector<std::thread> io;
   net::thread_pool workers;
+  DecodeQueue decodes;  // what the workers decode next: the most urgent first
 
   Impl(int io_threads, int worker_threads)
       : workers(static_cast<size_t>(worker_threads > 0
@@ -127,8 +129,11 @@ struct Stream::Impl : std::enable_shared_from_this<Stream::Impl> {
 
   void act(SendMessage& m) { send(proto::serialize(m.message)); }
 
+  // Every Stream of the Runtime queues its decodes in one DecodeQueue; each post lets a worker
+  // take the most urgent job there, which need not be this one.
   void act(DecodeRoom& job) {
-    net::post(rt.workers, [self = shared_from_this(), job = std::move(job)]() mutable {
+    const SteadyTime due = job.due;
+    rt.decodes.push(due, [self = shared_from_this(), job = std::move(job)]() mutable {
       auto start = Clock::now();
       auto mesh = decode_payload(job);
       job.sample.decode_ms =
@@ -139,6 +144,9 @@ struct Stream::Impl : std::enable_shared_from_this<Stream::Impl> {
         self->run(self->conversation.decoded(std::move(job), std::move(mesh), Clock::now()));
         self->changed.notify_all();
       });
+    });
+    net::post(rt.workers, [&decodes = rt.decodes] {
+      if (auto next = decodes.pop()) next();
     });
   }
 

@@ -47,7 +47,8 @@ typedef struct grotto_stream_config {
   const char* name;           /* NULL: "grotto-engine"; shown in the server's logs */
   uint32_t lod;               /* wire lod: 0 the streamed patch mesh, 1 detail (when offered) */
   double horizon_s;           /* 0: 4 s. Rooms reachable within this much walking are fetched */
-  double min_horizon_s;       /* 0: fixed horizon; > 0: adapts to latency down to this */
+  double min_horizon_s;       /* 0: adaptive, floor 1.5 s; > 0: adaptive, this floor;
+                                 negative: a fixed horizon of horizon_s */
   size_t memory_budget_bytes; /* 0: 256 MiB of decoded rooms held */
   int decode_threads;         /* 0: two; at most 64 */
 } grotto_stream_config;

@@ -97,7 +97,10 @@ struct StreamConfig {
   // session: rooms of different lods do not share rims.
   uint32_t lod = 0;
   double horizon_s = 4.0;    // rooms reachable within this many seconds of walking are fetched
-  double min_horizon_s = 0;  // > 0: the horizon adapts to the server's latency, down to this
+  // The horizon adapts to how long the rooms due within a second take to come (1 s + 2 x their
+  // recent p90), between min(min_horizon_s, horizon_s) and horizon_s, starting at the floor:
+  // the default. 0: a fixed horizon of horizon_s.
+  double min_horizon_s = 1.5;
   size_t memory_budget_bytes = size_t{256} << 20;  // decoded rooms held (a patch room: 20-100 KB)
   int decode_threads = 0;                          // 0: two; at most 64
 };

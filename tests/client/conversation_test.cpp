@@ -160,8 +160,16 @@ std::vector<std::string> describe(const Actions& actions) {
 }
 
 // A conversation, its clock and the last decode it was asked for.
+// The tables were worked out for the fixed 4 s horizon (above); the adaptive one, the default,
+// has rows of its own.
+StreamOptions fixed_horizon() {
+  StreamOptions o;
+  o.min_horizon_s = 0;
+  return o;
+}
+
 struct Harness {
-  explicit Harness(StreamOptions o = {}) : options(std::move(o)), c(options, 42) {}
+  explicit Harness(StreamOptions o = fixed_horizon()) : options(std::move(o)), c(options, 42) {}
   StreamOptions options;
   Conversation c;
   SteadyTime now = SteadyTime{} + seconds(1000);
@@ -241,7 +249,7 @@ struct Row {
   StreamState next;
   std::function<void(const Harness&)> check = nullptr;  // more about the next state
   proto::Limits limits{};
-  StreamOptions options{};
+  StreamOptions options = fixed_horizon();
 };
 
 void run_table(const std::vector<Row>& rows) {
@@ -258,17 +266,17 @@ void run_table(const std::vector<Row>& rows) {
 }
 
 StreamOptions with_seed(uint64_t seed) {
-  StreamOptions o;
+  StreamOptions o = fixed_horizon();
   o.seed = seed;
   return o;
 }
 StreamOptions with_params(uint64_t params) {
-  StreamOptions o;
+  StreamOptions o = fixed_horizon();
   o.params = params;
   return o;
 }
 StreamOptions with_lod(uint32_t lod) {
-  StreamOptions o;
+  StreamOptions o = fixed_horizon();
   o.lod = lod;
   return o;
 }
@@ -843,10 +851,10 @@ TEST(Conversation, timers_limits_and_cancels_table) {
   proto::Limits two;
   two.max_rooms_in_flight = 2;
   two.max_rooms_per_request = 1;
-  StreamOptions own_cap;
+  StreamOptions own_cap = fixed_horizon();
   own_cap.max_in_flight = 3;
-  StreamOptions adaptive;
-  adaptive.min_horizon_s = 1.5;
+  const StreamOptions adaptive;  // the default
+  ASSERT_EQ(adaptive.min_horizon_s, 1.5);
   run_table({
       {"quiet tick: nothing",
        Start::kReady,
@@ -929,22 +937,60 @@ TEST(Conversation, timers_limits_and_cancels_table) {
        [](const Harness& h) { EXPECT_NEAR(h.c.stats().horizon_s, 3.4, 1e-9); },
        {},
        adaptive},
-      {"adaptive horizon: a room still waiting counts too, so a slowing server widens it",
+      {"adaptive horizon: a stream starts at the floor, and an urgent room still waiting "
+       "counts, so a slowing server widens it",
        Start::kReady,
        [](Harness& h) {
-         h.frame(frame_of(0));  // at once: 1.5 s, r4 asked for
-         h.now += seconds(2);   // r4 has waited 2 s: 1 + 2 x 2 s, at most 4 s
+         EXPECT_DOUBLE_EQ(h.c.stats().horizon_s, 1.5);  // r0 asked for at 1.5 s
+         h.now += seconds(2);  // r0 (priority 0, urgent) has waited 2 s: 1 + 2 x 2 s, at most 4 s
          Pose p;
          p.room = rid(0);
          p.speed = 4.0;
          h.c.set_pose(p);
          return h.tick(milliseconds(0));
        },
-       {"request 0.0.0.r1@0 0.0.0.r2@0 0.0.0.r3@0"},
+       {},
        StreamState::kReady,
        [](const Harness& h) { EXPECT_DOUBLE_EQ(h.c.stats().horizon_s, 4.0); },
        {},
        adaptive},
+      {"adaptive horizon: a far room waiting is the server's backlog and does not widen it",
+       Start::kReady,
+       [](Harness& h) {
+         h.frame(frame_of(0));  // at once: 1.5 s, r4 (1.25 s away: not urgent) asked for
+         h.now += seconds(2);   // r4 has waited 2 s
+         Pose p;
+         p.room = rid(0);
+         p.speed = 4.0;
+         h.c.set_pose(p);
+         return h.tick(milliseconds(0));
+       },
+       {},
+       StreamState::kReady,
+       [](const Harness& h) {
+         in_flight_is({4})(h);
+         EXPECT_DOUBLE_EQ(h.c.stats().horizon_s, 1.5);
+       },
+       {},
+       adaptive},
+      {"adaptive horizon: a far room that came late is not sampled either",
+       Start::kReady,
+       [](Harness& h) {
+         h.frame(frame_of(0));
+         h.now += seconds(2);
+         return h.frame(frame_of(4));  // 2 s late, but it was not due within a second
+       },
+       {"decode 0.0.0.r4@0"},
+       StreamState::kReady,
+       [](const Harness& h) { EXPECT_DOUBLE_EQ(h.c.stats().horizon_s, 1.5); },
+       {},
+       adaptive},
+      {"fixed horizon (min_horizon_s 0): 4 s whatever the latency",
+       Start::kReady,
+       [](Harness& h) { return h.frame(frame_of(0)); },
+       {"decode 0.0.0.r0@0", kAll4},
+       StreamState::kReady,
+       [](const Harness& h) { EXPECT_DOUBLE_EQ(h.c.stats().horizon_s, 4.0); }},
       {"adaptive horizon: never past plan.horizon_s (r5 at 4.375 s stays unasked)",
        Start::kReady,
        [](Harness& h) {
@@ -1023,7 +1069,7 @@ TEST(Conversation, timers_limits_and_cancels_table) {
 // ---- reconnect backoff ----
 
 TEST(Conversation, reconnect_backoff_doubles_with_jitter_up_to_the_cap_and_resets_on_welcome) {
-  StreamOptions o;
+  StreamOptions o = fixed_horizon();
   o.backoff_initial = milliseconds(100);
   o.backoff_max = milliseconds(1000);
   Harness h(o);
@@ -1064,7 +1110,7 @@ TEST(Conversation, reconnect_backoff_doubles_with_jitter_up_to_the_cap_and_reset
 // The players a drained replica sends away come back spread over restart_spread, not all within
 // the first 100 ms (what a replica taking 300 of them over cannot absorb at once).
 TEST(Conversation, restart_reconnects_spread_over_restart_spread) {
-  StreamOptions o;
+  StreamOptions o = fixed_horizon();
   o.restart_spread = milliseconds(2000);
   std::vector<int64_t> delays;
   for (uint64_t seed = 0; seed < 200; ++seed) {
@@ -1379,7 +1425,7 @@ TEST(Conversation, pinned_areas_table) {
 // The store keeps a pinned area's rooms however far they are from the player and however small
 // its budget, and evicts them like any other room once the area is unpinned.
 TEST(Conversation, a_pinned_areas_rooms_are_not_evicted_until_it_is_unpinned) {
-  StreamOptions o;
+  StreamOptions o = fixed_horizon();
   o.store_bytes = 1;  // every room is over budget: only what a plan keeps stays
   Harness h(o);
   reach(h, Start::kKnown, {});

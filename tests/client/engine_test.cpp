@@ -114,7 +114,10 @@ TEST(PublicStream, start_refuses_a_bad_configuration_with_the_reason) {
   EXPECT_EQ(grotto::Stream::start(config, &error), nullptr);
   EXPECT_NE(error.find("decode_threads"), std::string::npos) << error;
   config.decode_threads = 0;
-  config.min_horizon_s = 5;
+  config.min_horizon_s = -1;
+  EXPECT_EQ(grotto::Stream::start(config, &error), nullptr);
+  EXPECT_NE(error.find("min_horizon_s"), std::string::npos) << error;
+  config.min_horizon_s = std::nan("");
   EXPECT_EQ(grotto::Stream::start(config, &error), nullptr);
   EXPECT_NE(error.find("min_horizon_s"), std::string::npos) << error;
 }

@@ -27,6 +27,17 @@ TEST(StreamOptions, defaults_with_a_url_are_valid) {
   EXPECT_TRUE(validate_options(o).ok());
 }
 
+TEST(StreamOptions, the_default_horizon_is_adaptive_and_a_floor_above_it_is_no_error) {
+  StreamOptions o = good();
+  EXPECT_EQ(o.min_horizon_s, kDefaultMinHorizonS);
+  EXPECT_GT(o.min_horizon_s, 0) << "adaptive by default (issue 28)";
+  EXPECT_LT(o.min_horizon_s, o.plan.horizon_s);
+  o.plan.horizon_s = 1.0;  // shorter than the default floor: a fixed 1 s horizon, no error
+  EXPECT_TRUE(validate_options(o).ok());
+  o.min_horizon_s = 0;  // the fixed horizon stays available
+  EXPECT_TRUE(validate_options(o).ok());
+}
+
 TEST(StreamOptions, each_bad_option_is_refused_by_name) {
   struct Row {
     const char* mention;
@@ -38,7 +49,7 @@ TEST(StreamOptions, each_bad_option_is_refused_by_name) {
       {"horizon", [](StreamOptions& o) { o.plan.horizon_s = std::nan(""); }},
       {"horizon", [](StreamOptions& o) { o.plan.horizon_s = INFINITY; }},
       {"min_horizon_s", [](StreamOptions& o) { o.min_horizon_s = -1; }},
-      {"min_horizon_s", [](StreamOptions& o) { o.min_horizon_s = o.plan.horizon_s + 1; }},
+      {"min_horizon_s", [](StreamOptions& o) { o.min_horizon_s = INFINITY; }},
       {"min_horizon_s", [](StreamOptions& o) { o.min_horizon_s = std::nan(""); }},
       {"cancel_factor", [](StreamOptions& o) { o.cancel_factor = 0.5; }},
       {"max_in_flight", [](StreamOptions& o) { o.max_in_flight = 0; }},
