@@ -253,56 +253,105 @@ struct Generator::State {
     }
   }
 
-  // Moves up to `limit` queued jobs into `batch`, one per client in turn, starting after the
-  // client served last: first only urgent wants (GeneratorConfig::urgent_within), then any. A
-  // client's turn takes its smallest priority. All jobs of a batch share the lod of its first
-  // job; worlds may mix (one launch serves them all). A batch holding urgent jobs is not topped
-  // up with prefetch (`urgent` says it holds some): its rooms are built, encoded and delivered
-  // before far ones, each as soon as it is encoded, while the other workers take the prefetch.
+  // Moves up to `limit` queued jobs into `batch` by deadline class (GeneratorConfig::
+  // urgent_within): first the wants already due (the player is in the room or at its portal: a
+  // stream's first room, priority 0), then the urgent ones (take_due), then any, round-robin
+  // from the client served last (take_any). A client's turn takes its smallest priority. All jobs of a
+  // batch share the lod of its first job; worlds may mix (one launch serves them all). A batch
+  // holding urgent jobs is not topped up with prefetch (`urgent` says it holds some): its rooms
+  // are built, encoded and delivered before far ones, each as soon as it is encoded, while the
+  // other workers take the prefetch.
   void take(std::vector<JobPtr>& batch, size_t limit, bool& urgent) {
-    const auto urgent_until = Clock::now() + config.urgent_within;
+    const auto now = Clock::now();
     if (config.urgent_within.count() > 0) {
       const size_t before = batch.size();
-      take(batch, limit, true, urgent_until);
+      take_due(batch, limit, now);
+      take_due(batch, limit, now + config.urgent_within);
       if (batch.size() > before) urgent = true;
     }
-    if (!urgent) take(batch, limit, false, urgent_until);
+    if (!urgent) take_any(batch, limit);
   }
 
-  void take(std::vector<JobPtr>& batch, size_t limit, bool urgent_only,
-            Clock::time_point urgent_until) {
+  // A client's most urgent queued want that fits the batch (of its lod, once it has a job).
+  std::set<QueueEntry>::iterator head(Client& c, const std::vector<JobPtr>& batch) {
+    auto e = c.queue.begin();
+    if (!batch.empty()) {
+      const uint8_t lod = batch.front()->key.lod;
+      while (e != c.queue.end() && e->key.lod != lod)
+        ++e;
+    }
+    return e;
+  }
+
+  // Moves the job of `e` (in c's queue) into the batch.
+  void take_job(Client& c, std::set<QueueEntry>::iterator e, std::vector<JobPtr>& batch) {
+    JobPtr job = jobs.at(e->key);
+    assert(job->stage == Job::Stage::kQueued);
+    job->stage = Job::Stage::kBuilding;
+    --queued_jobs;
+    // The job leaves every waiter's queue; the wants stay until it is answered.
+    for (ClientId id : job->waiters) {
+      Client& w = *clients.at(id);
+      Waiting& want = w.wants.at(job->key);
+      w.queue.erase({want.priority, want.seq, job->key});
+      want.queued = false;
+    }
+    batch.push_back(std::move(job));
+    rr_cursor = c.id;
+  }
+
+  // Prefetch: round-robin across clients, one job each in turn.
+  void take_any(std::vector<JobPtr>& batch, size_t limit) {
     while (batch.size() < limit && queued_jobs > 0) {
       bool progress = false;
       auto start = clients.upper_bound(rr_cursor);
       for (size_t n = 0; n < clients.size() && batch.size() < limit; ++n, ++start) {
         if (start == clients.end()) start = clients.begin();
         Client& c = *start->second;
-        auto e = c.queue.begin();
-        if (!batch.empty()) {
-          uint8_t lod = batch.front()->key.lod;
-          while (e != c.queue.end() && e->key.lod != lod)
-            ++e;
-        }
+        auto e = head(c, batch);
         if (e == c.queue.end()) continue;
-        if (urgent_only && c.wants.at(e->key).due > urgent_until) continue;
-        JobPtr job = jobs.at(e->key);
-        assert(job->stage == Job::Stage::kQueued);
-        job->stage = Job::Stage::kBuilding;
-        --queued_jobs;
-        // The job leaves every waiter's queue; the wants stay until it is answered.
-        for (ClientId id : job->waiters) {
-          Client& w = *clients.at(id);
-          Waiting& want = w.wants.at(job->key);
-          w.queue.erase({want.priority, want.seq, job->key});
-          want.queued = false;
-        }
-        batch.push_back(std::move(job));
-        rr_cursor = c.id;
+        take_job(c, e, batch);
         progress = true;
       }
       if (!progress) break;
     }
   }
+
+  // A deadline class: the wants due by `until`, earliest deadline first with one job per client
+  // a round. Each round orders the clients whose most urgent want is due by then by that want's
+  // due time and takes one job from each in that order: the player who reaches a missing room
+  // soonest goes first (a stream's first room before another player's next one), and a client
+  // calling everything urgent still gets one job a round.
+  void take_due(std::vector<JobPtr>& batch, size_t limit, Clock::time_point until) {
+    std::vector<std::pair<Clock::time_point, Client*>> due;
+    while (batch.size() < limit && queued_jobs > 0) {
+      due.clear();
+      for (auto& [id, c] : clients) {
+        auto e = head(*c, batch);
+        if (e == c->queue.end()) continue;
+        const auto at = c->wants.at(e->key).due;
+        if (at <= until) due.emplace_back(at, c.get());
+      }
+      if (due.empty()) break;
+      const size_t n = std::min(due.size(), limit - batch.size());
+      std::partial_sort(due.begin(), due.begin() + static_cast<std::ptrdiff_t>(n), due.end(),
+                        [](const auto& a, const auto& b) {
+                          return a.first != b.first ? a.first < b.first
+                                                    : a.second->id < b.second->id;
+                        });
+      bool progress = false;
+      for (size_t i = 0; i < n; ++i) {
+        Client& c = *due[i].second;
+        // The batch's lod is set by its first job, and taking a job takes it from every waiter.
+        auto e = head(c, batch);
+        if (e == c.queue.end() || c.wants.at(e->key).due > until) continue;
+        take_job(c, e, batch);
+        progress = true;
+      }
+      if (!progress) break;
+    }
+  }
+
 
   // Runs callbacks outside the lock, then lets remove_client know they are done.
   void deliver(std::unique_lock<std::mutex>& lock, std::vector<Outgoing>& out) {
@@ -421,8 +470,11 @@ struct Generator::State {
       take(batch, max_batch, urgent);
       // Work this batch cannot take (another lod): another worker's, now.
       if (queued_jobs > 0) work_cv.notify_one();
-      if (batch.size() < max_batch && !batch.empty() && config.max_batch_wait.count() > 0) {
-        // A fuller batch amortizes the launch; wait a little for more wants of this lod.
+      // A fuller batch amortizes the launch: wait a little for more wants of this lod, but not
+      // with urgent rooms, which go now (waiting 2 ms for every few urgent rooms halved the
+      // rooms built a second while a crowd arrived).
+      if (!urgent && batch.size() < max_batch && !batch.empty() &&
+          config.max_batch_wait.count() > 0) {
         auto until = Clock::now() + config.max_batch_wait;
         while (batch.size() < max_batch && !stopping &&
                work_cv.wait_until(lock, until) == std::cv_status::no_timeout) {

@@ -144,11 +144,40 @@ bool all_ready(const Stream& stream, const std::set<RoomId>& ids) {
   return true;
 }
 
-TEST(Stream, spawns_and_prefetches_every_room_within_the_horizon) {
+// Most tests here were worked out for a fixed horizon (every room within it is asked for at
+// once); the adaptive one, the default, has a test of its own below.
+StreamOptions fixed_horizon() {
+  StreamOptions o;
+  o.min_horizon_s = 0;
+  return o;
+}
+
+// The default: the horizon adapts, from the floor. Against a quick server it stays there, and the
+// rooms within it arrive.
+TEST(Stream, the_default_adaptive_horizon_fetches_the_rooms_within_its_floor) {
   auto server = start_server(test_config());
   ASSERT_TRUE(server);
   Runtime rt(1, 2);
   StreamOptions o;
+  o.url = url_of(server->port());
+  ASSERT_EQ(o.min_horizon_s, grotto::client::kDefaultMinHorizonS);
+  auto stream = start_stream(o, rt);
+  ASSERT_TRUE(stream);
+  ASSERT_TRUE(wait_for([&] { return stream->spawn_point().has_value(); }))
+      << describe(stream->stats());
+  auto expected = expected_rooms(7, *stream->spawn_point(), grotto::client::kDefaultMinHorizonS);
+  ASSERT_FALSE(expected.empty());
+  EXPECT_TRUE(wait_for([&] { return all_ready(*stream, expected); }))
+      << describe(stream->stats());
+  EXPECT_GE(stream->stats().horizon_s, grotto::client::kDefaultMinHorizonS);
+  EXPECT_LT(stream->stats().horizon_s, o.plan.horizon_s) << "a quick server: near the floor";
+}
+
+TEST(Stream, spawns_and_prefetches_every_room_within_the_horizon) {
+  auto server = start_server(test_config());
+  ASSERT_TRUE(server);
+  Runtime rt(1, 2);
+  StreamOptions o = fixed_horizon();
   o.url = url_of(server->port());
   o.plan.horizon_s = 3.0;
   auto stream = start_stream(o, rt);
@@ -189,7 +218,7 @@ TEST(Stream, both_protocol_versions_stream_rooms_whose_seams_agree) {
   std::map<uint32_t, std::set<RoomId>> received;
   for (uint32_t version : {1u, 2u}) {
     SCOPED_TRACE("protocol " + std::to_string(version));
-    StreamOptions o;
+    StreamOptions o = fixed_horizon();
     o.url = url_of(server->port());
     o.plan.horizon_s = 5.0;
     o.protocol_version = version;
@@ -237,7 +266,7 @@ TEST(Stream, stays_within_the_limits_the_server_announces) {
   auto server = start_server(config);
   ASSERT_TRUE(server);
   Runtime rt(1, 2);
-  StreamOptions o;
+  StreamOptions o = fixed_horizon();
   o.url = url_of(server->port());
   o.plan.horizon_s = 8.0;
   auto stream = start_stream(o, rt);
@@ -264,7 +293,7 @@ TEST(Stream, cancels_what_falls_out_of_the_horizon_when_the_player_moves_away) {
   auto server = start_server(config);
   ASSERT_TRUE(server);
   Runtime rt(1, 1);
-  StreamOptions o;
+  StreamOptions o = fixed_horizon();
   o.url = url_of(server->port());
   o.plan.horizon_s = 60.0;  // a wide horizon: hundreds of rooms wanted around the spawn
   o.max_in_flight = 512;
@@ -296,7 +325,7 @@ TEST(Stream, reconnects_after_a_server_restart_and_every_wanted_room_arrives) {
   ASSERT_TRUE(server);
   const uint16_t port = server->port();
   Runtime rt(1, 2);
-  StreamOptions o;
+  StreamOptions o = fixed_horizon();
   o.url = url_of(port);
   o.plan.horizon_s = 6.0;
   o.backoff_initial = 50ms;
@@ -343,7 +372,7 @@ TEST(Stream, a_server_back_with_another_max_lod_never_leaves_neighbours_at_two_l
   ASSERT_TRUE(server);
   const uint16_t port = server->port();
   Runtime rt(1, 2);
-  StreamOptions o;
+  StreamOptions o = fixed_horizon();
   o.url = url_of(port);
   o.lod = 1;
   o.plan.horizon_s = 3.0;
@@ -406,7 +435,7 @@ TEST(Stream, a_world_refused_for_want_of_a_slot_is_retried_until_one_frees_up) {
   auto server = start_server(c);
   ASSERT_TRUE(server);
   Runtime rt(1, 2);
-  StreamOptions o;
+  StreamOptions o = fixed_horizon();
   o.url = url_of(server->port());
   o.plan.horizon_s = 2.0;
   o.backoff_initial = 20ms;
@@ -438,7 +467,7 @@ TEST(Stream, a_server_back_with_another_world_clears_what_was_held_and_spawns_ag
   ASSERT_TRUE(server);
   const uint16_t port = server->port();
   Runtime rt(1, 2);
-  StreamOptions o;
+  StreamOptions o = fixed_horizon();
   o.url = url_of(port);
   o.plan.horizon_s = 2.0;
   o.backoff_initial = 20ms;
@@ -478,7 +507,7 @@ TEST(Stream, keeps_its_store_within_budget_by_evicting_the_farthest_rooms) {
   auto server = start_server(test_config());
   ASSERT_TRUE(server);
   Runtime rt(1, 2);
-  StreamOptions o;
+  StreamOptions o = fixed_horizon();
   o.url = url_of(server->port());
   o.plan.horizon_s = 2.0;
   o.store_bytes = 256 << 10;  // room for a handful of patch rooms (~20-100 KB each)
@@ -515,7 +544,7 @@ TEST(Stream, wait_area_ready_holds_until_the_ground_around_the_spawn_exists) {
   auto server = start_server(test_config());
   ASSERT_TRUE(server);
   Runtime rt(1, 2);
-  StreamOptions o;
+  StreamOptions o = fixed_horizon();
   o.url = url_of(server->port());
   o.plan.horizon_s = 6.0;  // 8 m is within 6 s at 4 m/s, behind the view too (x2)
   auto stream = start_stream(o, rt);
@@ -581,7 +610,7 @@ TEST(Stream, wait_area_ready_fetches_an_area_far_from_the_pose) {
   auto server = start_server(test_config());
   ASSERT_TRUE(server);
   Runtime rt(1, 2);
-  StreamOptions o;
+  StreamOptions o = fixed_horizon();
   o.url = url_of(server->port());
   auto stream = start_stream(o, rt);
   ASSERT_TRUE(stream);
@@ -610,7 +639,7 @@ TEST(Stream, a_waited_for_area_is_not_evicted_until_the_wait_returns) {
   auto server = start_server(test_config());
   ASSERT_TRUE(server);
   Runtime rt(1, 2);
-  StreamOptions o;
+  StreamOptions o = fixed_horizon();
   o.url = url_of(server->port());
   o.store_bytes = 1;
   auto stream = start_stream(o, rt);
@@ -639,7 +668,7 @@ TEST(Stream, wait_area_ready_below_the_sessions_lod_returns_false_at_once) {
   auto server = start_server(config);
   ASSERT_TRUE(server);
   Runtime rt(1, 2);
-  StreamOptions o;
+  StreamOptions o = fixed_horizon();
   o.url = url_of(server->port());
   o.lod = 1;
   auto stream = start_stream(o, rt);
@@ -654,7 +683,7 @@ TEST(Stream, wait_area_ready_returns_false_at_its_timeout_and_at_once_after_stop
   auto server = start_server(test_config());
   ASSERT_TRUE(server);
   Runtime rt(1, 2);
-  StreamOptions o;
+  StreamOptions o = fixed_horizon();
   o.url = url_of(server->port());
   auto stream = start_stream(o, rt);
   ASSERT_TRUE(stream);
@@ -676,13 +705,13 @@ TEST(Stream, refuses_bad_urls_and_options_by_name) {
   Runtime rt(1, 1);
   for (const char* url : {"http://x:1/ws", "ws://", "ws://:80", "ws://host:0", "ws://host:99999",
                           "ws://host:12x", "wss://host:443/ws", ""}) {
-    StreamOptions o;
+    StreamOptions o = fixed_horizon();
     o.url = url;
     auto s = Stream::start(o, rt);
     ASSERT_FALSE(s.ok()) << url;
     EXPECT_NE(s.error().message.find("url"), std::string::npos) << s.error().message;
   }
-  StreamOptions o;
+  StreamOptions o = fixed_horizon();
   o.url = "ws://127.0.0.1:1/ws";
   o.plan.horizon_s = 0;
   auto s = Stream::start(o, rt);
@@ -879,7 +908,7 @@ class BadServer {
 };
 
 StreamOptions bad_server_options(uint16_t port) {
-  StreamOptions o;
+  StreamOptions o = fixed_horizon();
   o.url = url_of(port);
   o.seed = 7;
   o.plan.horizon_s = 10.0;  // the spawn room and a few rings of neighbours

@@ -425,6 +425,90 @@ TEST(GeneratorTest, rooms_due_soon_go_before_other_clients_far_prefetch) {
   }
 }
 
+// Among urgent wants, the one due soonest goes first whichever client asked (one job a client a
+// round): B's room is due now (a stream's first room), C's in 300 ms, A's in 600 and 800 ms.
+// Round-robin from the first client would build A, B, C, A.
+TEST(GeneratorTest, the_urgent_room_due_soonest_goes_first_across_clients) {
+  for (int urgent_ms : {1000, 0}) {
+    SCOPED_TRACE("urgent_within " + std::to_string(urgent_ms));
+    GeneratorConfig config = cpu_config();
+    config.max_batch_rooms = 1;
+    config.max_batch_wait = std::chrono::milliseconds(0);
+    config.urgent_within = std::chrono::milliseconds(urgent_ms);
+    Stalled s(config);
+    std::vector<cave::RoomId> ids = existing_rooms(5);
+    std::mutex m;
+    std::string order;
+    auto record = [&](char who) {
+      return [&, who](Delivery) {
+        std::lock_guard lock(m);
+        order += who;
+      };
+    };
+    ClientId a = s.gen->add_client(record('A'));
+    ClientId b = s.gen->add_client(record('B'));
+    ClientId c = s.gen->add_client(record('C'));
+    std::vector<Want> a_wants = {{ids[1], 0, 800}, {ids[2], 0, 600}};
+    std::vector<Want> b_wants = {{ids[3], 0, 0}};
+    std::vector<Want> c_wants = {{ids[4], 0, 300}};
+    s.gen->request(a, a_wants);
+    s.gen->request(b, b_wants);
+    s.gen->request(c, c_wants);
+    s.gate.open();
+    for (int i = 0; i < 500; ++i) {
+      {
+        std::lock_guard lock(m);
+        if (order.size() == 4) break;
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    }
+    std::lock_guard lock(m);
+    ASSERT_EQ(order.size(), 4u) << order;
+    EXPECT_EQ(order == "BCAA", urgent_ms > 0) << order;
+  }
+}
+
+// A batch holding an urgent room is not topped up with prefetch, and each room of a batch goes
+// out as soon as it is encoded: when B's urgent room is delivered only it has been built since
+// the gate, and A's ten far rooms follow in a batch of their own. With one class (0) the batch
+// takes them all.
+TEST(GeneratorTest, an_urgent_room_does_not_wait_for_a_batch_of_prefetch) {
+  for (int urgent_ms : {1000, 0}) {
+    SCOPED_TRACE("urgent_within " + std::to_string(urgent_ms));
+    GeneratorConfig config = cpu_config();
+    config.max_batch_rooms = 32;
+    config.max_batch_wait = std::chrono::milliseconds(0);
+    config.urgent_within = std::chrono::milliseconds(urgent_ms);
+    Stalled s(config);
+    const uint64_t built_before = s.metrics.rooms_built.value();
+    const uint64_t batches_before = s.metrics.batches.value();
+    std::vector<cave::RoomId> ids = existing_rooms(12);
+    std::atomic<uint64_t> built_at_b{0};
+    Inbox far_inbox;
+    Inbox near_inbox;
+    ClientId a = s.gen->add_client(far_inbox.fn());
+    ClientId b = s.gen->add_client(near_inbox.fn([&] {
+      built_at_b = s.metrics.rooms_built.value() - built_before;
+    }));
+    std::vector<Want> far;
+    for (size_t i = 1; i <= 10; ++i)
+      far.push_back({ids[i], 0, 60'000});
+    s.gen->request(a, far);
+    std::vector<Want> near = {{ids[11], 0, 0}};
+    s.gen->request(b, near);
+    s.gate.open();
+    ASSERT_TRUE(near_inbox.wait_for(1));
+    ASSERT_TRUE(far_inbox.wait_for(10));
+    const uint64_t batches = s.metrics.batches.value() - batches_before;
+    if (urgent_ms > 0) {
+      EXPECT_EQ(built_at_b.load(), 1u);
+      EXPECT_EQ(batches, 2u);
+    } else {
+      EXPECT_EQ(batches, 1u) << "one class: the batch takes every queued room";
+    }
+  }
+}
+
 TEST(GeneratorTest, priorities_are_honoured_within_a_client) {
   GeneratorConfig config = cpu_config();
   config.max_batch_rooms = 1;
