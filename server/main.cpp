@@ -10,6 +10,7 @@
 #include <cstdlib>
 
 #include "server/config.hpp"
+#include "server/fd_limit.hpp"
 #include "server/opencl_probe.hpp"
 #include "server/server.hpp"
 
@@ -27,6 +28,9 @@ int main(int argc, char** argv) {
   if (const char* probe = std::getenv(grotto::server::kProbeEnv); probe && *probe) {
     return grotto::server::probe_child(config);
   }
+  // Every player is a descriptor: the soft limit goes up to the hard one, and a limit still short
+  // of what --max-connections and --max-handshakes need is said now, not at the first EMFILE.
+  grotto::server::raise_fd_limit(config);
   // A device build that would kill the process (PoCL's compiler on a full or broken cache) is
   // found by a child first; the server then serves from the CPU and says why.
   if (auto why = grotto::server::probe_opencl(config, argc, argv)) {

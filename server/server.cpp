@@ -36,6 +36,7 @@
 #include "proto/token.hpp"
 #include "proto/world_digest.hpp"
 #include "server/conversation.hpp"
+#include "server/fd_limit.hpp"
 #include "server/send_queue.hpp"
 
 namespace grotto::server {
@@ -54,14 +55,14 @@ constexpr std::size_t kHttpBodyLimit = 8 * 1024;    // no endpoint takes a body
 constexpr auto kCloseGrace = std::chrono::milliseconds{1000};
 // How much of a message is read at a time (bounds what a message over the limit costs).
 constexpr std::size_t kReadPiece = 16 * 1024;
-// Sockets accepted beyond players and handshakes: plain HTTP (probes, scrapes) and upgrades on
-// their way.
-constexpr int kSpareSockets = 64;
+// Sockets accepted beyond players and handshakes (plain HTTP: probes, scrapes; upgrades on their
+// way): fd_limit.hpp's kSpareSockets, which the descriptor limit is sized with.
+constexpr int kSpareSocketCount = static_cast<int>(kSpareSockets);
 // The fd reserve (issue 17): descriptors on /dev/null held back so that, with the process out of
 // file descriptors, /healthz, /readyz and /metrics still answer. Each is traded for one pending
 // connection, answered health-only (its request and its answer each within kReserveDeadline), then
-// closed; the reserve is opened again on the accept strand.
-constexpr int kFdReserve = 4;
+// closed; the reserve is opened again on the accept strand. Its size is fd_limit.hpp's kFdReserve.
+constexpr int kReserveCount = static_cast<int>(kFdReserve);
 constexpr auto kReserveDeadline = std::chrono::milliseconds{1000};
 // While the reserve holds descriptors, a paused acceptor looks again at least this often, so a
 // probe waits at most this long in the backlog (with none held, the pause doubles up to 1 s).
@@ -130,7 +131,9 @@ struct Server::Impl {
   // cannot use up the process's file descriptors.
   std::atomic<int> sockets{0};
   Clock::time_point shed_logged{};
-  int max_sockets() const { return config.max_connections + config.max_handshakes + kSpareSockets; }
+  int max_sockets() const {
+    return config.max_connections + config.max_handshakes + kSpareSocketCount;
+  }
   Clock::time_point accept_logged{};
   std::vector<std::thread> threads;
   tcp::endpoint bound;
@@ -790,7 +793,7 @@ void Server::Impl::on_accept(beast::error_code ec, tcp::socket socket) {
       metrics.sockets_shed.add();
       if (auto now = Clock::now(); now - shed_logged >= std::chrono::seconds{1}) {
         spdlog::warn("event=socket_shed open={} max={} (max_connections + max_handshakes + {})",
-                     open - 1, max_sockets(), kSpareSockets);
+                     open - 1, max_sockets(), kSpareSocketCount);
         shed_logged = now;
       }
       socket.close(ignored);
@@ -799,7 +802,7 @@ void Server::Impl::on_accept(beast::error_code ec, tcp::socket socket) {
       metrics.sockets_open.set(open);
     }
     std::make_shared<HttpSession>(*this, std::move(socket), SocketSlot(sockets, metrics))->run();
-    if (reserve.held() + reserve_loans < kFdReserve) refill_reserve();
+    if (reserve.held() + reserve_loans < kReserveCount) refill_reserve();
     return do_accept();
   }
   // Out of file descriptors (or another failure): the pending connection stays in the backlog,
@@ -862,17 +865,17 @@ bool Server::Impl::connection_waiting() {
   return ::poll(&p, 1, 0) == 1 && (p.revents & POLLIN) != 0;
 }
 
-// Opens the reserve up to kFdReserve, less the descriptors out with connections; a failure is
+// Opens the reserve up to kReserveCount, less the descriptors out with connections; a failure is
 // counted, logged once a second at most, and retried on the next accept, pause or returned
 // reserve connection.
 void Server::Impl::refill_reserve() {
-  int err = reserve.refill(kFdReserve - reserve_loans);
+  int err = reserve.refill(kReserveCount - reserve_loans);
   metrics.fd_reserve_held.set(reserve.held());
   if (err == 0) return;
   metrics.fd_reserve_refill_failures.add();
   if (auto now = Clock::now(); now - refill_logged >= std::chrono::seconds{1}) {
     spdlog::warn("event=fd_reserve_refill_failed error=\"{}\" held={} of {}", std::strerror(err),
-                 reserve.held(), kFdReserve);
+                 reserve.held(), kReserveCount);
     refill_logged = now;
   }
 }

@@ -396,9 +396,10 @@ Result<std::vector<uint8_t>> check_attribute_descriptors(std::span<const uint8_t
 // check_attribute_descriptors run on Draco's own buffer between connectivity and attributes, so
 // the check reads exactly the bytes Draco reads next, wherever connectivity ended, and nothing of
 // an attribute is created or allocated unless the layout is the codec's. Draco still parses every
-// byte. This departs from STYLE.md habit 4 (draco::Decoder only) because draco::Decoder offers no
-// point between the descriptors and the values; finding the descriptors without Draco would mean
-// re-implementing its connectivity decoding (valence context symbols are rANS-coded).
+// byte. This departs from CONTRIBUTING.md ("decode Draco through Draco's decoder") because
+// draco::Decoder offers no point between the descriptors and the values; finding the descriptors
+// without Draco would mean re-implementing its connectivity decoding (valence context symbols are
+// rANS-coded).
 //
 // It also checks prediction methods before Draco reads them. Draco 1.5.5 (Debian 12's) casts an
 // attribute's method byte to its PredictionSchemeMethod enum unchecked

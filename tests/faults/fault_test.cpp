@@ -296,6 +296,83 @@ TEST(CacheFaults, a_checksummed_but_cut_program_binary_does_not_stop_the_start) 
   std::filesystem::remove_all(dir);
 }
 
+// ---- 3. a driver that fails later (issue 28) ----
+
+// PoCL 5.0 passed a probe that built the kernel once, then aborted the server when its workers
+// ran side by side. The probe child drives the server's whole life cycle: two cycles of one
+// builder per worker (here 2: an OpenCL context and the deformation program each) opened, batches
+// of 1, 2, 8 and 32 rooms of seed 7 at both levels of detail built on all at once, all released;
+// its report says what ran (2 cycles x 2 builders x 2 lods x 43 rooms = 344).
+TEST(OpenclProbe, runs_the_servers_whole_life_cycle_twice) {
+  std::filesystem::path dir =
+      std::filesystem::temp_directory_path() / ("grotto-probe-" + std::to_string(getpid()));
+  std::filesystem::remove_all(dir);
+  auto [p, port, text] = start_with_cache(dir.string());
+  ASSERT_NE(port, 0) << text;
+  auto metrics = http_get(port, "/metrics").body;
+  stop_process(p);
+  std::filesystem::remove_all(dir);
+  if (metrics.find("grotto_compute_path_info{path=\"opencl") == std::string::npos) {
+    GTEST_SKIP() << "no OpenCL device here: the probe has no cycle to run";
+  }
+  EXPECT_NE(text.find("event=opencl_probe_passed attempt=1 cycles=2 builders=2 contexts=4 "
+                      "batches=32 rooms=344 released=4"),
+            std::string::npos)
+      << text;
+  EXPECT_EQ(text.find("event=opencl_probe_failed"), std::string::npos) << text;
+}
+
+// A driver that dies at a step of the second cycle (GROTTO_OPENCL_PROBE_FAULT aborts the child
+// there, as PoCL's assertion did): a failed probe that names the step, both attempts, and the
+// server serves on the CPU, saying why.
+class LaterDriverFault : public ::testing::TestWithParam<const char*> {};
+INSTANTIATE_TEST_SUITE_P(OpenclProbe, LaterDriverFault, ::testing::Values("2:1:run", "2:2:release"),
+                         [](const auto& param_info) {
+                           std::string name = param_info.param;
+                           for (char& c : name)
+                             if (c == ':') c = '_';
+                           return "cycle_" + name;
+                         });
+
+TEST_P(LaterDriverFault, is_a_failed_probe_that_names_the_step) {
+  const std::string fault = GetParam();
+  const int builder = fault[2] - '0';
+  const std::string step = fault.substr(4);
+  std::filesystem::path dir =
+      std::filesystem::temp_directory_path() / ("grotto-probe-fault-" + std::to_string(getpid()));
+  std::filesystem::remove_all(dir);
+  setenv("GROTTO_OPENCL_PROBE_FAULT", fault.c_str(), 1);
+  auto [p, port, text] = start_with_cache(dir.string());
+  unsetenv("GROTTO_OPENCL_PROBE_FAULT");
+  ASSERT_NE(port, 0) << text;
+  auto metrics = http_get(port, "/metrics").body;
+  expect_still_serving(port);
+  stop_process(p);
+  std::filesystem::remove_all(dir);
+  if (text.find("event=opencl_probe_failed") == std::string::npos &&
+      metrics.find("grotto_compute_path_info{path=\"opencl") == std::string::npos) {
+    GTEST_SKIP() << "no OpenCL device here: the probe stops before its cycles";
+  }
+  // The runs of a cycle overlap, so a run's failure names them all; the driver's (here the
+  // fault's) own line says more.
+  const std::string where = step == "run"
+                                ? "cycle 2/2, builders 1-2 at once, run"
+                                : "cycle 2/2, builder " + std::to_string(builder) + "/2, " + step;
+  const std::string detail = "the OpenCL probe failed at " + where + " (killed by signal " +
+                             std::to_string(SIGABRT) + "): GROTTO_OPENCL_PROBE_FAULT=" + fault +
+                             ": aborting at cycle 2/2, builder " + std::to_string(builder) +
+                             "/2, " + step;
+  EXPECT_NE(text.find("event=opencl_probe_failed attempt=1 detail=\"" + detail), std::string::npos)
+      << text;
+  EXPECT_NE(text.find("event=opencl_probe_failed attempt=2 detail=\"" + detail), std::string::npos)
+      << text;
+  EXPECT_EQ(text.find("event=opencl_probe_passed"), std::string::npos) << text;
+  EXPECT_NE(text.find("event=compute_path_fallback"), std::string::npos) << text;
+  EXPECT_NE(metrics.find("grotto_compute_path_info{path=\"cpu: CPU fallback: " + detail),
+            std::string::npos)
+      << metrics;
+}
+
 // ---- 4. a log flood ----
 
 // A client sending bad messages in a loop gets each answered, costs the log ten lines and a count,
