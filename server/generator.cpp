@@ -321,36 +321,40 @@ struct Generator::State {
   // a round. Each round orders the clients whose most urgent want is due by then by that want's
   // due time and takes one job from each in that order: the player who reaches a missing room
   // soonest goes first (a stream's first room before another player's next one), and a client
-  // calling everything urgent still gets one job a round.
+  // calling everything urgent still gets one job a round. The clients are scanned once a call
+  // (thousands of them, under the lock); the rounds look again only at those found due.
   void take_due(std::vector<JobPtr>& batch, size_t limit, Clock::time_point until) {
+    if (queued_jobs == 0 || batch.size() >= limit) return;
     std::vector<std::pair<Clock::time_point, Client*>> due;
-    while (batch.size() < limit && queued_jobs > 0) {
-      due.clear();
-      for (auto& [id, c] : clients) {
-        auto e = head(*c, batch);
-        if (e == c->queue.end()) continue;
-        const auto at = c->wants.at(e->key).due;
-        if (at <= until) due.emplace_back(at, c.get());
+    for (auto& [id, c] : clients) {
+      if (c->queue.empty()) continue;
+      auto e = head(*c, batch);
+      if (e == c->queue.end()) continue;
+      const auto at = c->wants.at(e->key).due;
+      if (at <= until) due.emplace_back(at, c.get());
+    }
+    auto earlier = [](const auto& a, const auto& b) {
+      return a.first != b.first ? a.first < b.first : a.second->id < b.second->id;
+    };
+    while (batch.size() < limit && !due.empty()) {
+      std::sort(due.begin(), due.end(), earlier);
+      size_t kept = 0;
+      for (auto& [at, client] : due) {
+        // The batch's lod is set by its first job, and taking a job takes it from every waiter:
+        // each client's head is looked at again.
+        auto e = head(*client, batch);
+        if (e == client->queue.end() || client->wants.at(e->key).due > until) continue;
+        if (batch.size() < limit) {
+          take_job(*client, e, batch);
+          e = head(*client, batch);
+          if (e == client->queue.end() || client->wants.at(e->key).due > until) continue;
+        }
+        due[kept++] = {client->wants.at(e->key).due, client};
       }
-      if (due.empty()) break;
-      const size_t n = std::min(due.size(), limit - batch.size());
-      std::partial_sort(due.begin(), due.begin() + static_cast<std::ptrdiff_t>(n), due.end(),
-                        [](const auto& a, const auto& b) {
-                          return a.first != b.first ? a.first < b.first
-                                                    : a.second->id < b.second->id;
-                        });
-      bool progress = false;
-      for (size_t i = 0; i < n; ++i) {
-        Client& c = *due[i].second;
-        // The batch's lod is set by its first job, and taking a job takes it from every waiter.
-        auto e = head(c, batch);
-        if (e == c.queue.end() || c.wants.at(e->key).due > until) continue;
-        take_job(c, e, batch);
-        progress = true;
-      }
-      if (!progress) break;
+      due.resize(kept);
     }
   }
+
 
 
   // Runs callbacks outside the lock, then lets remove_client know they are done.

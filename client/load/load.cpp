@@ -285,7 +285,7 @@ Result<LoadReport> run_load(const LoadOptions& options) {
     });
   }
 
-  std::vector<double> latencies, decodes;
+  std::vector<double> latencies, urgent_latencies, decodes;
   std::vector<std::vector<double>> latencies_by_second;
   double t = 0;  // seconds since t0, as of the loop's current step
   auto drain = [&](Player& p) {
@@ -295,6 +295,7 @@ Result<LoadReport> run_load(const LoadOptions& options) {
     }
     for (const auto& sample : p.stream->take_samples()) {
       latencies.push_back(sample.latency_ms);
+      if (sample.priority_ms <= kUrgentPriorityMs) urgent_latencies.push_back(sample.latency_ms);
       decodes.push_back(sample.decode_ms);
       const auto second = static_cast<size_t>(std::max(0.0, t));
       if (latencies_by_second.size() <= second) latencies_by_second.resize(second + 1);
@@ -454,6 +455,7 @@ Result<LoadReport> run_load(const LoadOptions& options) {
   }
   report.first_room_ms = summarize(std::move(first_rooms));
   report.latency_ms = summarize(std::move(latencies));
+  report.urgent_latency_ms = summarize(std::move(urgent_latencies));
   for (auto& second : latencies_by_second)
     report.latency_by_second_ms.push_back(summarize(std::move(second)));
   report.decode_ms = summarize(std::move(decodes));

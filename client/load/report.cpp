@@ -128,6 +128,7 @@ std::string format_table(const LoadReport& r) {
           "max");
   distribution_row(out, "time to first room ms", r.first_room_ms);
   distribution_row(out, "request->room ms", r.latency_ms);
+  distribution_row(out, "  due within 1 s", r.urgent_latency_ms);
   distribution_row(out, "decode ms", r.decode_ms);
   distribution_row(out, "stall ms", r.stall_ms);
   distribution_row(out, "player kbit/s (mean)", r.player_kbps);
@@ -262,6 +263,7 @@ std::string to_json_text(const LoadReport& r) {
       {"elapsed_s", r.elapsed_s},
       {"first_room_ms", to_json(r.first_room_ms)},
       {"latency_ms", to_json(r.latency_ms)},
+      {"urgent_latency_ms", to_json(r.urgent_latency_ms)},
       {"latency_by_second_ms", by_second},
       {"decode_ms", to_json(r.decode_ms)},
       {"stall_ms", to_json(r.stall_ms)},

@@ -81,6 +81,9 @@ struct LoadReport {
   // Figures over all players.
   Distribution first_room_ms;  // per player, the players who got one
   Distribution latency_ms;     // request → room frame, every sample
+  // The same for rooms requested due within a second (kUrgentPriorityMs): the room a player walks
+  // into next, which goes before far prefetch at every stage
+  Distribution urgent_latency_ms;
   // The same samples by the second of the run in which the room was taken from its Stream
   // (index 0: [0, 1) s): where in the run the tail is, e.g. the start of a crowd.
   std::vector<Distribution> latency_by_second_ms;

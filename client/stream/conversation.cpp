@@ -151,6 +151,7 @@ Actions Conversation::binary(std::span<const uint8_t> bytes, SteadyTime now) {
   sample.id = id;
   sample.frame_bytes = bytes.size();
   sample.latency_ms = ms_between(it->second.sent, now);
+  sample.priority_ms = it->second.priority;
   const SteadyTime due = it->second.sent + std::chrono::milliseconds(it->second.priority);
   if (it->second.priority <= kUrgentPriorityMs) {
     recent_latency_ms_.push_back({now, sample.latency_ms});

@@ -118,6 +118,7 @@ struct StreamStats {
 struct RoomSample {
   cave::RoomId id = cave::RoomId::interior({}, 0);
   double latency_ms = 0;  // request sent → room frame received
+  uint32_t priority_ms = 0;  // the request's priority: <= kUrgentPriorityMs is the urgent class
   double decode_ms = 0;   // decode on a worker
   size_t frame_bytes = 0;
 };
