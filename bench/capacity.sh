@@ -5,12 +5,14 @@
 # every room is really built; a fresh server for each run; grotto-load on the same machine), and
 # prints one Markdown table: the median of the runs and their spread (min-max) for stalls,
 # request->room p99 (all rooms, and the rooms requested due within a second: the next room a
-# player walks into), time to first room p99 and rooms/s, with the machine's 1-minute load average
-# before each run. A row whose runs started on a busy machine (load average above --busy, 1.0 by
-# default on these 2-core machines) is marked "busy": its figures are not the machine's.
+# player walks into), time to first room p99, rooms/s and, for a separate server, its CPU time
+# per room served; with the machine's 1-minute load average before each run and the CPU that
+# other processes took during it (the machine's busy time from /proc/stat less what
+# grotto-server and grotto-load used). A row with a run where others took more than --busy cores
+# (0.25 by default) is marked "busy": its figures are not the machine's.
 #
 #   bash bench/capacity.sh [--runs N] [--duration S] [--rows LIST] [--build-dir DIR]
-#                          [--out DIR] [--busy LOAD] [--no-build]
+#                          [--out DIR] [--busy CORES] [--no-build]
 #
 # Rows (--rows takes their names, comma-separated; default: all of them, in this order):
 #   embedded-300-once       300 players at once, embedded server, defaults (the issue's check)
@@ -23,6 +25,8 @@
 #   server-256-once         256 players at once
 #   server-256-once-fixed   the same with the fixed horizon
 #   server-1000-ramp30      1,000 players joining over 30 s
+#   server-300-ramp10-w1    300 players joining over 10 s, grotto-server --workers 1
+#   server-300-ramp10-w2    the same with --workers 2: the server's CPU per room against one worker
 # Every row is 10 m/s unless its name ends in -30. Exit: 0 when every run ran (whatever its
 # figures), 1 when a build or a run failed, 2 on a bad flag.
 set -u
@@ -48,7 +52,7 @@ done
 [[ "$duration" =~ ^[1-9][0-9]*$ ]] || { echo "capacity.sh: --duration must be whole seconds >= 1" >&2; exit 2; }
 [[ "$busy" =~ ^[0-9]+([.][0-9]+)?$ ]] || { echo "capacity.sh: --busy must be a number of cores" >&2; exit 2; }
 
-# name | server (embedded or server) | players | ramp s | speed m/s | extra grotto-load flags
+# name | server (embedded or server) | players | ramp s | speed m/s | grotto-load flags | server flags
 all_rows=(
   "embedded-300-once|embedded|300|0|10|"
   "embedded-300-once-fixed|embedded|300|0|10|--min-horizon 0"
@@ -60,6 +64,8 @@ all_rows=(
   "server-256-once|server|256|0|10|"
   "server-256-once-fixed|server|256|0|10|--min-horizon 0"
   "server-1000-ramp30|server|1000|30|10|"
+  "server-300-ramp10-w1|server|300|10|10||--workers 1"
+  "server-300-ramp10-w2|server|300|10|10||--workers 2"
 )
 selected=()
 if [[ -z "$rows" ]]; then
@@ -86,9 +92,11 @@ server_bin=$build_dir/bin/grotto-server load_bin=$build_dir/bin/grotto-load
 [[ -n "$out" ]] || out=$(mktemp -d /tmp/grotto-capacity.XXXXXX)
 mkdir -p "$out"
 
-server_pid=""
+server_pid="" server_cpu=""
 stop_server() {
   [[ -n "$server_pid" ]] || return 0
+  # Its CPU seconds (user + system) before it goes: the server's cost per room served.
+  server_cpu=$(awk -v t="$(getconf CLK_TCK)" '{ printf "%.3f", ($14 + $15) / t }' "/proc/$server_pid/stat" 2>/dev/null)
   kill "$server_pid" 2>/dev/null
   for _ in $(seq 1 100); do kill -0 "$server_pid" 2>/dev/null || break; sleep 0.1; done
   kill -9 "$server_pid" 2>/dev/null
@@ -100,7 +108,8 @@ trap stop_server EXIT
 # A free loopback port: the kernel's choice, read back from the server's first line.
 start_server() {
   local log=$1
-  "$server_bin" --port 0 --log-level warn >"$log" 2>&1 &
+  # shellcheck disable=SC2086
+  "$server_bin" --port 0 --log-level warn $server_flags >"$log" 2>&1 &
   server_pid=$!
   for _ in $(seq 1 300); do
     port=$(grep -o 'ws://127.0.0.1:[0-9]*' "$log" 2>/dev/null | head -n1 | sed 's/.*://')
@@ -127,7 +136,7 @@ echo "capacity.sh: $(nproc) cores, $(grep -m1 'model name' /proc/cpuinfo | sed '
   "AVX-512 $(grep -q avx512f /proc/cpuinfo && echo yes || echo no); $runs run(s) of ${duration} s a row;" \
   "results in $out" >&2
 for row in "${selected[@]}"; do
-  IFS='|' read -r name where players ramp speed extra <<<"$row"
+  IFS='|' read -r name where players ramp speed extra server_flags <<<"$row"
   for ((i = 1; i <= runs; i++)); do
     json=$out/$name.$i.json
     load=$(cut -d' ' -f1 /proc/loadavg)
@@ -135,6 +144,7 @@ for row in "${selected[@]}"; do
     ((ramp > 0)) && args+=(--ramp "$ramp")
     # shellcheck disable=SC2206
     [[ -n "$extra" ]] && args+=($extra)
+    server_cpu=""
     if [[ "$where" == server ]]; then
       start_server "$out/$name.$i.server.log" || { failed=1; continue; }
       args+=(--server "ws://127.0.0.1:$port/ws" --seed 7)
@@ -155,7 +165,7 @@ for row in "${selected[@]}"; do
       failed=1
       continue
     fi
-    echo "$load $others" >"$json.load"
+    echo "$load $others ${server_cpu:--}" >"$json.load"
   done
 done
 
@@ -168,15 +178,18 @@ def fmt(vals, digits=0):
     f = (lambda v: f"{v:,.{digits}f}")
     return f(med) if len(vals) == 1 else f"{f(med)} ({f(min(vals))}-{f(max(vals))})"
 print("| row | players | joined over | m/s | horizon | runs | stalls | request->room p99 ms "
-      "| due within 1 s: p99 ms | first room p99 ms | rooms/s | load before / others' cores |")
-print("| --- | ---: | --- | ---: | --- | ---: | ---: | ---: | ---: | ---: | ---: | --- |")
+      "| due within 1 s: p99 ms | first room p99 ms | rooms/s | server CPU ms/room "
+      "| load before / others' cores |")
+print("| --- | ---: | --- | ---: | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | --- |")
 for row in rows:
-    name, where, players, ramp, speed, extra = row.split("|")
+    name, where, players, ramp, speed, extra, *server_flags = row.split("|")
     runs = sorted(glob.glob(os.path.join(out, name + ".*.json")))
     runs = [r for r in runs if os.path.exists(r + ".load")]
     res = [json.load(open(r)) for r in runs]
     loads = [open(r + ".load").read().split() for r in runs]
     others = [float(l[1]) for l in loads]
+    cpu_ms = [float(l[2]) * 1000 / r["rooms"]["ready"] for l, r in zip(loads, res)
+              if len(l) > 2 and l[2] != "-" and r["rooms"]["ready"] > 0]
     stalls = [r["stalls"]["count"] for r in res]
     p99 = [r["latency_ms"]["p99"] for r in res]
     first = [r["first_room_ms"]["p99"] for r in res]
@@ -187,6 +200,7 @@ for row in rows:
     mark = " **busy**" if any(o > busy for o in others) else ""
     print(f"| {name} ({where}) | {int(players):,} | {joined} | {speed} | {horizon} | {len(res)} "
           f"| {fmt(stalls)} | {fmt(p99)} | {fmt(urgent)} | {fmt(first)} | {fmt(rate)} "
+          f"| {fmt(cpu_ms, 2)} "
           f"| {', '.join(f'{l[0]} / {l[1]}' for l in loads)}{mark} |")
 PY
 exit $failed

@@ -125,6 +125,9 @@ struct Generator::State {
   uint64_t next_seq = 1;
   ClientId rr_cursor = 0;  // the client served last; the next batch starts after it
   std::map<ClientId, ClientPtr> clients;
+  // The clients with queued wants, by id: what a worker looks at for a batch (thousands of
+  // clients, most with nothing queued at a given moment, under the one lock). touch() keeps it.
+  std::set<ClientId> queued_clients;
   std::map<uint64_t, WorldPtr> worlds;  // open worlds by seed, home included
   uint64_t world_clock = 0;             // ticks at each client arrival and departure
   std::map<RoomKey, JobPtr, RoomKeyLess> jobs;
@@ -137,6 +140,15 @@ struct Generator::State {
   int workers_exited = 0;
 
   // ---- under the lock ----
+
+  // After a change to c's queue: whether c has queued wants.
+  void touch(const Client& c) {
+    if (c.queue.empty()) {
+      queued_clients.erase(c.id);
+    } else {
+      queued_clients.insert(c.id);
+    }
+  }
 
   void publish_gauges() {
     metrics.queue_depth.set(static_cast<int64_t>(queued_jobs));
@@ -192,7 +204,10 @@ struct Generator::State {
   void answer(const ClientPtr& client, const RoomKey& key, Delivery d, std::vector<Outgoing>& out) {
     auto it = client->wants.find(key);
     assert(it != client->wants.end());
-    if (it->second.queued) client->queue.erase({it->second.priority, it->second.seq, key});
+    if (it->second.queued) {
+      client->queue.erase({it->second.priority, it->second.seq, key});
+      touch(*client);
+    }
     metrics.room_latency_seconds.observe(seconds_between(it->second.received, Clock::now()));
     client->wants.erase(it);
     metrics.rooms_in_flight.add(-1);
@@ -221,7 +236,10 @@ struct Generator::State {
   // Removes one want of a client (cancel or removal); a queued job nobody waits for goes.
   void drop_want(Client& client, std::map<RoomKey, Waiting, RoomKeyLess>::iterator it) {
     RoomKey key = it->first;
-    if (it->second.queued) client.queue.erase({it->second.priority, it->second.seq, key});
+    if (it->second.queued) {
+      client.queue.erase({it->second.priority, it->second.seq, key});
+      touch(client);
+    }
     client.wants.erase(it);
     metrics.rooms_in_flight.add(-1);
     metrics.rooms_cancelled.add();
@@ -295,20 +313,24 @@ struct Generator::State {
       Waiting& want = w.wants.at(job->key);
       w.queue.erase({want.priority, want.seq, job->key});
       want.queued = false;
+      touch(w);
     }
     batch.push_back(std::move(job));
     rr_cursor = c.id;
   }
 
-  // Prefetch: round-robin across clients, one job each in turn.
+  // Prefetch: round-robin across the clients with queued wants, one job each in turn, from the
+  // client after the one served last.
   void take_any(std::vector<JobPtr>& batch, size_t limit) {
+    std::vector<ClientId> order;
     while (batch.size() < limit && queued_jobs > 0) {
+      order.assign(queued_clients.upper_bound(rr_cursor), queued_clients.end());
+      order.insert(order.end(), queued_clients.begin(), queued_clients.upper_bound(rr_cursor));
       bool progress = false;
-      auto start = clients.upper_bound(rr_cursor);
-      for (size_t n = 0; n < clients.size() && batch.size() < limit; ++n, ++start) {
-        if (start == clients.end()) start = clients.begin();
-        Client& c = *start->second;
-        auto e = head(c, batch);
+      for (ClientId id : order) {
+        if (batch.size() >= limit) break;
+        Client& c = *clients.at(id);
+        auto e = head(c, batch);  // taking a job takes it from every waiter's queue
         if (e == c.queue.end()) continue;
         take_job(c, e, batch);
         progress = true;
@@ -317,21 +339,22 @@ struct Generator::State {
     }
   }
 
+
   // A deadline class: the wants due by `until`, earliest deadline first with one job per client
   // a round. Each round orders the clients whose most urgent want is due by then by that want's
   // due time and takes one job from each in that order: the player who reaches a missing room
   // soonest goes first (a stream's first room before another player's next one), and a client
-  // calling everything urgent still gets one job a round. The clients are scanned once a call
-  // (thousands of them, under the lock); the rounds look again only at those found due.
+  // calling everything urgent still gets one job a round. The clients with queued wants are
+  // scanned once a call; the rounds look again only at those found due.
   void take_due(std::vector<JobPtr>& batch, size_t limit, Clock::time_point until) {
     if (queued_jobs == 0 || batch.size() >= limit) return;
     std::vector<std::pair<Clock::time_point, Client*>> due;
-    for (auto& [id, c] : clients) {
-      if (c->queue.empty()) continue;
-      auto e = head(*c, batch);
-      if (e == c->queue.end()) continue;
-      const auto at = c->wants.at(e->key).due;
-      if (at <= until) due.emplace_back(at, c.get());
+    for (ClientId id : queued_clients) {
+      Client& c = *clients.at(id);
+      auto e = head(c, batch);
+      if (e == c.queue.end()) continue;
+      const auto at = c.wants.at(e->key).due;
+      if (at <= until) due.emplace_back(at, &c);
     }
     auto earlier = [](const auto& a, const auto& b) {
       return a.first != b.first ? a.first < b.first : a.second->id < b.second->id;
@@ -628,6 +651,7 @@ void Generator::remove_client(ClientId id) {
   --client->world->clients;
   client->world->last_used = ++s.world_clock;
   s.clients.erase(it);
+  s.queued_clients.erase(id);
   s.publish_gauges();
   // Callbacks already collected for this client finish before we return.
   s.deliver_cv.wait(lock, [&] { return client->delivering == 0; });
@@ -698,7 +722,10 @@ void Generator::request(ClientId id, std::span<const server::Want> wants) {
       want.queued = true;
       queued = true;
     }
-    if (want.queued) client->queue.insert({want.priority, want.seq, key});
+    if (want.queued) {
+      client->queue.insert({want.priority, want.seq, key});
+      s.touch(*client);
+    }
     client->wants.emplace(key, want);
     s.metrics.rooms_in_flight.add(1);
   }
