@@ -24,7 +24,7 @@ using Clock = std::chrono::steady_clock;
 namespace client = grotto::client;
 
 constexpr double kPi = 3.14159265358979323846;
-constexpr double kPlanSpeed = 10;  // m/s told to the stream while waiting: a 40 m horizon
+constexpr double kPlanSpeed = 10;  // m/s told to the stream while waiting: 15-40 m of horizon
 
 int fail(const std::string& message) {
   std::fprintf(stderr, "grotto-client: %s\n", message.c_str());
