@@ -148,9 +148,9 @@ class Conversation {
   struct InFlight {
     uint32_t lod = 0;
     uint32_t priority = 0;
-    proto::Ref ref;  // of the request that named it, copied into an error about the room
+    proto::Ref ref;       // of the request that named it, copied into an error about the room
     uint64_t due_ms = 0;  // steady_ms of the latest request naming it + its priority
-    RoomPtr ready;   // built, waiting for bandwidth (Limits::max_kbps); it is still in flight
+    RoomPtr ready;        // built, waiting for bandwidth (Limits::max_kbps); it is still in flight
   };
 
   void on(const proto::Hello& m);

@@ -274,8 +274,8 @@ struct Generator::State {
   // Moves up to `limit` queued jobs into `batch` by deadline class (GeneratorConfig::
   // urgent_within): first the wants already due (the player is in the room or at its portal: a
   // stream's first room, priority 0), then the urgent ones (take_due), then any, round-robin
-  // from the client served last (take_any). A client's turn takes its smallest priority. All jobs of a
-  // batch share the lod of its first job; worlds may mix (one launch serves them all). A batch
+  // from the client served last (take_any). A client's turn takes its smallest priority. All jobs
+  // of a batch share the lod of its first job; worlds may mix (one launch serves them all). A batch
   // holding urgent jobs is not topped up with prefetch (`urgent` says it holds some): its rooms
   // are built, encoded and delivered before far ones, each as soon as it is encoded, while the
   // other workers take the prefetch.
@@ -339,7 +339,6 @@ struct Generator::State {
     }
   }
 
-
   // A deadline class: the wants due by `until`, earliest deadline first with one job per client
   // a round. Each round orders the clients whose most urgent want is due by then by that want's
   // due time and takes one job from each in that order: the player who reaches a missing room
@@ -377,8 +376,6 @@ struct Generator::State {
       due.resize(kept);
     }
   }
-
-
 
   // Runs callbacks outside the lock, then lets remove_client know they are done.
   void deliver(std::unique_lock<std::mutex>& lock, std::vector<Outgoing>& out) {

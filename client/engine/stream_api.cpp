@@ -5,8 +5,8 @@
 #include <spdlog/spdlog.h>
 
 #include <array>
-#include <cmath>
 #include <chrono>
+#include <cmath>
 #include <memory>
 #include <string>
 #include <string_view>

@@ -9,8 +9,8 @@
 #include <vector>
 
 #include "client/load/report.hpp"
-#include "client/stream/options.hpp"
 #include "client/load/walker.hpp"
+#include "client/stream/options.hpp"
 #include "core/result.hpp"
 
 namespace grotto::client::load {
@@ -31,9 +31,9 @@ struct LoadOptions {
   // mass start a fresh replica sees when every player reconnects to it). The run's duration
   // counts from the first join; each player's time to first room from its own.
   double ramp_s = 0;
-  double duration_s = 0;          // 0: the mode's default (walk 20, soak 600, burst 60: a bound)
-  double speed = 4.0;             // m/s walking (bursts of running: walker.burst_factor)
-  double horizon_s = 4.0;         // the Streams' prefetch horizon (walk and soak)
+  double duration_s = 0;   // 0: the mode's default (walk 20, soak 600, burst 60: a bound)
+  double speed = 4.0;      // m/s walking (bursts of running: walker.burst_factor)
+  double horizon_s = 4.0;  // the Streams' prefetch horizon (walk and soak)
   // Adaptive horizon within [min(this, horizon_s), horizon_s] (StreamOptions::min_horizon_s,
   // the default); 0: the fixed horizon_s.
   double min_horizon_s = kDefaultMinHorizonS;

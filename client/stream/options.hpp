@@ -117,9 +117,9 @@ struct StreamStats {
 // Per-room measurements, for grotto-load's percentiles; drained by take_samples().
 struct RoomSample {
   cave::RoomId id = cave::RoomId::interior({}, 0);
-  double latency_ms = 0;  // request sent → room frame received
+  double latency_ms = 0;     // request sent → room frame received
   uint32_t priority_ms = 0;  // the request's priority: <= kUrgentPriorityMs is the urgent class
-  double decode_ms = 0;   // decode on a worker
+  double decode_ms = 0;      // decode on a worker
   size_t frame_bytes = 0;
 };
 

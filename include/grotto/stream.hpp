@@ -96,7 +96,7 @@ struct StreamConfig {
   // tessellation); 1 the detail mesh, when the server offers it (else 0). One lod for the whole
   // session: rooms of different lods do not share rims.
   uint32_t lod = 0;
-  double horizon_s = 4.0;    // rooms reachable within this many seconds of walking are fetched
+  double horizon_s = 4.0;  // rooms reachable within this many seconds of walking are fetched
   // The horizon adapts to how long the rooms due within a second take to come (1 s + 2 x their
   // recent p90), between min(min_horizon_s, horizon_s) and horizon_s, starting at the floor:
   // the default. 0: a fixed horizon of horizon_s.

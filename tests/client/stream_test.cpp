@@ -167,8 +167,7 @@ TEST(Stream, the_default_adaptive_horizon_fetches_the_rooms_within_its_floor) {
       << describe(stream->stats());
   auto expected = expected_rooms(7, *stream->spawn_point(), grotto::client::kDefaultMinHorizonS);
   ASSERT_FALSE(expected.empty());
-  EXPECT_TRUE(wait_for([&] { return all_ready(*stream, expected); }))
-      << describe(stream->stats());
+  EXPECT_TRUE(wait_for([&] { return all_ready(*stream, expected); })) << describe(stream->stats());
   EXPECT_GE(stream->stats().horizon_s, grotto::client::kDefaultMinHorizonS);
   EXPECT_LT(stream->stats().horizon_s, o.plan.horizon_s) << "a quick server: near the floor";
 }

@@ -487,9 +487,8 @@ TEST(GeneratorTest, an_urgent_room_does_not_wait_for_a_batch_of_prefetch) {
     Inbox far_inbox;
     Inbox near_inbox;
     ClientId a = s.gen->add_client(far_inbox.fn());
-    ClientId b = s.gen->add_client(near_inbox.fn([&] {
-      built_at_b = s.metrics.rooms_built.value() - built_before;
-    }));
+    ClientId b = s.gen->add_client(
+        near_inbox.fn([&] { built_at_b = s.metrics.rooms_built.value() - built_before; }));
     std::vector<Want> far;
     for (size_t i = 1; i <= 10; ++i)
       far.push_back({ids[i], 0, 60'000});
