@@ -379,28 +379,50 @@ TEST(GeneratorTest, a_client_asking_few_rooms_is_not_starved_by_one_asking_many)
   EXPECT_EQ(s.gen->queue_depth(), 0u);
 }
 
+// The order in which clients' rooms are delivered, one letter a client, and a serial generator
+// (one worker, one room a batch, no batch wait) stalled at the gate, for the deadline tests.
+struct DeliveryOrder {
+  std::mutex m;
+  std::string order;
+  Generator::DeliverFn record(char who) {
+    return [this, who](Delivery) {
+      std::lock_guard lock(m);
+      order += who;
+    };
+  }
+  // The letters once n rooms came (or what came within the bound).
+  std::string wait_for(size_t n) {
+    for (int i = 0; i < 500; ++i) {
+      {
+        std::lock_guard lock(m);
+        if (order.size() >= n) return order;
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    }
+    std::lock_guard lock(m);
+    return order;
+  }
+};
+
+GeneratorConfig serial_config(int urgent_ms) {
+  GeneratorConfig config = cpu_config();
+  config.max_batch_rooms = 1;
+  config.max_batch_wait = std::chrono::milliseconds(0);
+  config.urgent_within = std::chrono::milliseconds(urgent_ms);
+  return config;
+}
+
 // Deadline classes: B's two rooms are due now, A's six are far prefetch. Round-robin alone would
 // build A, B, A, B...; with urgent_within, both of B's go first. Without it (0), one of A's far
 // rooms comes between them.
 TEST(GeneratorTest, rooms_due_soon_go_before_other_clients_far_prefetch) {
   for (int urgent_ms : {1000, 0}) {
     SCOPED_TRACE("urgent_within " + std::to_string(urgent_ms));
-    GeneratorConfig config = cpu_config();
-    config.max_batch_rooms = 1;
-    config.max_batch_wait = std::chrono::milliseconds(0);
-    config.urgent_within = std::chrono::milliseconds(urgent_ms);
-    Stalled s(config);
+    Stalled s(serial_config(urgent_ms));
     std::vector<cave::RoomId> ids = existing_rooms(9);
-    std::mutex m;
-    std::string order;
-    auto record = [&](char who) {
-      return [&, who](Delivery) {
-        std::lock_guard lock(m);
-        order += who;
-      };
-    };
-    ClientId a = s.gen->add_client(record('A'));
-    ClientId b = s.gen->add_client(record('B'));
+    DeliveryOrder d;
+    ClientId a = s.gen->add_client(d.record('A'));
+    ClientId b = s.gen->add_client(d.record('B'));
     std::vector<Want> far;
     for (size_t i = 1; i <= 6; ++i)
       far.push_back({ids[i], 0, 60'000});
@@ -408,14 +430,7 @@ TEST(GeneratorTest, rooms_due_soon_go_before_other_clients_far_prefetch) {
     std::vector<Want> soon = {{ids[7], 0, 0}, {ids[8], 0, 200}};
     s.gen->request(b, soon);
     s.gate.open();
-    for (int i = 0; i < 500; ++i) {
-      {
-        std::lock_guard lock(m);
-        if (order.size() == 8) break;
-      }
-      std::this_thread::sleep_for(std::chrono::milliseconds(10));
-    }
-    std::lock_guard lock(m);
+    const std::string order = d.wait_for(8);
     ASSERT_EQ(order.size(), 8u) << order;
     if (urgent_ms > 0) {
       EXPECT_EQ(order.substr(0, 2), "BB") << order;
@@ -431,23 +446,12 @@ TEST(GeneratorTest, rooms_due_soon_go_before_other_clients_far_prefetch) {
 TEST(GeneratorTest, the_urgent_room_due_soonest_goes_first_across_clients) {
   for (int urgent_ms : {1000, 0}) {
     SCOPED_TRACE("urgent_within " + std::to_string(urgent_ms));
-    GeneratorConfig config = cpu_config();
-    config.max_batch_rooms = 1;
-    config.max_batch_wait = std::chrono::milliseconds(0);
-    config.urgent_within = std::chrono::milliseconds(urgent_ms);
-    Stalled s(config);
+    Stalled s(serial_config(urgent_ms));
     std::vector<cave::RoomId> ids = existing_rooms(5);
-    std::mutex m;
-    std::string order;
-    auto record = [&](char who) {
-      return [&, who](Delivery) {
-        std::lock_guard lock(m);
-        order += who;
-      };
-    };
-    ClientId a = s.gen->add_client(record('A'));
-    ClientId b = s.gen->add_client(record('B'));
-    ClientId c = s.gen->add_client(record('C'));
+    DeliveryOrder d;
+    ClientId a = s.gen->add_client(d.record('A'));
+    ClientId b = s.gen->add_client(d.record('B'));
+    ClientId c = s.gen->add_client(d.record('C'));
     std::vector<Want> a_wants = {{ids[1], 0, 800}, {ids[2], 0, 600}};
     std::vector<Want> b_wants = {{ids[3], 0, 0}};
     std::vector<Want> c_wants = {{ids[4], 0, 300}};
@@ -455,14 +459,7 @@ TEST(GeneratorTest, the_urgent_room_due_soonest_goes_first_across_clients) {
     s.gen->request(b, b_wants);
     s.gen->request(c, c_wants);
     s.gate.open();
-    for (int i = 0; i < 500; ++i) {
-      {
-        std::lock_guard lock(m);
-        if (order.size() == 4) break;
-      }
-      std::this_thread::sleep_for(std::chrono::milliseconds(10));
-    }
-    std::lock_guard lock(m);
+    const std::string order = d.wait_for(4);
     ASSERT_EQ(order.size(), 4u) << order;
     EXPECT_EQ(order == "BCAA", urgent_ms > 0) << order;
   }
