@@ -93,6 +93,10 @@ int main(int argc, char** argv) {
   so.name = "grotto-client";
   so.protocol_version = o.protocol_version;
   so.spawn = !o.pose.has_value();
+  // Pictures and benchmarks wait for every room within the fixed horizon before they shoot, so
+  // that what a frame shows does not depend on how quickly the server answered (the adaptive
+  // horizon, the default for play, follows the server's latency).
+  if (headless) so.min_horizon_s = 0;
   auto stream_or = client::Stream::start(so, runtime);
   if (!stream_or) return fail(stream_or.error().message);
   std::unique_ptr<client::Stream> stream = std::move(stream_or).value();
