@@ -167,6 +167,30 @@ TEST(PublicStream, rooms_are_well_formed_and_outlive_their_stream) {
     expect_well_formed(*r);
 }
 
+// The horizon adapts by default (issue 28): against a quick server it stays near its floor;
+// min_horizon_s 0 keeps the fixed horizon.
+TEST(PublicStream, the_default_horizon_adapts_and_zero_keeps_it_fixed) {
+  Server server;
+  ASSERT_FALSE(server.url().empty());
+  for (double floor : {grotto::StreamConfig{}.min_horizon_s, 0.0}) {
+    SCOPED_TRACE("min_horizon_s " + std::to_string(floor));
+    grotto::StreamConfig config;
+    config.url = server.url();
+    config.min_horizon_s = floor;
+    auto stream = grotto::Stream::start(config);
+    ASSERT_NE(stream, nullptr);
+    ASSERT_TRUE(wait_for([&] { return stream->spawn_point().has_value(); }));
+    ASSERT_TRUE(stream->wait_area_ready(stream->spawn_point()->position, 8.0, 0, kWait));
+    const double horizon = stream->stats().horizon_s;
+    if (floor > 0) {
+      EXPECT_GE(horizon, floor);
+      EXPECT_LT(horizon, config.horizon_s);
+    } else {
+      EXPECT_EQ(horizon, config.horizon_s);
+    }
+  }
+}
+
 TEST(CStream, create_refuses_null_and_bad_configurations_into_the_callers_buffer) {
   char error[64];
   EXPECT_EQ(grotto_stream_create(nullptr, error, sizeof error), nullptr);
