@@ -6,7 +6,6 @@
 #include <algorithm>
 #include <cerrno>
 #include <cstring>
-#include <thread>
 
 namespace grotto::server {
 namespace {
@@ -50,9 +49,7 @@ FdDemand fd_demand(const ServerConfig& config) {
   FdDemand d;
   d.max_connections = static_cast<uint64_t>(std::max(config.max_connections, 0));
   d.max_handshakes = static_cast<uint64_t>(std::max(config.max_handshakes, 0));
-  d.workers = config.generator.workers > 0
-                  ? static_cast<uint64_t>(config.generator.workers)
-                  : static_cast<uint64_t>(std::max(1u, std::thread::hardware_concurrency()));
+  d.workers = resolved_workers(config.generator);
   return d;
 }
 

@@ -283,8 +283,7 @@ struct Generator::State {
     const auto now = Clock::now();
     if (config.urgent_within.count() > 0) {
       const size_t before = batch.size();
-      take_due(batch, limit, now);
-      take_due(batch, limit, now + config.urgent_within);
+      take_due(batch, limit, now, now + config.urgent_within);
       if (batch.size() > before) urgent = true;
     }
     if (!urgent) take_any(batch, limit);
@@ -339,13 +338,15 @@ struct Generator::State {
     }
   }
 
-  // A deadline class: the wants due by `until`, earliest deadline first with one job per client
-  // a round. Each round orders the clients whose most urgent want is due by then by that want's
-  // due time and takes one job from each in that order: the player who reaches a missing room
-  // soonest goes first (a stream's first room before another player's next one), and a client
-  // calling everything urgent still gets one job a round. The clients with queued wants are
-  // scanned once a call; the rounds look again only at those found due.
-  void take_due(std::vector<JobPtr>& batch, size_t limit, Clock::time_point until) {
+  // The deadline classes: first the wants due by `now`, then those due by `window`, each
+  // earliest deadline first with one job per client a round. Each round orders the clients whose
+  // most urgent want is due by then by that want's due time and takes one job from each in that
+  // order: the player who reaches a missing room soonest goes first (a stream's first room before
+  // another player's next one), and a client calling everything urgent still gets one job a
+  // round. The clients with queued wants are scanned once a call (thousands of them, under the
+  // one lock); the rounds look again only at those found due by `window`.
+  void take_due(std::vector<JobPtr>& batch, size_t limit, Clock::time_point now,
+                Clock::time_point window) {
     if (queued_jobs == 0 || batch.size() >= limit) return;
     std::vector<std::pair<Clock::time_point, Client*>> due;
     for (ClientId id : queued_clients) {
@@ -353,27 +354,32 @@ struct Generator::State {
       auto e = head(c, batch);
       if (e == c.queue.end()) continue;
       const auto at = c.wants.at(e->key).due;
-      if (at <= until) due.emplace_back(at, &c);
+      if (at <= window) due.emplace_back(at, &c);
     }
     auto earlier = [](const auto& a, const auto& b) {
       return a.first != b.first ? a.first < b.first : a.second->id < b.second->id;
     };
-    while (batch.size() < limit && !due.empty()) {
-      std::sort(due.begin(), due.end(), earlier);
-      size_t kept = 0;
-      for (auto& [at, client] : due) {
-        // The batch's lod is set by its first job, and taking a job takes it from every waiter:
-        // each client's head is looked at again.
-        auto e = head(*client, batch);
-        if (e == client->queue.end() || client->wants.at(e->key).due > until) continue;
-        if (batch.size() < limit) {
-          take_job(*client, e, batch);
-          e = head(*client, batch);
-          if (e == client->queue.end() || client->wants.at(e->key).due > until) continue;
+    for (const Clock::time_point until : {now, window}) {
+      while (batch.size() < limit && !due.empty()) {
+        std::sort(due.begin(), due.end(), earlier);
+        bool progress = false;
+        size_t kept = 0;
+        for (auto& [at, client] : due) {
+          // The batch's lod is set by its first job, and taking a job takes it from every
+          // waiter: each client's head is looked at again.
+          auto e = head(*client, batch);
+          if (e == client->queue.end() || client->wants.at(e->key).due > window) continue;
+          if (client->wants.at(e->key).due <= until && batch.size() < limit) {
+            take_job(*client, e, batch);
+            progress = true;
+            e = head(*client, batch);
+            if (e == client->queue.end() || client->wants.at(e->key).due > window) continue;
+          }
+          due[kept++] = {client->wants.at(e->key).due, client};
         }
-        due[kept++] = {client->wants.at(e->key).due, client};
+        due.resize(kept);
+        if (!progress) break;
       }
-      due.resize(kept);
     }
   }
 
@@ -546,6 +552,11 @@ struct Generator::State {
   }
 };
 
+size_t resolved_workers(const GeneratorConfig& config) {
+  return config.workers > 0 ? static_cast<size_t>(config.workers)
+                            : std::max(1u, std::thread::hardware_concurrency());
+}
+
 Result<std::unique_ptr<Generator>> Generator::create(const cave::World& world,
                                                      const mesh::MeshParams& mesh_params,
                                                      const GeneratorConfig& config,
@@ -576,8 +587,7 @@ Result<std::unique_ptr<Generator>> Generator::create(const cave::World& world,
   auto home = std::make_shared<WorldSlot>(
       world, std::move(ctx).value(), std::make_shared<SectorStore>(config.sector_cache_entries));
   auto state = std::make_unique<State>(std::move(home), mesh_params, config, metrics);
-  size_t workers = config.workers > 0 ? static_cast<size_t>(config.workers)
-                                      : std::max(1u, std::thread::hardware_concurrency());
+  const size_t workers = resolved_workers(config);
   State* s = state.get();
   s->builders.resize(workers);
   // Each worker opens its own builder (and OpenCL context) on its thread: builders are not

@@ -50,6 +50,9 @@ struct GeneratorConfig {
   kernels::RoomBuilder::Options builder{};  // OpenCL device choice (each worker has a builder)
 };
 
+// The build threads `config` runs: config.workers, or one per hardware thread when it is 0.
+size_t resolved_workers(const GeneratorConfig& config);
+
 class Generator {
  public:
   // Called once per (client, wanted room) outcome, on a worker thread or, for cache hits and

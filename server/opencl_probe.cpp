@@ -171,10 +171,7 @@ constexpr size_t kProbeBatchRooms[] = {1, 2, 8, 32};
 
 // The builders the child opens: the server's workers (0: one per hardware thread), at least 2.
 int probe_builders(const ServerConfig& config) {
-  int workers = config.generator.workers > 0
-                    ? config.generator.workers
-                    : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
-  return std::max(2, workers);
+  return std::max(2, static_cast<int>(resolved_workers(config.generator)));
 }
 
 void report(std::string_view kind, const std::string& text) {

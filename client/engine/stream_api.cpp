@@ -6,7 +6,6 @@
 
 #include <array>
 #include <chrono>
-#include <cmath>
 #include <memory>
 #include <string>
 #include <string_view>
@@ -98,8 +97,6 @@ std::unique_ptr<Stream> Stream::start(const StreamConfig& config, std::string* e
   std::string why;
   if (config.decode_threads < 0 || config.decode_threads > 64) {
     why = "decode_threads must be in [0, 64]";
-  } else if (!(config.min_horizon_s >= 0) || !std::isfinite(config.min_horizon_s)) {
-    why = "min_horizon_s must be 0 (fixed horizon) or a positive number of seconds";
   } else if (Status valid = client::validate_options(o); !valid) {
     why = valid.error().message;
   }
