@@ -12,7 +12,10 @@
 # (0.25 by default) is marked "busy": its figures are not the machine's.
 #
 #   bash bench/capacity.sh [--runs N] [--duration S] [--rows LIST] [--build-dir DIR]
-#                          [--out DIR] [--busy CORES] [--no-build]
+#                          [--out DIR] [--busy CORES] [--no-build] [--load-flags "FLAGS"]
+#
+# --load-flags adds FLAGS to every grotto-load run (an experiment against the defaults, such as
+# "--min-horizon 1.0"); the table then says so in its first line.
 #
 # Rows (--rows takes their names, comma-separated; default: all of them, in this order):
 #   embedded-300-once       300 players at once, embedded server, defaults (the issue's check)
@@ -27,12 +30,15 @@
 #   server-1000-ramp30      1,000 players joining over 30 s
 #   server-300-ramp10-w1    300 players joining over 10 s, grotto-server --workers 1
 #   server-300-ramp10-w2    the same with --workers 2: the server's CPU per room against one worker
+# Only with --rows, for a machine of 16 cores (the issue's scaling set-up, CPU reference path):
+#   cores16-w2              1,000 players over 10 s; grotto-server --opencl-device none --workers 2
+#   cores16-w10             4,000 players over 20 s; --workers 10 --io-threads 4
 # Every row is 10 m/s unless its name ends in -30. Exit: 0 when every run ran (whatever its
 # figures), 1 when a build or a run failed, 2 on a bad flag.
 set -u
 cd "$(dirname "$0")/.."
 
-runs=3 duration=60 rows="" build_dir=build-capacity out="" busy=0.25 build=1
+runs=3 duration=60 rows="" build_dir=build-capacity out="" busy=0.25 build=1 load_flags=""
 usage() { sed -n '2,/^set -u/p' "$0" | sed '$d' | sed 's/^# \{0,1\}//'; }
 while (($#)); do
   case "$1" in
@@ -43,6 +49,7 @@ while (($#)); do
     --out) out=${2:-} && shift ;;
     --busy) busy=${2:-} && shift ;;
     --no-build) build=0 ;;
+    --load-flags) load_flags=${2:-} && shift ;;
     -h | --help) usage && exit 0 ;;
     *) echo "capacity.sh: unknown flag '$1' (--help lists them)" >&2 && exit 2 ;;
   esac
@@ -67,6 +74,10 @@ all_rows=(
   "server-300-ramp10-w1|server|300|10|10||--workers 1"
   "server-300-ramp10-w2|server|300|10|10||--workers 2"
 )
+big_rows=(
+  "cores16-w2|server|1000|10|10|--io-threads 2|--opencl-device none --workers 2 --max-connections 6000"
+  "cores16-w10|server|4000|20|10|--io-threads 2|--opencl-device none --workers 10 --io-threads 4 --max-connections 6000"
+)
 selected=()
 if [[ -z "$rows" ]]; then
   selected=("${all_rows[@]}")
@@ -74,7 +85,7 @@ else
   IFS=, read -ra wanted <<<"$rows"
   for w in "${wanted[@]}"; do
     found=""
-    for r in "${all_rows[@]}"; do [[ "${r%%|*}" == "$w" ]] && found=$r; done
+    for r in "${all_rows[@]}" "${big_rows[@]}"; do [[ "${r%%|*}" == "$w" ]] && found=$r; done
     [[ -n "$found" ]] || { echo "capacity.sh: no row '$w' (--help lists them)" >&2; exit 2; }
     selected+=("$found")
   done
@@ -144,6 +155,8 @@ for row in "${selected[@]}"; do
     ((ramp > 0)) && args+=(--ramp "$ramp")
     # shellcheck disable=SC2206
     [[ -n "$extra" ]] && args+=($extra)
+    # shellcheck disable=SC2206
+    [[ -n "$load_flags" ]] && args+=($load_flags)
     server_cpu=""
     if [[ "$where" == server ]]; then
       start_server "$out/$name.$i.server.log" || { failed=1; continue; }
@@ -169,9 +182,11 @@ for row in "${selected[@]}"; do
   done
 done
 
-python3 - "$out" "$busy" "${selected[@]}" <<'PY'
+python3 - "$out" "$busy" "$load_flags" "${selected[@]}" <<'PY'
 import json, statistics, sys, glob, os
-out, busy, rows = sys.argv[1], float(sys.argv[2]), sys.argv[3:]
+out, busy, load_flags, rows = sys.argv[1], float(sys.argv[2]), sys.argv[3], sys.argv[4:]
+if load_flags:
+    print(f"grotto-load flags added to every run: `{load_flags}`\n")
 def fmt(vals, digits=0):
     if not vals: return "-"
     med = statistics.median(vals)
