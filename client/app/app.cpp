@@ -14,6 +14,7 @@
 
 #include "client/app/bench_report.hpp"
 #include "client/app/camera_aim.hpp"
+#include "client/app/screenshot_report.hpp"
 #include "tools/png.hpp"
 
 namespace grotto::app {
@@ -24,7 +25,9 @@ using Clock = std::chrono::steady_clock;
 namespace client = grotto::client;
 
 constexpr double kPi = 3.14159265358979323846;
-constexpr double kPlanSpeed = 10;  // m/s told to the stream while waiting: 15-40 m of horizon
+// m/s told to the stream while waiting: 40-80 m of horizon (the fixed 4 s, halved behind the
+// camera), so that every room whose portal lies within the fog's end (40 m) is asked for.
+constexpr double kPlanSpeed = 20;
 
 int fail(const std::string& message) {
   std::fprintf(stderr, "grotto-client: %s\n", message.c_str());
@@ -42,13 +45,23 @@ std::optional<cave::RoomId> room_at(const render::GpuRoomCache& cache, Vec3 p) {
   return room ? std::optional<cave::RoomId>(room->id) : std::nullopt;
 }
 
-// Rooms around p are ready: its room and every neighbour through its portals are on the GPU, and
-// nothing is in flight.
+// The neighbours of p's room that a picture from p can show: through a portal nearer than the
+// fog's end (a hall's far portals lie beyond it, and beyond the stream's horizon).
+std::vector<cave::RoomId> visible_neighbours(const Session& s, cave::RoomId id, Vec3 p) {
+  std::vector<cave::RoomId> out;
+  for (const auto& portal : s.cache.rooms().at(id).room.portals)
+    if (length(portal.centre - p) - portal.radius < s.render_options.fog_end)
+      out.push_back(portal.neighbour);
+  return out;
+}
+
+// Rooms around p are ready: its room and every neighbour it can show are on the GPU, and nothing
+// is in flight.
 bool surroundings_ready(const Session& s, Vec3 p) {
   auto id = room_at(s.cache, p);
   if (!id) return false;
-  for (const auto& portal : s.cache.rooms().at(*id).room.portals)
-    if (!s.cache.contains(portal.neighbour)) return false;
+  for (cave::RoomId n : visible_neighbours(s, *id, p))
+    if (!s.cache.contains(n)) return false;
   return s.stream.stats().in_flight == 0;
 }
 
@@ -59,8 +72,16 @@ bool wait_until(Session& s, Clock::time_point deadline, const char* what, Ready&
     if (s.stream.state() == client::StreamState::kFailed) return false;  // refused for good
     if (Clock::now() > deadline) {
       // A pose in solid rock is located in no room, so nothing streams in.
-      spdlog::warn("event={}_timeout rooms={} placed={} hint=\"is the pose inside the cave?\"",
-                   what, s.cache.size(), s.placed);
+      const auto id = room_at(s.cache, s.camera.position);
+      std::string missing;
+      if (id)
+        for (cave::RoomId n : visible_neighbours(s, *id, s.camera.position))
+          if (!s.cache.contains(n)) missing += " " + n.to_string();
+      spdlog::warn(
+          "event={}_timeout rooms={} placed={} camera_room={} missing=\"{}\" in_flight={} "
+          "hint=\"is the pose inside the cave?\"",
+          what, s.cache.size(), s.placed, id ? id->to_string() : "none", missing,
+          s.stream.stats().in_flight);
       return false;
     }
     pump(s, kPlanSpeed);
@@ -235,6 +256,11 @@ std::string seconds_text(double s) {
   return text;
 }
 
+std::string gl_string(GLenum name) {
+  const auto* text = reinterpret_cast<const char*>(glGetString(name));
+  return std::string(text != nullptr ? text : "unknown");
+}
+
 // Renders --frames frames of the current pose into fb and returns their pixels and the last
 // frame's statistics.
 std::vector<unsigned char> render_frames(Session& s, render::Framebuffer& fb,
@@ -290,6 +316,10 @@ int screenshot(Session& s, render::Framebuffer& fb, Clock::time_point deadline) 
   if (const double lit = lit_fraction(rgb); why.empty() && lit < 0.02)
     why = "the picture is dark (" + seconds_text(100 * lit) +
           " % of pixels lit): the camera faces rock at arm's length or sees nothing";
+  // The view depth of the last frame, while its framebuffers are as it left them.
+  const DepthSummary depth = summarize_depth(s.renderer.read_view_depth());
+  if (why.empty() && depth.counted == 0)
+    why = "no pixel shows rock nearer than the fog's end from " + position_text(s.camera.position);
   if (!why.empty()) {
     // With the overlay asked for, the picture shows what went wrong: write it, still failing.
     if (s.show_overlay) {
@@ -304,6 +334,27 @@ int screenshot(Session& s, render::Framebuffer& fb, Clock::time_point deadline) 
     return fail(w.error().message);
   std::printf("grotto-client: wrote %s (%dx%d, %zu rooms loaded)\n", o.screenshot.c_str(), o.width,
               o.height, s.cache.size());
+  if (!o.json.empty()) {
+    ScreenshotReport report;
+    report.picture = o.screenshot;
+    report.seed = s.stream.stats().seed;
+    report.width = o.width;
+    report.height = o.height;
+    report.position = s.camera.position;
+    report.yaw_deg = s.camera.yaw * 180 / kPi;
+    report.pitch_deg = s.camera.pitch * 180 / kPi;
+    report.mode = play::mode_name(s.player.mode());
+    report.depth = depth;
+    report.lights = render::frame_lights(s.camera, s.render_options);
+    report.rooms_loaded = s.cache.size();
+    report.rooms_drawn = stats.rooms_drawn;
+    report.relief = s.render_options.tessellation && s.render_options.displacement > 0;
+    report.gl_renderer = gl_string(GL_RENDERER);
+    std::ofstream out(o.json);
+    out << screenshot_json(report);
+    out.close();
+    if (!out) return fail("--json: cannot write " + o.json);
+  }
   return 0;
 }
 
@@ -352,10 +403,6 @@ int bench(Session& s, render::Framebuffer& fb, Clock::time_point deadline) {
   report.relief = s.render_options.tessellation && s.render_options.displacement > 0;
   report.bloom = s.render_options.bloom;
   report.motion_blur = s.render_options.motion_blur;
-  auto gl_string = [](GLenum name) {
-    const auto* text = reinterpret_cast<const char*>(glGetString(name));
-    return std::string(text != nullptr ? text : "unknown");
-  };
   report.gl_renderer = gl_string(GL_RENDERER);
   report.gl_version = gl_string(GL_VERSION);
   report.patches_mean = frame_ms.empty() ? 0 : patches / static_cast<double>(frame_ms.size());

@@ -90,8 +90,10 @@ std::optional<int> parse_options(int argc, char** argv, Options& o) {
   app.add_option("--surface", o.surface, "Tessellated surface: pn (PN triangles) or phong")
       ->capture_default_str()
       ->check(CLI::IsMember({"pn", "phong"}));
-  app.add_option("--screenshot", o.screenshot,
-                 "Headless: render --frames frames, write this PNG and exit");
+  app.add_option(
+      "--screenshot", o.screenshot,
+      "Headless: render --frames frames, write this PNG (and with --json its report) and "
+      "exit");
   app.add_option("--frames", o.frames, "Frames rendered before the screenshot")
       ->capture_default_str()
       ->check(CLI::Range(1, 100000));
@@ -143,7 +145,14 @@ std::optional<int> parse_options(int argc, char** argv, Options& o) {
                  "Brightness before tone mapping (1 is the default exposure)")
       ->capture_default_str()
       ->check(CLI::Range(0.05, 20.0));
-  app.add_option("--json", o.json, "With --bench: also write the statistics to this JSON file");
+  app.add_option("--json", o.json,
+                 "With --bench: also write the statistics to this JSON file. With --screenshot: "
+                 "write what the picture shows beside it: depth_m (p10, median, p90 of the view "
+                 "depth in metres along the view axis, over the pixels that show rock: the far "
+                 "plane, the background, fog caps over portals and rock wholly in fog do not "
+                 "count), covered (the share of pixels that show rock), lights (each light "
+                 "source lighting the frame: kind and position; today the headlamp), the pose, "
+                 "seed, mode and size");
   app.add_option("--gl", o.gl,
                  "How --screenshot and --bench get OpenGL: glfw (a hidden window: needs an X or "
                  "Wayland display), egl (no window system: a GPU's driver, or Mesa's llvmpipe), or "
@@ -198,7 +207,8 @@ std::optional<int> parse_options(int argc, char** argv, Options& o) {
     return fail("--gl must be auto, glfw or egl (got '" + o.gl + "')");
   if (o.gl == "egl" && o.screenshot.empty() && !o.bench_s)
     return fail("--gl egl is for --screenshot and --bench (the window needs a display: glfw)");
-  if (!o.json.empty() && !o.bench_s) return fail("--json needs --bench (it holds its statistics)");
+  if (!o.json.empty() && !o.bench_s && o.screenshot.empty())
+    return fail("--json needs --bench or --screenshot (it holds their report)");
   return std::nullopt;
 }
 

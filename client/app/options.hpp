@@ -41,7 +41,7 @@ struct Options {
   play::Mode mode = play::Mode::kWalk;
   std::optional<double> flythrough_s;  // time along the scripted path
   std::optional<double> bench_s;       // seconds of frames to measure
-  std::string json;                    // --bench report
+  std::string json;                    // --bench or --screenshot report
   std::string token_file;
   std::string token;            // from token_file or $GROTTO_TOKEN; empty: none
   std::optional<bool> overlay;  // --overlay / --no-overlay; default: in the window only

@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <glm/gtc/matrix_transform.hpp>
 #include <glm/gtc/type_ptr.hpp>
+#include <limits>
 #include <map>
 #include <vector>
 
@@ -316,6 +317,14 @@ FrameStats Renderer::draw(const GpuRoomCache& cache, const Camera& camera, int w
     }
   }
   const bool posting = post && post_.width == width && post_.height == height;
+  last_scene_.framebuffer = posting ? post_.scene.get() : static_cast<GLuint>(target);
+  last_scene_.width = width;
+  last_scene_.height = height;
+  last_scene_.near_plane = o.near_plane;
+  last_scene_.far_plane = o.far_plane;
+  last_scene_.fog_end = o.fog_end;
+  last_scene_.tan_half_fov_y = std::tan(static_cast<float>(camera.fov_y) / 2);
+  last_scene_.aspect = aspect;
 
   glClearColor(o.clear_color.r, o.clear_color.g, o.clear_color.b, 1.0f);
   glClearDepth(1.0);
@@ -343,12 +352,9 @@ FrameStats Renderer::draw(const GpuRoomCache& cache, const Camera& camera, int w
   glUniform1f(u_.exposure, o.exposure);
   glUniform1f(u_.glow, o.glow);
   glUniform3fv(u_.forward, 1, glm::value_ptr(forward));
-  {
-    // The headlamp sits on the forehead, a little right of the eye: shading shows the relief.
-    const glm::vec3 right = glm::normalize(glm::cross(forward, glm::vec3(0, 1, 0)) + 1e-6f);
-    const glm::vec3 lamp = eye + 0.25f * right + glm::vec3(0, 0.3f, 0);
-    glUniform3fv(u_.lamp, 1, glm::value_ptr(lamp));
-  }
+  // The headlamp, frame_lights' first light (room.frag has one lamp).
+  glUniform3fv(u_.lamp, 1,
+               glm::value_ptr(to_vec3(frame_lights(camera, o).front().position - anchor)));
   glUniform1i(u_.lod, static_cast<int>(o.lod));
   glUniform1f(u_.pixel_scale,
               static_cast<float>(height) / (2.0f * std::tan(static_cast<float>(camera.fov_y) / 2)));
@@ -418,7 +424,11 @@ FrameStats Renderer::draw(const GpuRoomCache& cache, const Camera& camera, int w
     glBindBuffer(GL_ARRAY_BUFFER, cap_vertices_.get());
     glBufferData(GL_ARRAY_BUFFER, static_cast<GLsizeiptr>(caps.size() * sizeof(float)), caps.data(),
                  GL_STREAM_DRAW);
+    // Caps are fog, not rock: tested against the rooms' depth (drawn before them) but writing
+    // none, so read_view_depth sees through them. The picture is the same: a cap is one colour.
+    glDepthMask(GL_FALSE);
     glDrawArrays(GL_TRIANGLES, 0, static_cast<GLsizei>(caps.size() / 3));
+    glDepthMask(GL_TRUE);
   }
   glBindVertexArray(0);
   glPolygonMode(GL_FRONT_AND_BACK, GL_FILL);
@@ -439,6 +449,48 @@ FrameStats Renderer::draw(const GpuRoomCache& cache, const Camera& camera, int w
   previous_view_proj_ = view_proj;
   previous_anchor_ = anchor;
   return stats;
+}
+
+std::vector<Light> frame_lights(const Camera& camera, const RenderOptions& /*options*/) {
+  // The headlamp sits on the forehead, a little right of the eye: shading shows the relief.
+  const Vec3 forward = camera_forward(camera);
+  Vec3 right = cross(forward, Vec3{0, 1, 0});
+  const double l = length(right);
+  right = l > 1e-9 ? right / l : Vec3{std::cos(camera.yaw), 0, std::sin(camera.yaw)};
+  return {Light{"headlamp", camera.position + right * 0.25 + Vec3{0, 0.3, 0}}};
+}
+
+std::vector<float> Renderer::read_view_depth() const {
+  const SceneDepth& d = last_scene_;
+  if (d.width <= 0 || d.height <= 0) return {};
+  const size_t w = static_cast<size_t>(d.width), h = static_cast<size_t>(d.height);
+  std::vector<float> raw(w * h);
+  GLint previous = 0;
+  glGetIntegerv(GL_READ_FRAMEBUFFER_BINDING, &previous);
+  glBindFramebuffer(GL_READ_FRAMEBUFFER, d.framebuffer);
+  glPixelStorei(GL_PACK_ALIGNMENT, 1);
+  glReadPixels(0, 0, d.width, d.height, GL_DEPTH_COMPONENT, GL_FLOAT, raw.data());
+  glBindFramebuffer(GL_READ_FRAMEBUFFER, static_cast<GLuint>(previous));
+  std::vector<float> out(w * h, std::numeric_limits<float>::infinity());
+  const double n = d.near_plane, f = d.far_plane;
+  for (size_t y = 0; y < h; ++y) {
+    // GL's rows start at the bottom; out's at the top.
+    const float* row = raw.data() + (h - 1 - y) * w;
+    const double ndc_y = 1.0 - 2.0 * (static_cast<double>(y) + 0.5) / static_cast<double>(h);
+    for (size_t x = 0; x < w; ++x) {
+      const double depth = row[x];
+      if (!(depth < 1.0)) continue;  // cleared: nothing drawn here
+      // glm::perspective's depth: z_ndc = (f + n) / (f - n) - 2 f n / ((f - n) z_eye).
+      const double z_ndc = 2.0 * depth - 1.0;
+      const double z = 2.0 * f * n / (f + n - z_ndc * (f - n));
+      const double ndc_x = 2.0 * (static_cast<double>(x) + 0.5) / static_cast<double>(w) - 1.0;
+      const double sx = ndc_x * d.tan_half_fov_y * d.aspect, sy = ndc_y * d.tan_half_fov_y;
+      // room.frag fogs by the distance from the eye: wholly fogged from fog_end on.
+      if (z * std::sqrt(1.0 + sx * sx + sy * sy) >= d.fog_end) continue;
+      out[y * w + x] = static_cast<float>(z);
+    }
+  }
+  return out;
 }
 
 Status Renderer::ensure_post_targets(int width, int height) {

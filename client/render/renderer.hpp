@@ -8,6 +8,8 @@
 #pragma once
 
 #include <glm/glm.hpp>
+#include <string>
+#include <vector>
 
 #include "client/render/gl.hpp"
 #include "client/render/room_cache.hpp"
@@ -86,6 +88,17 @@ struct FrameStats {
   bool motion_cut = false;      // no motion blur: first frame, or the camera jumped
 };
 
+// A light source that lights a frame: what it is ("headlamp"; world lights and flares add their
+// own kinds) and where it is, world metres.
+struct Light {
+  std::string kind;
+  Vec3 position;
+};
+// The lights of a frame drawn from `camera` with `options`. One source of truth: the renderer
+// lights the frame with these, and grotto-client --screenshot --json reports them. Today the
+// headlamp alone, a little above and right of the eye.
+std::vector<Light> frame_lights(const Camera& camera, const RenderOptions& options);
+
 // A power-of-two grid point near the camera: room offsets from it are exact in float32.
 Vec3 render_anchor(Vec3 camera_position);
 
@@ -96,6 +109,14 @@ class Renderer {
   // Clears the bound framebuffer (viewport width x height) and draws the cache.
   FrameStats draw(const GpuRoomCache& cache, const Camera& camera, int width, int height,
                   const RenderOptions& options);
+  // The view depth of the last frame's scene pass, read back from its depth buffer and
+  // linearized with that frame's near and far planes: per pixel, rows top first (read_rgb's
+  // order), the distance in metres along the view axis (eye-space z) to the rock the pixel shows.
+  // Infinity where the pixel shows no rock: nothing drawn (the far plane, the clear colour) or
+  // rock wholly in fog (as far from the eye as RenderOptions::fog_end or more). Fog caps write
+  // no depth, so they count as nothing drawn. Call with the last frame's GL context current and
+  // its framebuffers alive; empty before the first frame.
+  std::vector<float> read_view_depth() const;
 
  private:
   // The post passes' targets, made for one size and remade when it changes.
@@ -133,6 +154,13 @@ class Renderer {
   } uc_{};
   GLint cap_view_proj_ = -1;
   GLint cap_fog_color_ = -1;
+  // Where and how the last frame's scene pass was drawn, for read_view_depth.
+  struct SceneDepth {
+    GLuint framebuffer = 0;
+    int width = 0, height = 0;
+    float near_plane = 0, far_plane = 0, fog_end = 0;
+    float tan_half_fov_y = 0, aspect = 1;
+  } last_scene_{};
   // Last frame's camera, for motion blur.
   bool has_previous_ = false;
   Camera previous_camera_;

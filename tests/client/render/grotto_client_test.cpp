@@ -12,9 +12,15 @@
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <limits>
+#include <optional>
 #include <string>
 #include <vector>
 
+#include "cave/layout.hpp"
+#include "core/vec3.hpp"
+#include "mesh/room_mesh.hpp"
+#include "shaders/relief.hpp"
 #include "tools/png.hpp"
 
 namespace {
@@ -193,7 +199,8 @@ TEST(GrottoClient, an_invalid_mode_or_bench_time_is_refused_naming_the_flag) {
   }
   Outcome json = run(bin + " --json x.json");
   EXPECT_EQ(json.status, 2);
-  EXPECT_NE(json.output.find("--json needs --bench"), std::string::npos) << json.output;
+  EXPECT_NE(json.output.find("--json needs --bench or --screenshot"), std::string::npos)
+      << json.output;
   Outcome fly = run(bin + " --flythrough -1");
   EXPECT_EQ(fly.status, 2);
   EXPECT_NE(fly.output.find("--flythrough must be"), std::string::npos) << fly.output;
@@ -326,4 +333,165 @@ TEST(GrottoClient, the_overlay_says_plainly_when_the_server_cannot_be_reached) {
   EXPECT_GT(error_pixels("--overlay", outside), 100);
   EXPECT_EQ(outside, 0);
   EXPECT_EQ(error_pixels("", outside), 0);
+}
+
+// --screenshot --json: the view depth (depth_m) against the room's own mesh. From a room's
+// interior point the camera faces the nearest wall, then the longest view across the room
+// (both found by casting rays at the room's patch mesh); the picture facing the wall has a smaller
+// median depth, and each median lies between what the mesh allows. A report that read the raw
+// depth buffer (0-1), a far plane, or fog, would fall outside.
+namespace {
+
+// The distance along the ray from p in direction d (unit) to the nearest patch triangle of the
+// mesh, or infinity.
+double ray_distance(const grotto::mesh::RoomMesh& m, grotto::Vec3 p, grotto::Vec3 d) {
+  using grotto::Vec3;
+  double best = std::numeric_limits<double>::infinity();
+  for (size_t t = 0; t + 2 < m.indices.size(); t += 3) {
+    const Vec3 a = m.world_position(m.indices[t]), b = m.world_position(m.indices[t + 1]),
+               c = m.world_position(m.indices[t + 2]);
+    const Vec3 e1 = b - a, e2 = c - a, h = cross(d, e2);
+    const double det = dot(e1, h);
+    if (std::abs(det) < 1e-12) continue;
+    const Vec3 s = p - a;
+    const double u = dot(s, h) / det;
+    if (u < 0 || u > 1) continue;
+    const Vec3 q = cross(s, e1);
+    const double v = dot(d, q) / det;
+    if (v < 0 || u + v > 1) continue;
+    const double along = dot(e2, q) / det;
+    if (along > 0) best = std::min(best, along);
+  }
+  return best;
+}
+
+// The world of the depth test.
+constexpr uint64_t kDepthSeed = 95;
+
+struct Shot {
+  int status = -1;
+  std::string output;
+  nlohmann::json report;
+};
+
+Shot shoot(const std::string& pose, const std::string& flags) {
+  const auto dir = std::filesystem::temp_directory_path();
+  const std::string png = (dir / "grotto_client_test_depth.png").string();
+  const std::string json = (dir / "grotto_client_test_depth.json").string();
+  std::filesystem::remove(png);
+  std::filesystem::remove(json);
+  Outcome r =
+      run(std::string(GROTTO_CLIENT_BIN) + " --device none --seed " + std::to_string(kDepthSeed) +
+          " --width 240 --height 160 --tess-max 4 --frames 2" + " --wait 120 --mode fly --pose " +
+          pose + " --screenshot " + png + " --json " + json + flags);
+  Shot shot{r.status, r.output, {}};
+  std::ifstream f(json);
+  if (f) shot.report = nlohmann::json::parse(f, nullptr, false);
+  std::filesystem::remove(png);
+  std::filesystem::remove(json);
+  return shot;
+}
+
+}  // namespace
+
+TEST(GrottoClient, screenshot_json_reports_the_view_depth_of_the_room_in_view) {
+  const char* display = std::getenv("DISPLAY");
+  if (display == nullptr || *display == '\0') GTEST_SKIP() << "DISPLAY is not set";
+  namespace cave = grotto::cave;
+  namespace mesh = grotto::mesh;
+  using grotto::Vec3;
+  // The world's largest room of sector (0,0,0), as the in-process server builds it.
+  const cave::World world = cave::World::create(kDepthSeed, cave::LayoutParams{}).value();
+  const mesh::MeshContext ctx = mesh::MeshContext::create(world, mesh::MeshParams{}).value();
+  std::optional<cave::Room> room;
+  for (const cave::Room& r : cave::generate_region(world, {0, 0, 0}, {0, 0, 0}).rooms)
+    if (!r.id.is_gate() && (!room || r.sphere.radius > room->sphere.radius)) room = r;
+  ASSERT_TRUE(room.has_value());
+  const mesh::RoomMesh m = mesh::build_room_mesh(ctx, *room, mesh::Lod::kPatch).value();
+  const Vec3 centre = cave::interior_point(*room);
+  constexpr double kPi = 3.14159265358979323846;
+  auto heading = [&](double yaw_deg) {
+    const double a = yaw_deg * kPi / 180;  // yaw 0 looks along -z, positive yaw turns to +x
+    return Vec3{std::sin(a), 0, -std::cos(a)};
+  };
+  // The nearest wall round the room's interior point, by horizontal rays every 10 degrees.
+  double wall_yaw = 0, wall_d = std::numeric_limits<double>::infinity();
+  for (int yaw = 0; yaw < 360; yaw += 10)
+    if (const double d = ray_distance(m, centre, heading(yaw)); d < wall_d)
+      wall_d = d, wall_yaw = yaw;
+  ASSERT_TRUE(std::isfinite(wall_d)) << "no wall round " << room->id.to_string();
+  // The camera 1.5 m from that wall: facing it, then facing back across the room.
+  constexpr double kFromWall = 1.5;
+  ASSERT_GT(wall_d, kFromWall + 1) << room->id.to_string() << " is too small for this test";
+  const Vec3 eye = centre + heading(wall_yaw) * (wall_d - kFromWall);
+  const double back_yaw = std::fmod(wall_yaw + 180, 360);
+  const double wall_ahead = ray_distance(m, eye, heading(wall_yaw));
+  const double across = ray_distance(m, eye, heading(back_yaw));  // infinity: out of a portal
+  // What the mesh allows: no rock nearer than the nearest vertex less the relief (a pixel's
+  // eye-space z is at most its distance from the eye; the corners of a 70 degree, 3:2 view are 45
+  // degrees off its axis, so z is at least 0.7 of the distance).
+  double nearest = 1e300, farthest = 0;
+  for (size_t i = 0; i < m.vertex_count(); ++i) {
+    const double d = length(m.world_position(i) - eye);
+    nearest = std::min(nearest, d), farthest = std::max(farthest, d);
+  }
+  const double relief = grotto::relief::relief_bound(1.0f, static_cast<float>(room->sphere.radius));
+  auto pose = [&](double yaw) {
+    char text[128];
+    std::snprintf(text, sizeof text, "%.3f,%.3f,%.3f,%.0f,0", eye.x, eye.y, eye.z, yaw);
+    return std::string(text);
+  };
+  const Shot near = shoot(pose(wall_yaw), "");
+  if (near.output.find("no OpenGL 4.1") != std::string::npos) GTEST_SKIP() << near.output;
+  ASSERT_EQ(near.status, 0) << pose(wall_yaw) << ": " << near.output;
+  const Shot far = shoot(pose(back_yaw), "");
+  ASSERT_EQ(far.status, 0) << pose(back_yaw) << ": " << far.output;
+  // Without post passes the scene is drawn straight into the picture's framebuffer: the same depth.
+  const Shot direct = shoot(pose(wall_yaw), " --no-bloom --no-motion-blur");
+  ASSERT_EQ(direct.status, 0) << direct.output;
+  for (const Shot* shot : {&near, &far, &direct}) {
+    const nlohmann::json& j = shot->report;
+    ASSERT_TRUE(j.is_object()) << "no JSON report: " << shot->output;
+    for (const char* key : {"p10", "median", "p90"})
+      ASSERT_TRUE(j["depth_m"][key].is_number()) << key << " in " << j.dump();
+    EXPECT_LE(j["depth_m"]["p10"].get<double>(), j["depth_m"]["median"].get<double>());
+    EXPECT_LE(j["depth_m"]["median"].get<double>(), j["depth_m"]["p90"].get<double>());
+    EXPECT_GE(j["depth_m"]["p10"].get<double>(), 0.7 * (nearest - relief)) << j.dump();
+    EXPECT_GT(j["covered"].get<double>(), 0.5) << j.dump();
+    EXPECT_LE(j["covered"].get<double>(), 1.0);
+    EXPECT_EQ(j["seed"].get<uint64_t>(), kDepthSeed);
+    EXPECT_EQ(j["width"].get<int>(), 240);
+    EXPECT_EQ(j["height"].get<int>(), 160);
+    EXPECT_EQ(j["mode"].get<std::string>(), "fly");
+    EXPECT_NEAR(j["pose"]["position"][0].get<double>(), eye.x, 1e-2);
+    EXPECT_NEAR(j["pose"]["position"][1].get<double>(), eye.y, 1e-2);
+    EXPECT_NEAR(j["pose"]["position"][2].get<double>(), eye.z, 1e-2);
+    // The headlamp, on the player's head.
+    ASSERT_EQ(j["lights"].size(), 1u) << j.dump();
+    EXPECT_EQ(j["lights"][0]["kind"].get<std::string>(), "headlamp");
+    const Vec3 lamp{j["lights"][0]["position"][0].get<double>(),
+                    j["lights"][0]["position"][1].get<double>(),
+                    j["lights"][0]["position"][2].get<double>()};
+    EXPECT_LT(length(lamp - eye), 0.5);
+  }
+  const double near_median = near.report["depth_m"]["median"].get<double>();
+  const double far_median = far.report["depth_m"]["median"].get<double>();
+  std::printf(
+      "depth: room %s radius %.1f m; mesh from the eye %.2f-%.2f m; wall %.2f m ahead at "
+      "yaw %.0f: median %.2f m (p10 %.2f, p90 %.2f); across %.2f m at yaw %.0f: median "
+      "%.2f m (p10 %.2f, p90 %.2f)\n",
+      room->id.to_string().c_str(), room->sphere.radius, nearest, farthest, wall_ahead, wall_yaw,
+      near_median, near.report["depth_m"]["p10"].get<double>(),
+      near.report["depth_m"]["p90"].get<double>(), across, back_yaw, far_median,
+      far.report["depth_m"]["p10"].get<double>(), far.report["depth_m"]["p90"].get<double>());
+  // Facing the wall the view is shallower than across the room, and no deeper than the wall.
+  EXPECT_LT(near_median, far_median);
+  EXPECT_LE(near_median, wall_ahead + relief);
+  // Across the room most of the view is farther than the wall was, and within the room's reach
+  // unless the view leaves through a portal.
+  EXPECT_GT(far_median, wall_ahead + relief);
+  if (std::isfinite(across)) {
+    EXPECT_LE(far_median, farthest + relief);
+  }
+  EXPECT_NEAR(direct.report["depth_m"]["median"].get<double>(), near_median, 0.01);
 }
