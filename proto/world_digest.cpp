@@ -30,7 +30,7 @@ class Canonical {
 
 uint64_t layout_params_digest(const cave::LayoutParams& p) {
   Canonical c;
-  c.text("grotto.layout.v1");  // a new field or order is a new tag
+  c.text("grotto.layout.v2");  // a new field or order is a new tag
   c.f64(p.sector_size);
   c.i64(p.gates_min);
   c.i64(p.gates_max);
@@ -41,6 +41,8 @@ uint64_t layout_params_digest(const cave::LayoutParams& p) {
   c.f64(p.min_portal_radius);
   c.f64(p.wall_clearance);
   c.f64(p.portal_gap);
+  c.f64(p.floor_min_radius);
+  c.f64(p.floor_depth);
   c.f64(p.region_scale);
   c.i64(p.region_sharpness);
   for (const cave::Character& k : p.characters) {
@@ -54,6 +56,9 @@ uint64_t layout_params_digest(const cave::LayoutParams& p) {
     c.vec(k.bias);
     c.f64(k.tunnel_chance);
     c.i64(k.loops);
+    c.f64(k.hall_probability);
+    c.f64(k.hall_radius_min);
+    c.f64(k.hall_radius_max);
   }
   return fold_digest(0xcbf29ce484222325ull, c.bytes());
 }
@@ -67,6 +72,16 @@ uint64_t world_params_digest(const cave::LayoutParams& layout, const mesh::MeshP
   for (const auto& l : m.lods) {
     c.f64(l.edge_length);
     c.f64(static_cast<double>(l.octaves));
+  }
+  // Version 2 of the deformation: halls keep their sphere and rest on floors, donors are capped
+  // by frequency, and the spline's rim point is pulled in near a portal's axis line. The
+  // algorithm itself is part of the world, not only its numbers.
+  c.text("grotto.mesh.v2");
+  for (const auto& l : m.lods)
+    c.f64(static_cast<double>(l.max_frequency));
+  for (double v : {m.axis_fade_edges, m.keep_distance, m.wall_allow, m.wall_softness,
+                   m.floor_amplitude, m.floor_frequency}) {
+    c.f64(v);
   }
   for (double f : m.octave_frequency)
     c.f64(f);

@@ -9,6 +9,12 @@
 #include "core/random.hpp"
 
 namespace grotto::cave {
+
+std::optional<double> floor_height(const LayoutParams& params, const Sphere& sphere) {
+  if (sphere.radius < params.floor_min_radius || params.floor_depth <= 0) return std::nullopt;
+  return sphere.centre.y - params.floor_depth * sphere.radius;
+}
+
 namespace {
 
 const Room* find_room(const std::vector<Room>& rooms, RoomId id) {

@@ -30,6 +30,12 @@ struct Sphere {
   double radius = 0;
 };
 
+// The height (world y) of the floor of a room with this sphere, or nothing when it has none: rooms
+// of at least params.floor_min_radius rest on a floor params.floor_depth x radius below their
+// centre (the mesh lays it, mesh/deform_core.h), and no portal of theirs opens below it or
+// within params.wall_clearance above it.
+std::optional<double> floor_height(const LayoutParams& params, const Sphere& sphere);
+
 // The disc where two rooms' spheres overlap (thesis Figure 3-2), seen from one of them.
 struct Portal {
   Vec3 centre;

@@ -91,6 +91,9 @@ std::array<Character, kCharacterCount> LayoutParams::default_characters() {
   maze.bias = {1.0, 0.12, 1.0};
   maze.tunnel_chance = 0.7;
   maze.loops = 5;  // mazes are interconnected
+  maze.hall_probability = 0.3;  // a breakdown chamber where the maze collapsed
+  maze.hall_radius_min = 12.0;
+  maze.hall_radius_max = 18.0;
 
   Character shafts;  // vertical shafts (Figure 3-3, lower right)
   shafts.name = "shafts";
@@ -103,6 +106,9 @@ std::array<Character, kCharacterCount> LayoutParams::default_characters() {
   shafts.bias = {0.25, 1.0, 0.25};
   shafts.tunnel_chance = 0.6;
   shafts.loops = 3;
+  shafts.hall_probability = 0.4;  // a tall chamber where shafts meet
+  shafts.hall_radius_min = 12.0;
+  shafts.hall_radius_max = 18.0;
 
   Character caverns;  // large open spaces
   caverns.name = "caverns";
@@ -115,6 +121,9 @@ std::array<Character, kCharacterCount> LayoutParams::default_characters() {
   caverns.bias = {1.0, 0.4, 1.0};
   caverns.tunnel_chance = 0.2;
   caverns.loops = 2;
+  caverns.hall_probability = 1.0;  // every cavern sector has a hall 28-40 m across
+  caverns.hall_radius_min = 14.0;
+  caverns.hall_radius_max = 20.0;
   return {maze, shafts, caverns};
 }
 
@@ -127,7 +136,7 @@ LayoutParams LayoutParams::uniform(const Character& c) {
 double max_room_radius(const LayoutParams& params) {
   double r = std::max(params.gate_radius_max, params.link_radius_max);
   for (const Character& c : params.characters) {
-    r = std::max({r, c.small_radius_max, c.big_radius_max});
+    r = std::max({r, c.small_radius_max, c.big_radius_max, c.hall_radius_max});
   }
   return r;
 }
@@ -175,6 +184,11 @@ Status validate(const LayoutParams& p) {
                number(link_portal) + "), or gates cannot be linked");
   }
   check.int_range("region_sharpness", p.region_sharpness, 0, 16);
+  check.finite_positive("floor_min_radius", p.floor_min_radius);
+  if (!(p.floor_depth >= 0 && p.floor_depth <= 0.9)) {
+    check.fail("floor_depth must be in [0, 0.9] of the radius, 0 for no floors (got " +
+               number(p.floor_depth) + ")");
+  }
   for (int i = 0; i < kCharacterCount; ++i) {
     const Character& c = p.characters[i];
     std::string f = "characters[" + std::to_string(i) + "].";
@@ -189,6 +203,11 @@ Status validate(const LayoutParams& p) {
     check.ordered(f + "small_radius_min", c.small_radius_min, f + "small_radius_max",
                   c.small_radius_max);
     check.ordered(f + "big_radius_min", c.big_radius_min, f + "big_radius_max", c.big_radius_max);
+    check.probability(f + "hall_probability", c.hall_probability);
+    check.finite_positive(f + "hall_radius_min", c.hall_radius_min);
+    check.finite_positive(f + "hall_radius_max", c.hall_radius_max);
+    check.ordered(f + "hall_radius_min", c.hall_radius_min, f + "hall_radius_max",
+                  c.hall_radius_max);
     if (!is_finite(c.bias) || c.bias.x < 0 || c.bias.y < 0 || c.bias.z < 0 ||
         length_squared(c.bias) == 0) {
       check.fail(f + "bias must have finite, non-negative components, not all zero (got " +
@@ -253,6 +272,9 @@ SectorCharacter sector_character(uint64_t seed, const LayoutParams& params, Sect
             mix([](const Character& c) { return c.bias.z; })};
   b.tunnel_chance = mix([](const Character& c) { return c.tunnel_chance; });
   b.loops = static_cast<int>(mix([](const Character& c) { return c.loops; }) + 0.5);
+  b.hall_probability = mix([](const Character& c) { return c.hall_probability; });
+  b.hall_radius_min = mix([](const Character& c) { return c.hall_radius_min; });
+  b.hall_radius_max = mix([](const Character& c) { return c.hall_radius_max; });
   return out;
 }
 

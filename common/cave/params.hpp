@@ -24,6 +24,11 @@ struct Character {
   Vec3 bias{1.0, 0.3, 1.0};    // scales each axis of the random displacement direction
   double tunnel_chance = 0.5;  // chance to grow from the most recently added room
   int loops = 4;               // extra bridges between rooms near in space, far in the graph
+  // Chance that a sector's hub, the room its gates are linked through, is a hall (a room of
+  // hall_radius_min..max; the mesh keeps its sphere and gives it a floor) instead of a big room.
+  double hall_probability = 0.0;
+  double hall_radius_min = 10.0;
+  double hall_radius_max = 14.0;
 };
 
 // The world every Grotto tool serves or shows when given no seed.
@@ -49,6 +54,11 @@ struct LayoutParams {
   double wall_clearance = 1.0;
   // Portals of one room keep at least this gap along the sphere, room for wall between them.
   double portal_gap = 2.0;
+  // Rooms at least floor_min_radius big have a floor floor_depth x radius below their centre
+  // (the mesh rests the wall on it, mesh/deform_core.h): no portal of theirs opens below it
+  // or within wall_clearance above it.
+  double floor_min_radius = 12.0;
+  double floor_depth = 0.2;
   // Region field: characters change over about this many sectors.
   double region_scale = 4.0;
   // How sharply one character dominates a region: weights go as field^sharpness, so 0 makes

@@ -12,6 +12,7 @@ namespace {
 
 constexpr uint64_t kFaceStream = 0x6761746573000001ull;    // "gates"
 constexpr uint64_t kSectorStream = 0x736563746f720001ull;  // "sector"
+constexpr uint64_t kHallStream = 0x68616c6c00000001ull;    // "hall": whether a sector has one
 constexpr int kMaxAttempts = 8;
 // A chain may add rooms enough to cross its sector a few times over, and try 15 per room.
 int max_chain_rooms(const LayoutParams& p) {
@@ -68,6 +69,16 @@ std::optional<Disc> overlap_disc(const Sphere& a, const Sphere& b, double min_ra
 // thesis's big-room probability asks.
 double centre_distance(double r1, double r2, double a) {
   return std::sqrt(r1 * r1 - a * a) + std::sqrt(r2 * r2 - a * a);
+}
+
+// True when the disc comes within the wall clearance of the floor of sphere s (its lowest point
+// under the floor plane plus the clearance): the floor's undulation and its join with the wall
+// stay clear of the rim.
+bool below_floor(const LayoutParams& params, const Sphere& s, const Disc& disc) {
+  std::optional<double> floor = floor_height(params, s);
+  if (!floor) return false;
+  double tilt = std::max(0.0, 1.0 - disc.normal.y * disc.normal.y);
+  return disc.centre.y - disc.radius * std::sqrt(tilt) < *floor + params.wall_clearance;
 }
 
 double distance_to_disc(Vec3 p, const Disc& disc) {
@@ -137,8 +148,9 @@ class SectorBuilder {
   // of overlapping spheres from each gate towards it. Chains come from different faces, so they
   // rarely meet before the hub, and a big hub has room for all their portals. False when a chain
   // ran out of tries (the caller retries with another stream).
-  bool link_gates(Rng& rng, const Character& c) {
-    int root = place_hub(rng, c);
+  // hall_radius > 0: the hub is a hall of that radius.
+  bool link_gates(Rng& rng, const Character& c, double hall_radius) {
+    int root = place_hub(rng, c, hall_radius);
     if (root < 0) root = 0;
     for (int g = 0; g < gate_count_; ++g) {
       int head = g, fails = 0, rooms = 0, tries = 0;
@@ -242,10 +254,11 @@ class SectorBuilder {
   }
 
   // A big room in the middle half of the sector, clear of every gate; -1 when none fits.
-  int place_hub(Rng& rng, const Character& c) {
+  int place_hub(Rng& rng, const Character& c, double hall_radius) {
     for (int tries = 0; tries < 16; ++tries) {
       Sphere s;
       s.radius = rng.uniform(c.big_radius_min, c.big_radius_max);
+      if (hall_radius > 0) s.radius = hall_radius;
       for (int a = 0; a < 3; ++a) {
         s.centre[a] = lo_[a] + params_.sector_size * rng.uniform(0.3, 0.7);
       }
@@ -401,6 +414,7 @@ class SectorBuilder {
       if (d >= s.radius + o.radius) return std::nullopt;
       auto disc = overlap_disc(s, o, params_.min_portal_radius);
       if (!disc) return std::nullopt;
+      if (below_floor(params_, s, *disc) || below_floor(params_, o, *disc)) return std::nullopt;
       made.push_back({-1, j, *disc});
     }
     if (made.empty() || made.size() > static_cast<size_t>(kMaxPortalsPerRoom)) {
@@ -583,11 +597,18 @@ SectorLayout generate_sector(const World& world, SectorCoord sector) {
   std::sort(gates.begin(), gates.end(), [](const Room& a, const Room& b) { return a.id < b.id; });
   SectorCharacter character = sector_character(world.seed(), world.params(), sector);
 
+  // Whether the hub is a hall comes from a stream of its own, so a sector without one grows the
+  // same rooms as if halls did not exist.
+  Rng hall_rng(hash_words(world.seed(), kHallStream, sector.x, sector.y, sector.z));
+  const bool hall = hall_rng.chance(character.blend.hall_probability);
+  const double hall_radius =
+      hall ? hall_rng.uniform(character.blend.hall_radius_min, character.blend.hall_radius_max) : 0;
+
   SectorLayout last;
   for (int attempt = 0; attempt < kMaxAttempts; ++attempt) {
     Rng rng(hash_words(world.seed(), kSectorStream, sector.x, sector.y, sector.z, attempt));
     SectorBuilder builder(world.params(), sector, gates);
-    bool linked = builder.link_gates(rng, character.blend);
+    bool linked = builder.link_gates(rng, character.blend, hall_radius);
     int link_rooms = builder.interior_count();
     builder.grow(rng, character.blend);
     builder.close_loops(rng, character.blend.loops);

@@ -53,7 +53,8 @@ typedef struct {
   uint vertex_count;
   uint lod;        /* which GrottoShape of the batch's table (0 detail, 1 patch) */
   uint noise_seed; /* the room's world's noise seed: a batch may mix worlds */
-  float pad2, pad3;
+  uint has_floor;  /* 1: the wall rests on a floor at floor_y (the layout's cave::floor_height) */
+  float floor_y;   /* in the room frame */
 } GrottoRoom;
 
 /* Noise and shape parameters of one level of detail. 32 floats/uints. */
@@ -70,7 +71,23 @@ typedef struct {
   float rim_min_radius;    /* surface noise narrows no portal's rim below this radius (metres) */
   float rim_softness;      /* metres over which that limit eases in */
   float passage_roundness; /* roundness of small rooms with two portals */
-  float pad[8];
+  /* Near a portal's axis line the rim direction turns through a whole circle within a few
+   * triangles; within this distance of it (metres, at most half the portal's radius) the rim
+   * point the spline starts from is pulled towards the disc centre, so the patch there is not
+   * spread round the whole rim and turned over (BENCHMARKS "Folded triangles"). 0: off. */
+  float axis_fade;
+  /* Big rooms (big_amplitude != 0) keep their sphere beyond this height above every portal
+   * plane (metres), blending into the spline tube below it: halls keep their volume. */
+  float keep_distance;
+  /* ... and their noise is softly held from pushing the wall more than wall_allow metres
+   * outside the sphere (neighbouring spheres keep the layout's wall clearance), easing in over
+   * wall_softness metres, which also rounds the join of a floor and its walls. */
+  float wall_allow, wall_softness;
+  /* A room's floor (GrottoRoom::has_floor) undulates by floor_amplitude metres of noise at
+   * floor_frequency cycles per metre; the wall rests on it (sediment fills the bowl). It fades
+   * out within keep_distance of a portal plane. */
+  float floor_amplitude, floor_frequency;
+  float pad[2];
 } GrottoShape;
 
 /* Triples, component by component in a fixed order (a + b is a.x + b.x, ...). */
@@ -205,12 +222,15 @@ GROTTO_FN gfloat grotto_rim_noise(GROTTO_CONSTANT const GrottoShape* s, float po
   return 0.5f * (x + grotto_sqrt(x * x + s->rim_softness * s->rim_softness)) - allow;
 }
 
-/* The unit in-plane direction from a portal's centre towards the point nearest to v. */
-GROTTO_FN gfloat3 grotto_rim_direction(GROTTO_CONSTANT const GrottoPortal* p, gfloat3 v) {
+/* The unit in-plane direction from a portal's centre towards the point nearest to v; *axis
+ * receives v's distance from the portal's axis line. */
+GROTTO_FN gfloat3 grotto_rim_direction(GROTTO_CONSTANT const GrottoPortal* p, gfloat3 v,
+                                       gfloat* axis) {
   gfloat3 n = grotto_portal_normal(p);
   gfloat3 rel = grotto_sub(v, grotto_portal_centre(p));
   gfloat3 in_plane = grotto_sub(rel, grotto_scale(n, grotto_dot(rel, n)));
   gfloat len = grotto_length(in_plane);
+  *axis = len;
   return grotto_select3(len < 1e-6f, grotto_v3(p->e1x, p->e1y, p->e1z), grotto_div(in_plane, len));
 }
 
@@ -255,83 +275,132 @@ GROTTO_FN gfloat3 grotto_deform_vertex(uint seed, GROTTO_CONSTANT const GrottoSh
   gfloat height[GROTTO_MAX_PORTALS];
   gfloat3 rim[GROTTO_MAX_PORTALS];
   gfloat3 rim_dir[GROTTO_MAX_PORTALS];
+  gfloat3 spline_rim[GROTTO_MAX_PORTALS]; /* rim, pulled in near the axis line (axis_fade) */
   for (uint i = 0; i < n; ++i) {
     GROTTO_CONSTANT const GrottoPortal* p = portals + i;
     gfloat3 c = grotto_portal_centre(p);
     height[i] = -grotto_dot(grotto_sub(v, c), grotto_portal_normal(p));
-    rim_dir[i] = grotto_rim_direction(p, v);
+    gfloat axis_distance;
+    rim_dir[i] = grotto_rim_direction(p, v, &axis_distance);
     rim[i] = grotto_add(c, grotto_scale(rim_dir[i], grotto_rim_radius(seed, p, s, w0, rim_dir[i])));
-  }
-
-  /* Thesis §3.1.4-3.1.5: project onto the Hermite spline between every pair of portal rims, the
-   * parameter from the heights above the two planes, and blend the pairs weighted by how close
-   * each projection is to the vertex. The axis (the same spline through the disc centres) gives
-   * the outward direction for noise. */
-  gfloat3 sum = grotto_v3(0.0f, 0.0f, 0.0f), axis_sum = grotto_v3(0.0f, 0.0f, 0.0f);
-  gfloat weight_sum = GROTTO_SPLAT(0.0f);
-  for (uint i = 0; i < n; ++i) {
-    for (uint j = i + 1u; j < n; ++j) {
-      GROTTO_CONSTANT const GrottoPortal* pi = portals + i;
-      GROTTO_CONSTANT const GrottoPortal* pj = portals + j;
-      gfloat hi = height[i] > 0.0f ? height[i] : 0.0f;
-      gfloat hj = height[j] > 0.0f ? height[j] : 0.0f;
-      gfloat t = hi + hj > 0.0f ? hi / (hi + hj) : 0.5f;
-      gfloat3 ni = grotto_portal_normal(pi), nj = grotto_portal_normal(pj);
-      gfloat span = grotto_length(grotto_sub(rim[j], rim[i])) * s->tension;
-      gfloat3 h = grotto_hermite(rim[i], grotto_scale(grotto_neg(ni), span), rim[j],
-                                 grotto_scale(nj, span), t);
-      gfloat3 ci = grotto_portal_centre(pi), cj = grotto_portal_centre(pj);
-      gfloat axis_span = grotto_length(grotto_sub(cj, ci)) * s->tension;
-      gfloat3 a = grotto_hermite(ci, grotto_scale(grotto_neg(ni), axis_span), cj,
-                                 grotto_scale(nj, axis_span), t);
-      gfloat3 d = grotto_sub(h, v);
-      gfloat wgt = 1.0f / (grotto_dot(d, d) + 1e-4f);
-      sum = grotto_add(sum, grotto_scale(h, wgt));
-      axis_sum = grotto_add(axis_sum, grotto_scale(a, wgt));
-      weight_sum = weight_sum + wgt;
+    spline_rim[i] = rim[i];
+    float fade = s->axis_fade < 0.5f * p->radius ? s->axis_fade : 0.5f * p->radius;
+    if (fade > 0.0f) {
+      gfloat pulled =
+          grotto_smooth(axis_distance / fade); /* the rim itself, bit for bit, beyond the fade */
+      spline_rim[i] = grotto_select3(axis_distance < fade,
+                                     grotto_add(c, grotto_scale(grotto_sub(rim[i], c), pulled)),
+                                     rim[i]);
     }
   }
-  /* A dead end (one portal): the sphere itself, bent onto the irregular rim near the portal. */
-  gfloat3 dead_end = v;
-  if (n == 1u) {
-    gfloat3 plain =
-        grotto_add(grotto_portal_centre(portals), grotto_scale(rim_dir[0], portals->radius));
-    gfloat pull = 1.0f - grotto_smooth(height[0] / (0.5f * room->radius));
-    dead_end = grotto_add(v, grotto_scale(grotto_sub(rim[0], plain), pull));
-  }
-  /* Its axis: the portal's near the portal (noise then moves the wall within the portal plane,
-   * where the rim moves), the sphere's centre deeper in. */
-  gfloat3 dead_axis = o;
-  if (n == 1u) {
-    gfloat h0 = -grotto_dot(grotto_sub(dead_end, grotto_portal_centre(portals)),
-                            grotto_portal_normal(portals));
-    gfloat3 on_axis =
-        grotto_sub(grotto_portal_centre(portals), grotto_scale(grotto_portal_normal(portals), h0));
-    dead_axis = grotto_add(
-        on_axis, grotto_scale(grotto_sub(o, on_axis), grotto_smooth(h0 / (0.5f * room->radius))));
-  }
-  gmask blended = weight_sum > 0.0f;
-  gfloat3 smooth_pos = grotto_select3(blended, grotto_div(sum, weight_sum), dead_end);
-  gfloat3 axis = grotto_select3(blended, grotto_div(axis_sum, weight_sum), dead_axis);
 
-  /* Far from portals a room may keep some of its sphere (caverns stay round). A small room whose
-   * two portals face each other across it is a straight stretch of passage and keeps less: a
-   * shaft of them, each bulging out to its sphere between narrow portals, was a string of beads,
-   * puckered at every portal. A bent one keeps its roundness: its tube would leave the sphere's
-   * centre, where players spawn and the flythrough passes, outside the wall. */
-  float roundness = s->roundness;
-  if (n == 2u && room->big_amplitude == 0.0f) {
-    float facing = -(portals[0].nx * portals[1].nx + portals[0].ny * portals[1].ny +
-                     portals[0].nz * portals[1].nz);
-    float straight = (facing - 0.5f) / 0.35f;
-    straight = straight < 0.0f ? 0.0f : (straight > 1.0f ? 1.0f : straight);
-    straight = straight * straight * (3.0f - 2.0f * straight);
-    roundness = roundness + (s->passage_roundness - roundness) * straight;
+  /* A big room keeps its sphere away from its portals. Near portal i the wall turns into a collar:
+   * the irregular rim extruded straight into the room, as high as the vertex is far from the
+   * circle where the sphere meets the plane, blended into the sphere within keep_distance of
+   * that circle. Along each meridian both the collar and the blend move away from the axis
+   * monotonically, so the blend folds no wall over; the collar leaves the plane square, so the
+   * cut band stays narrow (the sphere alone meets a small portal at a grazing angle: the band
+   * around it was metres wide and the holes of two portals ran into each other). The thesis's
+   * spline tubes between small portals left a hall two thirds of its radius and folded where a
+   * wide sphere was pulled onto them. Noise moves the wall away from the sphere's centre, which
+   * lies on every portal's axis line, turned into a portal's plane near it (below), so noise
+   * never moves the wall across a plane. keep: 1 beyond keep_distance from every portal's
+   * circle, for the wall's hold and the floor. */
+  const int big = room->big_amplitude != 0.0f && s->keep_distance > 0.0f;
+  gfloat3 smooth_pos, axis;
+  gfloat nearest, keep;
+  if (big) {
+    gfloat3 to_collars = grotto_v3(0.0f, 0.0f, 0.0f);
+    gfloat weight = GROTTO_SPLAT(0.0f), least_up = GROTTO_SPLAT(3.4e38f);
+    for (uint i = 0; i < n; ++i) {
+      GROTTO_CONSTANT const GrottoPortal* p = portals + i;
+      gfloat3 nrm = grotto_portal_normal(p);
+      /* The collar's height is the vertex's distance from the portal's plain circle (where the
+       * sphere meets the plane), so vertices keep their spacing up the collar. */
+      gfloat3 plain = grotto_add(grotto_portal_centre(p), grotto_scale(rim_dir[i], p->radius));
+      gfloat up = grotto_length(grotto_sub(v, plain));
+      up = height[i] > 0.0f ? up : 0.0f;
+      gfloat3 collar = grotto_sub(rim[i], grotto_scale(nrm, up));
+      gfloat w = 1.0f - grotto_smooth(up / s->keep_distance);
+      to_collars = grotto_add(to_collars, grotto_scale(grotto_sub(collar, v), w));
+      weight = weight + w;
+      least_up = up < least_up ? up : least_up;
+    }
+    smooth_pos = grotto_add(v, grotto_div(to_collars, weight > 1.0f ? weight : 1.0f));
+    axis = o; /* on every portal's axis line: turned into the planes below */
+    nearest = grotto_least_height(portals, n, smooth_pos);
+    keep = grotto_smooth(least_up / s->keep_distance);
+  } else {
+    /* Thesis §3.1.4-3.1.5: project onto the Hermite spline between every pair of portal rims, the
+     * parameter from the heights above the two planes, and blend the pairs weighted by how close
+     * each projection is to the vertex. The axis (the same spline through the disc centres) gives
+     * the outward direction for noise. */
+    gfloat3 sum = grotto_v3(0.0f, 0.0f, 0.0f), axis_sum = grotto_v3(0.0f, 0.0f, 0.0f);
+    gfloat weight_sum = GROTTO_SPLAT(0.0f);
+    for (uint i = 0; i < n; ++i) {
+      for (uint j = i + 1u; j < n; ++j) {
+        GROTTO_CONSTANT const GrottoPortal* pi = portals + i;
+        GROTTO_CONSTANT const GrottoPortal* pj = portals + j;
+        gfloat hi = height[i] > 0.0f ? height[i] : 0.0f;
+        gfloat hj = height[j] > 0.0f ? height[j] : 0.0f;
+        gfloat t = hi + hj > 0.0f ? hi / (hi + hj) : 0.5f;
+        gfloat3 ni = grotto_portal_normal(pi), nj = grotto_portal_normal(pj);
+        gfloat span = grotto_length(grotto_sub(spline_rim[j], spline_rim[i])) * s->tension;
+        gfloat3 h = grotto_hermite(spline_rim[i], grotto_scale(grotto_neg(ni), span), spline_rim[j],
+                                   grotto_scale(nj, span), t);
+        gfloat3 ci = grotto_portal_centre(pi), cj = grotto_portal_centre(pj);
+        gfloat axis_span = grotto_length(grotto_sub(cj, ci)) * s->tension;
+        gfloat3 a = grotto_hermite(ci, grotto_scale(grotto_neg(ni), axis_span), cj,
+                                   grotto_scale(nj, axis_span), t);
+        gfloat3 d = grotto_sub(h, v);
+        gfloat wgt = 1.0f / (grotto_dot(d, d) + 1e-4f);
+        sum = grotto_add(sum, grotto_scale(h, wgt));
+        axis_sum = grotto_add(axis_sum, grotto_scale(a, wgt));
+        weight_sum = weight_sum + wgt;
+      }
+    }
+    /* A dead end (one portal): the sphere itself, bent onto the irregular rim near the portal. */
+    gfloat3 dead_end = v;
+    if (n == 1u) {
+      gfloat3 plain =
+          grotto_add(grotto_portal_centre(portals), grotto_scale(rim_dir[0], portals->radius));
+      gfloat pull = 1.0f - grotto_smooth(height[0] / (0.5f * room->radius));
+      dead_end = grotto_add(v, grotto_scale(grotto_sub(rim[0], plain), pull));
+    }
+    /* Its axis: the portal's near the portal (noise then moves the wall within the portal plane,
+     * where the rim moves), the sphere's centre deeper in. */
+    gfloat3 dead_axis = o;
+    if (n == 1u) {
+      gfloat h0 = -grotto_dot(grotto_sub(dead_end, grotto_portal_centre(portals)),
+                              grotto_portal_normal(portals));
+      gfloat3 on_axis =
+          grotto_sub(grotto_portal_centre(portals), grotto_scale(grotto_portal_normal(portals), h0));
+      dead_axis = grotto_add(
+          on_axis, grotto_scale(grotto_sub(o, on_axis), grotto_smooth(h0 / (0.5f * room->radius))));
+    }
+    gmask blended = weight_sum > 0.0f;
+    smooth_pos = grotto_select3(blended, grotto_div(sum, weight_sum), dead_end);
+    axis = grotto_select3(blended, grotto_div(axis_sum, weight_sum), dead_axis);
+
+    /* Far from portals a room may keep some of its sphere (caverns stay round). A small room whose
+     * two portals face each other across it is a straight stretch of passage and keeps less: a
+     * shaft of them, each bulging out to its sphere between narrow portals, was a string of beads,
+     * puckered at every portal. A bent one keeps its roundness: its tube would leave the sphere's
+     * centre, where players spawn and the flythrough passes, outside the wall. */
+    float roundness = s->roundness;
+    if (n == 2u) {
+      float facing = -(portals[0].nx * portals[1].nx + portals[0].ny * portals[1].ny +
+                       portals[0].nz * portals[1].nz);
+      float straight = (facing - 0.5f) / 0.35f;
+      straight = straight < 0.0f ? 0.0f : (straight > 1.0f ? 1.0f : straight);
+      straight = straight * straight * (3.0f - 2.0f * straight);
+      roundness = roundness + (s->passage_roundness - roundness) * straight;
+    }
+    nearest = grotto_least_height(portals, n, smooth_pos);
+    keep = roundness * grotto_smooth(nearest / room->radius);
+    smooth_pos = grotto_add(smooth_pos, grotto_scale(grotto_sub(v, smooth_pos), keep));
+    axis = grotto_add(axis, grotto_scale(grotto_sub(o, axis), keep));
   }
-  gfloat nearest = grotto_least_height(portals, n, smooth_pos);
-  gfloat keep = roundness * grotto_smooth(nearest / room->radius);
-  smooth_pos = grotto_add(smooth_pos, grotto_scale(grotto_sub(v, smooth_pos), keep));
-  axis = grotto_add(axis, grotto_scale(grotto_sub(o, axis), keep));
 
   /* Thesis §3.1.6: world-space noise along the outward direction; big rooms get a low octave too,
    * faded out near portals. At a portal plane the outward direction lies in the plane and the
@@ -341,6 +410,15 @@ GROTTO_FN gfloat3 grotto_deform_vertex(uint seed, GROTTO_CONSTANT const GrottoSh
    * close to a plane's extension, far from its disc) the noise still fades to nothing, so no
    * vertex crosses a plane. */
   gfloat3 out = grotto_sub(smooth_pos, axis);
+  if (big) {
+    for (uint i = 0; i < n; ++i) {
+      GROTTO_CONSTANT const GrottoPortal* p = portals + i;
+      gfloat3 nrm = grotto_portal_normal(p);
+      gfloat h = -grotto_dot(grotto_sub(smooth_pos, grotto_portal_centre(p)), nrm);
+      gfloat turn = 1.0f - grotto_smooth(h / s->fade_distance);
+      out = grotto_sub(out, grotto_scale(nrm, grotto_dot(out, nrm) * turn));
+    }
+  }
   gfloat out_len = grotto_length(out);
   out = grotto_select3(out_len > 1e-6f, grotto_div(out, out_len), dir);
   gfloat3 wp = grotto_add(w0, smooth_pos);
@@ -362,7 +440,32 @@ GROTTO_FN gfloat3 grotto_deform_vertex(uint seed, GROTTO_CONSTANT const GrottoSh
   gfloat displacement = noise * fade + rim_target * (1.0f - fade);
   displacement = displacement + room->big_amplitude * grotto_noise3(seed, wp, s->big_frequency) *
                                     grotto_smooth(nearest / s->big_fade_distance);
+  if (big) {
+    /* Where the wall kept its sphere, hold the noise softly within wall_allow outside it (a smooth
+     * minimum of the displacement and the allowance). */
+    gfloat allow = (room->radius + s->wall_allow) - grotto_length(grotto_sub(smooth_pos, o));
+    gfloat gap = displacement - allow;
+    gfloat held = 0.5f * (displacement + allow -
+                          grotto_sqrt(gap * gap + s->wall_softness * s->wall_softness));
+    displacement = displacement + (held - displacement) * keep;
+  }
   gfloat3 pos = grotto_add(smooth_pos, grotto_scale(out, displacement));
+  if (room->has_floor != 0u) {
+    /* The floor: the wall rests on an undulating plane (a smooth maximum of its height and the
+     * floor's), faded out near portal planes. The noise is sampled on the floor's plane, so the
+     * floor is a height field. */
+    float floor_y = room->floor_y;
+    float f = s->floor_frequency;
+    gfloat fx = (w0.x + pos.x) * f, fz = (w0.z + pos.z) * f;
+    gfloat fy = GROTTO_SPLAT((room->wy + floor_y) * f);
+    gfloat target = floor_y + s->floor_amplitude * (grotto_noise(seed, fx, fy, fz) +
+                                                    0.5f * grotto_noise(seed, fz * 2.0f, fy,
+                                                                        fx * 2.0f));
+    gfloat rise = target - pos.y;
+    gfloat lifted = pos.y + 0.5f * (rise + grotto_sqrt(rise * rise +
+                                                       s->wall_softness * s->wall_softness));
+    pos.y = pos.y + (lifted - pos.y) * keep;
+  }
 
   *clearance = grotto_least_height(portals, n, pos);
   return pos;

@@ -38,6 +38,10 @@ Status validate(const MeshParams& p) {
     if (p.lods[l].octaves < 0 || p.lods[l].octaves > GROTTO_MAX_OCTAVES) {
       return bad(f + "octaves", p.lods[l].octaves, "in [0, 6]");
     }
+    if (p.lods[l].max_frequency < 2 || p.lods[l].max_frequency > 80) {
+      return bad(f + "max_frequency", p.lods[l].max_frequency,
+                 "in [2, 80] (80: 64,002 vertices, the codec's ceiling)");
+    }
   }
   for (int k = 0; k < GROTTO_MAX_OCTAVES; ++k) {
     if (!noise_frequency(p.octave_frequency[k])) {
@@ -72,6 +76,27 @@ Status validate(const MeshParams& p) {
     return bad("passage_roundness", p.passage_roundness, "in [0, 1]");
   }
   if (!(p.tension > 0 && p.tension <= 3)) return bad("tension", p.tension, "in (0, 3]");
+  if (!(p.axis_fade_edges >= 0 && p.axis_fade_edges <= 16)) {
+    return bad("axis_fade_edges", p.axis_fade_edges, "in [0, 16]");
+  }
+  if (!(p.keep_distance >= 0 && p.keep_distance <= 20)) {
+    return bad("keep_distance", p.keep_distance, "in (0, 20] metres");
+  }
+  if (!(p.wall_allow >= 0 && p.wall_allow <= 5)) {
+    return bad("wall_allow", p.wall_allow, "in [0, 5] metres");
+  }
+  if (!(p.wall_softness > 0 && p.wall_softness <= 5)) {
+    return bad("wall_softness", p.wall_softness, "in (0, 5] metres");
+  }
+  if (!(p.keep_distance > 0)) {
+    return bad("keep_distance", p.keep_distance, "> 0 (floors fade out within it of portals)");
+  }
+  if (!(p.floor_amplitude >= 0 && p.floor_amplitude <= 2)) {
+    return bad("floor_amplitude", p.floor_amplitude, "in [0, 2] metres");
+  }
+  if (!noise_frequency(p.floor_frequency)) {
+    return bad("floor_frequency", p.floor_frequency, kFrequencyRule);
+  }
   if (!noise_frequency(p.roughness_frequency)) {
     return bad("roughness_frequency", p.roughness_frequency, kFrequencyRule);
   }
@@ -99,6 +124,12 @@ core::GrottoShape shape_for(const MeshParams& p, Lod lod) {
   s.roundness = static_cast<float>(p.roundness);
   s.passage_roundness = static_cast<float>(p.passage_roundness);
   s.tension = static_cast<float>(p.tension);
+  s.axis_fade = static_cast<float>(p.axis_fade_edges * l.edge_length);
+  s.keep_distance = static_cast<float>(p.keep_distance);
+  s.wall_allow = static_cast<float>(p.wall_allow);
+  s.wall_softness = static_cast<float>(p.wall_softness);
+  s.floor_amplitude = static_cast<float>(p.floor_amplitude);
+  s.floor_frequency = static_cast<float>(p.floor_frequency);
   // The cut keeps half an edge clear of each portal plane for the stitch strip.
   s.remove_band = static_cast<float>(0.5 * l.edge_length);
   return s;

@@ -23,10 +23,15 @@ inline constexpr double kNoiseFrequencyStep = 1.0 / 64.0;
 struct LodParams {
   double edge_length;  // target edge of the donor sphere and of rim loops, metres
   int octaves;         // surface noise octaves used (of MeshParams::octave_*)
+  // The donor sphere's frequency is at most this (10 f^2 + 2 vertices): a hall's mesh gets
+  // longer edges instead of more vertices, so its payload stays within the streaming budget
+  // (the patch level's 28: 7,842 vertices before the portals are cut; the GPU's tessellation
+  // adds the detail).
+  int max_frequency;
 };
 
 struct MeshParams {
-  std::array<LodParams, kLodCount> lods{{{0.25, 4}, {0.56, 3}}};
+  std::array<LodParams, kLodCount> lods{{{0.25, 4, 64}, {0.56, 3, 28}}};
   // Every frequency (cycles per metre) is a multiple of kNoiseFrequencyStep, so that noise repeats
   // exactly over the noise period and the wrap of world positions leaves no seam (validate()).
   // Surface noise octaves (thesis §3.1.6): cycles per metre and metres of displacement.
@@ -53,6 +58,18 @@ struct MeshParams {
   // the room (normals within ~60 degrees of opposite, fully from ~30): straight passage.
   double passage_roundness = 0.1;
   double tension = 1.0;  // Hermite tangent length, fraction of the span between rims
+  // Near a portal's axis line the spline's rim point is pulled towards the disc centre, within
+  // this many edges of the level of detail (at most half the portal's radius); 0: off.
+  double axis_fade_edges = 4.0;
+  // Big rooms keep their sphere beyond this height above every portal plane (metres), with
+  // their noise held within wall_allow metres outside it (eased over wall_softness metres).
+  double keep_distance = 2.5;
+  double wall_allow = 0.4;
+  double wall_softness = 0.5;
+  // Rooms with a floor (cave::floor_height: the layout places floors) rest their wall on an
+  // undulating plane: floor_amplitude metres of noise at floor_frequency cycles per metre.
+  double floor_amplitude = 0.25;
+  double floor_frequency = 8 / 64.0;
   // Roughness and mineral fields (per-vertex channels that steer GPU detail).
   double roughness_frequency = 5 / 64.0;  // a second octave at 3x
   double mineral_frequency = 7 / 64.0;

@@ -25,8 +25,54 @@ float3 to_f3(Vec3 v) {
   return {static_cast<float>(v.x), static_cast<float>(v.y), static_cast<float>(v.z)};
 }
 // Height of a room-frame point above a portal plane, on the room's side positive.
+// Distance from v to a portal's disc (its plane within the radius, its rim beyond).
+double disc_distance(const core::GrottoPortal& p, Vec3 v) {
+  Vec3 rel = v - Vec3{p.cx, p.cy, p.cz};
+  Vec3 n{p.nx, p.ny, p.nz};
+  double h = dot(rel, n);
+  double radial = std::max(0.0, length(rel - n * h) - p.radius);
+  return std::sqrt(h * h + radial * radial);
+}
+
 double height(const core::GrottoPortal& p, Vec3 v) {
   return -((v.x - p.cx) * p.nx + (v.y - p.cy) * p.ny + (v.z - p.cz) * p.nz);
+}
+
+// The band before a portal is cut for the stitch, but a patch of band far from every portal's
+// hole (where a big room's wall runs close to a plane's extension beside a small portal) is not
+// in the way of any stitch: its vertices stay when none of them crossed a plane. Removed
+// vertices are kept unless they are connected, through removed vertices, to a cap_vertex.
+void keep_stray_band(const DonorSphere& donor, std::span<const float> clearance,
+                     const std::vector<uint32_t>& cap_vertex, std::vector<char>& removed) {
+  const size_t nv = removed.size();
+  // Vertex adjacency (compressed rows) over the donor's triangle edges.
+  std::vector<uint32_t> start(nv + 1, 0);
+  for (uint32_t v : donor.indices)
+    start[v + 1] += 2;
+  for (size_t v = 0; v < nv; ++v)
+    start[v + 1] += start[v];
+  std::vector<uint32_t> next(start.begin(), start.end() - 1), adjacent(start[nv]);
+  for (size_t t = 0; t < donor.indices.size(); t += 3) {
+    for (int k = 0; k < 3; ++k) {
+      uint32_t a = donor.indices[t + k], b = donor.indices[t + (k + 1) % 3];
+      adjacent[next[a]++] = b;
+      adjacent[next[b]++] = a;
+    }
+  }
+  std::vector<char> reached(nv, 0);
+  std::vector<uint32_t> queue;
+  for (uint32_t c : cap_vertex) {
+    if (c != UINT32_MAX && !reached[c]) reached[c] = 1, queue.push_back(c);
+  }
+  for (size_t q = 0; q < queue.size(); ++q) {
+    for (uint32_t e = start[queue[q]]; e < start[queue[q] + 1]; ++e) {
+      uint32_t w = adjacent[e];
+      if (removed[w] && !reached[w]) reached[w] = 1, queue.push_back(w);
+    }
+  }
+  for (size_t v = 0; v < nv; ++v) {
+    if (removed[v] && !reached[v] && clearance[v] >= 0) removed[v] = 0;
+  }
 }
 
 // Labels of donor triangles: kept, or the portal whose hole a triangle is in, or one of these.
@@ -243,7 +289,8 @@ DeformInput prepare_room(const MeshContext& ctx, const cave::Room& room, Lod lod
   in.room = room;
   in.lod = lod;
   in.origin = grid::snap(room.sphere.centre);
-  in.donor = donor_sphere(donor_frequency(room.sphere.radius, ctx.edge_length(lod)));
+  in.donor = donor_sphere(std::min(donor_frequency(room.sphere.radius, ctx.edge_length(lod)),
+                                    ctx.params().lods[static_cast<int>(lod)].max_frequency));
   Vec3 o = room.sphere.centre - in.origin;
   core::float3 w = ctx.noise_position(in.origin);
   const MeshParams& p = ctx.params();
@@ -257,6 +304,10 @@ DeformInput prepare_room(const MeshContext& ctx, const cave::Room& room, Lod lod
   in.record.wy = w.y;
   in.record.wz = w.z;
   in.record.big_amplitude = big ? static_cast<float>(p.big_amplitude * room.sphere.radius) : 0.0f;
+  if (std::optional<double> floor = cave::floor_height(ctx.world().params(), room.sphere)) {
+    in.record.has_floor = 1;
+    in.record.floor_y = static_cast<float>(*floor - in.origin.y);
+  }
   in.record.first_portal = 0;
   in.record.portal_count = static_cast<core::uint>(room.portals.size());
   in.record.first_vertex = 0;
@@ -412,6 +463,8 @@ Result<RoomMesh> assemble_room(const MeshContext& ctx, const DeformInput& input,
     }
   }
 
+  keep_stray_band(donor, clearance, cap_vertex, removed);
+
   std::vector<uint8_t> label;  // per donor triangle: kept, or the hole it is in
   std::vector<std::vector<uint32_t>> loops;
   for (int round = 0;; ++round) {
@@ -449,16 +502,18 @@ Result<RoomMesh> assemble_room(const MeshContext& ctx, const DeformInput& input,
     }
   }
 
-  // Each boundary loop belongs to the portal whose plane its vertices are nearest.
+  // Each boundary loop belongs to the portal whose disc its vertices are nearest (not the plane:
+  // a big room's wall next to one portal may lie closer to a neighbouring portal's plane, which
+  // the sphere meets at a shallow angle, than to its own).
   std::vector<int> loop_of_portal(np, -1);
   for (size_t l = 0; l < loops.size(); ++l) {
     std::vector<int> votes(np, 0);
     for (uint32_t v : loops[l]) {
       size_t best = 0;
-      double best_h = 1e300;
+      double best_d = 1e300;
       for (size_t i = 0; i < np; ++i) {
-        double h = std::abs(height(input.portals[i], to_vec(positions[v])));
-        if (h < best_h) best = i, best_h = h;
+        double d = disc_distance(input.portals[i], to_vec(positions[v]));
+        if (d < best_d) best = i, best_d = d;
       }
       ++votes[best];
     }

@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <map>
+#include <optional>
 
 #include "cave/layout.hpp"
 
@@ -191,6 +192,55 @@ TEST_P(LayoutGeometry, rooms_stay_in_their_sector_and_gates_on_their_face) {
         EXPECT_LE(r.sphere.centre[a] + r.sphere.radius, hi) << r.id.to_string();
       }
     }
+  }
+}
+
+// Big rooms have floors (the mesh rests their wall on a plane), so the layout opens no portal of
+// theirs below it: a passage leaving a hall starts above its floor.
+TEST_P(LayoutGeometry, no_portal_opens_below_a_floor) {
+  int floored = 0;
+  for (const Room& r : region_->rooms) {
+    std::optional<double> floor = floor_height(world_->params(), r.sphere);
+    if (!floor) {
+      EXPECT_LT(r.sphere.radius, world_->params().floor_min_radius) << r.id.to_string();
+      continue;
+    }
+    ++floored;
+    EXPECT_NEAR(*floor, r.sphere.centre.y - world_->params().floor_depth * r.sphere.radius, 1e-9);
+    for (const Portal& p : r.portals) {
+      double lowest = p.centre.y - p.radius * std::sqrt(std::max(0.0, 1.0 - p.normal.y * p.normal.y));
+      EXPECT_GE(lowest, *floor + world_->params().wall_clearance)
+          << r.id.to_string() << " -> " << p.neighbour.to_string();
+    }
+  }
+  EXPECT_GT(floored, 0) << "the region should hold rooms with floors";
+}
+
+// The cavern character links every sector's gates through a hall: its hub is a room of the
+// hall radii, with a floor, joined to the cave.
+TEST(Halls, every_cavern_sector_is_linked_through_a_hall) {
+  const Character caverns = LayoutParams::default_characters()[2];
+  ASSERT_EQ(caverns.hall_probability, 1.0);
+  World w = World::create(7, LayoutParams::uniform(caverns)).value();
+  for (int x = 0; x < 4; ++x) {
+    SectorLayout s = generate_sector(w, {x, 0, -x});
+    ASSERT_FALSE(s.rooms.empty());
+    const Room& hub = s.rooms[0];
+    EXPECT_GE(hub.sphere.radius, caverns.hall_radius_min) << hub.id.to_string();
+    EXPECT_LE(hub.sphere.radius, caverns.hall_radius_max) << hub.id.to_string();
+    EXPECT_TRUE(floor_height(w.params(), hub.sphere).has_value());
+    EXPECT_GE(hub.portals.size(), 1u) << hub.id.to_string();
+  }
+}
+
+// Without halls the hub is one of the character's big rooms.
+TEST(Halls, a_character_without_halls_has_none) {
+  Character maze = LayoutParams::default_characters()[0];
+  maze.hall_probability = 0.0;
+  World w = World::create(7, LayoutParams::uniform(maze)).value();
+  for (int x = 0; x < 4; ++x) {
+    SectorLayout s = generate_sector(w, {x, 0, 0});
+    for (const Room& r : s.rooms) EXPECT_LE(r.sphere.radius, maze.big_radius_max);
   }
 }
 

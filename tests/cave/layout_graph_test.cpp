@@ -99,6 +99,7 @@ LayoutParams one_character(double tunnel_chance, Vec3 bias) {
   c.room_count = 250;
   c.tunnel_chance = tunnel_chance;
   c.bias = bias;
+  c.hall_probability = 0.0;  // the growth alone: a hall hub would dominate a sector's extent
   return LayoutParams::uniform(c);
 }
 

@@ -103,6 +103,15 @@ void DeformKernelTest::expect_matches_cpu(DeformKernel& kernel) {
     }
     EXPECT_EQ(mismatches, 0u);
     EXPECT_GT(vertices, 50000u);
+    // Every path of the deformation is in the batch: small rooms (spline tubes), big rooms (the
+    // sphere with collars) and halls resting on a floor.
+    size_t big = 0, floored = 0;
+    for (const mesh::DeformInput& in : batch) {
+      big += in.record.big_amplitude != 0.0f;
+      floored += in.record.has_floor != 0u;
+    }
+    EXPECT_GT(big, floored);
+    EXPECT_GT(floored, 0u);
   }
 }
 

@@ -82,13 +82,12 @@ struct Touching {
   uint64_t seed;
   const char* room;
 };
-// Found by bench/mesh_sweep (seeds 7 and 42, 1,001 sectors each drawn from [-1000, 1000]^3 and
-// as many from the whole range, both lods: 901k meshes) and by the sampled sectors below; all at
-// patch. Between the holes of two portals the first five keep one vertex (a pinch) and the last
-// an edge with no triangle on either side.
-constexpr Touching kTouching[] = {{7, "676.1.-2.r5"},      {7, "-532.-449.-905.r63"},
-                                  {7, "846.694.-453.r21"}, {42, "838.-66.348.r72"},
-                                  {42, "1.-1.0.r79"},      {42, "33666.-46459.64248.r89"}};
+// Rooms whose holes touch at patch, where the wall between two portals' holes narrows to one
+// vertex (a pinch) that both loops keep. The deformation of issue 27 (halls, collars, the axis
+// fade) left none of the six rooms found before (by bench/mesh_sweep over 901k meshes); these
+// were found by a scan of mesh_sweep's draw of sectors (sample seed 1, [-1000, 1000]^3) at
+// patch: none among 3,000 sectors of seed 7, these two among seed 42's.
+constexpr Touching kTouching[] = {{42, "19.-851.419.r69"}, {42, "565.-886.900.r67"}};
 
 TEST(PortalHoles, what_lies_between_two_portals_holes_is_in_both_loops) {
   for (const Touching& c : kTouching) {
@@ -129,7 +128,7 @@ TEST(PortalHoles, every_room_of_sampled_sectors_builds_at_both_levels) {
   // builds thousands.
   const std::map<uint64_t, std::vector<cave::SectorCoord>> sectors{
       {7, {{676, 1, -2}, {0, 0, 0}, {-3, 2, 5}, {-900, 410, 12}}},
-      {42, {{838, -66, 348}, {1, -1, 0}, {33666, -46459, 64248}, {250, -7, -640}}}};
+      {42, {{19, -851, 419}, {1, -1, 0}, {565, -886, 900}, {250, -7, -640}}}};
   int rooms = 0;
   std::vector<std::string> failed;
   for (auto& [seed, list] : sectors) {

@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <optional>
 #include <vector>
 
 #include "core/grid.hpp"
@@ -196,6 +197,58 @@ TEST(RoomMesh, a_straight_shaft_is_a_tube_not_a_string_of_beads) {
   std::printf("%zu straight passages: the middle stands %.2f x as far from the axis as the ends\n",
               ratios.size(), median);
   EXPECT_LT(median, 1.25);
+}
+
+// Halls keep their space (issue 27): a cavern world's big rooms keep their sphere away from
+// their portals (the median vertex stands >= 0.85 of the radius from the centre; the spline
+// tubes between small portals left 0.66-0.71), and rooms with a floor rest on it: of the
+// up-facing area, >= 60 % lies within 15 degrees of horizontal (a bowl has almost none), and
+// the flat area is the floor: nearly all of it within the floor's undulation of the layout's
+// floor height.
+TEST(RoomMesh, halls_keep_their_volume_and_rest_on_flat_floors) {
+  const cave::LayoutParams caverns =
+      cave::LayoutParams::uniform(cave::LayoutParams::default_characters()[2]);
+  const cave::World world = cave::World::create(95, caverns).value();
+  const MeshContext ctx = MeshContext::create(world, MeshParams{}).value();
+  const cave::Region region = cave::generate_region(world, {0, 0, 0}, {1, 0, 0});
+  const double cos15 = std::cos(15.0 * 3.14159265358979323846 / 180.0);
+  std::vector<double> kept;
+  double up_area = 0, flat_area = 0, flat_at_floor = 0;
+  int floored = 0;
+  for (const cave::Room& room : region.rooms) {
+    if (room.sphere.radius < 8.0) continue;
+    const RoomMesh m = build_room_mesh(ctx, room, Lod::kPatch).value();
+    std::vector<double> d;
+    for (size_t v = 0; v < m.vertex_count(); ++v)
+      d.push_back(distance(m.world_position(v), room.sphere.centre));
+    std::nth_element(d.begin(), d.begin() + d.size() / 2, d.end());
+    kept.push_back(d[d.size() / 2] / room.sphere.radius);
+    std::optional<double> floor = cave::floor_height(world.params(), room.sphere);
+    if (!floor) continue;
+    ++floored;
+    const double undulation = 1.5 * ctx.params().floor_amplitude + 0.1;
+    for (size_t t = 0; t < m.indices.size(); t += 3) {
+      const Vec3 a = m.world_position(m.indices[t]), b = m.world_position(m.indices[t + 1]),
+                 c = m.world_position(m.indices[t + 2]);
+      const Vec3 n = cross(b - a, c - a);  // counter-clockwise from inside: into the cave
+      const double len = length(n);
+      if (len <= 0 || n.y <= 0) continue;
+      up_area += 0.5 * len;
+      if (n.y / len < cos15) continue;
+      flat_area += 0.5 * len;
+      if (std::abs((a.y + b.y + c.y) / 3 - *floor) <= undulation) flat_at_floor += 0.5 * len;
+    }
+  }
+  ASSERT_GE(kept.size(), 5u);
+  ASSERT_GE(floored, 2);
+  std::sort(kept.begin(), kept.end());
+  const double median = kept[kept.size() / 2];
+  std::printf("%zu big rooms keep a median %.2f of their radius (least %.2f); %d floors, %.0f %% of "
+              "the up-facing area within 15 degrees of horizontal\n",
+              kept.size(), median, kept.front(), floored, 100 * flat_area / up_area);
+  EXPECT_GE(median, 0.85);
+  EXPECT_GE(flat_area / up_area, 0.6);
+  EXPECT_GE(flat_at_floor / flat_area, 0.9);
 }
 
 }  // namespace

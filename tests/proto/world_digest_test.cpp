@@ -12,12 +12,13 @@ namespace {
 TEST(WorldDigest, default_parameters_have_a_pinned_digest) {
   // Changing this value changes every world's digest: clients drop their caches. Do it only
   // with a change to the layout parameters or their canonical form.
-  EXPECT_EQ(layout_params_digest(cave::LayoutParams{}), 0x4abd4d82000eec34ull);
+  // Changed in issue 27: halls and floors (grotto.layout.v2).
+  EXPECT_EQ(layout_params_digest(cave::LayoutParams{}), 0xb719eb666042f98aull);
 }
 
 TEST(WorldDigest, every_field_changes_the_digest) {
   const cave::LayoutParams base;
-  std::vector<cave::LayoutParams> variants(8, base);
+  std::vector<cave::LayoutParams> variants(12, base);
   variants[0].sector_size += 1;
   variants[1].gates_max += 1;
   variants[2].min_portal_radius = std::nextafter(base.min_portal_radius, 2.0);
@@ -26,6 +27,10 @@ TEST(WorldDigest, every_field_changes_the_digest) {
   variants[5].characters[2].bias.y += 0.125;
   variants[6].characters[1].loops += 1;
   variants[7].characters[1].tunnel_chance = 0.25;
+  variants[8].characters[0].hall_probability = 0.5;
+  variants[9].characters[2].hall_radius_max -= 1;
+  variants[10].floor_depth = 0.25;
+  variants[11].floor_min_radius = 10;
   const uint64_t d = layout_params_digest(base);
   for (std::size_t i = 0; i < variants.size(); ++i) {
     EXPECT_NE(layout_params_digest(variants[i]), d) << "variant " << i;
@@ -45,16 +50,23 @@ TEST(WorldDigest, the_servers_digest_is_pinned_and_sees_the_mesh_settings) {
   const cave::LayoutParams layout;
   const mesh::MeshParams mesh;
   const uint64_t d = world_params_digest(layout, mesh);
-  // Changed in issue 18: the digest folds in the world grid (1/64 m since then).
-  EXPECT_EQ(d, 0xdc05b99a422a5ebeull);
+  // Changed in issue 18: the digest folds in the world grid (1/64 m since then); in issue 27:
+  // the deformation's version 2 (halls keep their sphere, floors, the axis fade, donor caps).
+  EXPECT_EQ(d, 0x746b1b6bf8247a0aull);
   EXPECT_NE(d, layout_params_digest(layout));
-  std::vector<mesh::MeshParams> variants(6, mesh);
+  std::vector<mesh::MeshParams> variants(12, mesh);
   variants[0].lods[0].edge_length += 0.125;
   variants[1].lods[1].octaves += 1;
   variants[2].octave_frequency[0] *= 2;
   variants[3].rim_amplitude += 0.01;
   variants[4].tension += 0.125;
   variants[5].mineral_frequency *= 2;
+  variants[6].lods[1].max_frequency -= 1;
+  variants[7].axis_fade_edges = 2;
+  variants[8].keep_distance = 3;
+  variants[9].wall_allow = 0.5;
+  variants[10].floor_amplitude = 0.5;
+  variants[11].floor_frequency *= 2;
   for (std::size_t i = 0; i < variants.size(); ++i) {
     EXPECT_NE(world_params_digest(layout, variants[i]), d) << "mesh variant " << i;
   }

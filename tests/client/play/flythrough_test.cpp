@@ -65,8 +65,12 @@ TEST(Flythrough, poses_move_continuously_there_and_back) {
     const PathPose pose = f.at(s);
     EXPECT_LT(distance(pose.position, last), 0.051) << s;
     EXPECT_NEAR(length(pose.forward), 1, 1e-9);
-    EXPECT_GT(dot(pose.forward, pose.position - last), -1e-9)
-        << "forward follows the travel at " << s << " of " << f.length();
+    // A step across the turn at the far end travels both ways: no direction to follow.
+    const bool turns = s - 0.05 < f.length() && s > f.length();
+    if (!turns) {
+      EXPECT_GT(dot(pose.forward, pose.position - last), -1e-9)
+          << "forward follows the travel at " << s << " of " << f.length();
+    }
     last = pose.position;
   }
   EXPECT_LT(distance(f.at(2 * f.length()).position, cave.spawn), 1e-6);
