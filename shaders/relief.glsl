@@ -10,11 +10,17 @@
 //   rock:        domain-warped fBm (1.4 m, 0.31 m, 0.15 m) plus one ridged octave (0.65 m),
 //                amplitude from the roughness channel and a slow world-space variety field;
 //   flowstone:   vertical curtains on walls (anisotropic ridged noise, 2.6 m tall, 0.4 m wide);
-//   speleothems: stalactites on undersides and stalagmites on the floors beneath them, spikes
-//                centred on one point per 1.5 m cell of the horizontal plane (jittered over the
-//                whole cell, on a lattice turned off the world axes, 55 % of the cells), so a
-//                stalagmite stands under every stalactite (thesis §5.5: underside bias from the
-//                world-space normal), longer in bigger rooms.
+//   speleothems: stalactites on undersides and stalagmites on the floors beneath them, hanging
+//                plumb: a vertical displacement (Relief::hang, -y under a stalactite, +y on a
+//                stalagmite) apart from the rock's height along the normal, so dripstone on a
+//                sloping ceiling hangs straight down, not out along the slope like a fang. One
+//                candidate per 1 m cell of the horizontal plane (a lattice turned off the world
+//                axes), pulled onto the nearest crack (the zero line of a slow 2-D noise: water
+//                seeps along joints, so dripstone grows in rows with bare rock between) and kept
+//                only near one. Lengths are heavy-tailed, from 5 cm soda straws to several metres
+//                in big rooms (the cube of a uniform hash: most are short, a few long); a
+//                stalagmite stands under each, half as tall, twice as wide and rounded on top
+//                (thesis §5.5: underside bias from the world-space normal).
 // The displacement is zero on portal rims (rim weight 1), so the seams between rooms stay where
 // the server put them; the shading (gradient, cavity) is not faded there, so the rim is no smooth
 // pale strip (docs/GALLERY.md, "The rim strip").
@@ -24,14 +30,17 @@
 
 const float kReliefRock = 0.30f;        // metres of rock relief at roughness 1, strength 1
 const float kReliefFlowstone = 0.14f;   // metres of flowstone curtain at strength 1
-const float kReliefCell = 1.5f;         // metres: speleothem cell in the horizontal plane
+const float kReliefCell = 1.0f;         // metres: speleothem cell in the horizontal plane
 // The speleothem lattice is turned 29 degrees off the world axes: passages often run along x or
 // z, and a lattice aligned with them lines its spikes up along the passage.
 const float kReliefTurnCos = 0.8746197f;
 const float kReliefTurnSin = 0.4848096f;
-const float kReliefSpikeMax = 1.9f;     // metres: the longest stalactite at strength 1
+const float kReliefSpikeMax = 3.5f;     // metres: the longest stalactite at strength 1
 const float kReliefSpikeMin = 0.35f;    // metres: the longest stalactite of the smallest rooms
 const float kReliefSpikePerRadius = 0.2f;  // spike length per metre of room radius
+const float kReliefStraw = 0.05f;       // metres: the shortest speleothem (a soda straw)
+const float kReliefCrackScale = 0.16f;  // cycles per metre of the crack field (~6 m apart)
+const float kReliefCrackWidth = 0.45f;  // metres from a crack within which dripstone grows
 
 // An integer lattice point to [0, 1).
 RELIEF_FN float relief_hash(ivec3 c) {
@@ -78,26 +87,72 @@ RELIEF_FN float relief_variety(vec3 p) {
   return 0.5f + 0.5f * relief_noise(p * (1.0f / 24.0f) + vec3(17.3f, 5.1f, -9.7f)).x;
 }
 
+// The displaced surface point is p + n * height + (0, hang, 0).
+struct Relief {
+  float height;   // metres along the normal (into the cave when positive): rock and flowstone
+  vec3 gradient;  // of height with respect to world position (for the displaced normal); near
+                  // rims that of the rock and flowstone before their height fades (see relief_at)
+  float hang;     // metres along world +y: speleothems (negative under a stalactite)
+  vec3 hang_gradient;  // of hang with respect to world position (its y is 0)
+  float cavity;   // 0 in the rock's hollows, 1 on its crests (occlusion, tint)
+  float spike;    // 0-1: how far up a speleothem the point is (1 at its tip; calcite)
+};
+
+// One speleothem candidate of the turned lattice: where it stands and how long it is.
+struct Speleothem {
+  vec2 centre;   // metres, in the turned lattice's frame (relief_turn)
+  float len;     // metres: the stalactite's length (0: none); its stalagmite is half as tall
+  float radius;  // metres: the stalactite's radius at its root (its stalagmite's is twice that)
+};
+
+// World x, z into the speleothem lattice's frame.
+RELIEF_FN vec2 relief_turn(vec3 p) {
+  return vec2(kReliefTurnCos * p.x - kReliefTurnSin * p.z,
+              kReliefTurnSin * p.x + kReliefTurnCos * p.z);
+}
+
+// The speleothem of lattice cell c, the longest of its room being `longest` metres. Which cells
+// hold one depends on the hashes and the crack field at the cell alone, so none is cut off by a
+// threshold crossing it. The centre stays inside its cell, so the 3 x 3 cells around a point hold
+// every speleothem that reaches it (radius at most 0.45 m, a stalagmite's 0.9 m < 1 cell).
+RELIEF_FN Speleothem relief_speleothem(ivec2 c, float longest) {
+  Speleothem s;
+  s.centre = vec2(0.0f);
+  s.len = 0.0f;
+  s.radius = 0.0f;
+  float jx = relief_hash(ivec3(c.x, 104729, c.y));
+  float jz = relief_hash(ivec3(c.x, 1299709, c.y));
+  vec2 lo = vec2(c) * kReliefCell;
+  vec2 centre = lo + vec2(0.1f + 0.8f * jx, 0.1f + 0.8f * jz) * kReliefCell;
+  // One Newton step onto the crack (the zero line of the field), then back inside the cell.
+  vec4 k = relief_noise(vec3(centre.x * kReliefCrackScale, 3.7f, centre.y * kReliefCrackScale));
+  vec2 g = vec2(k.y, k.w) * kReliefCrackScale;
+  float g2 = dot(g, g) + 1e-6f;
+  centre = clamp(centre - (k.x / g2) * g, lo + vec2(0.05f * kReliefCell),
+                 lo + vec2(0.95f * kReliefCell));
+  float from_crack = abs(relief_noise(vec3(centre.x * kReliefCrackScale, 3.7f,
+                                           centre.y * kReliefCrackScale)).x) / sqrt(g2);
+  float on_crack = 1.0f - smoothstep(0.3f * kReliefCrackWidth, kReliefCrackWidth, from_crack);
+  if (relief_hash(ivec3(c.x, 7919, c.y)) >= 0.9f * on_crack) return s;
+  float size = relief_hash(ivec3(c.x, 15485863, c.y));
+  s.centre = centre;
+  s.len = max(kReliefStraw, longest * size * size * size);
+  s.radius = min(0.03f + 0.11f * s.len, 0.45f);
+  return s;
+}
+
 // The longest speleothem of a room of this radius, at strength 1.
 RELIEF_FN float relief_spike_length(float room_radius) {
   return clamp(kReliefSpikePerRadius * room_radius, kReliefSpikeMin, kReliefSpikeMax);
 }
 
-// How far the relief can move a point along its normal, either way: a bound for culling. The
-// rock's octaves sum to at most 0.97 in size, times its largest amplitude (variety 1.35, ceilings
-// 1.2); flowstone and spikes add their full heights.
+// How far the relief can move a point, either way: a bound for culling. The rock's octaves sum
+// to at most 0.97 in size, times its largest amplitude (variety 1.35, ceilings 1.2); flowstone
+// and speleothems add their full heights.
 RELIEF_FN float relief_bound(float strength, float room_radius) {
   return strength *
          (kReliefRock * 1.35f * 1.2f + kReliefFlowstone + relief_spike_length(room_radius));
 }
-
-struct Relief {
-  float height;   // metres along the normal (into the cave when positive)
-  vec3 gradient;  // of height with respect to world position (for the displaced normal); near
-                  // rims that of the rock and flowstone before their height fades (see relief_at)
-  float cavity;   // 0 in the rock's hollows, 1 on its crests (occlusion, tint)
-  float spike;    // 0-1: how far up a speleothem the point is (pale, glossy tips)
-};
 
 // The relief at world point p on a surface with unit normal n. roughness (0-1) is the patch's
 // channel, rim the rim weight (1 on a portal rim), room_radius the room's sphere radius and
@@ -107,6 +162,8 @@ RELIEF_FN Relief relief_at(vec3 p, vec3 n, float roughness, float rim, float roo
   Relief r;
   r.height = 0.0f;
   r.gradient = vec3(0.0f);
+  r.hang = 0.0f;
+  r.hang_gradient = vec3(0.0f);
   r.cavity = 0.5f;
   r.spike = 0.0f;
   if (!(strength > 0.0f)) return r;
@@ -167,61 +224,54 @@ RELIEF_FN Relief relief_at(vec3 p, vec3 n, float roughness, float rim, float roo
     r.gradient += amplitude * 3.0f * c * c * -f_sign * relief_gradient(f) * scale;
   }
 
-  // Speleothems: the tallest spike of the 3 x 3 cells around p wins.
+  // Speleothems: the tallest of the 3 x 3 cells around p wins, displacing p vertically.
   if (under > 0.0f || ground > 0.0f) {
-    // Bare zones have fewer and shorter spikes. Which cells hold one is the hash's alone: a
-    // threshold on a field that varies along the surface would cut spikes off at a cliff.
+    // Bare zones have shorter ones.
     float longest = strength * relief_spike_length(room_radius) * keep *
                     mix(0.45f, 1.0f, smoothstep(0.3f, 0.75f, variety));
-    float density = 0.55f;
-    // In the turned lattice's frame (the gradient turns back below).
-    vec2 here = vec2(kReliefTurnCos * p.x - kReliefTurnSin * p.z,
-                     kReliefTurnSin * p.x + kReliefTurnCos * p.z);
+    vec2 here = relief_turn(p);
     ivec2 base = ivec2(floor(here / kReliefCell));
     float best = 0.0f;
+    float best_length = 1.0f;
     vec2 best_gradient = vec2(0.0f);
     for (int dz = -1; dz <= 1; ++dz) {
       for (int dx = -1; dx <= 1; ++dx) {
-        ivec2 c = base + ivec2(dx, dz);
-        if (relief_hash(ivec3(c.x, 7919, c.y)) > density) continue;
-        float jx = relief_hash(ivec3(c.x, 104729, c.y));
-        float jz = relief_hash(ivec3(c.x, 1299709, c.y));
-        float size = relief_hash(ivec3(c.x, 15485863, c.y));
-        // Jittered over nearly the whole cell: a jitter of 70 % of it left the rows of the grid
-        // visible on big ceilings. The longest reach (a stalagmite, 0.51 m) stays within the
-        // 3 x 3 cells searched.
-        vec2 centre = (vec2(c) + vec2(0.05f + 0.9f * jx, 0.05f + 0.9f * jz)) * kReliefCell;
-        vec2 d = here - centre;
+        Speleothem sp = relief_speleothem(base + ivec2(dx, dz), longest);
+        if (!(sp.len > 0.0f) || !(longest > 0.0f)) continue;
+        vec2 d = here - sp.centre;
         float dist = length(d);
-        float radius = mix(0.13f, 0.32f, size);
-        float len = longest * mix(0.4f, 1.0f, fract(size * 7.13f + jx));
-        // Stalactite: a concave cone, sharp at its tip.
-        float t = 1.0f - dist / radius;
+        // Stalactite: a concave cone, sharp at its tip; hangs down (negative hang).
+        float t = 1.0f - dist / sp.radius;
         if (under > 0.0f && t > 0.0f) {
-          float h = under * len * t * t;
+          float h = under * sp.len * t * t;
           if (h > best) {
             best = h;
-            best_gradient = dist > 1e-5f ? (-2.0f * under * len * t / (radius * dist)) * d
+            best_length = under * sp.len;
+            // d/dp of -h: +2 under len t / (r dist) d.
+            best_gradient = dist > 1e-5f ? (2.0f * under * sp.len * t / (sp.radius * dist)) * d
                                          : vec2(0.0f);
           }
         }
-        // Stalagmite beneath it: half as tall, wider, rounded on top.
-        float rf = 1.6f * radius;
+        // Stalagmite beneath it: half as tall, twice as wide, rounded on top; stands up.
+        float rf = 2.0f * sp.radius;
         float s = dist / rf;
         if (ground > 0.0f && s < 1.0f) {
-          float lf = 0.5f * len * ground;
+          float lf = 0.5f * sp.len * ground;
           float h = lf * (1.0f - s * s) * (1.0f - s * s);
           if (h > best) {
             best = h;
+            best_length = lf;
             best_gradient = (-4.0f * lf * (1.0f - s * s) / (rf * rf)) * d;
           }
         }
       }
     }
-    r.height += best;
-    r.gradient += vec3(kReliefTurnCos * best_gradient.x + kReliefTurnSin * best_gradient.y, 0.0f,
-                       kReliefTurnCos * best_gradient.y - kReliefTurnSin * best_gradient.x);
-    r.spike = longest > 0.0f ? clamp(best / (0.6f * longest), 0.0f, 1.0f) : 0.0f;
+    // Under a ceiling the winner hangs (down), on a floor it stands (up).
+    r.hang = under > 0.0f ? -best : best;
+    r.hang_gradient =
+        vec3(kReliefTurnCos * best_gradient.x + kReliefTurnSin * best_gradient.y, 0.0f,
+             kReliefTurnCos * best_gradient.y - kReliefTurnSin * best_gradient.x);
+    r.spike = best > 0.0f ? clamp(best / best_length, 0.0f, 1.0f) : 0.0f;
   }
   return r;
 }
@@ -231,6 +281,24 @@ RELIEF_FN Relief relief_at(vec3 p, vec3 n, float roughness, float rim, float roo
 RELIEF_FN vec3 relief_normal(vec3 n, vec3 gradient) {
   vec3 tangential = gradient - dot(gradient, n) * n;
   return normalize(n - tangential);
+}
+
+// The unit normal of the surface p + n * height(p) + (0, hang(p), 0) over a locally flat patch
+// with unit normal n: the cross product of the displaced surface's derivatives along a tangent
+// frame of n (any right-handed frame gives the same normal). Without hang it is relief_normal.
+RELIEF_FN vec3 relief_displaced_normal(vec3 n, vec3 gradient, vec3 hang_gradient) {
+  vec3 axis = abs(n.y) < 0.9f ? vec3(0.0f, 1.0f, 0.0f) : vec3(1.0f, 0.0f, 0.0f);
+  vec3 t1 = normalize(cross(axis, n));
+  vec3 t2 = cross(n, t1);
+  vec3 up = vec3(0.0f, 1.0f, 0.0f);
+  vec3 d1 = t1 + n * dot(gradient, t1) + up * dot(hang_gradient, t1);
+  vec3 d2 = t2 + n * dot(gradient, t2) + up * dot(hang_gradient, t2);
+  return normalize(cross(d1, d2));
+}
+
+// Where the relief puts the surface point p (patch normal n): p + n * height + (0, hang, 0).
+RELIEF_FN vec3 relief_displace(vec3 p, vec3 n, Relief r) {
+  return p + n * r.height + vec3(0.0f, r.hang, 0.0f);
 }
 
 // A PN triangle (Vlachos et al. 2001) at barycentric w over corners p and normals n: the curved

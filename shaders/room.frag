@@ -1,8 +1,9 @@
 // Room fragment shader: procedural rock at world scale (no textures, so nothing mirrors, tiles or
 // blurs: 3-D noise evaluated where the fragment is), lit by the player's headlamp, tone mapped.
 //   material: floor (damp sediment), walls (limestone with strata of varying thickness),
-//             ceiling (darker), speleothem tips (pale calcite, wet and glossy,
-//             thesis §5.5's tint from displacement), fine bumps below the relief's 5 cm;
+//             ceiling (darker), speleothems (calcite with growth rings, ochre to cream at the
+//             growing tip, a matte wet film and a little translucency; thesis §5.5's tint from
+//             displacement), fine bumps below the relief's 5 cm;
 //   light:    a headlamp a little above and right of the eye with a beam and 1/d^2-like falloff
 //             (so the relief casts shading the viewer can see), cavity occlusion from the relief,
 //             wet Blinn-Phong specular, a faint bounce;
@@ -74,14 +75,20 @@ void main() {
   vec3 roof = wall * vec3(0.62, 0.62, 0.66);
   vec3 albedo = mix(mix(wall, mud, ground), roof, ceiling);
 
-  // Minerals stain the rock grey-blue; speleothem tips are pale calcite.
+  // Minerals stain the rock grey-blue.
   albedo = mix(albedo, vec3(0.36, 0.40, 0.44), 0.4 * t_mineral);
-  float tip = smoothstep(0.15, 0.9, t_spike);
-  albedo = mix(albedo, vec3(0.80, 0.76, 0.68), 0.8 * tip);
+  // Speleothems are calcite over their whole length: ochre at the root, cream towards the tip
+  // where it still grows, banded by growth rings a few centimetres apart.
+  float calcite = smoothstep(0.02, 0.2, t_spike);
+  float rings = relief_noise(vec3(world.x * 3.0, world.y * 35.0, world.z * 3.0)).x;
+  vec3 dripstone =
+      mix(vec3(0.55, 0.47, 0.36), vec3(0.78, 0.74, 0.66), smoothstep(0.2, 1.0, t_spike)) *
+      (0.9 + 0.1 * rings);
+  albedo = mix(albedo, dripstone, 0.9 * calcite);
 
-  // Wetness: floors' hollows, running flowstone, every speleothem tip.
-  float wet = clamp(0.55 * ground * (1.0 - t_cavity) + 0.25 * smoothstep(0.2, 0.8, m1.x) + tip,
-                    0.0, 1.0);
+  // Wetness: floors' hollows and running flowstone (glossier), speleothems (a thin water film
+  // on calcite: a broad, faint sheen, not a plastic highlight).
+  float wet = clamp(0.55 * ground * (1.0 - t_cavity) + 0.25 * smoothstep(0.2, 0.8, m1.x), 0.0, 1.0);
   albedo *= 1.0 - 0.3 * wet * ground;
   float occlusion = mix(0.25, 1.0, smoothstep(0.05, 0.85, t_cavity));
 
@@ -92,10 +99,12 @@ void main() {
   float k = lamp_dist / (0.3 * u_lamp_range);
   float attenuation = 1.0 / (1.0 + k * k);
   float beam = mix(0.3, 1.0, smoothstep(0.72, 0.95, dot(-v, u_forward)));
-  float lambert = max(dot(s, l), 0.0);
+  // Calcite is translucent: light wraps a little round a stalactite.
+  float wrap = 0.25 * calcite;
+  float lambert = max((dot(s, l) + wrap) / (1.0 + wrap), 0.0);
   vec3 h = normalize(l + v);
-  float shininess = mix(12.0, 90.0, wet);
-  float specular = pow(max(dot(s, h), 0.0), shininess) * mix(0.03, 0.6, wet) *
+  float shininess = mix(mix(12.0, 90.0, wet), 16.0, calcite);
+  float specular = pow(max(dot(s, h), 0.0), shininess) * mix(mix(0.03, 0.6, wet), 0.07, calcite) *
                    (shininess + 8.0) / 25.0;
   vec3 lamp = vec3(1.0, 0.9, 0.75) * 2.0 * attenuation * beam;
   vec3 color = albedo * occlusion * (lambert * lamp + vec3(0.012, 0.014, 0.018)) +

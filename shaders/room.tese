@@ -1,8 +1,8 @@
 // Room tessellation evaluation shader: PN triangles (Vlachos et al. 2001) or Phong tessellation
-// (Boubekeur & Alexa 2008) over the patch, then the rock's relief along the normal
-// (shaders/relief.glsl: warped fBm and ridged rock steered by the roughness channel, flowstone on
-// walls, stalactites and stalagmites, thesis §5.5). Normals after displacement come from the
-// relief's analytic gradient.
+// (Boubekeur & Alexa 2008) over the patch, then the rock's relief (shaders/relief.glsl: warped fBm
+// and ridged rock steered by the roughness channel and flowstone on walls, along the normal;
+// stalactites and stalagmites along the vertical, thesis §5.5). Normals after displacement come
+// from the relief's analytic gradients (relief_displaced_normal).
 //
 // Watertightness: a vertex on a patch edge is evaluated from that edge's two endpoints only, in a
 // canonical order (the lexicographically smaller position first), with `precise` arithmetic, so
@@ -141,9 +141,10 @@ void main() {
 
   precise vec3 world = s.position + u_anchor;
   Relief r = relief_at(world, s.normal, s.roughness, s.rim, u_room_radius, u_displacement);
-  precise vec3 displaced = s.position + s.normal * r.height;
+  // Rock and flowstone along the normal, speleothems plumb (relief_displace).
+  precise vec3 displaced = s.position + s.normal * r.height + vec3(0.0, r.hang, 0.0);
   t_position = displaced;
-  t_normal = relief_normal(s.normal, r.gradient);
+  t_normal = relief_displaced_normal(s.normal, r.gradient, r.hang_gradient);
   t_mineral = s.mineral;
   t_cavity = r.cavity;
   t_spike = r.spike;

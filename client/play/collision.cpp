@@ -185,7 +185,8 @@ std::span<const Triangle> CollisionWorld::refined(const Room& room, uint32_t t) 
     return {&room.refined.back(), 1};
   }
   // The drawn surface at barycentric (i, j, kRefine - i - j) / kRefine, as room.tese makes it
-  // with PN triangles: the patch point, then the relief along the interpolated normal.
+  // with PN triangles: the patch point, then the relief (along the interpolated normal, and
+  // speleothems vertically).
   Vec3 grid[kRefine + 1][kRefine + 1];
   for (int i = 0; i <= kRefine; ++i) {
     for (int j = 0; i + j <= kRefine; ++j) {
@@ -202,7 +203,8 @@ std::span<const Triangle> CollisionWorld::refined(const Room& room, uint32_t t) 
       // patch the flat triangle; float rounding would only add noise.)
       const glm::vec3 flat = p[0] * w.x + p[1] * w.y + p[2] * w.z;
       const glm::vec3 bulge = planar ? glm::vec3(0.0f) : at - flat;
-      const glm::vec3 q = bulge + normal * r.height;
+      // relief_displace's offsets: rock along the normal, speleothems plumb.
+      const glm::vec3 q = bulge + normal * r.height + glm::vec3(0.0f, r.hang, 0.0f);
       Vec3 base{};
       for (int k = 0; k < 3; ++k)
         base = base + Vec3{p[k].x, p[k].y, p[k].z} * static_cast<double>(w[k]);

@@ -1,0 +1,301 @@
+// The relief's speleothems through shaders/relief.hpp (the C++ face of the shader's source): they
+// hang plumb on a sloping ceiling, their lengths run from soda straws to metres, they grow in rows
+// with bare rock between, nothing moves on a portal rim, the normals follow the displaced surface,
+// and collision meets the displaced surface.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <glm/glm.hpp>
+#include <map>
+#include <vector>
+
+#include "client/play/collision.hpp"
+#include "client/play/player.hpp"
+#include "shaders/relief.hpp"
+#include "shapes.hpp"
+
+namespace grotto::play {
+namespace {
+
+namespace rl = grotto::relief;
+constexpr float kHall = 20.0f;  // metres of room radius: the longest speleothems
+constexpr double kPi = 3.14159265358979323846;
+
+// A 45-degree ceiling through (0, 10, 0): its normal faces down into the cave and towards +z.
+const glm::vec3 kSlopeNormal = glm::normalize(glm::vec3(0.0f, -1.0f, 1.0f));
+const glm::vec3 kSlopeU{1.0f, 0.0f, 0.0f};
+const glm::vec3 kSlopeW = glm::normalize(glm::vec3(0.0f, 1.0f, 1.0f));
+const glm::vec3 kSlopeOrigin{0.0f, 10.0f, 0.0f};
+
+rl::Relief relief(glm::vec3 p, glm::vec3 n, float rim = 0.0f) {
+  return rl::relief_at(p, n, 0.0f, rim, kHall, 1.0f);
+}
+
+glm::vec3 plumb(glm::vec3 p, glm::vec3 n) {
+  return rl::relief_displace(p, n, relief(p, n));
+}
+
+// The same heights with the speleothem pushed out along the normal, as before they hung plumb.
+glm::vec3 along_normal(glm::vec3 p, glm::vec3 n) {
+  const rl::Relief r = relief(p, n);
+  return p + n * (r.height + std::abs(r.hang));
+}
+
+// The point of the sloping ceiling (within 8 m of its origin) under the longest stalactite.
+glm::vec3 longest_stalactite_root(float& hang) {
+  hang = 0;
+  glm::vec3 best = kSlopeOrigin;
+  for (float a = -8; a <= 8; a += 0.04f)
+    for (float b = -8; b <= 8; b += 0.04f) {
+      const glm::vec3 p = kSlopeOrigin + a * kSlopeU + b * kSlopeW;
+      const float h = relief(p, kSlopeNormal).hang;
+      if (h < hang) hang = h, best = p;
+    }
+  return best;
+}
+
+// The angle from vertical, in degrees, of the line from the centroid of a stalactite's ring at a
+// quarter of its length to its tip, on the surface `displace` makes.
+template <typename Displace>
+double axis_tilt_deg(glm::vec3 root, float tip_hang, Displace displace) {
+  glm::dvec3 centroid{0.0};
+  constexpr int kAngles = 64;
+  for (int i = 0; i < kAngles; ++i) {
+    const double t = 2 * kPi * i / kAngles;
+    const glm::vec3 e =
+        static_cast<float>(std::cos(t)) * kSlopeU + static_cast<float>(std::sin(t)) * kSlopeW;
+    float s = 0;
+    while (s < 2 && relief(root + s * e, kSlopeNormal).hang < 0.25f * tip_hang)
+      s += 0.002f;
+    centroid += glm::dvec3(displace(root + s * e, kSlopeNormal));
+  }
+  centroid /= kAngles;
+  const glm::dvec3 axis = glm::dvec3(displace(root, kSlopeNormal)) - centroid;
+  return std::atan2(std::hypot(axis.x, axis.z), std::abs(axis.y)) * 180 / kPi;
+}
+
+TEST(Relief, a_stalactite_on_a_45_degree_ceiling_hangs_within_3_degrees_of_vertical) {
+  float hang = 0;
+  const glm::vec3 root = longest_stalactite_root(hang);
+  ASSERT_LT(hang, -1.0f) << "no stalactite a metre long on 256 square metres of ceiling";
+  const double tilt = axis_tilt_deg(root, hang, plumb);
+  EXPECT_LT(tilt, 3.0) << "length " << -hang << " m";
+  // The tip is straight below the root, the rock's height along the normal aside.
+  const rl::Relief r = relief(root, kSlopeNormal);
+  const glm::vec3 tip = plumb(root, kSlopeNormal) - kSlopeNormal * r.height;
+  EXPECT_NEAR(tip.x, root.x, 1e-5);
+  EXPECT_NEAR(tip.z, root.z, 1e-5);
+  EXPECT_NEAR(tip.y, root.y + hang, 1e-5);
+  // The measurement sees a fang: displaced along the normal the same spike leans 45 degrees.
+  EXPECT_GT(axis_tilt_deg(root, hang, along_normal), 30.0);
+}
+
+// The lattice's speleothems over 60 x 60 cells (one per 1 m cell at most) in the longest room.
+std::map<std::pair<int, int>, rl::Speleothem> speleothems(float longest) {
+  std::map<std::pair<int, int>, rl::Speleothem> out;
+  for (int z = -30; z < 30; ++z)
+    for (int x = -30; x < 30; ++x) {
+      const rl::Speleothem s = rl::relief_speleothem(glm::ivec2(x, z), longest);
+      if (s.len > 0) out[{x, z}] = s;
+    }
+  return out;
+}
+
+TEST(Relief, lengths_run_from_soda_straws_to_metres_with_max_over_median_at_least_5) {
+  const float longest = rl::relief_spike_length(kHall);
+  EXPECT_GE(longest, 3.0f);
+  const auto all = speleothems(longest);
+  ASSERT_GT(all.size(), 100u);
+  std::vector<float> lengths;
+  for (const auto& [cell, s] : all)
+    lengths.push_back(s.len);
+  std::sort(lengths.begin(), lengths.end());
+  const float median = lengths[lengths.size() / 2];
+  std::printf("speleothems: %zu in 3600 cells, %.3f-%.2f m, median %.3f m, max/median %.1f\n",
+              lengths.size(), lengths.front(), lengths.back(), median, lengths.back() / median);
+  EXPECT_NEAR(lengths.front(), 0.05f, 1e-6) << "the shortest are soda straws";
+  EXPECT_GE(lengths.back(), 2.5f) << "the longest are metres long in a hall";
+  EXPECT_GE(lengths.back() / median, 5.0f);
+  // Stalagmites are thicker and blunter than the stalactite above: the relief's own shape round
+  // the centre of the longest, on a ceiling 8 m up and on the floor.
+  const rl::Speleothem* big = nullptr;
+  for (const auto& [cell, s] : all)
+    if (!big || s.len > big->len) big = &s;
+  const float u = big->centre.x, v = big->centre.y;
+  const glm::vec3 at{rl::kReliefTurnCos * u + rl::kReliefTurnSin * v, 0.0f,
+                     -rl::kReliefTurnSin * u + rl::kReliefTurnCos * v};
+  auto hang = [&](float dx, bool ceiling) {
+    return ceiling ? -relief(at + glm::vec3(dx, 8, 0), glm::vec3(0, -1, 0)).hang
+                   : relief(at + glm::vec3(dx, 0, 0), glm::vec3(0, 1, 0)).hang;
+  };
+  auto radius = [&](bool ceiling) {
+    float r = 0;
+    while (r < 1 && hang(r, ceiling) > 0)
+      r += 0.005f;
+    return r;
+  };
+  const float tite = hang(0, true), mite = hang(0, false);
+  EXPECT_GE(tite, 0.45f * big->len * 0.999f) << "the variety field shortens by 0.45 at most";
+  EXPECT_GT(mite, 0.0f);
+  EXPECT_LT(mite, tite) << "a stalagmite is shorter than its stalactite";
+  const float tite_r = radius(true), mite_r = radius(false);
+  EXPECT_GT(mite_r, 1.5f * tite_r) << "a stalagmite is thicker than its stalactite";
+  // Blunt: half way out a stalagmite keeps over half its height, a stalactite under a third.
+  EXPECT_GT(hang(0.5f * mite_r, false), 0.5f * mite);
+  EXPECT_LT(hang(0.5f * tite_r, true), 0.33f * tite);
+}
+
+TEST(Relief, speleothems_grow_in_rows_along_cracks_with_bare_rock_between) {
+  const auto all = speleothems(rl::relief_spike_length(kHall));
+  // Bare rock: most cells hold none.
+  EXPECT_LT(all.size(), 3600u / 2);
+  // Clustered: counts in 6 x 6 cell blocks vary far more than scattered (Poisson) ones would,
+  // whose variance equals their mean.
+  std::map<std::pair<int, int>, int> blocks;
+  for (int bz = -5; bz < 5; ++bz)
+    for (int bx = -5; bx < 5; ++bx)
+      blocks[{bx, bz}] = 0;
+  for (const auto& [cell, s] : all)
+    ++blocks[{static_cast<int>(std::floor(cell.first / 6.0)),
+              static_cast<int>(std::floor(cell.second / 6.0))}];
+  double mean = 0, var = 0;
+  for (const auto& [b, n] : blocks)
+    mean += n;
+  mean /= static_cast<double>(blocks.size());
+  for (const auto& [b, n] : blocks)
+    var += (n - mean) * (n - mean);
+  var /= static_cast<double>(blocks.size());
+  std::printf("blocks: mean %.2f variance %.2f\n", mean, var);
+  EXPECT_GT(var, 1.5 * mean);
+  // In rows: a speleothem's nearest neighbour is usually close (within 2 cells).
+  int close = 0;
+  for (const auto& [cell, s] : all) {
+    double nearest = 1e9;
+    for (const auto& [other, t] : all)
+      if (other != cell)
+        nearest = std::min(nearest, static_cast<double>(glm::length(s.centre - t.centre)));
+    close += nearest < 2.0;
+  }
+  EXPECT_GT(close, static_cast<int>(0.8 * static_cast<double>(all.size())));
+}
+
+TEST(Relief, nothing_moves_on_a_portal_rim) {
+  const glm::vec3 normals[] = {glm::vec3(0, -1, 0), glm::vec3(0, 1, 0), kSlopeNormal,
+                               glm::normalize(glm::vec3(1, 0.1f, 0)),
+                               glm::normalize(glm::vec3(0.2f, 0.9f, -0.3f))};
+  int checked = 0;
+  for (const glm::vec3& n : normals)
+    for (float a = -6; a <= 6; a += 0.13f)
+      for (float b = -6; b <= 6; b += 0.17f) {
+        const glm::vec3 p{a, 3.0f + 0.37f * b, b};
+        for (float rim : {1.0f, 0.99995f}) {
+          const rl::Relief r = rl::relief_at(p, n, 1.0f, rim, kHall, 1.0f);
+          ASSERT_EQ(r.height, 0.0f);
+          ASSERT_EQ(r.hang, 0.0f);
+          ASSERT_EQ(rl::relief_displace(p, n, r), p);
+          ++checked;
+        }
+      }
+  EXPECT_GT(checked, 10000);
+}
+
+TEST(Relief, the_normal_follows_the_plumb_displaced_surface) {
+  float hang = 0;
+  const glm::vec3 root = longest_stalactite_root(hang);
+  ASSERT_LT(hang, -1.0f);
+  // Points on the stalactite's flank: the analytic normal against the displaced surface's own
+  // (central differences of relief_displace).
+  int checked = 0;
+  double worst = 0;
+  for (int i = 0; i < 16; ++i) {
+    const double t = 2 * kPi * i / 16;
+    const glm::vec3 e =
+        static_cast<float>(std::cos(t)) * kSlopeU + static_cast<float>(std::sin(t)) * kSlopeW;
+    for (float s : {0.03f, 0.06f}) {
+      const glm::vec3 p = root + s * e;
+      const rl::Relief r = relief(p, kSlopeNormal);
+      if (r.hang > 0.3f * hang) continue;  // off the flank
+      const glm::vec3 analytic =
+          rl::relief_displaced_normal(kSlopeNormal, r.gradient, r.hang_gradient);
+      constexpr float h = 1e-3f;
+      const glm::vec3 du =
+          plumb(p + h * kSlopeU, kSlopeNormal) - plumb(p - h * kSlopeU, kSlopeNormal);
+      const glm::vec3 dw =
+          plumb(p + h * kSlopeW, kSlopeNormal) - plumb(p - h * kSlopeW, kSlopeNormal);
+      const glm::vec3 numeric = glm::normalize(glm::cross(du, dw));
+      const double angle =
+          std::acos(std::clamp(static_cast<double>(glm::dot(analytic, numeric)), -1.0, 1.0)) * 180 /
+          kPi;
+      worst = std::max(worst, angle);
+      ++checked;
+    }
+  }
+  EXPECT_GT(checked, 8);
+  EXPECT_LT(worst, 5.0) << "degrees between the analytic and the displaced surface's normal";
+}
+
+// Collision is the drawn surface: on a 45-degree ceiling it reaches the stalactite's tip, which
+// hangs straight below its root; on a floor the player lands on a stalagmite, not the floor.
+TEST(Relief, collision_meets_the_plumb_stalactite_and_stands_on_the_stalagmite) {
+  float hang = 0;
+  const glm::vec3 root = longest_stalactite_root(hang);
+  ASSERT_LT(hang, -1.0f);
+  // The ceiling round the root as 0.25 m quads (the collision refines each into 6 cm pieces).
+  std::vector<test::Quad> ceiling;
+  auto at = [&](float a, float b) {
+    const glm::vec3 p = root + a * kSlopeU + b * kSlopeW;
+    return Vec3{p.x, p.y, p.z};
+  };
+  for (float a = -1.5f; a < 1.5f; a += 0.25f)
+    for (float b = -1.5f; b < 1.5f; b += 0.25f)
+      ceiling.push_back({at(a, b), at(a, b + 0.25f), at(a + 0.25f, b + 0.25f), at(a + 0.25f, b)});
+  test::Quad& first = ceiling.front();
+  const Vec3 e1 = first.b - first.a, e2 = first.c - first.a;
+  if (dot(cross(e1, e2), Vec3{kSlopeNormal.x, kSlopeNormal.y, kSlopeNormal.z}) < 0)
+    for (test::Quad& q : ceiling)
+      std::swap(q.b, q.d);  // wound to face the cave, as the mesh stage winds them
+  CollisionWorld world(1.0f);
+  client::ReadyRoom room = test::shape_room(0, ceiling);
+  room.room.sphere.radius = kHall;
+  world.add(room);
+  auto nearest = [&](glm::vec3 q) {
+    const Vec3 p{q.x, q.y, q.z};
+    Neighbourhood n;
+    world.gather(p - Vec3{0.3, 0.3, 0.3}, p + Vec3{0.3, 0.3, 0.3}, n);
+    double best = 1e9;
+    for (const Triangle& t : n.triangles)
+      best = std::min(best, length(closest_point(t, p) - p));
+    return best;
+  };
+  EXPECT_LT(nearest(plumb(root, kSlopeNormal)), 0.08) << "the tip hanging plumb";
+  EXPECT_GT(nearest(along_normal(root, kSlopeNormal)), 0.3) << "where a fang's tip would be";
+
+  // A floor of 0.25 m tiles round the tallest stalagmite near the origin.
+  glm::vec3 top{0.0f};
+  float tallest = 0;
+  for (float x = -8; x <= 8; x += 0.04f)
+    for (float z = -8; z <= 8; z += 0.04f) {
+      const float h = relief(glm::vec3(x, 0, z), glm::vec3(0, 1, 0)).hang;
+      if (h > tallest) tallest = h, top = glm::vec3(x, 0, z);
+    }
+  ASSERT_GT(tallest, 0.5f);
+  std::vector<test::Quad> floor;
+  for (float a = -2; a < 2; a += 0.25f)
+    for (float b = -2; b < 2; b += 0.25f)
+      floor.push_back(test::floor_quad(0, 0.125, top.x + a + 0.125, top.z + b + 0.125));
+  CollisionWorld ground(1.0f);
+  client::ReadyRoom floor_room = test::shape_room(0, floor);
+  floor_room.room.sphere.radius = kHall;
+  ground.add(floor_room);
+  Player p({top.x, tallest + 3.0, top.z});
+  for (int i = 0; i < 600 && !p.grounded(); ++i)
+    p.step({}, ground);
+  ASSERT_TRUE(p.grounded());
+  const double feet_y = p.eye().y - p.params().eye_height - p.params().skin / 2;
+  EXPECT_GT(feet_y, 0.5 * tallest) << "the player fell through the stalagmite to the floor";
+  EXPECT_LT(feet_y, plumb(top, glm::vec3(0, 1, 0)).y + 0.05);
+}
+
+}  // namespace
+}  // namespace grotto::play
