@@ -1,45 +1,81 @@
 #!/usr/bin/env bash
 # Renders docs/GALLERY.md's pictures: each pose with the relief on and off (--no-displacement),
-# under Xvfb with Mesa's llvmpipe, from an in-process server (CPU reference). ~8 s a picture.
+# through EGL (no window system: Mesa's llvmpipe here, a GPU's driver where there is one), from an
+# in-process server (CPU reference). About 4 s a picture at 1920x1080 on llvmpipe.
 # Usage: bash docs/gallery/render.sh [build dir, default build]  (from the repository root)
-# GALLERY_OUT (default docs/images/gallery) is where the pictures go; GALLERY_FLAGS, more client
-# flags for every picture (docs/gallery/protocol.sh passes --protocol 1 or 2).
+# GALLERY_OUT (default docs/images/gallery) is where the pictures go; GALLERY_SIZE (default
+# 1920x1080) their size; GALLERY_FLAGS, more client flags for every picture (docs/gallery/
+# protocol.sh passes --protocol 1 or 2); GALLERY_ONLY, a pose name to render alone.
 set -euo pipefail
 build=${1:-build}
 out=${GALLERY_OUT:-docs/images/gallery}
+size=${GALLERY_SIZE:-1920x1080}
+only=${GALLERY_ONLY:-}
 read -r -a more <<< "${GALLERY_FLAGS:-}"
 mkdir -p "$out"
 client="$build/bin/grotto-client"
 layout="$build/bin/grotto-layout"
-# A room's sphere centre, plus an offset in units of its radius: x,y,z.
-centre() {  # seed room dy
+# A pose in a room from the layout: pose seed room kind [args]
+#   centre dy yaw pitch   the sphere centre raised by dy radii
+#   floor yaw pitch       1.7 m above the room's floor below the centre
+#   across yaw pitch      0.6 radii from the centre, on the side opposite the yaw
+#   along                 the centre, looking from the first portal towards the second
+#   entrance              1.5 m inside the lowest portal, looking into the room
+pose() {
   "$layout" --seed "$1" --room "$2" 2>/dev/null | python3 -c "
-import json, sys
+import json, math, sys
 r = json.load(sys.stdin)
-c = r['centre']
-print('%.2f,%.2f,%.2f' % (c[0], c[1] + float(sys.argv[1]) * r['radius'], c[2]))" "$3"
+c, R, kind, a = r['centre'], r['radius'], sys.argv[1], [float(x) for x in sys.argv[2:]]
+def look(d):
+    n = math.sqrt(sum(x * x for x in d))
+    d = [x / n for x in d]
+    return math.degrees(math.atan2(d[0], -d[2])), math.degrees(math.asin(d[1]))
+if kind == 'centre':
+    p, yaw, pitch = [c[0], c[1] + a[0] * R, c[2]], a[1], a[2]
+elif kind == 'floor':
+    p, yaw, pitch = [c[0], c[1] - 0.2 * R + 1.7, c[2]], a[0], a[1]
+elif kind == 'across':
+    y = math.radians(a[0])
+    p, yaw, pitch = [c[0] - 0.6 * R * math.sin(y), c[1], c[2] + 0.6 * R * math.cos(y)], a[0], a[1]
+elif kind == 'along':
+    p0, p1 = r['portals'][0]['centre'], r['portals'][1]['centre']
+    p = c
+    yaw, pitch = look([p1[i] - p0[i] for i in range(3)])
+elif kind == 'entrance':
+    q = min(r['portals'], key=lambda q: q['centre'][1])
+    n = q['normal']
+    p = [q['centre'][i] - 1.5 * n[i] for i in range(3)]
+    yaw, pitch = look([-x for x in n])
+print('%.2f,%.2f,%.2f,%.1f,%.1f' % (p[0], p[1], p[2], yaw, pitch))" "${@:3}"
 }
 shoot() {  # name seed extra-args...
   local name=$1 seed=$2
   shift 2
+  [[ -n $only && $only != "$name" ]] && return 0
   for relief in on off; do
     local flags=()
     [[ $relief == off ]] && flags=(--no-displacement)
-    xvfb-run -a -s "-screen 0 1280x1024x24" "$client" --device none --seed "$seed" \
-      --width 480 --height 270 --tess-max 8 --lod distance --frames 3 --wait 120 --no-motion-blur \
-      --screenshot "$out/$name-$relief.png" "${flags[@]}" "${more[@]}" "$@" >/dev/null
+    "$client" --gl egl --device none --seed "$seed" --width "${size%x*}" --height "${size#*x}" \
+      --tess-max 8 --lod distance --frames 3 --wait 120 --no-motion-blur --mode fly \
+      --screenshot "$out/$name-$relief.png" --json "$out/$name-$relief.json" \
+      "${flags[@]}" "${more[@]}" "$@" >/dev/null
   done
   echo "gallery: $name"
 }
-shoot cavern-95 95 --pose "$(centre 95 0.0.0.r67 0),200,10"
-shoot stalactites-95 95 --pose "$(centre 95 0.0.0.r67 0),200,55"
-shoot floor-7 7 --pose "$(centre 7 0.0.0.r0 0),20,-15"
-shoot tunnel-7 7 --pose "$(centre 7 0.0.0.r89 0),80,0"
-shoot tunnel-95 95 --pose "$(centre 95 0.0.0.r84 0),80,0"
-shoot shaft-up-7 7 --pose "$(centre 7 0.0.0.r37 0),140,80"
-shoot shaft-up-95 95 --pose "$(centre 95 0.0.0.r7 0),140,80"
-shoot cavern-3 3 --pose "$(centre 3 0.0.0.r64 0),90,-10"
+shoot cavern-95 95 --pose "$(pose 95 0.0.0.r0 centre 0 200 10)"
+shoot stalactites-95 95 --pose "$(pose 95 0.0.0.r0 centre 0 200 55)"
+shoot floor-7 7 --pose "$(pose 7 0.0.0.r0 floor 20 -15)"
+shoot tunnel-7 7 --pose "$(pose 7 0.0.0.r73 along)"
+shoot tunnel-95 95 --pose "$(pose 95 0.0.0.r69 along)"
+shoot shaft-up-7 7 --pose "$(pose 7 0.0.0.r14 centre 0 140 80)"
+shoot shaft-up-95 95 --pose "$(pose 95 0.0.0.r7 centre 0 140 80)"
+shoot cavern-3 3 --pose "$(pose 3 0.0.0.r64 centre 0 90 -10)"
 shoot portal-3 3 --pose room:0.0.0.r86
-shoot ceiling-3 3 --pose "$(centre 3 0.0.0.r0 0.3),30,50"
+shoot ceiling-3 3 --pose "$(pose 3 0.0.0.r0 centre 0.3 30 50)"
 shoot flythrough-95 95 --flythrough 8
 shoot flythrough-7 7 --flythrough 3
+# Halls (issue 27): from an entrance, across from one side, from the floor looking up.
+shoot hall-entrance-95 95 --pose "$(pose 95 1.0.1.r0 entrance)"
+shoot hall-across-7 7 --pose "$(pose 7 0.0.0.r0 across 270 5)"
+shoot hall-across-95 95 --pose "$(pose 95 1.0.1.r0 across 0 5)"
+shoot hall-up-7 7 --pose "$(pose 7 0.0.0.r0 floor 60 55)"
