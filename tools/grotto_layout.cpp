@@ -10,6 +10,7 @@
 #include "cave/layout.hpp"
 #include "cave/svg.hpp"
 #include "glb.hpp"
+#include "relief_bake.hpp"
 #include "kernels/room_builder.hpp"
 #include "preview.hpp"
 #include "proto/layout_json.hpp"
@@ -95,6 +96,21 @@ RegionMeshes build_meshes(const grotto::cave::World& world, const grotto::cave::
   spdlog::info("event=meshes_built rooms={} lod={} compute_path=\"{}\"", out.built.size(),
                grotto::mesh::lod_name(lod), builder.path());
   return out;
+}
+
+// The relief baked into every built mesh (tools/relief_bake.hpp).
+void bake_meshes(const grotto::cave::Region& region, RegionMeshes& meshes) {
+  size_t next = 0, moved = 0;
+  double largest = 0, hang = 0;
+  for (size_t i = 0; i < region.rooms.size(); ++i) {
+    if (!meshes.errors[i].empty()) continue;
+    grotto::tools::BakeStats s = grotto::tools::bake_relief(meshes.built[next++], region.rooms[i]);
+    moved += s.moved;
+    largest = std::max(largest, s.largest);
+    hang = std::max(hang, s.largest_hang);
+  }
+  spdlog::info("event=relief_baked meshes={} vertices={} largest_m={:.2f} longest_speleothem_m={:.2f}",
+               next, moved, largest, hang);
 }
 
 // glTF 2.0 binary: every room of the region a node, with its mesh where it could be built.
@@ -188,6 +204,7 @@ int main(int argc, char** argv) {
   int sectors = 2;
   std::string svg_path, json_path, obj_path, glb_path, png_path, room_text, character;
   std::string lod_text = "patch";
+  bool bake = false;
   grotto::cave::LayoutParams params;
   std::optional<double> tunnel_chance, big_probability;
   std::optional<int> room_count, loops;
@@ -214,6 +231,10 @@ int main(int argc, char** argv) {
                  "Level of detail of --obj, --glb and --png: patch (streamed) or detail")
       ->check(CLI::IsMember({"patch", "detail"}))
       ->capture_default_str();
+  app.add_flag("--bake-relief", bake,
+               "Move the meshes of --obj, --glb and --png by the relief the client draws (the rock, "
+               "stalactites and stalagmites of shaders/relief.glsl; rims stay put): use with "
+               "--lod detail for an engine that does not tessellate");
   app.add_option("--room", room_text, "Print one room as JSON instead, e.g. 0.0.0.r3 or 0.0.0.x1");
   app.add_option("--character", character,
                  "Use one character everywhere instead of the region mix: maze, shafts or caverns")
@@ -318,6 +339,7 @@ int main(int argc, char** argv) {
   if (!obj_path.empty() || !png_path.empty() || !glb_path.empty()) {
     auto lod = lod_text == "detail" ? grotto::mesh::Lod::kDetail : grotto::mesh::Lod::kPatch;
     RegionMeshes meshes = build_meshes(*world, region, lod);
+    if (bake) bake_meshes(region, meshes);
     if (!obj_path.empty() && !write_obj(obj_path, *world, region, meshes.built)) return 1;
     if (!glb_path.empty()) {
       if (auto s = write_glb(glb_path, *world, region, lod, meshes); !s) {
