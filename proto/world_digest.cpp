@@ -3,6 +3,7 @@
 #include <string_view>
 #include <vector>
 
+#include "cave/lights.hpp"
 #include "core/bytes.hpp"
 #include "core/grid.hpp"
 #include "core/random.hpp"
@@ -96,6 +97,17 @@ uint64_t world_params_digest(const cave::LayoutParams& layout, const mesh::MeshP
   // The world grid moves every vertex and rim: rooms built on another grid must not share a
   // client's cache with these.
   c.f64(grid::kStep);
+  // The world's lights (cave/lights.hpp) are part of the world: engines place them from the
+  // same seed. Their parameters are built in (LightParams{}); the tag names the algorithm.
+  const cave::LightParams lights;
+  c.text(cave::kLightsVersion);
+  c.i64(lights.hall_min);
+  c.i64(lights.hall_max);
+  for (double v : {lights.big_radius, lights.big_chance, lights.small_chance, lights.wall_fraction,
+                   lights.portal_clearance, lights.floor_lift, lights.range_per_radius,
+                   lights.min_range, lights.intensity_per_range2}) {
+    c.f64(v);
+  }
   return fold_digest(layout_params_digest(layout), c.bytes());
 }
 

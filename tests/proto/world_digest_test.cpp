@@ -51,8 +51,9 @@ TEST(WorldDigest, the_servers_digest_is_pinned_and_sees_the_mesh_settings) {
   const mesh::MeshParams mesh;
   const uint64_t d = world_params_digest(layout, mesh);
   // Changed in issue 18: the digest folds in the world grid (1/64 m since then); in issue 27:
-  // the deformation's version 2 (halls keep their sphere, floors, the axis fade, donor caps).
-  EXPECT_EQ(d, 0x746b1b6bf8247a0aull);
+  // the deformation's version 2 (halls keep their sphere, floors, the axis fade, donor caps),
+  // then the world's lights (cave/lights.hpp: grotto.lights.v1 and its parameters).
+  EXPECT_EQ(d, 0x29a2b8c03927cb75ull);
   EXPECT_NE(d, layout_params_digest(layout));
   std::vector<mesh::MeshParams> variants(12, mesh);
   variants[0].lods[0].edge_length += 0.125;
