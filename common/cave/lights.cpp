@@ -67,7 +67,8 @@ Candidate candidate(LightKind kind, const Room& room, std::optional<double> floo
       break;
     case LightKind::kCrystals:
       if (floor) {
-        // On the floor, out towards the wall: the floor's disc has radius ~0.98 r (floor_depth 0.2).
+        // On the floor, out towards the wall: the floor's disc has radius ~0.98 r (floor_depth
+        // 0.2).
         const double h = std::sqrt(d.x * d.x + d.z * d.z);
         const double out = rng.uniform(0.5, 0.8) * r;
         if (h < 1e-6) return {c, Vec3{0, 1, 0}};
@@ -115,8 +116,8 @@ std::vector<WorldLight> room_lights(uint64_t seed, const LayoutParams& layout, c
   const double r = room.sphere.radius;
   int count = 0;
   if (floor) {
-    count = p.hall_min + static_cast<int>(rng.below(static_cast<uint32_t>(
-                             std::max(p.hall_max - p.hall_min + 1, 1))));
+    count = p.hall_min + static_cast<int>(rng.below(
+                             static_cast<uint32_t>(std::max(p.hall_max - p.hall_min + 1, 1))));
   } else if (rng.chance(r >= p.big_radius ? p.big_chance : p.small_chance)) {
     count = 1;
   }

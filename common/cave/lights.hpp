@@ -37,12 +37,12 @@ const char* light_kind_name(LightKind kind);
 // `range` by (1 - (d / range)^4)^2 (Karis, "Real Shading in Unreal Engine 4", 2013).
 struct WorldLight {
   LightKind kind = LightKind::kGlowWorms;
-  Vec3 position;       // world metres: inside the room's space, above its floor
-  Vec3 facing;         // unit: from the rock it grows on into the room
-  Vec3 colour;         // linear RGB, largest component 1
+  Vec3 position;  // world metres: inside the room's space, above its floor
+  Vec3 facing;    // unit: from the rock it grows on into the room
+  Vec3 colour;    // linear RGB, largest component 1
   double intensity = 0;
-  double range = 0;    // metres: where its light reaches zero
-  double size = 0;     // metres: radius of the glowing patch of rock around it
+  double range = 0;  // metres: where its light reaches zero
+  double size = 0;   // metres: radius of the glowing patch of rock around it
 };
 
 struct LightParams {

@@ -22,7 +22,8 @@ std::vector<unsigned char> bytes_of(const std::vector<WorldLight>& lights) {
   };
   for (const WorldLight& l : lights) {
     out.push_back(static_cast<unsigned char>(l.kind));
-    for (Vec3 v : {l.position, l.facing, l.colour}) put(v.x), put(v.y), put(v.z);
+    for (Vec3 v : {l.position, l.facing, l.colour})
+      put(v.x), put(v.y), put(v.z);
     put(l.intensity), put(l.range), put(l.size);
   }
   return out;
@@ -38,7 +39,8 @@ TEST(WorldLights, same_seed_gives_the_same_lights_in_any_order) {
   for (uint64_t seed : {3ull, 7ull, 95ull}) {
     const Region region = sample(seed);
     std::vector<std::vector<unsigned char>> forward, backward;
-    for (const Room& r : region.rooms) forward.push_back(bytes_of(room_lights(seed, params, r)));
+    for (const Room& r : region.rooms)
+      forward.push_back(bytes_of(room_lights(seed, params, r)));
     for (auto it = region.rooms.rbegin(); it != region.rooms.rend(); ++it)
       backward.push_back(bytes_of(room_lights(seed, params, *it)));
     std::reverse(backward.begin(), backward.end());
