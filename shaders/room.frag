@@ -34,6 +34,7 @@ uniform float u_exposure;
 uniform float u_glow;  // emissive minerals' strength; 0: none
 
 #pragma grotto_include "relief.glsl"
+#pragma grotto_include "lights.glsl"
 
 vec3 aces(vec3 x) {
   // Narkowicz's fit of the ACES filmic curve.
@@ -106,7 +107,7 @@ void main() {
   float shininess = mix(mix(12.0, 90.0, wet), 16.0, calcite);
   float specular = pow(max(dot(s, h), 0.0), shininess) * mix(mix(0.03, 0.6, wet), 0.07, calcite) *
                    (shininess + 8.0) / 25.0;
-  vec3 lamp = vec3(1.0, 0.9, 0.75) * 2.0 * attenuation * beam;
+  vec3 lamp = vec3(1.0, 0.9, 0.75) * 2.0 * attenuation * beam * u_headlamp;
   vec3 color = albedo * occlusion * (lambert * lamp + vec3(0.012, 0.014, 0.018)) +
                specular * lambert * lamp * mix(0.5, 1.0, occlusion);
 
@@ -114,8 +115,14 @@ void main() {
   float vein = 1.0 - abs(relief_noise(world * 1.6 + vec3(0.0, 0.0, 29.0)).x);
   float glow = u_glow * smoothstep(0.6, 0.9, t_mineral) * smoothstep(0.965, 0.995, vein);
   color += glow * vec3(0.2, 0.85, 0.7) * 0.9;
+  // The world's lights and flares (lights.glsl), and the haze they light.
+  float source_glow;
+  color += lights_shade(t_position, world, s, v, albedo * occlusion, wrap, source_glow);
+  glow = max(glow, source_glow);
+  vec3 haze = pow(aces(lights_haze(u_camera, t_position) * u_exposure), vec3(1.0 / 2.2));
 
   vec3 display = pow(aces(color * u_exposure), vec3(1.0 / 2.2));
   float fog = smoothstep(u_fog_start, u_fog_end, dist);
   frag_color = vec4(mix(display, u_fog_color, fog), glow * (1.0 - fog));
+  frag_color.rgb = 1.0 - (1.0 - frag_color.rgb) * (1.0 - haze);  // lit haze in front of the fog
 }

@@ -8,10 +8,12 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <limits>
 #include <string>
 #include <thread>
 #include <vector>
 
+#include "cave/lights.hpp"
 #include "client/app/bench_report.hpp"
 #include "client/app/camera_aim.hpp"
 #include "client/app/screenshot_report.hpp"
@@ -36,6 +38,46 @@ int fail(const std::string& message) {
 
 double seconds_since(Clock::time_point t) {
   return std::chrono::duration<double>(Clock::now() - t).count();
+}
+
+// A light lights its room's sphere grown by this much (the relief and the rim noise reach out of
+// the sphere; a hall keeps its sphere, mesh params keep_distance).
+constexpr double kLightBoundScale = 1.1;
+constexpr double kLightBoundMargin = 1.5;  // metres
+
+// A world light as the renderer takes it: colour x intensity, its range, its glowing patch.
+render::Light to_light(const cave::WorldLight& w, const cave::Room& room) {
+  render::Light l;
+  l.kind = cave::light_kind_name(w.kind);
+  l.position = w.position;
+  l.colour = glm::vec3(static_cast<float>(w.colour.x), static_cast<float>(w.colour.y),
+                       static_cast<float>(w.colour.z)) *
+             static_cast<float>(w.intensity);
+  l.range = static_cast<float>(w.range);
+  l.size = static_cast<float>(w.size);
+  l.glow = static_cast<int>(w.kind);  // shaders/lights.glsl's GLOW_* follow cave::LightKind
+  l.bound_centre = room.sphere.centre;
+  l.bound_radius = static_cast<float>(kLightBoundScale * room.sphere.radius + kLightBoundMargin);
+  return l;
+}
+
+// A burning flare: a warm magnesium-red light bright enough to show a hall's far wall (20 m and
+// more away), with a flicker that is a function of its age alone (pictures repeat).
+render::Light flare_light(const play::Flare& f, const play::CollisionWorld& world) {
+  const double flicker = 0.9 + 0.1 * std::sin(f.age * 23.0) * std::sin(f.age * 7.3 + 1.0);
+  const float power = static_cast<float>(160.0 * play::flare_brightness(f) * flicker);
+  render::Light l;
+  l.kind = "flare";
+  l.position = f.position;
+  l.colour = glm::vec3(1.0f, 0.5f, 0.22f) * power;
+  l.range = 48;
+  l.size = 0.3f;
+  l.glow = 3;
+  if (const cave::Room* room = world.room_at(f.position)) {
+    l.bound_centre = room->sphere.centre;
+    l.bound_radius = static_cast<float>(kLightBoundScale * room->sphere.radius + kLightBoundMargin);
+  }
+  return l;
 }
 
 // The room whose space holds p by the cave's rule, among the rooms on the GPU.
@@ -145,6 +187,7 @@ Session::Session(const Options& o, render::Renderer& r, render::Overlay& ov,
   render_options.bloom = !o.no_bloom;
   render_options.motion_blur = !o.no_motion_blur;
   render_options.exposure = static_cast<float>(o.exposure);
+  render_options.headlamp = !o.no_headlamp;
   show_overlay = o.overlay.value_or(o.screenshot.empty() && !o.bench_s);
 }
 
@@ -152,10 +195,19 @@ void pump(Session& s, double speed) {
   for (auto& room : s.stream.take_new_rooms()) {
     s.cache.upload(*room);
     s.world.add(*room);
+    // The world's lights: a function of the seed and the room (the default layout parameters'
+    // floors, as the client assumes them elsewhere).
+    if (const auto seed = s.stream.stats().seed; seed && !s.options.no_world_lights) {
+      std::vector<render::Light> lights;
+      for (const cave::WorldLight& w : cave::room_lights(*seed, cave::LayoutParams{}, room->room))
+        lights.push_back(to_light(w, room->room));
+      s.world_lights[room->room.id] = std::move(lights);
+    }
   }
   for (auto id : s.stream.take_evicted()) {
     s.cache.evict(id);
     s.world.evict(id);
+    s.world_lights.erase(id);
   }
   aim_when_known(s.camera, s.aim_room, [&](cave::RoomId id) { return s.stream.descriptor(id); });
   if (!s.placed && s.pose_room) {
@@ -196,9 +248,24 @@ void pump(Session& s, double speed) {
   }
 }
 
+std::vector<render::Light> scene_lights(const Session& s) {
+  std::vector<render::Light> out;
+  for (const auto& [id, lights] : s.world_lights)
+    out.insert(out.end(), lights.begin(), lights.end());
+  for (const play::Flare& f : s.flares)
+    out.push_back(flare_light(f, s.world));
+  return out;
+}
+
+void throw_flare(Session& s) {
+  play::add_flare(s.flares, play::throw_flare(s.camera.position, render::camera_forward(s.camera)));
+}
+
 render::FrameStats draw_frame(Session& s, int width, int height) {
   const auto began = Clock::now();
-  render::FrameStats stats = s.renderer.draw(s.cache, s.camera, width, height, s.render_options);
+  const std::vector<render::Light> lights = scene_lights(s);
+  render::FrameStats stats =
+      s.renderer.draw(s.cache, s.camera, width, height, s.render_options, lights);
   const client::StreamStats st = s.stream.stats();
   // The first frame's time would include the wait for rooms: unknown.
   const double frame_ms = s.last_frame == s.began ? 0 : 1000 * seconds_since(s.last_frame);
@@ -308,6 +375,23 @@ std::string screenshot_wait(Session& s, Clock::time_point deadline) {
 int screenshot(Session& s, render::Framebuffer& fb, Clock::time_point deadline) {
   const Options& o = s.options;
   std::string why = screenshot_wait(s, deadline);
+  if (why.empty() && o.flares > 0) {
+    // --flares: thrown one every half second, fanned 12 degrees apart, then 4 s to settle, in the
+    // player's fixed steps (the same throws land in the same places).
+    const render::Camera eye = s.camera;
+    for (int i = 0; i < o.flares; ++i) {
+      render::Camera aim = eye;
+      aim.yaw += (i - (o.flares - 1) / 2.0) * 12.0 * kPi / 180;
+      play::add_flare(s.flares, play::throw_flare(aim.position, render::camera_forward(aim)));
+      const int eighths =
+          i + 1 < o.flares ? 4 : 32;  // advance_flares takes a quarter second at most
+      for (int k = 0; k < eighths; ++k)
+        play::advance_flares(s.flares, 0.125, s.flare_carry, s.world);
+    }
+    for (const play::Flare& f : s.flares)
+      spdlog::info("event=flare x={:.2f} y={:.2f} z={:.2f} resting={} bounces={}", f.position.x,
+                   f.position.y, f.position.z, f.resting, f.bounces);
+  }
   render::FrameStats stats;
   std::vector<unsigned char> rgb = render_frames(s, fb, stats);
   // A picture that shows nothing is a failure, not a black PNG.
@@ -317,7 +401,13 @@ int screenshot(Session& s, render::Framebuffer& fb, Clock::time_point deadline) 
     why = "the picture is dark (" + seconds_text(100 * lit) +
           " % of pixels lit): the camera faces rock at arm's length or sees nothing";
   // The view depth of the last frame, while its framebuffers are as it left them.
-  const DepthSummary depth = summarize_depth(s.renderer.read_view_depth());
+  std::vector<float> view_depth = s.renderer.read_view_depth();
+  const DepthSummary depth = summarize_depth(view_depth);
+  // How far the light reaches: the same over the pixels that are also lit (lit_fraction's test).
+  for (size_t i = 0; i < view_depth.size() && 3 * i + 2 < rgb.size(); ++i)
+    if (std::max({rgb[3 * i], rgb[3 * i + 1], rgb[3 * i + 2]}) <= 12)
+      view_depth[i] = std::numeric_limits<float>::infinity();
+  const DepthSummary lit_depth = summarize_depth(view_depth);
   if (why.empty() && depth.counted == 0)
     why = "no pixel shows rock nearer than the fog's end from " + position_text(s.camera.position);
   if (!why.empty()) {
@@ -345,7 +435,8 @@ int screenshot(Session& s, render::Framebuffer& fb, Clock::time_point deadline) 
     report.pitch_deg = s.camera.pitch * 180 / kPi;
     report.mode = play::mode_name(s.player.mode());
     report.depth = depth;
-    report.lights = render::frame_lights(s.camera, s.render_options);
+    report.lit_depth = lit_depth;
+    report.lights = render::frame_lights(s.camera, s.render_options, scene_lights(s));
     report.rooms_loaded = s.cache.size();
     report.rooms_drawn = stats.rooms_drawn;
     report.relief = s.render_options.tessellation && s.render_options.displacement > 0;
@@ -457,6 +548,7 @@ int run_window(Session& s, GLFWwindow* window) {
   auto last = Clock::now();
   double title_timer = 0;
   bool t_down = false, p_down = false, f_down = false, g_down = false, n_down = false;
+  bool r_down = false, q_down = false;
   bool x_down = false, o_down = false, l_down = false, h_down = false, v_down = false;
   bool b_down = false, m_down = false;
   auto key = [&](int k) { return glfwGetKey(window, k) == GLFW_PRESS; };
@@ -473,7 +565,9 @@ int run_window(Session& s, GLFWwindow* window) {
     last = now;
     if (key(GLFW_KEY_ESCAPE)) glfwSetWindowShouldClose(window, 1);
     if (pressed(GLFW_KEY_T, t_down)) ro.tessellation = !ro.tessellation;
-    if (pressed(GLFW_KEY_F, f_down)) ro.wireframe = !ro.wireframe;
+    if (pressed(GLFW_KEY_R, r_down)) ro.wireframe = !ro.wireframe;
+    if (pressed(GLFW_KEY_F, f_down) && s.placed) throw_flare(s);
+    if (pressed(GLFW_KEY_Q, q_down)) ro.headlamp = !ro.headlamp;
     if (pressed(GLFW_KEY_P, p_down))
       ro.surface = ro.surface == render::Surface::kPhong ? render::Surface::kPnTriangles
                                                          : render::Surface::kPhong;
@@ -517,6 +611,7 @@ int run_window(Session& s, GLFWwindow* window) {
       s.player.advance(dt, input, s.world);
       s.camera.position = s.player.eye();
     }
+    play::advance_flares(s.flares, dt, s.flare_carry, s.world);
     const double speed = s.options.speed * (input.run ? s.player.params().run_factor : 1);
     pump(s, moving ? speed : s.options.speed);
 

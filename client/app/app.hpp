@@ -6,12 +6,15 @@
 #pragma once
 
 #include <chrono>
+#include <map>
 #include <optional>
+#include <vector>
 
 #include "cave/room_id.hpp"
 #include "client/app/hud.hpp"
 #include "client/app/options.hpp"
 #include "client/play/collision.hpp"
+#include "client/play/flare.hpp"
 #include "client/play/flythrough.hpp"
 #include "client/play/player.hpp"
 #include "client/render/overlay.hpp"
@@ -46,6 +49,10 @@ struct Session {
   bool show_overlay = false;
   bool show_keys = false;  // the overlay's key list
   bool following = false;  // the camera is on the scripted path
+  // The world's lights of the rooms on the GPU (cave::room_lights), and the flares thrown.
+  std::map<cave::RoomId, std::vector<render::Light>> world_lights;
+  std::vector<play::Flare> flares;
+  double flare_carry = 0;  // seconds not yet stepped (advance_flares)
   HudMeter meter;
   std::chrono::steady_clock::time_point began = std::chrono::steady_clock::now();
   std::chrono::steady_clock::time_point last_frame = began;
@@ -54,6 +61,12 @@ struct Session {
 // Drains the stream (new rooms into the GPU cache and the collision world, evictions out of
 // both), takes the spawn point, and tells the stream the camera's pose at `speed` m/s.
 void pump(Session& s, double speed);
+
+// The lights of the scene the renderer picks a frame's from (render::frame_lights): the world's
+// lights of the loaded rooms and the burning flares.
+std::vector<render::Light> scene_lights(const Session& s);
+// Throws a flare from the camera along its view.
+void throw_flare(Session& s);
 
 // Draws one frame into the bound framebuffer: the cave, then the overlay when shown.
 render::FrameStats draw_frame(Session& s, int width, int height);

@@ -91,8 +91,8 @@ std::vector<render::OverlayLine> hud_lines(const HudState& s) {
     lines.push_back(
         {"MOUSE LOOK  WASD MOVE  SHIFT RUN  SPACE JUMP/UP  C DOWN  G WALK/FLY  N NOCLIP"});
     lines.push_back(
-        {"T TESS  P PN/PHONG  X RELIEF  B BLOOM  M BLUR  O PORTALS  L LOD  F WIREFRAME"});
-    lines.push_back({"V OVERLAY  H HELP  ESC QUIT"});
+        {"T TESS  P PN/PHONG  X RELIEF  B BLOOM  M BLUR  O PORTALS  L LOD  R WIREFRAME"});
+    lines.push_back({"F THROW FLARE  Q HEADLAMP  V OVERLAY  H HELP  ESC QUIT"});
   } else {
     lines.push_back({"H: KEYS"});
   }

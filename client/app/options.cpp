@@ -58,7 +58,11 @@ std::optional<int> parse_options(int argc, char** argv, Options& o) {
       "Mouse: look; W/A/S/D: move; Shift: run; Space: jump (walk) or rise (fly); C: descend "
       "(fly); G: walk/fly; N: noclip (debugging: through walls); T: tessellation on/off; P: PN "
       "triangles/Phong; X: relief (displacement); B: bloom; M: motion blur; O: portal culling; "
-      "L: LOD heuristic; F: wireframe; H: the overlay's key list; V: overlay on/off; Esc: quit."};
+      "L: LOD heuristic; R: wireframe; F: throw a flare (it bounces, burns 30 s; 4 at most); Q: "
+      "headlamp on/off; H: the overlay's key list; V: overlay on/off; Esc: quit.\n"
+      "Light in the dark: halls hold glow-worm colonies, glowing mineral seams and crystal "
+      "clusters (the world's lights, the same for every player of a seed); most passages are "
+      "dark but for the headlamp and your flares."};
   app.add_option("--server", o.server_url,
                  "Server URL ws://host:port[/ws]; without it a server runs in-process");
   app.add_option("--seed", o.seed,
@@ -141,6 +145,18 @@ std::optional<int> parse_options(int argc, char** argv, Options& o) {
   app.add_flag("--no-bloom", o.no_bloom, "No glow around the mineral veins (B toggles)");
   app.add_flag("--no-motion-blur", o.no_motion_blur,
                "No blur along the camera's motion (M toggles)");
+  app.add_flag("--no-headlamp", o.no_headlamp,
+               "Start with the headlamp off: only the world's lights and flares light the cave (Q "
+               "toggles)");
+  app.add_flag("--no-world-lights", o.no_world_lights,
+               "Leave out the world's lights (glow-worms, mineral seams, crystals): for "
+               "comparisons");
+  app.add_option("--flares", o.flares,
+                 "Screenshot: throw this many flares from the camera before the picture (one "
+                 "every half second, fanned 12 degrees apart, along the view), then let them fall "
+                 "and settle for 4 s of simulated time")
+      ->capture_default_str()
+      ->check(CLI::Range(0, 4));
   app.add_option("--exposure", o.exposure,
                  "Brightness before tone mapping (1 is the default exposure)")
       ->capture_default_str()
@@ -151,7 +167,8 @@ std::optional<int> parse_options(int argc, char** argv, Options& o) {
                  "depth in metres along the view axis, over the pixels that show rock: the far "
                  "plane, the background, fog caps over portals and rock wholly in fog do not "
                  "count), covered (the share of pixels that show rock), lights (each light "
-                 "source lighting the frame: kind and position; today the headlamp), the pose, "
+                 "source lighting the frame: kind (headlamp, glow_worms, mineral_seam, crystals, "
+                 "flare) and position), the pose, "
                  "seed, mode and size");
   app.add_option("--gl", o.gl,
                  "How --screenshot and --bench get OpenGL: glfw (a hidden window: needs an X or "
@@ -207,6 +224,8 @@ std::optional<int> parse_options(int argc, char** argv, Options& o) {
     return fail("--gl must be auto, glfw or egl (got '" + o.gl + "')");
   if (o.gl == "egl" && o.screenshot.empty() && !o.bench_s)
     return fail("--gl egl is for --screenshot and --bench (the window needs a display: glfw)");
+  if (o.flares > 0 && o.screenshot.empty())
+    return fail("--flares is for --screenshot (in the window, F throws a flare)");
   if (!o.json.empty() && !o.bench_s && o.screenshot.empty())
     return fail("--json needs --bench or --screenshot (it holds their report)");
   return std::nullopt;

@@ -52,7 +52,10 @@ struct Options {
   bool no_bloom = false;
   bool no_motion_blur = false;
   double exposure = 1.0;
-  std::string gl = "auto";  // --gl: auto, glfw or egl (see gl_context.hpp)
+  bool no_headlamp = false;      // Q toggles
+  bool no_world_lights = false;  // the world's glow-worms, seams and crystals (cave/lights.hpp)
+  int flares = 0;                // --flares: thrown from the start pose before a screenshot
+  std::string gl = "auto";       // --gl: auto, glfw or egl (see gl_context.hpp)
   std::string log_level = "warn";
 };
 

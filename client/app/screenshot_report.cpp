@@ -41,7 +41,9 @@ std::string screenshot_json(const ScreenshotReport& r) {
   const bool hit = r.depth.counted > 0;
   nlohmann::json lights = nlohmann::json::array();
   for (const render::Light& l : r.lights)
-    lights.push_back({{"kind", l.kind}, {"position", {l.position.x, l.position.y, l.position.z}}});
+    lights.push_back({{"kind", l.kind},
+                      {"position", {l.position.x, l.position.y, l.position.z}},
+                      {"range", l.range}});
   const nlohmann::json j = {
       {"picture", r.picture},
       {"seed", r.seed ? nlohmann::json(*r.seed) : nlohmann::json(nullptr)},
@@ -57,6 +59,11 @@ std::string screenshot_json(const ScreenshotReport& r) {
         {"median", number_or_null(hit, r.depth.median)},
         {"p90", number_or_null(hit, r.depth.p90)}}},
       {"covered", r.depth.covered},
+      {"lit_depth_m",
+       {{"p10", number_or_null(r.lit_depth.counted > 0, r.lit_depth.p10)},
+        {"median", number_or_null(r.lit_depth.counted > 0, r.lit_depth.median)},
+        {"p90", number_or_null(r.lit_depth.counted > 0, r.lit_depth.p90)},
+        {"covered", r.lit_depth.covered}}},
       {"lights", lights},
       {"light_count", r.lights.size()},
       {"rooms_loaded", r.rooms_loaded},

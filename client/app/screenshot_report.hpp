@@ -37,6 +37,9 @@ struct ScreenshotReport {
   double yaw_deg = 0, pitch_deg = 0;  // --pose's convention
   std::string mode;                   // walk or fly
   DepthSummary depth;
+  // The same over the pixels that show rock and are lit (any channel above 12 of 255, the
+  // picture's own test for "lit"): how far the light reaches into the view.
+  DepthSummary lit_depth;
   std::vector<render::Light> lights;
   size_t rooms_loaded = 0;
   int rooms_drawn = 0;

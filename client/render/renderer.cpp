@@ -8,6 +8,7 @@
 #include <glm/gtc/type_ptr.hpp>
 #include <limits>
 #include <map>
+#include <tuple>
 #include <vector>
 
 #include "client/render/shaders.hpp"
@@ -258,7 +259,9 @@ Result<Renderer> Renderer::create() {
           p.uniform("u_lod"),           p.uniform("u_pixel_scale"),  p.uniform("u_target_pixels"),
           p.uniform("u_patch_culling"), p.uniform("u_frustum"),      p.uniform("u_normal_strength"),
           p.uniform("u_lamp"),          p.uniform("u_forward"),      p.uniform("u_exposure"),
-          p.uniform("u_glow")};
+          p.uniform("u_glow"),          p.uniform("u_light_count"),  p.uniform("u_light_position"),
+          p.uniform("u_light_color"),   p.uniform("u_light_glow"),   p.uniform("u_light_bound"),
+          p.uniform("u_light_index"),   p.uniform("u_headlamp"),     p.uniform("u_haze")};
   auto bloom = Program::build(bloom_stages());
   if (!bloom.ok()) return bloom.error();
   r.bloom_ = std::move(bloom).value();
@@ -290,7 +293,7 @@ Result<Renderer> Renderer::create() {
 }
 
 FrameStats Renderer::draw(const GpuRoomCache& cache, const Camera& camera, int width, int height,
-                          const RenderOptions& o) {
+                          const RenderOptions& o, std::span<const Light> scene_lights) {
   FrameStats stats;
   const Vec3 anchor = render_anchor(camera.position);
   const glm::vec3 eye = to_vec3(camera.position - anchor);
@@ -352,9 +355,33 @@ FrameStats Renderer::draw(const GpuRoomCache& cache, const Camera& camera, int w
   glUniform1f(u_.exposure, o.exposure);
   glUniform1f(u_.glow, o.glow);
   glUniform3fv(u_.forward, 1, glm::value_ptr(forward));
-  // The headlamp, frame_lights' first light (room.frag has one lamp).
-  glUniform3fv(u_.lamp, 1,
-               glm::value_ptr(to_vec3(frame_lights(camera, o).front().position - anchor)));
+  // frame_lights: the headlamp first when on (room.frag's own lamp), then the point lights of
+  // shaders/lights.glsl.
+  const std::vector<Light> lights = frame_lights(camera, o, scene_lights);
+  const bool headlamp = !lights.empty() && lights.front().kind == "headlamp";
+  glUniform1f(u_.headlamp, headlamp ? 1.0f : 0.0f);
+  if (headlamp) glUniform3fv(u_.lamp, 1, glm::value_ptr(to_vec3(lights.front().position - anchor)));
+  // The point lights, and for each room drawn the ones that can reach it (lights_for below).
+  std::vector<const Light*> points;
+  {
+    std::array<glm::vec4, kMaxFrameLights> position{}, color{}, glow{}, bound{};
+    int n = 0;
+    for (size_t i = headlamp ? 1 : 0; i < lights.size() && n < static_cast<int>(kMaxFrameLights);
+         ++i, ++n) {
+      const Light& l = lights[i];
+      position[n] = glm::vec4(to_vec3(l.position - anchor), std::max(l.range, 1e-3f));
+      color[n] = glm::vec4(l.colour, 0.0f);
+      glow[n] = glm::vec4(l.size, static_cast<float>(l.glow), 0.0f, 0.0f);
+      bound[n] = glm::vec4(to_vec3(l.bound_centre - anchor), std::max(l.bound_radius, 0.0f));
+      points.push_back(&l);
+    }
+    glUniform4fv(u_.light_position, static_cast<GLsizei>(kMaxFrameLights),
+                 glm::value_ptr(position[0]));
+    glUniform4fv(u_.light_color, static_cast<GLsizei>(kMaxFrameLights), glm::value_ptr(color[0]));
+    glUniform4fv(u_.light_glow, static_cast<GLsizei>(kMaxFrameLights), glm::value_ptr(glow[0]));
+    glUniform4fv(u_.light_bound, static_cast<GLsizei>(kMaxFrameLights), glm::value_ptr(bound[0]));
+    glUniform1f(u_.haze, std::max(o.haze, 0.0f));
+  }
   glUniform1i(u_.lod, static_cast<int>(o.lod));
   glUniform1f(u_.pixel_scale,
               static_cast<float>(height) / (2.0f * std::tan(static_cast<float>(camera.fov_y) / 2)));
@@ -410,6 +437,25 @@ FrameStats Renderer::draw(const GpuRoomCache& cache, const Camera& camera, int w
     const float room_radius = static_cast<float>(room.room.sphere.radius);
     glUniform1f(u_.room_radius, room_radius);
     glUniform1f(u_.relief_margin, relief::relief_bound(relief, room_radius));
+    {
+      // Only the lights that can reach this room's rock, or whose haze lies between it and the
+      // camera (the camera is inside their bound): on llvmpipe every light a fragment loops
+      // over costs, and most rooms are lit by none or one room's few.
+      std::array<GLint, kMaxFrameLights> index{};
+      int count = 0;
+      const double reach = radius + margin;
+      for (size_t i = 0; i < points.size(); ++i) {
+        const Light& l = *points[i];
+        const bool bounded = l.bound_radius > 0;
+        const bool shades =
+            length(l.position - room.room.sphere.centre) < l.range + reach &&
+            (!bounded || length(l.bound_centre - room.room.sphere.centre) < l.bound_radius + reach);
+        const bool hazes = !bounded || length(l.bound_centre - camera.position) < l.bound_radius;
+        if (shades || hazes) index[static_cast<size_t>(count++)] = static_cast<GLint>(i);
+      }
+      glUniform1i(u_.light_count, count);
+      glUniform1iv(u_.light_index, static_cast<GLsizei>(kMaxFrameLights), index.data());
+    }
     glBindVertexArray(room.vertex_array.get());
     glDrawElements(GL_PATCHES, room.index_count, GL_UNSIGNED_INT, nullptr);
     ++stats.rooms_drawn;
@@ -451,13 +497,39 @@ FrameStats Renderer::draw(const GpuRoomCache& cache, const Camera& camera, int w
   return stats;
 }
 
-std::vector<Light> frame_lights(const Camera& camera, const RenderOptions& /*options*/) {
-  // The headlamp sits on the forehead, a little right of the eye: shading shows the relief.
-  const Vec3 forward = camera_forward(camera);
-  Vec3 right = cross(forward, Vec3{0, 1, 0});
-  const double l = length(right);
-  right = l > 1e-9 ? right / l : Vec3{std::cos(camera.yaw), 0, std::sin(camera.yaw)};
-  return {Light{"headlamp", camera.position + right * 0.25 + Vec3{0, 0.3, 0}}};
+std::vector<Light> frame_lights(const Camera& camera, const RenderOptions& options,
+                                std::span<const Light> scene) {
+  std::vector<Light> out;
+  if (options.headlamp) {
+    // The headlamp sits on the forehead, a little right of the eye: shading shows the relief.
+    const Vec3 forward = camera_forward(camera);
+    Vec3 right = cross(forward, Vec3{0, 1, 0});
+    const double l = length(right);
+    right = l > 1e-9 ? right / l : Vec3{std::cos(camera.yaw), 0, std::sin(camera.yaw)};
+    out.push_back(Light{"headlamp", camera.position + right * 0.25 + Vec3{0, 0.3, 0}});
+  }
+  // A light lights the frame when its range reaches rock nearer than the fog's end.
+  struct Pick {
+    bool world;  // flares first
+    double distance;
+    size_t index;
+  };
+  std::vector<Pick> picks;
+  const double fog_end = options.fog_end;
+  for (size_t i = 0; i < scene.size(); ++i) {
+    const Light& l = scene[i];
+    const double d = length(l.position - camera.position);
+    if (d >= l.range + fog_end) continue;
+    if (l.bound_radius > 0 && length(l.bound_centre - camera.position) >= l.bound_radius + fog_end)
+      continue;
+    picks.push_back({l.kind != "flare", d, i});
+  }
+  std::sort(picks.begin(), picks.end(), [](const Pick& a, const Pick& b) {
+    return std::tie(a.world, a.distance, a.index) < std::tie(b.world, b.distance, b.index);
+  });
+  for (size_t i = 0; i < picks.size() && i < kMaxFrameLights; ++i)
+    out.push_back(scene[picks[i].index]);
+  return out;
 }
 
 std::vector<float> Renderer::read_view_depth() const {

@@ -8,6 +8,7 @@
 #pragma once
 
 #include <glm/glm.hpp>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -62,7 +63,11 @@ struct RenderOptions {
   float fog_end = 40;                             // fully fogged here; must be below far_plane
   float near_plane = 0.05f;
   float far_plane = 60;
-  float lamp_range = 14;         // metres at which the headlamp falls to about a tenth
+  float lamp_range = 14;  // metres at which the headlamp falls to about a tenth
+  bool headlamp = true;   // off: only the world's lights and flares light the cave
+  // Scattering per metre of the haze that the world's lights and flares light (shaders/
+  // lights.glsl): halos round sources, shafts of light across a hall. 0: none.
+  float haze = 0.03f;
   float normal_strength = 1.0f;  // the rock's fine bumps (< 5 cm); 0: none
   float exposure = 1.0f;         // before the filmic tone curve
   float glow = 1.0f;             // glowing mineral veins; 0: none
@@ -88,16 +93,33 @@ struct FrameStats {
   bool motion_cut = false;      // no motion blur: first frame, or the camera jumped
 };
 
-// A light source that lights a frame: what it is ("headlamp"; world lights and flares add their
-// own kinds) and where it is, world metres.
+// A light source that lights a frame: what it is ("headlamp", a world light's
+// cave::light_kind_name, "flare") and where it is, world metres. World lights and flares are point
+// lights with shaders/lights.glsl's falloff (cave/lights.hpp's convention) and a patch of glowing
+// rock round them; the headlamp is room.frag's own (its colour and range unused here).
 struct Light {
   std::string kind;
   Vec3 position;
+  glm::vec3 colour{0.0f};  // linear RGB x intensity at 1 m
+  float range = 0;         // metres where its light reaches zero
+  float size = 0;          // metres: the glowing patch of rock round the source
+  int glow = 0;            // the patch's pattern: shaders/lights.glsl's GLOW_* (3: a flare)
+  // It lights only rock within this sphere (its room's, grown for the relief: the rock between
+  // rooms casts no shadow in the shader); radius 0: everywhere in range.
+  Vec3 bound_centre{};
+  float bound_radius = 0;
 };
-// The lights of a frame drawn from `camera` with `options`. One source of truth: the renderer
-// lights the frame with these, and grotto-client --screenshot --json reports them. Today the
-// headlamp alone, a little above and right of the eye.
-std::vector<Light> frame_lights(const Camera& camera, const RenderOptions& options);
+// Lights of the scene at most that one frame shades with (shaders/lights.glsl's
+// GROTTO_MAX_LIGHTS), besides the headlamp.
+inline constexpr size_t kMaxFrameLights = 16;
+// The lights of a frame drawn from `camera` with `options`, out of the scene's `scene` (world
+// lights of the loaded rooms, flares): the headlamp first when options.headlamp (a little above
+// and right of the eye), then the scene's lights whose light can reach rock the camera sees
+// before the fog's end (nearer than range + fog_end), flares before world lights, nearest first,
+// kMaxFrameLights at most. One source of truth: the renderer lights the frame with these, and
+// grotto-client --screenshot --json reports them.
+std::vector<Light> frame_lights(const Camera& camera, const RenderOptions& options,
+                                std::span<const Light> scene = {});
 
 // A power-of-two grid point near the camera: room offsets from it are exact in float32.
 Vec3 render_anchor(Vec3 camera_position);
@@ -106,9 +128,10 @@ class Renderer {
  public:
   // Builds the programs (embedded shaders); errors carry the driver's log.
   static Result<Renderer> create();
-  // Clears the bound framebuffer (viewport width x height) and draws the cache.
+  // Clears the bound framebuffer (viewport width x height) and draws the cache, lit by
+  // frame_lights(camera, options, scene_lights).
   FrameStats draw(const GpuRoomCache& cache, const Camera& camera, int width, int height,
-                  const RenderOptions& options);
+                  const RenderOptions& options, std::span<const Light> scene_lights = {});
   // The view depth of the last frame's scene pass, read back from its depth buffer and
   // linearized with that frame's near and far planes: per pixel, rows top first (read_rgb's
   // order), the distance in metres along the view axis (eye-space z) to the rock the pixel shows.
@@ -143,7 +166,8 @@ class Renderer {
     GLint room_offset, room_radius, relief_margin, camera, max_tess, max_dist, view_proj, anchor,
         surface, phong_alpha, displacement, fog_color, fog_start, fog_end, lamp_range, lod,
         pixel_scale, target_pixels, patch_culling, frustum, normal_strength, lamp, forward,
-        exposure, glow;
+        exposure, glow, light_count, light_position, light_color, light_glow, light_bound,
+        light_index, headlamp, haze;
   } u_{};
   struct BloomUniforms {
     GLint source, texel, downsample, offset;

@@ -4,6 +4,7 @@
 
 #include "embedded_cl/cap_frag.hpp"
 #include "embedded_cl/cap_vert.hpp"
+#include "embedded_cl/lights_glsl.hpp"
 #include "embedded_cl/post_bloom_frag.hpp"
 #include "embedded_cl/post_composite_frag.hpp"
 #include "embedded_cl/post_vert.hpp"
@@ -19,12 +20,17 @@ namespace grotto::render {
 namespace {
 
 // GLSL has no #include: the line `#pragma grotto_include "relief.glsl"` is replaced by that file,
-// so the relief is written once for every stage that needs it (and for the CPU, relief.hpp).
+// so the relief is written once for every stage that needs it (and for the CPU, relief.hpp);
+// likewise "lights.glsl" (the world's lights and flares, room.frag only).
 std::string with_relief(std::string_view source) {
-  constexpr std::string_view kLine = "#pragma grotto_include \"relief.glsl\"";
   std::string out(source);
-  const size_t at = out.find(kLine);
-  if (at != std::string::npos) out.replace(at, kLine.size(), kernels::source_relief_glsl());
+  for (auto [line, text] : {std::pair{std::string_view("#pragma grotto_include \"relief.glsl\""),
+                                      kernels::source_relief_glsl()},
+                            std::pair{std::string_view("#pragma grotto_include \"lights.glsl\""),
+                                      kernels::source_lights_glsl()}}) {
+    const size_t at = out.find(line);
+    if (at != std::string::npos) out.replace(at, line.size(), text);
+  }
   return out;
 }
 
