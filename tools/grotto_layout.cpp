@@ -10,7 +10,7 @@
 #include "cave/layout.hpp"
 #include "cave/svg.hpp"
 #include "glb.hpp"
-#include "relief_bake.hpp"
+#include "shaders/relief_bake.hpp"
 #include "kernels/room_builder.hpp"
 #include "preview.hpp"
 #include "proto/layout_json.hpp"
@@ -98,13 +98,13 @@ RegionMeshes build_meshes(const grotto::cave::World& world, const grotto::cave::
   return out;
 }
 
-// The relief baked into every built mesh (tools/relief_bake.hpp).
+// The relief baked into every built mesh (shaders/relief_bake.hpp).
 void bake_meshes(const grotto::cave::Region& region, RegionMeshes& meshes) {
   size_t next = 0, moved = 0;
   double largest = 0, hang = 0;
   for (size_t i = 0; i < region.rooms.size(); ++i) {
     if (!meshes.errors[i].empty()) continue;
-    grotto::tools::BakeStats s = grotto::tools::bake_relief(meshes.built[next++], region.rooms[i]);
+    grotto::relief::BakeStats s = grotto::relief::bake_relief(meshes.built[next++], region.rooms[i]);
     moved += s.moved;
     largest = std::max(largest, s.largest);
     hang = std::max(hang, s.largest_hang);

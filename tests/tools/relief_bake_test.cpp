@@ -1,14 +1,13 @@
-// grotto-layout --bake-relief (tools/relief_bake.hpp): the client's relief moved into a mesh, for
+// grotto-layout --bake-relief (shaders/relief_bake.hpp): the client's relief moved into a mesh, for
 // engines that do not tessellate. Seed 7's hall in sector 0,0,0 at the detail level.
-#include "tools/relief_bake.hpp"
+#include "shaders/relief_bake.hpp"
 
 #include <gtest/gtest.h>
 
 #include <cmath>
 
-#include "shaders/relief.hpp"
 
-namespace grotto::tools {
+namespace grotto::relief {
 namespace {
 
 struct Hall {
@@ -29,7 +28,7 @@ TEST(ReliefBake, moves_the_rock_and_keeps_the_rims_bit_for_bit) {
   mesh::RoomMesh baked = h.plain;
   const BakeStats stats = bake_relief(baked, h.room);
   ASSERT_EQ(baked.vertex_count(), h.plain.vertex_count());
-  const double bound = relief::relief_bound(1.0f, static_cast<float>(h.room.sphere.radius)) + 1e-4;
+  const double bound = relief_bound(1.0f, static_cast<float>(h.room.sphere.radius)) + 1e-4;
   size_t rims = 0, moved = 0;
   for (size_t v = 0; v < baked.vertex_count(); ++v) {
     const Vec3 before = h.plain.world_position(v), after = baked.world_position(v);
@@ -67,4 +66,4 @@ TEST(ReliefBake, the_same_mesh_bakes_to_the_same_bits) {
 }
 
 }  // namespace
-}  // namespace grotto::tools
+}  // namespace grotto::relief
