@@ -6,7 +6,8 @@
 //
 // Falloff (cave/lights.hpp's convention): colour x intensity / (1 + d^2), windowed to zero at the
 // light's range by (1 - (d / range)^4)^2 (Karis 2013, "Real Shading in Unreal Engine 4"); the
-// 1 in 1 + d^2 keeps a source's own rock from going infinite.
+// 1 in 1 + d^2 keeps a source's own rock from going infinite. A glow-worm colony is an area of
+// pinpricks `size` metres across: size^2 + d^2, no hot centre.
 // Rock casts no shadows here, so a light stays in its room: it lights only what lies within its
 // bound (its room's sphere, a little grown for the relief), not the next room through the rock.
 // Haze: single scattering in a thin medium round each source, the in-scattered light along the
@@ -29,10 +30,11 @@ uniform vec4 u_light_bound[GROTTO_MAX_LIGHTS];     // xyz anchor-relative centre
 uniform float u_headlamp;                          // 1: the headlamp is on; 0: off
 uniform float u_haze;                              // scattering per metre of the lit haze
 
-float light_falloff(float d, float range) {
+// soft: 1 for a point source; a glow-worm colony's size (an area of pinpricks, no hot centre).
+float light_falloff(float d, float range, float soft) {
   float x = d / range;
   float window = clamp(1.0 - x * x * x * x, 0.0, 1.0);
-  return window * window / (1.0 + d * d);
+  return window * window / (soft * soft + d * d);
 }
 
 // What the lights add to a surface point p (anchor-relative; `world` the same point in world
@@ -53,7 +55,9 @@ vec3 lights_shade(vec3 p, vec3 world, vec3 s, vec3 v, vec3 albedo, float wrap, o
                                : 1.0;
     if (inside <= 0.0) continue;
     vec3 l = to_light / max(d, 1e-4);
-    vec3 radiance = u_light_color[i].rgb * (light_falloff(d, range) * inside);
+    int kind = int(u_light_glow[i].y + 0.5);
+    float soft = kind == GLOW_WORMS ? max(u_light_glow[i].x, 1.0) : 1.0;
+    vec3 radiance = u_light_color[i].rgb * (light_falloff(d, range, soft) * inside);
     float lambert = max((dot(s, l) + wrap) / (1.0 + wrap), 0.0);
     vec3 h = normalize(l + v);
     float sheen = pow(max(dot(s, h), 0.0), 24.0) * 0.08;
@@ -63,7 +67,6 @@ vec3 lights_shade(vec3 p, vec3 world, vec3 s, vec3 v, vec3 albedo, float wrap, o
     float size = u_light_glow[i].x;
     if (d < size) {
       float near = 1.0 - smoothstep(0.2 * size, size, d);
-      int kind = int(u_light_glow[i].y + 0.5);
       float pattern;
       if (kind == GLOW_WORMS) {
         // Thousands of tiny lights: sparse dots a couple of centimetres across.
@@ -79,7 +82,7 @@ vec3 lights_shade(vec3 p, vec3 world, vec3 s, vec3 v, vec3 albedo, float wrap, o
       }
       vec3 tint = u_light_color[i].rgb / max(max(u_light_color[i].r, u_light_color[i].g),
                                              max(u_light_color[i].b, 1e-4));
-      float strength = kind == GLOW_FLARE ? 12.0 : 2.5;
+      float strength = kind == GLOW_FLARE ? 12.0 : (kind == GLOW_WORMS ? 6.0 : 2.5);
       sum += tint * (strength * pattern * near);
       glow = max(glow, pattern * near);
     }

@@ -34,7 +34,8 @@ const char* light_kind_name(LightKind kind);
 
 // A point light. Shading convention (shaders/lights.glsl and what an engine should match): the
 // radiance reaching a point at distance d is colour * intensity / (1 + d^2), windowed to zero at
-// `range` by (1 - (d / range)^4)^2 (Karis, "Real Shading in Unreal Engine 4", 2013).
+// `range` by (1 - (d / range)^4)^2 (Karis, "Real Shading in Unreal Engine 4", 2013); a glow-worm
+// colony, an area of pinpricks, takes max(size, 1)^2 + d^2 instead of 1 + d^2.
 struct WorldLight {
   LightKind kind = LightKind::kGlowWorms;
   Vec3 position;  // world metres: inside the room's space, above its floor
