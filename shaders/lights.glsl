@@ -93,6 +93,7 @@ vec3 lights_shade(vec3 p, vec3 world, vec3 s, vec3 v, vec3 albedo, float wrap, o
 // The light the haze scatters towards the eye between the camera c and the surface point p
 // (both anchor-relative), linear.
 vec3 lights_haze(vec3 c, vec3 p) {
+  if (u_haze <= 0.0) return vec3(0.0);
   vec3 ray = p - c;
   float len = length(ray);
   vec3 v = ray / max(len, 1e-4);
