@@ -3,12 +3,15 @@
 # through EGL (no window system: Mesa's llvmpipe here, a GPU's driver where there is one), from an
 # in-process server (CPU reference). About 4 s a picture at 1920x1080 on llvmpipe.
 # Usage: bash docs/gallery/render.sh [build dir, default build]  (from the repository root)
-# GALLERY_OUT (default docs/images/gallery) is where the pictures go; GALLERY_SIZE (default
+# GALLERY_OUT (default docs/images/gallery2; docs/images/gallery holds the 480x270 renders of the
+# world before issue 27) is where the pictures go, as JPEG when cjpeg is installed (Debian's
+# libjpeg-turbo-progs; a 1080p PNG is ~2 MB, its JPEG a tenth), else PNG; GALLERY_SIZE (default
 # 1920x1080) their size; GALLERY_FLAGS, more client flags for every picture (docs/gallery/
 # protocol.sh passes --protocol 1 or 2); GALLERY_ONLY, a pose name to render alone.
 set -euo pipefail
 build=${1:-build}
-out=${GALLERY_OUT:-docs/images/gallery}
+out=${GALLERY_OUT:-docs/images/gallery2}
+here=$(dirname "$0")
 size=${GALLERY_SIZE:-1920x1080}
 only=${GALLERY_ONLY:-}
 read -r -a more <<< "${GALLERY_FLAGS:-}"
@@ -59,6 +62,10 @@ shoot() {  # name seed extra-args...
       --tess-max 8 --lod distance --frames 3 --wait 120 --no-motion-blur --mode fly \
       --screenshot "$out/$name-$relief.png" --json "$out/$name-$relief.json" \
       "${flags[@]}" "${more[@]}" "$@" >/dev/null
+    if command -v cjpeg >/dev/null; then
+      python3 "$here/png2ppm.py" "$out/$name-$relief.png" | cjpeg -quality 85 >"$out/$name-$relief.jpg"
+      rm "$out/$name-$relief.png"
+    fi
   done
   echo "gallery: $name"
 }
@@ -79,3 +86,6 @@ shoot hall-entrance-95 95 --pose "$(pose 95 1.0.1.r0 entrance)"
 shoot hall-across-7 7 --pose "$(pose 7 0.0.0.r0 across 270 5)"
 shoot hall-across-95 95 --pose "$(pose 95 1.0.1.r0 across 0 5)"
 shoot hall-up-7 7 --pose "$(pose 7 0.0.0.r0 floor 60 55)"
+# Light in the dark: the headlamp off, one flare thrown into the hall (it falls, bounces and lies
+# burning), and the world's lights.
+shoot hall-flare-95 95 --pose "$(pose 95 1.0.1.r0 across 0 -5)" --no-headlamp --flares 1
