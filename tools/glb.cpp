@@ -37,6 +37,7 @@ constexpr uint32_t kChunkJson = 0x4E4F534A;  // "JSON"
 constexpr uint32_t kChunkBin = 0x004E4942;   // "BIN\0"
 
 constexpr const char* kDraco = "KHR_draco_mesh_compression";
+constexpr const char* kLights = "KHR_lights_punctual";
 
 json vec3(Vec3 v) {
   return json::array({v.x, v.y, v.z});
@@ -180,30 +181,62 @@ void append_chunk(std::vector<uint8_t>& out, uint32_t type, std::span<const uint
 Result<std::vector<uint8_t>> region_glb(const GlbSource& source, std::span<const GlbRoom> rooms) {
   Document doc;
   json nodes = json::array(), meshes = json::array(), scene_nodes = json::array();
+  json light_defs = json::array(), light_nodes = json::array();
   for (const GlbRoom& r : rooms) {
     assert(r.room != nullptr);
     // The portals as `grotto-layout --room` prints them: one view of a room (proto/).
     json extras = json::parse(proto::room_json(*r.room), nullptr, false);
     assert(!extras.is_discarded());
     json node = {{"name", r.room->id.to_string()}};
+    Vec3 parent = source.anchor;  // where the node's frame is, world metres
     if (r.mesh != nullptr) {
       Result<json> mesh = add_room_mesh(doc, *r.room, *r.mesh, source.lod);
       if (!mesh) return mesh.error();
       Vec3 t = r.mesh->origin - source.anchor;
       node["translation"] = vec3(t);
+      parent = r.mesh->origin;
       node["mesh"] = meshes.size();
       meshes.push_back(std::move(mesh).value());
     } else {
       extras["mesh_error"] = r.mesh_error;
     }
     node["extras"] = std::move(extras);
+    // Light nodes go after every room's (rooms keep the indices of the region's order).
+    json children = json::array();
+    for (size_t k = 0; k < r.lights.size(); ++k) {
+      const cave::WorldLight& l = r.lights[k];
+      const std::string kind = cave::light_kind_name(l.kind);
+      children.push_back(rooms.size() + light_nodes.size());
+      light_nodes.push_back({{"name", r.room->id.to_string() + ".light" + std::to_string(k)},
+                             {"translation", vec3(l.position - parent)},
+                             {"extensions", {{kLights, {{"light", light_defs.size()}}}}},
+                             {"extras",
+                              {{"kind", kind},
+                               {"facing", vec3(l.facing)},
+                               {"size", l.size},
+                               {"room", r.room->id.to_string()}}}});
+      light_defs.push_back({{"name", kind},
+                            {"type", "point"},
+                            {"color", vec3(l.colour)},
+                            {"intensity", l.intensity},
+                            {"range", l.range}});
+    }
+    if (!children.empty()) node["children"] = std::move(children);
     scene_nodes.push_back(nodes.size());
     nodes.push_back(std::move(node));
   }
 
   json doc_json = {{"asset", {{"version", "2.0"}, {"generator", source.generator}}}};
   // Used, not required: every primitive also has plain accessors, for readers without Draco.
-  if (!meshes.empty()) doc_json["extensionsUsed"] = json::array({kDraco});
+  json used = json::array();
+  if (!meshes.empty()) used.push_back(kDraco);
+  if (!light_defs.empty()) {
+    used.push_back(kLights);
+    doc_json["extensions"] = {{kLights, {{"lights", std::move(light_defs)}}}};
+    for (json& l : light_nodes)
+      nodes.push_back(std::move(l));
+  }
+  if (!used.empty()) doc_json["extensionsUsed"] = std::move(used);
   json scene = {{"name", "grotto seed " + std::to_string(source.seed)}};
   if (!scene_nodes.empty()) scene["nodes"] = std::move(scene_nodes);
   // Seed as text: JSON readers that hold numbers as doubles lose 64-bit integers.

@@ -2,7 +2,8 @@
 // "Exporting to glTF").
 //
 // Each room is a node (named by its id, translated by its origin minus the file's anchor, portals
-// in its extras) holding a mesh of one triangle primitive. The primitive carries
+// in its extras) holding a mesh of one triangle primitive; the world's lights in it are its child
+// nodes (KHR_lights_punctual), listed after every room's node. The primitive carries
 // KHR_draco_mesh_compression whose bufferView is the room's Draco payload exactly as a server
 // streams it to a protocol version 1 client (codec::encode_room with default options: normals
 // included, which glTF readers expect), and, since the extension is used but not
@@ -16,6 +17,7 @@
 #include <vector>
 
 #include "cave/layout.hpp"
+#include "cave/lights.hpp"
 #include "core/result.hpp"
 #include "mesh/room_mesh.hpp"
 
@@ -39,6 +41,10 @@ struct GlbRoom {
   const cave::Room* room = nullptr;      // not null
   const mesh::RoomMesh* mesh = nullptr;  // null when the room could not be meshed
   std::string mesh_error;                // why, when mesh is null
+  // The world's lights in the room (cave::room_lights): each a child node of the room's node with
+  // a KHR_lights_punctual point light (colour, intensity, range as cave/lights.hpp defines them)
+  // and its kind, facing and glowing-patch size in extras.
+  std::vector<cave::WorldLight> lights;
 };
 
 // The glTF names of the payload's attributes besides POSITION and NORMAL (application-specific

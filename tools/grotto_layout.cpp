@@ -133,6 +133,7 @@ grotto::Status write_glb(const std::string& path, const grotto::cave::World& wor
   size_t next = 0;
   for (size_t i = 0; i < region.rooms.size(); ++i) {
     rooms[i].room = &region.rooms[i];
+    rooms[i].lights = grotto::cave::room_lights(world.seed(), world.params(), region.rooms[i]);
     if (meshes.errors[i].empty()) {
       rooms[i].mesh = &meshes.built[next++];
     } else {
@@ -222,7 +223,8 @@ int main(int argc, char** argv) {
                  "Write the rooms' meshes as Wavefront OBJ (opens in Blender and most 3D tools)");
   app.add_option(
       "--glb", glb_path,
-      "Write the rooms as glTF 2.0 binary: a node per room (portals in its extras), "
+      "Write the rooms as glTF 2.0 binary: a node per room (portals in its extras, the "
+      "world's lights as child nodes with KHR_lights_punctual point lights), "
       "meshes Draco-compressed as streamed (protocol 1, with normals), with plain fallback data "
       "(docs/INTEGRATION.md, 'Exporting to glTF')");
   app.add_option("--png", png_path,

@@ -19,6 +19,7 @@
 #include <vector>
 
 #include "cave/layout.hpp"
+#include "cave/lights.hpp"
 #include "codec/room_codec.hpp"
 #include "layout_process.hpp"
 #include "mesh/room_mesh.hpp"
@@ -165,6 +166,11 @@ std::vector<uint32_t> unsigneds(const std::vector<uint8_t>& bytes, size_t size) 
   return out;
 }
 
+// A node of one of the world's lights (a room's child), not of a room.
+bool is_light(const json& node) {
+  return node.contains("extensions") && node["extensions"].contains("KHR_lights_punctual");
+}
+
 // The file of the export tests, written once by the real binary.
 class GlbExport : public ::testing::Test {
  protected:
@@ -298,6 +304,7 @@ TEST_F(GlbExport, primitives_are_indexed_triangles_with_exact_position_bounds) {
 TEST_F(GlbExport, front_faces_look_into_the_cave) {
   size_t triangles = 0, agree = 0, inward = 0;
   for (const json& node : doc()["nodes"]) {
+    if (is_light(node)) continue;
     const json& p = doc()["meshes"][node["mesh"].get<size_t>()]["primitives"][0];
     std::vector<float> pos = floats(accessor_bytes(*glb_, p["attributes"]["POSITION"]));
     std::vector<float> nrm = floats(accessor_bytes(*glb_, p["attributes"]["NORMAL"]));
@@ -345,6 +352,7 @@ TEST_F(GlbExport, draco_payload_decodes_to_the_fallback_arrays) {
         << "a reader without Draco must be able to use the fallback";
   }
   for (const json& node : doc()["nodes"]) {
+    if (is_light(node)) continue;
     SCOPED_TRACE(node["name"].get<std::string>());
     ASSERT_TRUE(node.contains("mesh"));
     const json& p = doc()["meshes"][node["mesh"].get<size_t>()]["primitives"][0];
@@ -398,6 +406,7 @@ TEST_F(GlbExport, draco_bytes_are_what_the_server_streams_and_nodes_place_rooms_
   EXPECT_EQ(extras["anchor"], anchor) << "the block's first corner, in world metres";
   size_t payload_bytes = 0;
   for (const json& node : doc()["nodes"]) {
+    if (is_light(node)) continue;
     const std::string name = node["name"];
     SCOPED_TRACE(name);
     auto id = grotto::cave::RoomId::parse(name);
@@ -428,12 +437,13 @@ TEST_F(GlbExport, a_node_per_region_room_with_its_portals_in_extras) {
   ASSERT_TRUE(world.ok());
   grotto::cave::Region region = grotto::cave::generate_region(*world, kSector, kSector);
   const json& nodes = doc()["nodes"];
-  ASSERT_EQ(nodes.size(), region.rooms.size());
+  // The rooms' nodes first, in the region's order; the world's lights after them.
+  ASSERT_GE(nodes.size(), region.rooms.size());
   const json& scene = doc()["scenes"][doc().value("scene", 0)];
-  EXPECT_EQ(scene["nodes"].size(), nodes.size()) << "every room is a root of the scene";
+  EXPECT_EQ(scene["nodes"].size(), region.rooms.size()) << "every room is a root of the scene";
   std::map<std::string, const json*> by_id;
   std::vector<size_t> mesh_users(doc()["meshes"].size());
-  for (size_t i = 0; i < nodes.size(); ++i) {
+  for (size_t i = 0; i < region.rooms.size(); ++i) {
     const json& node = nodes[i];
     const std::string id = region.rooms[i].id.to_string();
     EXPECT_EQ(node["name"], id);
@@ -473,7 +483,48 @@ TEST_F(GlbExport, a_node_per_region_room_with_its_portals_in_extras) {
         EXPECT_EQ((*back)["normal"][a].get<double>(), -portal["normal"][a].get<double>()) << id;
     }
   }
-  EXPECT_GT(inside, nodes.size()) << "the region's rooms are joined by portals";
+  EXPECT_GT(inside, region.rooms.size()) << "the region's rooms are joined by portals";
+}
+
+TEST_F(GlbExport, the_worlds_lights_are_child_nodes_with_punctual_point_lights) {
+  namespace cave = grotto::cave;
+  using grotto::Vec3;
+  auto world = cave::World::create(kSeed, cave::LayoutParams{});
+  ASSERT_TRUE(world.ok());
+  cave::Region region = cave::generate_region(*world, kSector, kSector);
+  const json& nodes = doc()["nodes"];
+  const double size = world->params().sector_size;
+  const Vec3 anchor{kSector.x * size, kSector.y * size, kSector.z * size};
+  size_t lights = 0;
+  for (size_t i = 0; i < region.rooms.size(); ++i) {
+    const auto want = cave::room_lights(kSeed, cave::LayoutParams{}, region.rooms[i]);
+    const json& node = nodes[i];
+    ASSERT_EQ(node.contains("children") ? node["children"].size() : 0u, want.size())
+        << region.rooms[i].id.to_string();
+    Vec3 parent = anchor;
+    if (node.contains("translation"))
+      parent =
+          parent + Vec3{node["translation"][0].get<double>(), node["translation"][1].get<double>(),
+                        node["translation"][2].get<double>()};
+    for (size_t k = 0; k < want.size(); ++k) {
+      ++lights;
+      const json& child = nodes[node["children"][k].get<size_t>()];
+      EXPECT_EQ(child["extras"]["kind"], cave::light_kind_name(want[k].kind));
+      const Vec3 at = parent + Vec3{child["translation"][0].get<double>(),
+                                    child["translation"][1].get<double>(),
+                                    child["translation"][2].get<double>()};
+      EXPECT_LT(grotto::distance(at, want[k].position), 1e-3) << child.dump();
+      const json& def = doc()["extensions"]["KHR_lights_punctual"]["lights"]
+                             [child["extensions"]["KHR_lights_punctual"]["light"].get<size_t>()];
+      EXPECT_EQ(def["type"], "point");
+      EXPECT_NEAR(def["range"].get<double>(), want[k].range, 1e-9);
+      EXPECT_NEAR(def["intensity"].get<double>(), want[k].intensity, 1e-9);
+    }
+  }
+  ASSERT_GT(lights, 0u) << "no lit room in the fixture's sector: the test checks nothing";
+  EXPECT_EQ(nodes.size(), region.rooms.size() + lights);
+  const json& used = doc()["extensionsUsed"];
+  EXPECT_NE(std::find(used.begin(), used.end(), "KHR_lights_punctual"), used.end());
 }
 
 // gltfpack parses the file with cgltf and validates it (cgltf_validate: buffers, views,
@@ -491,9 +542,9 @@ TEST_F(GlbExport, gltfpack_reads_the_file_and_refuses_a_broken_copy) {
   const fs::path out = *dir_ / "packed.glb";
   ProcessResult r = run_shell("gltfpack -v -i '" + path_->string() + "' -o '" + out.string() + "'");
   ASSERT_EQ(r.exit_code, 0) << r.output;
-  const size_t n = doc()["nodes"].size();
-  std::string want = "input: " + std::to_string(n) + " nodes, " + std::to_string(n) + " meshes (" +
-                     std::to_string(n) + " primitives)";
+  const size_t n = doc()["nodes"].size(), meshes = doc()["meshes"].size();
+  std::string want = "input: " + std::to_string(n) + " nodes, " + std::to_string(meshes) +
+                     " meshes (" + std::to_string(meshes) + " primitives)";
   EXPECT_NE(r.output.find(want), std::string::npos) << want << "\n" << r.output;
   EXPECT_NE(r.output.find("(" + std::to_string(triangles) + " triangles"), std::string::npos)
       << r.output;
@@ -530,6 +581,7 @@ TEST(GlbExportDetail, detail_payloads_decode_to_their_fallback) {
   ASSERT_EQ(g.error, "");
   EXPECT_EQ(g.doc["scenes"][0]["extras"]["lod"], "detail");
   for (const json& node : g.doc["nodes"]) {
+    if (is_light(node)) continue;
     const json& p = g.doc["meshes"][node["mesh"].get<size_t>()]["primitives"][0];
     grotto::codec::DecodeLimits limits = grotto::codec::kDetailLimits;
     limits.portal_count = static_cast<int>(node["extras"]["portals"].size());
@@ -561,11 +613,14 @@ TEST(GlbExportFailures, the_sector_whose_room_could_not_be_meshed_exports_whole)
   ASSERT_EQ(g.error, "");
   bool found = false;
   for (const json& node : g.doc["nodes"]) {
+    if (is_light(node)) continue;
     EXPECT_TRUE(node.contains("mesh")) << node["name"];
     found = found || node["name"] == "676.1.-2.r5";
   }
   EXPECT_TRUE(found);
-  EXPECT_EQ(g.doc["meshes"].size(), g.doc["nodes"].size());
+  EXPECT_EQ(g.doc["meshes"].size(),
+            std::count_if(g.doc["nodes"].begin(), g.doc["nodes"].end(),
+                          [](const json& node) { return !is_light(node); }));
 }
 
 // A file that cannot be written is one line and exit 1, and leaves nothing behind: no temporary
