@@ -9,7 +9,10 @@
 // Scales (the relief owns 5 cm to 1.5 m; the server's patch owns 1-10 m):
 //   rock:        domain-warped fBm (1.4 m, 0.31 m, 0.15 m) plus one ridged octave (0.65 m),
 //                amplitude from the roughness channel and a slow world-space variety field;
-//   flowstone:   vertical curtains on walls (anisotropic ridged noise, 2.6 m tall, 0.4 m wide);
+//   flowstone:   sheets of calcite poured over walls: smooth lobes up to 0.22 m thick that run
+//                down the wall (a noise stretched 2.5x vertically), fluted by vertical curtains
+//                (anisotropic ridged noise, 2.6 m tall, 0.4 m wide), the rock's relief drowned
+//                beneath them (a sheet smooths what it covers);
 //   speleothems: stalactites on undersides and stalagmites on the floors beneath them, hanging
 //                plumb: a vertical displacement (Relief::hang, -y under a stalactite, +y on a
 //                stalagmite) apart from the rock's height along the normal, so dripstone on a
@@ -21,6 +24,20 @@
 //                in big rooms (the cube of a uniform hash: most are short, a few long); a
 //                stalagmite stands under each, half as tall, twice as wide and rounded on top
 //                (thesis §5.5: underside bias from the world-space normal).
+//   columns:     a few speleothem cells (kReliefColumnShare) reach down, and up, to a meeting
+//                level of their own (one level every kReliefColumnSpan metres of height, offset
+//                per cell): the stalactite to the nearest level below its ceiling, the stalagmite
+//                to the nearest above its floor if that is within kReliefColumnRise. Each side
+//                knows only its own height, yet where the gap between them is low (passages,
+//                low rooms: up to ~2.5 m always, ~3.5 m often) both pick the same level, or
+//                overlap, and join into a column; in halls a column cell is a stalactite of up
+//                to 3.25 m over a short stalagmite. (The span keeps the columns' reach within
+//                the longest speleothem's, so culling margins stay as they were.) Only under level ceilings and on level floors
+//                (the tip is plumb there and the level the same across the footprint).
+//   draperies:   thin wavy curtains hanging from sloping ceilings, along the fall line (water
+//                runs down the slope and leaves its calcite in a line): straight runs in world
+//                space in four directions, each where it is near the local fall line, wavy
+//                across, with ragged lower edges; none under level ceilings.
 // The displacement is zero on portal rims (rim weight 1), so the seams between rooms stay where
 // the server put them; the shading (gradient, cavity) is not faded there, so the rim is no smooth
 // pale strip (docs/GALLERY.md, "The rim strip").
@@ -41,6 +58,18 @@ const float kReliefSpikePerRadius = 0.2f;  // spike length per metre of room rad
 const float kReliefStraw = 0.05f;       // metres: the shortest speleothem (a soda straw)
 const float kReliefCrackScale = 0.16f;  // cycles per metre of the crack field (~6 m apart)
 const float kReliefCrackWidth = 0.45f;  // metres from a crack within which dripstone grows
+const float kReliefSheet = 0.22f;         // metres: the thickest flowstone sheet at strength 1
+const float kReliefColumnShare = 0.15f;   // of the speleothem cells: column candidates
+const float kReliefColumnSpan = 2.5f;     // metres between a column cell's meeting levels
+const float kReliefColumnStub = 0.4f;     // metres: a column's stalactite is at least this long
+const float kReliefColumnBase = 0.25f;    // metres: and its stalagmite at least this tall
+const float kReliefColumnRise = 2.0f;     // metres: and at most about this tall
+const float kReliefColumnOverlap = 0.35f; // metres each side reaches past the meeting level
+const float kReliefColumnFade = 0.3f;     // metres of height over which a side's reach fades out
+const float kReliefDraperySpacing = 0.9f; // metres between drapery lines of one direction
+const float kReliefDraperyRun = 2.6f;     // metres: the length of a drapery's run along the slope
+const float kReliefDraperyWidth = 0.07f;  // metres: half the thickness of a drapery
+const float kReliefDraperyAngle = 0.41f;  // radians: the first of the four drapery directions
 
 // An integer lattice point to [0, 1).
 RELIEF_FN float relief_hash(ivec3 c) {
@@ -93,9 +122,11 @@ struct Relief {
   vec3 gradient;  // of height with respect to world position (for the displaced normal); near
                   // rims that of the rock and flowstone before their height fades (see relief_at)
   float hang;     // metres along world +y: speleothems (negative under a stalactite)
-  vec3 hang_gradient;  // of hang with respect to world position (its y is 0)
+  vec3 hang_gradient;  // of hang with respect to world position (its y is 0 but on columns,
+                       // whose reach follows the height)
   float cavity;   // 0 in the rock's hollows, 1 on its crests (occlusion, tint)
-  float spike;    // 0-1: how far up a speleothem the point is (1 at its tip; calcite)
+  float spike;    // 0-1: calcite: how far up a speleothem or drapery the point is (1 at its
+                  // tip), or under half a flowstone sheet's thickness (room.frag's colour)
 };
 
 // One speleothem candidate of the turned lattice: where it stands and how long it is.
@@ -103,6 +134,8 @@ struct Speleothem {
   vec2 centre;   // metres, in the turned lattice's frame (relief_turn)
   float len;     // metres: the stalactite's length (0: none); its stalagmite is half as tall
   float radius;  // metres: the stalactite's radius at its root (its stalagmite's is twice that)
+  float level;   // metres in [0, kReliefColumnSpan): a column cell's meeting levels are
+                 // level + k * kReliefColumnSpan; negative: not a column cell
 };
 
 // World x, z into the speleothem lattice's frame.
@@ -120,6 +153,7 @@ RELIEF_FN Speleothem relief_speleothem(ivec2 c, float longest) {
   s.centre = vec2(0.0f);
   s.len = 0.0f;
   s.radius = 0.0f;
+  s.level = -1.0f;
   float jx = relief_hash(ivec3(c.x, 104729, c.y));
   float jz = relief_hash(ivec3(c.x, 1299709, c.y));
   vec2 lo = vec2(c) * kReliefCell;
@@ -138,6 +172,10 @@ RELIEF_FN Speleothem relief_speleothem(ivec2 c, float longest) {
   s.centre = centre;
   s.len = max(kReliefStraw, longest * size * size * size);
   s.radius = min(0.03f + 0.11f * s.len, 0.45f);
+  if (relief_hash(ivec3(c.x, 611953, c.y)) < kReliefColumnShare) {
+    s.level = kReliefColumnSpan * relief_hash(ivec3(c.x, 86028121, c.y));
+    s.radius = 0.45f;  // columns are the thickest
+  }
   return s;
 }
 
@@ -146,12 +184,53 @@ RELIEF_FN float relief_spike_length(float room_radius) {
   return clamp(kReliefSpikePerRadius * room_radius, kReliefSpikeMin, kReliefSpikeMax);
 }
 
-// How far the relief can move a point, either way: a bound for culling. The rock's octaves sum
-// to at most 0.97 in size, times its largest amplitude (variety 1.35, ceilings 1.2); flowstone
-// and speleothems add their full heights.
+// How far the relief can move a point along its normal, either way: the rock's octaves sum to at
+// most 0.97 in size, times its largest amplitude (variety 1.35, ceilings 1.2), plus the flowstone
+// (sheet and curtains).
+RELIEF_FN float relief_normal_bound(float strength) {
+  return strength * (kReliefRock * 1.35f * 1.2f + kReliefFlowstone + kReliefSheet);
+}
+
+// How far a column side can reach (a stub and a span, past the level), only where the surface's
+// normal is within ~32 degrees of vertical (relief_level_possible): set by the rooms' heights,
+// not scaled by the strength (on or off).
+RELIEF_FN float relief_column_bound(float strength) {
+  return strength > 0.0f ? kReliefColumnStub + kReliefColumnSpan + kReliefColumnOverlap : 0.0f;
+}
+
+// How far the relief can move a point vertically (Relief::hang), either way: the longest
+// speleothem of the room (draperies hang at most half of it) or a column's reach.
+RELIEF_FN float relief_hang_bound(float strength, float room_radius) {
+  return max(strength * relief_spike_length(room_radius), relief_column_bound(strength));
+}
+
+// relief_bound on a surface that cannot hold a column's side (relief_level_possible false).
+RELIEF_FN float relief_bound_without_columns(float strength, float room_radius) {
+  return relief_normal_bound(strength) + strength * relief_spike_length(room_radius);
+}
+
+// Whether any point of a patch with these unit vertex normals can hold a column's side (its
+// interpolated, renormalised normal within the columns' 0.85 of vertical): a patch where none can
+// is moved by at most relief_bound_without_columns (room.tesc culls it with that margin).
+// The renormalised blend's |y| is at most the largest vertex |y| over the blend's shortest
+// length, which is at least the square root of the smallest pairwise dot product.
+RELIEF_FN bool relief_level_possible(vec3 n0, vec3 n1, vec3 n2) {
+  float c = min(dot(n0, n1), min(dot(n1, n2), dot(n2, n0)));
+  float top = max(abs(n0.y), max(abs(n1.y), abs(n2.y)));
+  return !(c > 0.0f) || top >= 0.85f * sqrt(c);
+}
+
+// How far the relief can move a point, either way: a bound for culling.
 RELIEF_FN float relief_bound(float strength, float room_radius) {
-  return strength *
-         (kReliefRock * 1.35f * 1.2f + kReliefFlowstone + relief_spike_length(room_radius));
+  return relief_normal_bound(strength) + relief_hang_bound(strength, room_radius);
+}
+
+// A column side's reach where the gap to its meeting level is `gap` metres past its minimum:
+// 0 to 1, fading out near both ends of the span so the reach never jumps where the level
+// switches to the next one (the height changes across the speleothem's footprint).
+RELIEF_FN float relief_column_weight(float gap) {
+  return smoothstep(0.0f, kReliefColumnFade, gap) *
+         (1.0f - smoothstep(kReliefColumnSpan - kReliefColumnFade, kReliefColumnSpan, gap));
 }
 
 // The relief at world point p on a surface with unit normal n. roughness (0-1) is the patch's
@@ -210,9 +289,27 @@ RELIEF_FN Relief relief_at(vec3 p, vec3 n, float roughness, float rim, float roo
   r.gradient = rock_amplitude * rock_gradient;
   r.cavity = clamp(0.5f + 0.6f * rock, 0.0f, 1.0f);
 
-  // Flowstone: curtains hanging down walls where the variety field is high.
+  // Flowstone: sheets poured down walls where the variety field is high, fluted by curtains.
   float flow_zone = smoothstep(0.35f, 0.65f, variety) * wall;
   if (flow_zone > 0.0f) {
+    // The sheet: lobes of a noise stretched 2.5x vertically (1.8 m wide, 4.5 m tall), smooth
+    // where they cover (thickness s^2 (3 - 2 s), flat on top), drowning the rock beneath.
+    vec3 lobe_scale = vec3(0.55f, 0.22f, 0.55f);
+    vec4 lobe = relief_noise(p * lobe_scale + vec3(-41.0f, 9.0f, 23.0f));
+    float cover = clamp((lobe.x + 0.15f) * 2.5f, 0.0f, 1.0f);
+    vec3 cover_gradient = cover > 0.0f && cover < 1.0f
+                              ? 2.5f * relief_gradient(lobe) * lobe_scale
+                              : vec3(0.0f);
+    float sheet = flow_zone * cover * cover * (3.0f - 2.0f * cover);
+    vec3 sheet_gradient = flow_zone * 6.0f * cover * (1.0f - cover) * cover_gradient;
+    float drown = 1.0f - 0.75f * sheet;
+    float rock_height = rock_amplitude * rock;
+    float sheet_amplitude = strength * kReliefSheet;
+    r.height = keep * (rock_height * drown + sheet_amplitude * sheet);
+    r.gradient = r.gradient * drown - 0.75f * rock_height * sheet_gradient +
+                 sheet_amplitude * sheet_gradient;
+    r.cavity = mix(r.cavity, 0.85f, sheet);
+    r.spike = 0.45f * sheet;  // calcite (room.frag): tan, short of the cream of a growing tip
     vec3 scale = vec3(2.4f, 0.38f, 2.4f);
     vec4 f = relief_noise(p * scale + vec3(0.0f, 0.0f, 73.0f));
     // A crest softened like the rock's ridge: curtains, not saw teeth.
@@ -225,54 +322,135 @@ RELIEF_FN Relief relief_at(vec3 p, vec3 n, float roughness, float rim, float roo
   }
 
   // Speleothems: the tallest of the 3 x 3 cells around p wins, displacing p vertically.
+  float best = 0.0f;
+  float best_length = 1.0f;
+  vec2 best_gradient = vec2(0.0f);  // in the turned lattice's frame
+  vec3 best_vertical = vec3(0.0f);  // world: a column side's reach follows the point's height
   if (under > 0.0f || ground > 0.0f) {
     // Bare zones have shorter ones.
     float longest = strength * relief_spike_length(room_radius) * keep *
                     mix(0.45f, 1.0f, smoothstep(0.3f, 0.75f, variety));
     vec2 here = relief_turn(p);
     ivec2 base = ivec2(floor(here / kReliefCell));
-    float best = 0.0f;
-    float best_length = 1.0f;
-    vec2 best_gradient = vec2(0.0f);
+    // Columns: the point's height after the rock (the tip must meet the other side's), its
+    // gradient, and whether the ceiling or floor is level enough for one.
+    float y_here = p.y + n.y * r.height;
+    vec3 y_gradient = vec3(0.0f, 1.0f, 0.0f) + n.y * keep * r.gradient;
+    float level_roof = smoothstep(0.85f, 0.95f, -up);
+    float level_floor = smoothstep(0.85f, 0.95f, up);
     for (int dz = -1; dz <= 1; ++dz) {
       for (int dx = -1; dx <= 1; ++dx) {
         Speleothem sp = relief_speleothem(base + ivec2(dx, dz), longest);
         if (!(sp.len > 0.0f) || !(longest > 0.0f)) continue;
         vec2 d = here - sp.centre;
         float dist = length(d);
-        // Stalactite: a concave cone, sharp at its tip; hangs down (negative hang).
+        bool column = sp.level >= 0.0f;
+        // Stalactite: a concave cone, sharp at its tip; hangs down (negative hang). A column's
+        // reaches its meeting level (kReliefColumnOverlap past it), convex and blunt.
         float t = 1.0f - dist / sp.radius;
         if (under > 0.0f && t > 0.0f) {
-          float h = under * sp.len * t * t;
+          float reach = sp.len;
+          float cw = 0.0f;
+          if (column && level_roof > 0.0f) {
+            float gap = mod(y_here - sp.level - kReliefColumnStub, kReliefColumnSpan);
+            cw = level_roof * relief_column_weight(gap);
+            reach = mix(sp.len, (gap + kReliefColumnStub + kReliefColumnOverlap) * keep, cw);
+          }
+          float shape = mix(t * t, t * (2.0f - t), cw);
+          float h = under * reach * shape;
           if (h > best) {
             best = h;
-            best_length = under * sp.len;
-            // d/dp of -h: +2 under len t / (r dist) d.
-            best_gradient = dist > 1e-5f ? (2.0f * under * sp.len * t / (sp.radius * dist)) * d
+            best_length = under * reach;
+            // d/dp of -h: the profile's slope along d, and the reach's along the height.
+            float slope = mix(2.0f * t, 2.0f - 2.0f * t, cw);
+            best_gradient = dist > 1e-5f ? (under * reach * slope / (sp.radius * dist)) * d
                                          : vec2(0.0f);
+            best_vertical = -(under * shape * cw * keep) * y_gradient;
           }
         }
-        // Stalagmite beneath it: half as tall, twice as wide, rounded on top; stands up.
+        // Stalagmite beneath it: half as tall, twice as wide, rounded on top; stands up. A
+        // column's rises to its meeting level.
         float rf = 2.0f * sp.radius;
         float s = dist / rf;
         if (ground > 0.0f && s < 1.0f) {
-          float lf = 0.5f * sp.len * ground;
-          float h = lf * (1.0f - s * s) * (1.0f - s * s);
+          float reach = 0.5f * sp.len;
+          float cw = 0.0f;
+          if (column && level_floor > 0.0f) {
+            float gap = mod(sp.level - y_here - kReliefColumnBase, kReliefColumnSpan);
+            // Only to a level near the floor: in a tall room a column cell's stalagmite stays
+            // short and its stalactite reaches down (they grow from the same drip, the
+            // stalactite first).
+            cw = level_floor * relief_column_weight(gap) *
+                 (1.0f - smoothstep(kReliefColumnRise - kReliefColumnFade, kReliefColumnRise, gap));
+            reach = mix(0.5f * sp.len, (gap + kReliefColumnBase + kReliefColumnOverlap) * keep, cw);
+          }
+          float lf = reach * ground;
+          float shape = (1.0f - s * s) * (1.0f - s * s);
+          float h = lf * shape;
           if (h > best) {
             best = h;
             best_length = lf;
             best_gradient = (-4.0f * lf * (1.0f - s * s) / (rf * rf)) * d;
+            best_vertical = -(ground * shape * cw * keep) * y_gradient;
           }
         }
       }
     }
-    // Under a ceiling the winner hangs (down), on a floor it stands (up).
-    r.hang = under > 0.0f ? -best : best;
-    r.hang_gradient =
-        vec3(kReliefTurnCos * best_gradient.x + kReliefTurnSin * best_gradient.y, 0.0f,
-             kReliefTurnCos * best_gradient.y - kReliefTurnSin * best_gradient.x);
-    r.spike = best > 0.0f ? clamp(best / best_length, 0.0f, 1.0f) : 0.0f;
   }
+
+  // Draperies: curtains hanging from sloping ceilings along the fall line, in runs of
+  // kReliefDraperyRun metres on lines kReliefDraperySpacing apart, in four world directions
+  // (each where it lies within ~20 degrees of the local fall line), wavy across.
+  float slope = length(vec2(n.x, n.z));
+  float drape_zone = smoothstep(0.25f, 0.5f, slope) * smoothstep(0.2f, 0.45f, -up);
+  if (drape_zone > 0.0f) {
+    vec2 fall = vec2(n.x, n.z) / slope;
+    float deepest = 0.5f * strength * relief_spike_length(room_radius) * keep * drape_zone;
+    for (int i = 0; i < 4; ++i) {
+      float angle = kReliefDraperyAngle + 0.7853982f * float(i);
+      vec2 along_dir = vec2(cos(angle), sin(angle));
+      float aligned = smoothstep(0.8f, 0.95f, abs(dot(along_dir, fall)));
+      if (!(aligned > 0.0f)) continue;
+      vec2 across_dir = vec2(-along_dir.y, along_dir.x);
+      float along = dot(vec2(p.x, p.z), along_dir);
+      float across = dot(vec2(p.x, p.z), across_dir);
+      float line = floor(across / kReliefDraperySpacing + 0.5f);
+      // Wavy across (8 cm, 0.45 m wavelength), a ragged lower edge.
+      vec4 wave = relief_noise(vec3(along * 2.2f, line * 1.37f, float(i) * 7.1f));
+      float off = across - line * kReliefDraperySpacing + 0.08f * wave.x;
+      float qa = off / kReliefDraperyWidth;
+      if (!(abs(qa) < 1.0f)) continue;
+      float run = floor(along / kReliefDraperyRun);
+      ivec3 key = ivec3(int(line), int(run), i);
+      if (relief_hash(key + ivec3(0, 0, 97)) >= 0.3f) continue;
+      float u = along / kReliefDraperyRun - run;
+      float ends = smoothstep(0.0f, 0.3f, u) * smoothstep(0.0f, 0.3f, 1.0f - u);
+      vec4 edge = relief_noise(vec3(along * 1.7f, line * 2.9f, float(i) * 3.3f + 50.0f));
+      float depth = deepest * aligned * ends * (0.4f + 0.6f * relief_hash(key)) *
+                    (0.8f + 0.2f * edge.x);
+      float across_shape = (1.0f - qa * qa) * (1.0f - qa * qa);
+      float h = depth * across_shape;
+      if (h > best) {
+        best = h;
+        // Calcite a shade darker than a speleothem's tip (room.frag): ochre bands, not cream.
+        best_length = 1.6f * depth;
+        // Across the curtain only (its slow changes along the run are left out): d off / dp
+        // is the across direction plus the wave's slope along the run.
+        vec2 d_off = across_dir + (0.08f * 2.2f * wave.y) * along_dir;
+        vec2 g = (-4.0f * depth * (1.0f - qa * qa) * qa / kReliefDraperyWidth) * d_off;
+        // The hang is -h: store in best_vertical (world) and clear the lattice-frame part.
+        best_gradient = vec2(0.0f);
+        best_vertical = vec3(-g.x, 0.0f, -g.y);
+      }
+    }
+  }
+  // Under a ceiling the winner hangs (down), on a floor it stands (up).
+  r.hang = under > 0.0f || drape_zone > 0.0f ? -best : best;
+  r.hang_gradient =
+      vec3(kReliefTurnCos * best_gradient.x + kReliefTurnSin * best_gradient.y, 0.0f,
+           kReliefTurnCos * best_gradient.y - kReliefTurnSin * best_gradient.x) +
+      best_vertical;
+  r.spike = max(r.spike, best > 0.0f ? clamp(best / best_length, 0.0f, 1.0f) : 0.0f);
   return r;
 }
 

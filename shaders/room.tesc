@@ -41,6 +41,10 @@ uniform bool u_patch_culling;    // discard patches that are provably invisible
 uniform vec4 u_frustum[6];       // unit-normal planes (anchor-relative), inside positive
 uniform int u_surface;           // 0 flat, 1 PN triangles, 2 Phong tessellation (room.tese)
 uniform float u_relief_margin;   // metres the relief can move the surface (relief_bound)
+uniform float u_displacement;    // room.tese's relief strength and room radius
+uniform float u_room_radius;
+
+#pragma grotto_include "relief.glsl"
 
 float distance_level(vec3 a, vec3 b) {
   // a + b is commutative bit for bit; `precise` keeps the compiler from contracting or
@@ -83,7 +87,13 @@ float edge_level(int i, int j) {
 float surface_margin(vec3 p0, vec3 p1, vec3 p2) {
   vec3 e0 = p1 - p0, e1 = p2 - p1, e2 = p0 - p2;
   float longest = sqrt(max(dot(e0, e0), max(dot(e1, e1), dot(e2, e2))));
-  return (u_surface == 0 ? 0.0 : longest) + u_relief_margin + 0.01;
+  // A column's side reaches metres, but only from level ceilings and floors: other patches keep
+  // the margin of the rock, flowstone and speleothems (relief.glsl, relief_level_possible).
+  float relief = u_relief_margin;
+  if (!relief_level_possible(normalize(v_normal[0]), normalize(v_normal[1]),
+                             normalize(v_normal[2])))
+    relief = min(relief, relief_bound_without_columns(u_displacement, u_room_radius));
+  return (u_surface == 0 ? 0.0 : longest) + relief + 0.01;
 }
 
 bool outside_frustum(vec3 p0, vec3 p1, vec3 p2, float margin) {

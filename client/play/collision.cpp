@@ -112,7 +112,8 @@ void CollisionWorld::add(const client::ReadyRoom& ready) {
     r.rim.push_back(slot >= 0 ? 1.0f : 0.0f);
   r.rim.resize(mesh.vertex_count(), 0.0f);
   r.indices = mesh.indices;
-  r.relief_reach =
+  r.relief_reach = relief::relief_normal_bound(relief_strength_);
+  r.relief_reach_y =
       relief::relief_bound(relief_strength_, static_cast<float>(ready.room.sphere.radius));
   r.refined_at.assign(r.indices.size() / 3, 0);
   r.refined_count.assign(r.indices.size() / 3, 0);
@@ -233,13 +234,15 @@ void CollisionWorld::gather(Vec3 lo, Vec3 hi, Neighbourhood& out) const {
       if (boxes_overlap(lo, hi, portal.centre - extent, portal.centre + extent))
         out.walls.push_back({portal.centre, portal.normal, reach});
     }
-    // The relief moves the surface up to relief_reach from the patch triangles the grid holds.
-    const double reach = room.relief_reach;
-    const Vec3 extent{room.bound_radius + reach, room.bound_radius + reach,
-                      room.bound_radius + reach};
+    // The relief moves the surface up to relief_reach sideways and relief_reach_y vertically
+    // from the patch triangles the grid holds (a column reaches metres down, not sideways).
+    const double reach_of[3] = {room.relief_reach, room.relief_reach_y, room.relief_reach};
+    const Vec3 extent{room.bound_radius + reach_of[0], room.bound_radius + reach_of[1],
+                      room.bound_radius + reach_of[2]};
     if (!boxes_overlap(lo, hi, room.bound_centre - extent, room.bound_centre + extent)) continue;
     int c_lo[3], c_hi[3];
     for (int i = 0; i < 3; ++i) {
+      const double reach = reach_of[i];
       c_lo[i] = std::max(0, static_cast<int>(std::floor((lo[i] - reach - room.origin[i]) / kCell)) -
                                 room.grid_lo[i]);
       c_hi[i] = std::min(

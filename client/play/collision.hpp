@@ -87,7 +87,10 @@ class CollisionWorld {
     std::vector<float> roughness;
     std::vector<float> rim;  // 1 on a portal rim, else 0
     std::vector<uint32_t> indices;
-    double relief_reach = 0;  // metres the relief can move the surface
+    // Metres the relief can move the surface: sideways (along a normal only) and vertically
+    // (along a normal, and speleothems, draperies and columns, which hang plumb and reach far).
+    double relief_reach = 0;
+    double relief_reach_y = 0;
     // Patch triangle t's refined_count[t] triangles start at refined[refined_at[t] - 1] (0: not
     // refined yet).
     mutable std::vector<uint32_t> refined_at;

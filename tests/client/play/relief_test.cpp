@@ -119,9 +119,18 @@ TEST(Relief, lengths_run_from_soda_straws_to_metres_with_max_over_median_at_leas
   EXPECT_GE(lengths.back() / median, 5.0f);
   // Stalagmites are thicker and blunter than the stalactite above: the relief's own shape round
   // the centre of the longest, on a ceiling 8 m up and on the floor.
+  // (The longest with no column within two cells: a column's sides reach their levels.)
+  auto near_a_column = [&](std::pair<int, int> cell) {
+    for (int dz = -2; dz <= 2; ++dz)
+      for (int dx = -2; dx <= 2; ++dx) {
+        auto it = all.find({cell.first + dx, cell.second + dz});
+        if (it != all.end() && it->second.level >= 0) return true;
+      }
+    return false;
+  };
   const rl::Speleothem* big = nullptr;
   for (const auto& [cell, s] : all)
-    if (!big || s.len > big->len) big = &s;
+    if (!near_a_column(cell) && (!big || s.len > big->len)) big = &s;
   const float u = big->centre.x, v = big->centre.y;
   const glm::vec3 at{rl::kReliefTurnCos * u + rl::kReliefTurnSin * v, 0.0f,
                      -rl::kReliefTurnSin * u + rl::kReliefTurnCos * v};
@@ -295,6 +304,216 @@ TEST(Relief, collision_meets_the_plumb_stalactite_and_stands_on_the_stalagmite) 
   const double feet_y = p.eye().y - p.params().eye_height - p.params().skin / 2;
   EXPECT_GT(feet_y, 0.5 * tallest) << "the player fell through the stalagmite to the floor";
   EXPECT_LT(feet_y, plumb(top, glm::vec3(0, 1, 0)).y + 0.05);
+}
+
+// The column cells of the lattice over 40 x 40 m, as world points at their centres.
+std::vector<glm::vec3> column_centres() {
+  std::vector<glm::vec3> out;
+  const float longest = rl::relief_spike_length(kHall);
+  for (int z = -20; z < 20; ++z)
+    for (int x = -20; x < 20; ++x) {
+      const rl::Speleothem s = rl::relief_speleothem(glm::ivec2(x, z), longest);
+      if (s.len > 0 && s.level >= 0) {
+        const float u = s.centre.x, v = s.centre.y;
+        out.push_back({rl::kReliefTurnCos * u + rl::kReliefTurnSin * v, 0.0f,
+                       -rl::kReliefTurnSin * u + rl::kReliefTurnCos * v});
+      }
+    }
+  return out;
+}
+
+// In a synthetic room with a level floor at y = 0 and a level ceiling `gap` metres above it: at
+// each column cell's centre, whether the stalagmite's top reaches the stalactite's tip, so the
+// displaced surface runs unbroken from floor to ceiling there.
+double share_joined(float gap, const std::vector<glm::vec3>& centres) {
+  const glm::vec3 up{0, 1, 0}, down{0, -1, 0};
+  int joined = 0;
+  for (const glm::vec3& c : centres) {
+    const glm::vec3 floor_top = plumb(c, up);
+    const glm::vec3 ceiling_tip = plumb(c + glm::vec3(0, gap, 0), down);
+    joined += floor_top.y >= ceiling_tip.y;
+  }
+  return static_cast<double>(joined) / static_cast<double>(centres.size());
+}
+
+TEST(Relief, columns_join_floor_and_ceiling_where_the_room_is_low_and_stay_pairs_in_halls) {
+  const std::vector<glm::vec3> centres = column_centres();
+  ASSERT_GT(centres.size(), 10u);
+  std::printf("column cells: %zu in 1600\n", centres.size());
+  // Up to 2.5 m only the cells whose level falls in a side's fade window (kReliefColumnFade at
+  // each end of the span) may stay apart; higher up, a level over kReliefColumnRise above the
+  // floor leaves the stalagmite short and the pair apart.
+  for (float gap : {1.8f, 2.5f, 3.0f, 3.5f, 4.5f, 5.5f}) {
+    const double joined = share_joined(gap, centres);
+    std::printf("gap %.1f m: %.0f%% joined\n", gap, 100 * joined);
+    EXPECT_GE(joined, gap <= 2.5f ? 0.8 : gap <= 3.5f ? 0.4 : 0.0) << "gap " << gap;
+  }
+  // A hall's 20 m: at most a long pair, no column (two levels fit between).
+  const double in_hall = share_joined(20.0f, centres);
+  std::printf("gap 20 m: %.0f%% joined\n", 100 * in_hall);
+  EXPECT_LT(in_hall, 0.1);
+  // Without relief nothing joins: the check can fail.
+  int joined_flat = 0;
+  for (const glm::vec3& c : centres)
+    joined_flat += rl::relief_at(c, {0, 1, 0}, 0, 0, kHall, 0).hang >= 2.5f;
+  EXPECT_EQ(joined_flat, 0);
+}
+
+TEST(Relief, a_column_surface_is_continuous_across_a_sloping_ceiling_and_its_level_switch) {
+  // A ceiling at 3 m sloping 12 degrees along x (level enough for columns; its height crosses
+  // a meeting level somewhere over 40 m, where a side's reach switches to the next level): the
+  // displaced surface along lines 1 mm apart never jumps.
+  const glm::vec3 n = glm::normalize(glm::vec3(0.21f, -1.0f, 0.0f));
+  const std::vector<glm::vec3> centres = column_centres();
+  double worst = 0;
+  int lines = 0, columns = 0;
+  for (const glm::vec3& c : centres) {
+    glm::vec3 last{0};
+    float deepest = 0;
+    for (float x = -0.6f; x <= 0.6f; x += 0.001f) {
+      glm::vec3 p{c.x + x, 0, c.z};
+      p.y = 3.0f + 0.21f * p.x;  // on the plane through (0, 3, 0) with normal n
+      const glm::vec3 q = plumb(p, n);
+      if (x > -0.6f) worst = std::max(worst, static_cast<double>(glm::length(q - last)));
+      deepest = std::min(deepest, relief(p, n).hang);
+      last = q;
+    }
+    ++lines;
+    columns += deepest < -1.0f;
+  }
+  std::printf("%d lines, %d with a side over 1 m, largest step %.3f m per mm\n", lines, columns,
+              worst);
+  EXPECT_GT(columns, lines / 2) << "most column cells reach their level";
+  EXPECT_LT(worst, 0.05);
+}
+
+// A 45-degree ceiling through (0, 10, 0) whose fall line (horizontally) is `fall` (unit): its
+// normal points down and along the fall line, and it rises against it.
+struct Slope {
+  glm::vec3 fall, across, normal;
+  float tilt;  // 1 for 45 degrees, 0 for a level ceiling
+  glm::vec3 at(float along, float side) const {
+    const glm::vec3 p = along * fall + side * across;
+    return {p.x, 10.0f + tilt * along, p.z};
+  }
+};
+
+Slope slope_along(float angle, float tilt) {
+  const glm::vec3 fall{std::cos(angle), 0.0f, std::sin(angle)};
+  return {fall, {-fall.z, 0.0f, fall.x}, glm::normalize(glm::vec3(fall.x * tilt, -1, fall.z * tilt)),
+          tilt};
+}
+
+// The longest run (metres) along the fall line, on lines 0.1 m apart over 16 x 16 m, where the
+// surface hangs more than 0.1 m.
+float longest_hanging_run(const Slope& s) {
+  float longest = 0;
+  for (float side = -8; side <= 8; side += 0.1f) {
+    float run = 0;
+    for (float along = -8; along <= 8; along += 0.02f) {
+      run = relief(s.at(along, side), s.normal).hang < -0.1f ? run + 0.02f : 0.0f;
+      longest = std::max(longest, run);
+    }
+  }
+  return longest;
+}
+
+TEST(Relief, draperies_hang_under_sloping_ceilings_along_the_fall_line_and_not_under_level_ones) {
+  // Draperies run in four world directions, each where it is near the local fall line: a
+  // 45-degree ceiling falling along one of them, and a level ceiling measured the same way.
+  // Stalactites (and columns) are at most 0.9 m across, and rows of them rarely chain far; a
+  // hanging run of 1.8 m is a drapery.
+  const Slope sloped = slope_along(rl::kReliefDraperyAngle, 1.0f);
+  const Slope level = slope_along(rl::kReliefDraperyAngle, 0.0f);
+  const float under_slope = longest_hanging_run(sloped), under_level = longest_hanging_run(level);
+  std::printf("longest hanging run: %.2f m under 45 degrees, %.2f m under a level ceiling\n",
+              under_slope, under_level);
+  EXPECT_GT(under_slope, 1.8f);
+  EXPECT_LT(under_level, 1.8f);
+  // Thin: where the surface hangs 0.3 m or more and still hangs 0.5 m up and down the fall line
+  // (a drapery, not a stalactite), it hangs over less than 0.2 m across it.
+  int thin = 0, measured = 0;
+  for (float side = -8; side <= 8 && measured < 20; side += 0.05f)
+    for (float along = -8; along <= 8 && measured < 20; along += 0.25f) {
+      const glm::vec3 p = sloped.at(along, side);
+      if (relief(p, sloped.normal).hang > -0.3f) continue;
+      bool drapery = true;
+      for (float d : {-0.5f, 0.5f})
+        drapery = drapery && relief(sloped.at(along + d, side), sloped.normal).hang < -0.05f;
+      if (!drapery) continue;
+      float width = 0;
+      for (float d = -0.5f; d <= 0.5f; d += 0.005f)
+        width += relief(sloped.at(along, side + d), sloped.normal).hang < -0.05f ? 0.005f : 0.0f;
+      ++measured;
+      thin += width < 0.2f;
+    }
+  EXPECT_GT(measured, 5);
+  EXPECT_GE(thin, measured * 3 / 4) << "draperies are thin curtains";
+}
+
+TEST(Relief, flowstone_sheets_cover_part_of_the_walls_and_smooth_the_rock_beneath) {
+  const glm::vec3 n{1, 0, 0};
+  int covered = 0, bare = 0, samples = 0;
+  double covered_roughness = 0, bare_roughness = 0;
+  for (float y = -20; y <= 20; y += 0.25f)
+    for (float z = -20; z <= 20; z += 0.25f) {
+      const glm::vec3 p{0, y, z};
+      // Roughness 1: the rock at its roughest, so the sheet's smoothing shows.
+      const rl::Relief r = rl::relief_at(p, n, 1.0f, 0.0f, kHall, 1.0f);
+      const rl::Relief rx = rl::relief_at(p + glm::vec3(0, 0.05f, 0), n, 1.0f, 0.0f, kHall, 1.0f);
+      const double bumpiness = std::abs(rx.height - r.height) / 0.05;
+      ++samples;
+      if (r.spike > 0.44f) ++covered, covered_roughness += bumpiness;
+      if (r.spike == 0.0f) ++bare, bare_roughness += bumpiness;
+    }
+  std::printf("wall: %.0f%% under a full sheet, %.0f%% bare\n", 100.0 * covered / samples,
+              100.0 * bare / samples);
+  EXPECT_GT(covered, samples / 20) << "sheets on walls";
+  EXPECT_GT(bare, samples / 5) << "and bare rock between";
+  EXPECT_LT(covered_roughness / covered, 0.6 * bare_roughness / bare)
+      << "the sheet drowns the rock's relief";
+  // None on a level floor (the floor's calcite is stalagmites').
+  int on_floor = 0;
+  for (float x = -20; x <= 20; x += 0.25f)
+    for (float z = -20; z <= 20; z += 0.25f) {
+      const rl::Relief r = rl::relief_at({x, 0, z}, {0, 1, 0}, 1.0f, 0.0f, kHall, 1.0f);
+      on_floor += r.spike > 0.0f && r.hang == 0.0f;
+    }
+  EXPECT_EQ(on_floor, 0);
+}
+
+// room.tesc culls a patch that cannot hold a column's side with the margin without the columns'
+// reach: on such surfaces the relief stays within it, on level ones relief_level_possible holds.
+TEST(Relief, only_level_patches_need_the_columns_margin) {
+  constexpr float kSmall = 3.5f;  // a passage's radius: speleothems under 0.7 m, columns 3.25
+  const float tight = rl::relief_bound_without_columns(1.0f, kSmall);
+  const glm::vec3 tilted[] = {kSlopeNormal, glm::normalize(glm::vec3(1, 0.2f, 0)),
+                              glm::normalize(glm::vec3(0.5f, -0.8f, 0.2f)),
+                              glm::normalize(glm::vec3(-0.5f, 0.8f, 0.1f))};
+  float worst = 0;
+  for (const glm::vec3& n : tilted) {
+    EXPECT_FALSE(rl::relief_level_possible(n, n, n));
+    for (float a = -20; a <= 20; a += 0.07f)
+      for (float b = -20; b <= 20; b += 0.31f) {
+        const glm::vec3 p{a, 2.0f + 0.3f * b, b};
+        const rl::Relief r = rl::relief_at(p, n, 1.0f, 0.0f, kSmall, 1.0f);
+        worst = std::max(worst, std::abs(r.height) + std::abs(r.hang));
+      }
+  }
+  std::printf("tilted surfaces: moved %.2f m at most, margin %.2f m\n", worst, tight);
+  EXPECT_LE(worst, tight);
+  // Level ceilings and floors, and a patch whose normals fan out past the columns' 0.85, may.
+  const glm::vec3 up{0, 1, 0}, down{0, -1, 0};
+  EXPECT_TRUE(rl::relief_level_possible(up, up, up));
+  EXPECT_TRUE(rl::relief_level_possible(down, down, down));
+  const glm::vec3 l = glm::normalize(glm::vec3(-0.6f, 0.8f, 0)), r = glm::normalize(glm::vec3(0.6f, 0.8f, 0));
+  EXPECT_TRUE(rl::relief_level_possible(l, r, r)) << "their blend points straight up";
+  // And there a column reaches past the tight margin.
+  float deepest = 0;
+  for (const glm::vec3& c : column_centres())
+    deepest = std::max(deepest, std::abs(rl::relief_at(c + glm::vec3(0, 3, 0), down, 0.0f, 0.0f,
+                                                        kSmall, 1.0f).hang));
+  EXPECT_GT(deepest, tight);
 }
 
 }  // namespace
