@@ -36,13 +36,13 @@ double percentile(std::vector<double> v, double q) {
 struct RoomShape {
   std::string id;
   double radius = 0;
-  double kept = 0;        // median vertex distance from the centre / radius
-  double kept_m = 0;      // the same in metres
-  double near10_m = 0;    // 10th percentile of the vertex distance, metres
-  double width_m = 0;     // horizontal extent (the larger of x and z), metres
-  double height_m = 0;    // vertical extent, metres
-  double up_area = 0;     // area of up-facing triangles, m^2
-  double flat_area = 0;   // of it, within 15 degrees of horizontal
+  double kept = 0;       // median vertex distance from the centre / radius
+  double kept_m = 0;     // the same in metres
+  double near10_m = 0;   // 10th percentile of the vertex distance, metres
+  double width_m = 0;    // horizontal extent (the larger of x and z), metres
+  double height_m = 0;   // vertical extent, metres
+  double up_area = 0;    // area of up-facing triangles, m^2
+  double flat_area = 0;  // of it, within 15 degrees of horizontal
   bool floored = false;
   double bytes = 0;
   size_t vertices = 0;
@@ -145,8 +145,8 @@ int main(int argc, char** argv) {
         spdlog::error("seed {} room {}: {}", seed, room.id.to_string(), bytes.error().message);
         return 1;
       }
-      double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0)
-                      .count();
+      double ms =
+          std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
       RoomShape s = measure(*m, room);
       s.floored = cave::floor_height(world->params(), room.sphere).has_value();
       s.bytes = static_cast<double>(bytes->size());
@@ -197,24 +197,26 @@ int main(int argc, char** argv) {
                           {"bytes_max", percentile(bytes, 1.0)},
                           {"vertices_max", max_vertices},
                           {"ms_per_room_median", percentile(ms, 0.5)},
-                          {"ms_per_room_mean", [&] {
+                          {"ms_per_room_mean",
+                           [&] {
                              double sum = 0;
-                             for (double x : ms) sum += x;
+                             for (double x : ms)
+                               sum += x;
                              return ms.empty() ? 0 : sum / static_cast<double>(ms.size());
                            }()},
                           {"big", rooms}};
     if (largest) {
-      row["largest"] = {{"room", largest->id},        {"radius", largest->radius},
-                        {"kept_m", largest->kept_m},  {"near10_m", largest->near10_m},
+      row["largest"] = {{"room", largest->id},         {"radius", largest->radius},
+                        {"kept_m", largest->kept_m},   {"near10_m", largest->near10_m},
                         {"width_m", largest->width_m}, {"height_m", largest->height_m}};
-      std::printf("| %llu | %zu | %zu | %.2f (%.2f) | %s: %.1f, %.1f, %.1f, %.0f x %.0f | %d | "
-                  "%.0f%% | %.0f / %.0f / %.0f | %zu | %.2f |\n",
-                  static_cast<unsigned long long>(seed), shapes.size(), kept.size(),
-                  percentile(kept, 0.5), kept_min, largest->id.c_str(), largest->radius,
-                  largest->kept_m, largest->near10_m, largest->width_m, largest->height_m, halls,
-                  up > 0 ? 100.0 * flat / up : 0.0, percentile(bytes, 0.5),
-                  percentile(bytes, 0.99), percentile(bytes, 1.0), max_vertices,
-                  row["ms_per_room_mean"].get<double>());
+      std::printf(
+          "| %llu | %zu | %zu | %.2f (%.2f) | %s: %.1f, %.1f, %.1f, %.0f x %.0f | %d | "
+          "%.0f%% | %.0f / %.0f / %.0f | %zu | %.2f |\n",
+          static_cast<unsigned long long>(seed), shapes.size(), kept.size(), percentile(kept, 0.5),
+          kept_min, largest->id.c_str(), largest->radius, largest->kept_m, largest->near10_m,
+          largest->width_m, largest->height_m, halls, up > 0 ? 100.0 * flat / up : 0.0,
+          percentile(bytes, 0.5), percentile(bytes, 0.99), percentile(bytes, 1.0), max_vertices,
+          row["ms_per_room_mean"].get<double>());
     }
     report["per_seed"].push_back(row);
   }

@@ -19,9 +19,9 @@
 namespace grotto::relief {
 
 struct BakeStats {
-  size_t moved = 0;        // vertices displaced (all but the rims')
-  double largest = 0;      // the largest displacement, metres
-  double largest_hang = 0; // the largest vertical speleothem offset, metres
+  size_t moved = 0;         // vertices displaced (all but the rims')
+  double largest = 0;       // the largest displacement, metres
+  double largest_hang = 0;  // the largest vertical speleothem offset, metres
 };
 
 // Displaces `mesh` (of `room`) by the relief at full strength and replaces its normals by the
@@ -48,8 +48,7 @@ inline BakeStats bake_relief(mesh::RoomMesh& mesh, const cave::Room& room, doubl
     const float rim_weight = static_cast<float>(1.0 - nearest / rim_fade);
     const glm::vec3 p{mesh.positions[v].x, mesh.positions[v].y, mesh.positions[v].z};
     const glm::vec3 n{mesh.normals[v].x, mesh.normals[v].y, mesh.normals[v].z};
-    const Relief r =
-        relief_at(p + origin, n, mesh.roughness[v], rim_weight, radius, 1.0f);
+    const Relief r = relief_at(p + origin, n, mesh.roughness[v], rim_weight, radius, 1.0f);
     const glm::vec3 moved = relief_displace(p, n, r);
     const glm::vec3 normal = relief_displaced_normal(n, r.gradient, r.hang_gradient);
     mesh.positions[v] = {moved.x, moved.y, moved.z};

@@ -10,10 +10,10 @@
 #include "cave/layout.hpp"
 #include "cave/svg.hpp"
 #include "glb.hpp"
-#include "shaders/relief_bake.hpp"
 #include "kernels/room_builder.hpp"
 #include "preview.hpp"
 #include "proto/layout_json.hpp"
+#include "shaders/relief_bake.hpp"
 
 namespace {
 
@@ -104,13 +104,15 @@ void bake_meshes(const grotto::cave::Region& region, RegionMeshes& meshes) {
   double largest = 0, hang = 0;
   for (size_t i = 0; i < region.rooms.size(); ++i) {
     if (!meshes.errors[i].empty()) continue;
-    grotto::relief::BakeStats s = grotto::relief::bake_relief(meshes.built[next++], region.rooms[i]);
+    grotto::relief::BakeStats s =
+        grotto::relief::bake_relief(meshes.built[next++], region.rooms[i]);
     moved += s.moved;
     largest = std::max(largest, s.largest);
     hang = std::max(hang, s.largest_hang);
   }
-  spdlog::info("event=relief_baked meshes={} vertices={} largest_m={:.2f} longest_speleothem_m={:.2f}",
-               next, moved, largest, hang);
+  spdlog::info(
+      "event=relief_baked meshes={} vertices={} largest_m={:.2f} longest_speleothem_m={:.2f}", next,
+      moved, largest, hang);
 }
 
 // glTF 2.0 binary: every room of the region a node, with its mesh where it could be built.
@@ -233,10 +235,11 @@ int main(int argc, char** argv) {
                  "Level of detail of --obj, --glb and --png: patch (streamed) or detail")
       ->check(CLI::IsMember({"patch", "detail"}))
       ->capture_default_str();
-  app.add_flag("--bake-relief", bake,
-               "Move the meshes of --obj, --glb and --png by the relief the client draws (the rock, "
-               "stalactites and stalagmites of shaders/relief.glsl; rims stay put): use with "
-               "--lod detail for an engine that does not tessellate");
+  app.add_flag(
+      "--bake-relief", bake,
+      "Move the meshes of --obj, --glb and --png by the relief the client draws (the rock, "
+      "stalactites and stalagmites of shaders/relief.glsl; rims stay put): use with "
+      "--lod detail for an engine that does not tessellate");
   app.add_option("--room", room_text, "Print one room as JSON instead, e.g. 0.0.0.r3 or 0.0.0.x1");
   app.add_option("--character", character,
                  "Use one character everywhere instead of the region mix: maze, shafts or caverns")

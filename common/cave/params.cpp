@@ -90,7 +90,7 @@ std::array<Character, kCharacterCount> LayoutParams::default_characters() {
   maze.big_radius_max = 7.0;
   maze.bias = {1.0, 0.12, 1.0};
   maze.tunnel_chance = 0.7;
-  maze.loops = 5;  // mazes are interconnected
+  maze.loops = 5;               // mazes are interconnected
   maze.hall_probability = 0.3;  // a breakdown chamber where the maze collapsed
   maze.hall_radius_min = 12.0;
   maze.hall_radius_max = 18.0;

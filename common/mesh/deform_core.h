@@ -276,6 +276,8 @@ GROTTO_FN gfloat3 grotto_deform_vertex(uint seed, GROTTO_CONSTANT const GrottoSh
   gfloat3 rim[GROTTO_MAX_PORTALS];
   gfloat3 rim_dir[GROTTO_MAX_PORTALS];
   gfloat3 spline_rim[GROTTO_MAX_PORTALS]; /* rim, pulled in near the axis line (axis_fade) */
+  /* Big rooms keep their sphere (below) and need no splines. */
+  const int big = room->big_amplitude != 0.0f && s->keep_distance > 0.0f;
   for (uint i = 0; i < n; ++i) {
     GROTTO_CONSTANT const GrottoPortal* p = portals + i;
     gfloat3 c = grotto_portal_centre(p);
@@ -285,12 +287,11 @@ GROTTO_FN gfloat3 grotto_deform_vertex(uint seed, GROTTO_CONSTANT const GrottoSh
     rim[i] = grotto_add(c, grotto_scale(rim_dir[i], grotto_rim_radius(seed, p, s, w0, rim_dir[i])));
     spline_rim[i] = rim[i];
     float fade = s->axis_fade < 0.5f * p->radius ? s->axis_fade : 0.5f * p->radius;
-    if (fade > 0.0f) {
+    if (!big && fade > 0.0f) {
       gfloat pulled =
           grotto_smooth(axis_distance / fade); /* the rim itself, bit for bit, beyond the fade */
-      spline_rim[i] = grotto_select3(axis_distance < fade,
-                                     grotto_add(c, grotto_scale(grotto_sub(rim[i], c), pulled)),
-                                     rim[i]);
+      spline_rim[i] = grotto_select3(
+          axis_distance < fade, grotto_add(c, grotto_scale(grotto_sub(rim[i], c), pulled)), rim[i]);
     }
   }
 
@@ -306,7 +307,6 @@ GROTTO_FN gfloat3 grotto_deform_vertex(uint seed, GROTTO_CONSTANT const GrottoSh
    * lies on every portal's axis line, turned into a portal's plane near it (below), so noise
    * never moves the wall across a plane. keep: 1 beyond keep_distance from every portal's
    * circle, for the wall's hold and the floor. */
-  const int big = room->big_amplitude != 0.0f && s->keep_distance > 0.0f;
   gfloat3 smooth_pos, axis;
   gfloat nearest, keep;
   if (big) {
@@ -373,8 +373,8 @@ GROTTO_FN gfloat3 grotto_deform_vertex(uint seed, GROTTO_CONSTANT const GrottoSh
     if (n == 1u) {
       gfloat h0 = -grotto_dot(grotto_sub(dead_end, grotto_portal_centre(portals)),
                               grotto_portal_normal(portals));
-      gfloat3 on_axis =
-          grotto_sub(grotto_portal_centre(portals), grotto_scale(grotto_portal_normal(portals), h0));
+      gfloat3 on_axis = grotto_sub(grotto_portal_centre(portals),
+                                   grotto_scale(grotto_portal_normal(portals), h0));
       dead_axis = grotto_add(
           on_axis, grotto_scale(grotto_sub(o, on_axis), grotto_smooth(h0 / (0.5f * room->radius))));
     }
@@ -458,12 +458,12 @@ GROTTO_FN gfloat3 grotto_deform_vertex(uint seed, GROTTO_CONSTANT const GrottoSh
     float f = s->floor_frequency;
     gfloat fx = (w0.x + pos.x) * f, fz = (w0.z + pos.z) * f;
     gfloat fy = GROTTO_SPLAT((room->wy + floor_y) * f);
-    gfloat target = floor_y + s->floor_amplitude * (grotto_noise(seed, fx, fy, fz) +
-                                                    0.5f * grotto_noise(seed, fz * 2.0f, fy,
-                                                                        fx * 2.0f));
+    gfloat target =
+        floor_y + s->floor_amplitude * (grotto_noise(seed, fx, fy, fz) +
+                                        0.5f * grotto_noise(seed, fz * 2.0f, fy, fx * 2.0f));
     gfloat rise = target - pos.y;
-    gfloat lifted = pos.y + 0.5f * (rise + grotto_sqrt(rise * rise +
-                                                       s->wall_softness * s->wall_softness));
+    gfloat lifted =
+        pos.y + 0.5f * (rise + grotto_sqrt(rise * rise + s->wall_softness * s->wall_softness));
     pos.y = pos.y + (lifted - pos.y) * keep;
   }
 

@@ -82,6 +82,15 @@ std::shared_ptr<const DonorSphere> build(int n) {
   d->corner.resize(d->directions.size());
   for (uint32_t c = 0; c < d->indices.size(); ++c)
     d->corner[d->indices[c]] = c;
+  // Vertex adjacency (compressed rows): each undirected edge once from each end.
+  d->adjacent_start.assign(d->directions.size() + 1, 0);
+  for (const auto& [e, t] : edges)
+    ++d->adjacent_start[(e >> 32) + 1];
+  for (size_t v = 0; v < d->directions.size(); ++v)
+    d->adjacent_start[v + 1] += d->adjacent_start[v];
+  d->adjacent.resize(edges.size());
+  for (size_t i = 0; i < edges.size(); ++i)
+    d->adjacent[i] = static_cast<uint32_t>(edges[i].first & 0xffffffffu);
   d->neighbours.resize(d->indices.size());
   for (uint32_t t = 0; t < nt; ++t) {
     for (int k = 0; k < 3; ++k) {

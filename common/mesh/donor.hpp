@@ -18,6 +18,8 @@ struct DonorSphere {
   std::vector<uint32_t> neighbours;
   // corner[v]: a corner 3t + k of a triangle at vertex v (indices[3t + k] == v).
   std::vector<uint32_t> corner;
+  // The vertices that share an edge with v: adjacent[adjacent_start[v] .. adjacent_start[v + 1]).
+  std::vector<uint32_t> adjacent_start, adjacent;
 };
 
 // The frequency that gives edges of about `edge_length` on a sphere of `radius`.

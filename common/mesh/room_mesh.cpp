@@ -24,7 +24,6 @@ Vec3 to_vec(float3 f) {
 float3 to_f3(Vec3 v) {
   return {static_cast<float>(v.x), static_cast<float>(v.y), static_cast<float>(v.z)};
 }
-// Height of a room-frame point above a portal plane, on the room's side positive.
 // Distance from v to a portal's disc (its plane within the radius, its rim beyond).
 double disc_distance(const core::GrottoPortal& p, Vec3 v) {
   Vec3 rel = v - Vec3{p.cx, p.cy, p.cz};
@@ -34,6 +33,7 @@ double disc_distance(const core::GrottoPortal& p, Vec3 v) {
   return std::sqrt(h * h + radial * radial);
 }
 
+// Height of a room-frame point above a portal plane, on the room's side positive.
 double height(const core::GrottoPortal& p, Vec3 v) {
   return -((v.x - p.cx) * p.nx + (v.y - p.cy) * p.ny + (v.z - p.cz) * p.nz);
 }
@@ -45,20 +45,7 @@ double height(const core::GrottoPortal& p, Vec3 v) {
 void keep_stray_band(const DonorSphere& donor, std::span<const float> clearance,
                      const std::vector<uint32_t>& cap_vertex, std::vector<char>& removed) {
   const size_t nv = removed.size();
-  // Vertex adjacency (compressed rows) over the donor's triangle edges.
-  std::vector<uint32_t> start(nv + 1, 0);
-  for (uint32_t v : donor.indices)
-    start[v + 1] += 2;
-  for (size_t v = 0; v < nv; ++v)
-    start[v + 1] += start[v];
-  std::vector<uint32_t> next(start.begin(), start.end() - 1), adjacent(start[nv]);
-  for (size_t t = 0; t < donor.indices.size(); t += 3) {
-    for (int k = 0; k < 3; ++k) {
-      uint32_t a = donor.indices[t + k], b = donor.indices[t + (k + 1) % 3];
-      adjacent[next[a]++] = b;
-      adjacent[next[b]++] = a;
-    }
-  }
+  const auto& start = donor.adjacent_start;
   std::vector<char> reached(nv, 0);
   std::vector<uint32_t> queue;
   for (uint32_t c : cap_vertex) {
@@ -66,7 +53,7 @@ void keep_stray_band(const DonorSphere& donor, std::span<const float> clearance,
   }
   for (size_t q = 0; q < queue.size(); ++q) {
     for (uint32_t e = start[queue[q]]; e < start[queue[q] + 1]; ++e) {
-      uint32_t w = adjacent[e];
+      uint32_t w = donor.adjacent[e];
       if (removed[w] && !reached[w]) reached[w] = 1, queue.push_back(w);
     }
   }
@@ -290,7 +277,7 @@ DeformInput prepare_room(const MeshContext& ctx, const cave::Room& room, Lod lod
   in.lod = lod;
   in.origin = grid::snap(room.sphere.centre);
   in.donor = donor_sphere(std::min(donor_frequency(room.sphere.radius, ctx.edge_length(lod)),
-                                    ctx.params().lods[static_cast<int>(lod)].max_frequency));
+                                   ctx.params().lods[static_cast<int>(lod)].max_frequency));
   Vec3 o = room.sphere.centre - in.origin;
   core::float3 w = ctx.noise_position(in.origin);
   const MeshParams& p = ctx.params();

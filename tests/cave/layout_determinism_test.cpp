@@ -110,7 +110,8 @@ TEST(LayoutDeterminism, golden_digest_for_seed_42) {
   Region region = generate_region(world, {0, 0, 0}, {1, 1, 1});
   // Changed in issue 27: halls (a sector's hub, from a stream of its own) and floors (no portal
   // of a room with a floor opens below it).
-  EXPECT_EQ(digest(region.rooms), 0x5bee99baddc9382dull) << std::hex << "0x" << digest(region.rooms);
+  EXPECT_EQ(digest(region.rooms), 0x5bee99baddc9382dull)
+      << std::hex << "0x" << digest(region.rooms);
   EXPECT_EQ(spawn_room(world).to_string(), "0.0.0.r0");
 }
 

@@ -208,7 +208,8 @@ TEST_P(LayoutGeometry, no_portal_opens_below_a_floor) {
     ++floored;
     EXPECT_NEAR(*floor, r.sphere.centre.y - world_->params().floor_depth * r.sphere.radius, 1e-9);
     for (const Portal& p : r.portals) {
-      double lowest = p.centre.y - p.radius * std::sqrt(std::max(0.0, 1.0 - p.normal.y * p.normal.y));
+      double lowest =
+          p.centre.y - p.radius * std::sqrt(std::max(0.0, 1.0 - p.normal.y * p.normal.y));
       EXPECT_GE(lowest, *floor + world_->params().wall_clearance)
           << r.id.to_string() << " -> " << p.neighbour.to_string();
     }
@@ -240,7 +241,8 @@ TEST(Halls, a_character_without_halls_has_none) {
   World w = World::create(7, LayoutParams::uniform(maze)).value();
   for (int x = 0; x < 4; ++x) {
     SectorLayout s = generate_sector(w, {x, 0, 0});
-    for (const Room& r : s.rooms) EXPECT_LE(r.sphere.radius, maze.big_radius_max);
+    for (const Room& r : s.rooms)
+      EXPECT_LE(r.sphere.radius, maze.big_radius_max);
   }
 }
 

@@ -243,9 +243,10 @@ TEST(RoomMesh, halls_keep_their_volume_and_rest_on_flat_floors) {
   ASSERT_GE(floored, 2);
   std::sort(kept.begin(), kept.end());
   const double median = kept[kept.size() / 2];
-  std::printf("%zu big rooms keep a median %.2f of their radius (least %.2f); %d floors, %.0f %% of "
-              "the up-facing area within 15 degrees of horizontal\n",
-              kept.size(), median, kept.front(), floored, 100 * flat_area / up_area);
+  std::printf(
+      "%zu big rooms keep a median %.2f of their radius (least %.2f); %d floors, %.0f %% of "
+      "the up-facing area within 15 degrees of horizontal\n",
+      kept.size(), median, kept.front(), floored, 100 * flat_area / up_area);
   EXPECT_GE(median, 0.85);
   EXPECT_GE(flat_area / up_area, 0.6);
   EXPECT_GE(flat_at_floor / flat_area, 0.9);

@@ -53,8 +53,7 @@ std::optional<double> vertical_hit(const Triangle& t, double x, double z) {
 
 // The drawn floor's height under (x, z): the highest surface within 4 m of the hall's floor
 // (stalagmites reach 1.75 m, the stalactites of a ceiling 22 m up end far above).
-std::optional<double> ground_under(const CollisionWorld& world, const Hall& h, double x,
-                                   double z) {
+std::optional<double> ground_under(const CollisionWorld& world, const Hall& h, double x, double z) {
   Neighbourhood near;
   world.gather({x - 0.01, h.floor - 4, z - 0.01}, {x + 0.01, h.floor + 4, z + 0.01}, near);
   std::optional<double> top;
@@ -70,8 +69,8 @@ std::optional<double> ground_under(const CollisionWorld& world, const Hall& h, d
 std::string below_the_floor(const CollisionWorld& surface, const Hall& h, const Player& p) {
   const Vec3 feet = p.spheres()[0];
   const std::optional<double> ground = ground_under(surface, h, feet.x, feet.z);
-  if (!ground) return "no floor under the feet at " + std::to_string(feet.x) + "," +
-                      std::to_string(feet.z);
+  if (!ground)
+    return "no floor under the feet at " + std::to_string(feet.x) + "," + std::to_string(feet.z);
   const double clearance = feet.y - *ground;
   if (clearance < p.params().radius - 2 * p.params().skin)
     return "the feet sphere's centre is " + std::to_string(clearance) + " m above the floor";
@@ -79,7 +78,7 @@ std::string below_the_floor(const CollisionWorld& surface, const Hall& h, const 
 }
 
 struct Crossing {
-  std::string failed;  // the first reason, with the time
+  std::string failed;        // the first reason, with the time
   double distance_left = 0;  // horizontal metres from the far side at the end
   double highest = 0;        // the feet's greatest height above the hall's floor
   double lowest = 1e9;       // and least

@@ -400,7 +400,9 @@ struct Slope {
 
 Slope slope_along(float angle, float tilt) {
   const glm::vec3 fall{std::cos(angle), 0.0f, std::sin(angle)};
-  return {fall, {-fall.z, 0.0f, fall.x}, glm::normalize(glm::vec3(fall.x * tilt, -1, fall.z * tilt)),
+  return {fall,
+          {-fall.z, 0.0f, fall.x},
+          glm::normalize(glm::vec3(fall.x * tilt, -1, fall.z * tilt)),
           tilt};
 }
 
@@ -506,13 +508,15 @@ TEST(Relief, only_level_patches_need_the_columns_margin) {
   const glm::vec3 up{0, 1, 0}, down{0, -1, 0};
   EXPECT_TRUE(rl::relief_level_possible(up, up, up));
   EXPECT_TRUE(rl::relief_level_possible(down, down, down));
-  const glm::vec3 l = glm::normalize(glm::vec3(-0.6f, 0.8f, 0)), r = glm::normalize(glm::vec3(0.6f, 0.8f, 0));
+  const glm::vec3 l = glm::normalize(glm::vec3(-0.6f, 0.8f, 0)),
+                  r = glm::normalize(glm::vec3(0.6f, 0.8f, 0));
   EXPECT_TRUE(rl::relief_level_possible(l, r, r)) << "their blend points straight up";
   // And there a column reaches past the tight margin.
   float deepest = 0;
   for (const glm::vec3& c : column_centres())
-    deepest = std::max(deepest, std::abs(rl::relief_at(c + glm::vec3(0, 3, 0), down, 0.0f, 0.0f,
-                                                        kSmall, 1.0f).hang));
+    deepest = std::max(
+        deepest,
+        std::abs(rl::relief_at(c + glm::vec3(0, 3, 0), down, 0.0f, 0.0f, kSmall, 1.0f).hang));
   EXPECT_GT(deepest, tight);
 }
 
