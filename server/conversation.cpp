@@ -439,14 +439,15 @@ void Conversation::fail(const Error& error, proto::Ref ref, std::vector<uint32_t
   e.fatal = true;
   e.versions = std::move(versions);
   send_error(std::move(e));
-  close(close_code_for(error.code), proto::wire_code_name(error.code));
+  close(close_code_for(error.code), proto::wire_code_name(error.code),
+        error.code != ErrorCode::kTimeout);
 }
 
-void Conversation::close(CloseCode code, std::string reason) {
+void Conversation::close(CloseCode code, std::string reason, bool await_reply) {
   log_unlogged();
   spdlog::info("event=closing session={} code={} reason={}", config_.session,
                static_cast<int>(code), reason);
-  emit(act::Close{code, std::move(reason)});
+  emit(act::Close{code, std::move(reason), await_reply});
   state_ = State::kClosed;
 }
 

@@ -87,6 +87,11 @@ struct Pace {  // (re)arm the bandwidth timer: pace() is called when it fires
 struct Close {  // close with this code and reason once what is queued before it has been sent
   CloseCode code = CloseCode::kNormal;
   std::string reason;
+  // Wait for the client's close frame (up to the HTTP timeout) before closing TCP. False after
+  // `timeout`: a client silent that long, or stopped in the middle of a frame (inside which its
+  // close frame would be read as payload), is not worth the wait; the session waits a short
+  // grace instead (PROTOCOL.md, Closing).
+  bool await_reply = true;
   friend bool operator==(const Close&, const Close&) = default;
 };
 }  // namespace act
@@ -167,7 +172,7 @@ class Conversation {
   // A fatal error: the error, then the close (close_code_for its code); everything held is
   // released first.
   void fail(const Error& error, proto::Ref ref, std::vector<uint32_t> versions = {});
-  void close(CloseCode code, std::string reason);
+  void close(CloseCode code, std::string reason, bool await_reply = true);
   void release();
   template <class A>
   void emit(A action) {

@@ -51,7 +51,8 @@ using Clock = std::chrono::steady_clock;
 
 constexpr std::size_t kHttpHeaderLimit = 8 * 1024;  // request line and headers
 constexpr std::size_t kHttpBodyLimit = 8 * 1024;    // no endpoint takes a body
-// A dropped client gets this long to take its close frame before the socket is cut.
+// A dropped client, or one closed for `timeout`, gets this long to take its close frame (and answer
+// it) before the socket is cut.
 constexpr auto kCloseGrace = std::chrono::milliseconds{1000};
 // How much of a message is read at a time (bounds what a message over the limit costs).
 constexpr std::size_t kReadPiece = 16 * 1024;
@@ -410,7 +411,7 @@ class WsSession : public std::enable_shared_from_this<WsSession>, private WorldP
     if (closing_) return;
     close_code_ = websocket::close_reason(static_cast<websocket::close_code>(a.code), a.reason);
     close_after_flush_ = true;
-    begin_closing(dropped_ ? kCloseGrace : server_.config.http_timeout);
+    begin_closing(dropped_ || !a.await_reply ? kCloseGrace : server_.config.http_timeout);
     if (!queue_.writing()) do_write();
   }
 
@@ -782,7 +783,9 @@ void Server::Impl::do_accept() {
 }
 
 void Server::Impl::on_accept(beast::error_code ec, tcp::socket socket) {
-  if (stopping.load() || !acceptor->is_open()) return;
+  // While stopping, the acceptor stays open until the drain ends: a connection arriving then is
+  // answered (an upgrade gets service_restart and close 1001, /readyz 503), not refused at TCP.
+  if (!acceptor->is_open()) return;
   if (!ec) {
     accept_backoff = std::chrono::milliseconds{0};
     beast::error_code ignored;
@@ -827,7 +830,7 @@ void Server::Impl::on_accept(beast::error_code ec, tcp::socket socket) {
   accept_pause->expires_after(accept_backoff);
   // Cancelled by stop(), or early by a reserve coming back (reserve_returned).
   accept_pause->async_wait([this](beast::error_code) {
-    if (!stopping.load()) do_accept();
+    if (acceptor->is_open()) do_accept();
   });
 }
 
@@ -989,19 +992,11 @@ void Server::stop(std::chrono::milliseconds drain) {
   auto& s = *impl_;
   auto deadline = Clock::now() + drain;
   spdlog::info("event=stopping drain_ms={}", drain.count());
+  // From here on admit() refuses every upgrade with service_restart, but the acceptor stays open
+  // until the drain ends (PROTOCOL.md, Closing): a client that arrives during it is told to go
+  // elsewhere with a random delay, as the players being drained are, instead of meeting a TCP
+  // refusal it cannot tell from a dead server. Bounded: by max_sockets() and the drain.
   s.stopping.store(true);
-  {
-    // Stop accepting (on the acceptor's strand; wait for it so no accept races the rest).
-    std::promise<void> closed;
-    auto done = closed.get_future();
-    net::dispatch(*s.accept_strand, [&] {
-      beast::error_code ignored;
-      s.acceptor->close(ignored);
-      s.accept_pause->cancel();
-      closed.set_value();
-    });
-    done.wait_for(std::chrono::milliseconds{1000});
-  }
   std::vector<std::shared_ptr<WsSession>> live;
   {
     std::lock_guard lock(s.sessions_mutex);
@@ -1022,6 +1017,19 @@ void Server::stop(std::chrono::milliseconds drain) {
     for (auto& [id, weak] : s.sessions) {
       if (auto p = weak.lock()) live.push_back(std::move(p));
     }
+  }
+  {
+    // The drain is over: stop accepting (on the acceptor's strand; wait for it so no accept races
+    // the rest). Connections arriving from now on are refused at TCP.
+    std::promise<void> closed;
+    auto done = closed.get_future();
+    net::dispatch(*s.accept_strand, [&] {
+      beast::error_code ignored;
+      s.acceptor->close(ignored);
+      s.accept_pause->cancel();
+      closed.set_value();
+    });
+    done.wait_for(std::chrono::milliseconds{1000});
   }
   if (!live.empty()) {
     spdlog::warn("event=drain_timeout sessions_left={}", live.size());

@@ -36,11 +36,12 @@ class Server {
   std::string address() const;  // "127.0.0.1:7878", as bound
   const ServerConfig& config() const;
 
-  // Graceful and bounded: stops accepting, refuses new work, sends every session an error
-  // `service_restart` and closes it (close code 1001, reason "service_restart"), shuts the
-  // generator down (queued rooms fail, building ones finish), waits up to `drain` for the
-  // sessions to close, then cuts what is left and joins the I/O threads. Returns within about
-  // `drain` plus the time to join. Idempotent.
+  // Graceful and bounded: refuses new work, sends every session an error `service_restart` and
+  // closes it (close code 1001, reason "service_restart"), shuts the generator down (queued rooms
+  // fail, building ones finish), waits up to `drain` for the sessions to close, then stops
+  // accepting, cuts what is left and joins the I/O threads. Connections arriving during the
+  // drain are accepted and sent `service_restart` as they upgrade (PROTOCOL.md, "Refused at the
+  // door"). Returns within about `drain` plus the time to join. Idempotent.
   void stop(std::chrono::milliseconds drain);
   bool stopping() const;
 

@@ -83,7 +83,9 @@ std::string describe(const Action& action) {
     }
     std::string operator()(const act::Pace& a) { return "pace " + std::to_string(a.after.count()); }
     std::string operator()(const act::Close& a) {
-      return "close " + std::to_string(static_cast<int>(a.code)) + " " + a.reason;
+      // "now": without waiting for the client's close frame (only the short grace).
+      return "close " + std::to_string(static_cast<int>(a.code)) + " " + a.reason +
+             (a.await_reply ? "" : " now");
     }
 
     static std::string ref_text(const proto::Ref& ref) {
@@ -329,7 +331,7 @@ TEST(Conversation, admission_and_the_handshake) {
       {"no hello within handshake_timeout_ms: timeout, 1008",
        {admit()},
        deadline(),
-       {"error timeout fatal", "close 1008 timeout"},
+       {"error timeout fatal", "close 1008 timeout now"},
        State::kClosed},
       {"a second hello: out_of_order, whatever its fields",
        kOpen,
@@ -339,13 +341,25 @@ TEST(Conversation, admission_and_the_handshake) {
   });
 }
 
-TEST(Conversation, the_token_comes_before_everything_in_hello) {
+// PROTOCOL.md, "Which error a message gets": the token is the first thing checked of what hello
+// asks (step 6), before the version and the world; the message's form (steps 1-5) comes first.
+TEST(Conversation, the_token_comes_first_of_what_hello_asks) {
   run(
       {
-          {"missing token",
+          {"missing token, before the version and the world",
            {admit()},
            text(R"({"type":"hello","versions":[9],"seed":"8"})"),
            {"error unauthorized fatal", "close 1008 unauthorized"},
+           State::kClosed},
+          {"wrong token, before another parameter digest",
+           {admit()},
+           text(R"({"type":"hello","versions":[1],"params":"0000000000000001","token":"x"})"),
+           {"error unauthorized fatal", "close 1008 unauthorized"},
+           State::kClosed},
+          {"a malformed field goes before the token (step 5 before step 6)",
+           {admit()},
+           text(R"({"type":"hello","ref":2,"versions":"1","token":"guess"})"),
+           {"error bad_message fatal ref=2", "close 1008 bad_message"},
            State::kClosed},
           {"wrong token",
            {admit()},
@@ -359,6 +373,53 @@ TEST(Conversation, the_token_comes_before_everything_in_hello) {
            State::kOpen},
       },
       config("s3cret"));
+}
+
+// A server without a token checks the field's form as it checks every field's (a client learns
+// of a malformed token from any server, not first from the one that needs it), then ignores it.
+TEST(Conversation, without_a_token_the_field_is_checked_then_ignored) {
+  run({
+      {"any well-formed token is ignored",
+       {admit()},
+       text(R"({"type":"hello","versions":[1],"token":"anything at all"})"),
+       {"welcome v1 seed=7", "timer 60000"},
+       State::kOpen},
+      {"a token over 256 bytes is too_large",
+       {admit()},
+       text(R"({"type":"hello","versions":[1],"token":")" + std::string(257, 'k') + R"("})"),
+       {"error too_large fatal", "close 1009 too_large"},
+       State::kClosed},
+      {"an empty token is bad_message",
+       {admit()},
+       text(R"({"type":"hello","versions":[1],"token":""})"),
+       {"error bad_message fatal", "close 1008 bad_message"},
+       State::kClosed},
+      {"a token with a control character is bad_message",
+       {admit()},
+       text(R"({"type":"hello","versions":[1],"token":"a\u0001b"})"),
+       {"error bad_message fatal", "close 1008 bad_message"},
+       State::kClosed},
+  });
+}
+
+// What PROTOCOL.md says of the token agrees with the two tests above: its form is checked by
+// every server, and it is checked after the message's form, first of what hello asks.
+TEST(Conversation, protocol_md_states_the_token_rules_the_code_follows) {
+  std::ifstream in(GROTTO_PROTOCOL_MD);
+  ASSERT_TRUE(in.good()) << GROTTO_PROTOCOL_MD;
+  std::string token_field, unauthorized_row;
+  for (std::string line; std::getline(in, line);) {
+    if (line.starts_with("| | `token` |")) token_field = line;
+    if (line.starts_with("| `unauthorized` |")) unauthorized_row = line;
+  }
+  ASSERT_FALSE(token_field.empty());
+  ASSERT_FALSE(unauthorized_row.empty());
+  EXPECT_EQ(token_field.find("ignores the field"), std::string::npos) << token_field;
+  EXPECT_NE(token_field.find("A server without one checks its form"), std::string::npos)
+      << token_field;
+  EXPECT_EQ(unauthorized_row.find("before anything else"), std::string::npos) << unauthorized_row;
+  EXPECT_NE(unauthorized_row.find("first of what `hello` asks"), std::string::npos)
+      << unauthorized_row;
 }
 
 TEST(Conversation, questions_after_welcome) {
@@ -392,7 +453,7 @@ TEST(Conversation, questions_after_welcome) {
       {"silence for idle_timeout_ms: timeout",
        kOpen,
        deadline(),
-       {"release", "error timeout fatal", "close 1008 timeout"},
+       {"release", "error timeout fatal", "close 1008 timeout now"},
        State::kClosed},
   });
 }

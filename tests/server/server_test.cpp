@@ -3,7 +3,9 @@
 // (kWait), so a broken server fails a test instead of hanging it. Faults (out of descriptors,
 // squatters, slow readers, floods, broken caches) are tests/faults/.
 #include <gtest/gtest.h>
+#include <poll.h>
 #include <signal.h>
+#include <sys/socket.h>
 #include <unistd.h>
 
 #include <chrono>
@@ -13,6 +15,7 @@
 #include <map>
 #include <optional>
 #include <regex>
+#include <set>
 #include <span>
 #include <thread>
 
@@ -658,6 +661,194 @@ TEST(ServerShutdown, stop_closes_every_session_with_service_restart_in_bounded_t
   EXPECT_LT(Clock::now() - t0, 4s);
   reader.join();
   EXPECT_EQ(http_get(server->port(), "/healthz").status, 0);  // no longer listening
+}
+
+// ---- what PROTOCOL.md's Closing section promises (issue 29, item 6) ----
+
+// A client frame as the wire carries it (masked, as RFC 6455 requires of clients), or unmasked.
+std::string client_frame(uint8_t first_byte, const std::string& payload, bool masked = true) {
+  std::string f(1, static_cast<char>(first_byte));
+  const char mask[4] = {0x11, 0x22, 0x33, 0x44};
+  f += static_cast<char>((masked ? 0x80 : 0) | payload.size());  // payloads under 126 bytes here
+  if (masked) f.append(mask, 4);
+  for (size_t i = 0; i < payload.size(); ++i)
+    f += masked ? static_cast<char>(payload[i] ^ mask[i % 4]) : payload[i];
+  return f;
+}
+
+// Bytes written straight to the client's socket, behind Beast's back.
+void send_raw(Client& client, const std::string& bytes) {
+  int fd = beast::get_lowest_layer(client.ws()).socket().native_handle();
+  ASSERT_EQ(::send(fd, bytes.data(), bytes.size(), MSG_NOSIGNAL),
+            static_cast<ssize_t>(bytes.size()));
+}
+
+// Everything the server sends until it ends the TCP connection; `eof` false if it had not within
+// `timeout`.
+struct RawRead {
+  std::string bytes;
+  bool eof = false;
+};
+RawRead read_raw_until_eof(Client& client, std::chrono::milliseconds timeout = kWait) {
+  int fd = beast::get_lowest_layer(client.ws()).socket().native_handle();
+  RawRead out;
+  auto deadline = Clock::now() + timeout;
+  while (Clock::now() < deadline) {
+    pollfd p{fd, POLLIN, 0};
+    if (::poll(&p, 1, 50) <= 0) continue;
+    char buf[4096];
+    ssize_t n = ::recv(fd, buf, sizeof buf, 0);
+    if (n <= 0) {
+      out.eof = true;  // FIN, or a reset: either way the connection is over
+      break;
+    }
+    out.bytes.append(buf, static_cast<size_t>(n));
+  }
+  return out;
+}
+
+// The close code of the first close frame among unmasked server frames; 0 if none.
+int close_code_in(const std::string& bytes) {
+  size_t at = 0;
+  while (at + 2 <= bytes.size()) {
+    auto op = static_cast<uint8_t>(bytes[at]) & 0x0f;
+    size_t len = static_cast<uint8_t>(bytes[at + 1]) & 0x7f, head = 2;
+    if (len == 126) {
+      if (at + 4 > bytes.size()) return 0;
+      len = (static_cast<uint8_t>(bytes[at + 2]) << 8) | static_cast<uint8_t>(bytes[at + 3]);
+      head = 4;
+    }
+    if (op == 8 && len >= 2 && at + head + 2 <= bytes.size()) {
+      return (static_cast<uint8_t>(bytes[at + head]) << 8) |
+             static_cast<uint8_t>(bytes[at + head + 1]);
+    }
+    at += head + len;
+  }
+  return 0;
+}
+
+// A connection that arrives while the server drains is accepted and told service_restart (1001),
+// not refused at TCP (which a client cannot tell from a dead server).
+TEST(ServerShutdown, a_connection_arriving_during_the_drain_gets_service_restart) {
+  auto server = start(test_config());
+  ASSERT_TRUE(server);
+  Client holder(server->port());  // does not answer its close frame yet: the drain goes on
+  ASSERT_FALSE(holder.connect());
+  holder.hello();
+  std::thread stopper([&] { server->stop(kWait); });
+  auto deadline = Clock::now() + kWait;
+  while (!server->stopping() && Clock::now() < deadline)
+    std::this_thread::sleep_for(1ms);
+  ASSERT_TRUE(server->stopping());
+  EXPECT_EQ(http_get(server->port(), "/readyz").status, 503);
+  Client late(server->port());
+  ASSERT_FALSE(late.connect()) << "refused during the drain";
+  auto e = late.next_error();
+  ASSERT_TRUE(e);
+  EXPECT_EQ(e->code, ErrorCode::kServiceRestart);
+  EXPECT_TRUE(e->fatal);
+  EXPECT_FALSE(e->ref);  // before any hello
+  auto reason = late.wait_close();
+  EXPECT_EQ(reason.code, 1001);
+  EXPECT_EQ(std::string(reason.reason.c_str()), "service_restart");
+  // The holder answers its close: the drain ends, and then the port is closed.
+  EXPECT_EQ(holder.wait_close().code, 1001);
+  stopper.join();
+  EXPECT_EQ(http_get(server->port(), "/healthz").status, 0);
+}
+
+// A client stopped in the middle of a frame cannot answer a close frame (the server would read it
+// as that frame's payload): after `timeout` the server ends the TCP connection within its short
+// grace, not after its HTTP timeout (here far longer than the test waits).
+TEST(ServerLimits, a_timeout_ends_the_connection_even_in_the_middle_of_a_frame) {
+  auto c = test_config();
+  c.limits.handshake_timeout_ms = 200;
+  c.limits.idle_timeout_ms = 300;
+  c.http_timeout = 600s;
+  auto server = start(c);
+  ASSERT_TRUE(server);
+  const std::string partial = client_frame(0x81, R"({"type":"ping","t":1,"pad":"xxxxxxxx"})");
+  for (bool welcomed : {false, true}) {
+    SCOPED_TRACE(welcomed ? "idle timeout" : "handshake timeout");
+    Client client(server->port());
+    ASSERT_FALSE(client.connect());
+    if (welcomed) client.hello();
+    send_raw(client, partial.substr(0, 10));  // header, mask and 4 of its payload bytes
+    auto got = read_raw_until_eof(client);
+    EXPECT_NE(got.bytes.find("\"code\":\"timeout\""), std::string::npos) << got.bytes;
+    EXPECT_EQ(close_code_in(got.bytes.substr(got.bytes.find("\"fatal\":true}") + 13)), 1008);
+    EXPECT_TRUE(got.eof) << "the server kept the connection open past the grace";
+    // The client answers the close frame (behind its partial frame, so never read as one).
+    send_raw(client, client_frame(0x88, std::string("\x03\xe8", 2)));
+  }
+}
+
+// Every close code the server sends, over real connections, is one PROTOCOL.md's Closing table
+// lists: its own closes, the WebSocket layer's (1002, 1007) and its echo of a client's close.
+TEST(ServerSession, every_close_code_the_server_sends_is_in_the_closing_table) {
+  std::set<int> documented;
+  {
+    std::ifstream in(GROTTO_PROTOCOL_MD);
+    ASSERT_TRUE(in.good()) << GROTTO_PROTOCOL_MD;
+    bool inside = false;
+    for (std::string line; std::getline(in, line);) {
+      if (line.starts_with("#")) inside = line == "### Closing";
+      if (inside && line.starts_with("| 1")) documented.insert(std::stoi(line.substr(2, 4)));
+    }
+  }
+  auto c = test_config();
+  c.limits.max_message_bytes = 1024;
+  auto server = start(c);
+  ASSERT_TRUE(server);
+  std::map<std::string, int> sent;  // what happened -> the close code the server sent
+  for (auto code : {websocket::close_code::normal, websocket::close_code::going_away}) {
+    Client client(server->port());
+    ASSERT_FALSE(client.connect());
+    client.hello();
+    client.close(code);  // the server's answer is the close reason Beast read
+    sent["client closed " + std::to_string(static_cast<int>(code))] = client.ws().reason().code;
+  }
+  {
+    Client client(server->port());
+    ASSERT_FALSE(client.connect());
+    send_raw(client, client_frame(0x81, "hi", /*masked=*/false));
+    sent["unmasked frame"] = close_code_in(read_raw_until_eof(client).bytes);
+  }
+  {
+    Client client(server->port());
+    ASSERT_FALSE(client.connect());
+    client.hello();
+    client.send("{\"type\":\"ping\",\"t\":1,\"x\":\"caf\xe9\"}");
+    sent["invalid UTF-8"] = client.wait_close().code;
+  }
+  {
+    Client client(server->port());
+    ASSERT_FALSE(client.connect());
+    client.send("nonsense");
+    sent["bad_json before welcome"] = client.wait_close().code;
+  }
+  {
+    Client client(server->port());
+    ASSERT_FALSE(client.connect());
+    client.hello();
+    client.send(std::string(2000, ' '));
+    sent["message over max_message_bytes"] = client.wait_close().code;
+  }
+  Client player(server->port());
+  ASSERT_FALSE(player.connect());
+  player.hello();
+  std::thread stopper([&] { server->stop(kWait); });
+  sent["shutdown"] = player.wait_close().code;
+  stopper.join();
+  EXPECT_EQ(sent["client closed 1000"], 1000);
+  EXPECT_EQ(sent["client closed 1001"], 1001);
+  EXPECT_EQ(sent["unmasked frame"], 1002);
+  EXPECT_EQ(sent["invalid UTF-8"], 1007);
+  EXPECT_EQ(sent["bad_json before welcome"], 1008);
+  EXPECT_EQ(sent["message over max_message_bytes"], 1009);
+  EXPECT_EQ(sent["shutdown"], 1001);
+  for (const auto& [what, code] : sent)
+    EXPECT_TRUE(documented.contains(code)) << what << ": close " << code << " is not documented";
 }
 
 // ---- configuration ----
