@@ -51,7 +51,7 @@ using WorldPtr = std::shared_ptr<WorldSlot>;
 
 // One room at one lod, wanted by one or more clients: built at most once while it exists.
 struct Job {
-  enum class Stage { kQueued, kBuilding };
+  enum class Stage { kQueued, kFetching, kBuilding };
   RoomKey key;
   WorldPtr world;
   Stage stage = Stage::kQueued;
@@ -82,6 +82,7 @@ struct Client {
   ClientId id = 0;
   WorldPtr world;
   uint32_t version = proto::kProtocolVersion;  // of the frames it gets
+  Build build = Build::kAnywhere;
   Generator::DeliverFn deliver;
   std::map<RoomKey, Waiting, RoomKeyLess> wants;
   std::set<QueueEntry> queue;  // wants whose job is queued
@@ -138,6 +139,8 @@ struct Generator::State {
   std::vector<std::optional<kernels::RoomBuilder>> builders;
   int builders_ready = 0;
   int workers_exited = 0;
+  int fetches = 0;                     // asked of config.owners, not yet answered
+  std::condition_variable fetched_cv;  // a fetch was answered
 
   // ---- under the lock ----
 
@@ -398,6 +401,82 @@ struct Generator::State {
     deliver_cv.notify_all();
   }
 
+  // Asks the room's owner for a new job's room (under the lock: fetch() only posts).
+  void fetch(const JobPtr& job) {
+    job->stage = Job::Stage::kFetching;
+    ++fetches;
+    config.owners->fetch(
+        job->key, config.owner_timeout,
+        [this, job](Result<std::vector<uint8_t>> bytes) { fetched(job, std::move(bytes)); });
+  }
+
+  // The owner's answer, on the fetcher's thread: the room for every waiter, or the job goes to
+  // this replica's builders.
+  void fetched(const JobPtr& job, Result<std::vector<uint8_t>> bytes) {
+    Result<RoomPtr> room = bytes ? checked(*job, std::move(bytes).value()) : bytes.error();
+    std::unique_lock lock(mutex);
+    std::vector<Outgoing> out;
+    --fetches;
+    fetched_cv.notify_all();
+    if (room) {
+      metrics.rooms_fetched.add();
+      cache.insert(*room);
+      finish_job(job, *room, std::nullopt, out);
+    } else {
+      metrics.owner_failures.add();
+      spdlog::warn("event=owner_fetch_failed seed={} room={} lod={} error=\"{}\"", job->key.seed,
+                   job->key.id.to_string(), job->key.lod, room.error().message);
+      if (job->waiters.empty()) {
+        if (auto it = jobs.find(job->key); it != jobs.end() && it->second == job) jobs.erase(it);
+      } else if (stopping) {
+        finish_job(job, nullptr,
+                   Error{ErrorCode::kServiceRestart, "the generation service is stopping"}, out);
+      } else {
+        // Built here: back into every waiter's queue, where it was (priority, then arrival).
+        job->stage = Job::Stage::kQueued;
+        job->created = Clock::now();
+        ++queued_jobs;
+        by_age.push_back(job);
+        for (ClientId id : job->waiters) {
+          Client& w = *clients.at(id);
+          Waiting& want = w.wants.at(job->key);
+          want.queued = true;
+          w.queue.insert({want.priority, want.seq, job->key});
+          touch(w);
+        }
+        work_cv.notify_all();
+      }
+    }
+    deliver(lock, out);
+  }
+
+  // A frame from the owner, checked as untrusted input: it decodes, is of this key (version,
+  // room, lod), and its room descriptor is byte for byte this replica's layout of the room (the
+  // same world); the Draco payload is taken as it is.
+  Result<RoomPtr> checked(const Job& job, std::vector<uint8_t> bytes) {
+    proto::Limits limits;
+    limits.max_lod = kMaxServedLod;
+    Result<proto::RoomFrame> frame = proto::decode_room_frame(bytes, limits);
+    if (!frame) return Error{ErrorCode::kBadFrame, "the owner's frame: " + frame.error().message};
+    if (frame->version != job.key.version || frame->lod != job.key.lod ||
+        !(frame->room.id == job.key.id)) {
+      return Error{ErrorCode::kBadFrame, "the owner answered room " + frame->room.id.to_string() +
+                                             " lod " + std::to_string(frame->lod) + " version " +
+                                             std::to_string(frame->version) + " for another key"};
+    }
+    Result<cave::Room> ours = job.world->sectors.room(job.key.id);
+    if (!ours) return ours.error();
+    if (proto::encode_room_frame(*ours, frame->lod, frame->origin, frame->payload,
+                                 frame->version) != bytes) {
+      return Error{ErrorCode::kBadFrame,
+                   "the owner's room " + job.key.id.to_string() + " is not this world's"};
+    }
+    auto encoded = std::make_shared<EncodedRoom>();
+    encoded->key = job.key;
+    encoded->frame = std::move(bytes);
+    return RoomPtr(std::move(encoded));
+  }
+
   // ---- outside the lock ----
 
   // Layout and build: a mesh (or the error) per job of the batch, in order, and each job's room.
@@ -621,13 +700,17 @@ Generator::~Generator() {
   for (std::thread& t : state_->threads) {
     if (t.joinable()) t.join();
   }
+  // A fetch's answer comes within owner_timeout (or at once when the source stops).
+  std::unique_lock lock(state_->mutex);
+  state_->fetched_cv.wait(lock, [&] { return state_->fetches == 0; });
 }
 
 ClientId Generator::add_client(DeliverFn deliver) {
   return *add_client(state_->home->world.seed(), std::move(deliver));  // its own world is open
 }
 
-Result<ClientId> Generator::add_client(uint64_t seed, DeliverFn deliver, uint32_t version) {
+Result<ClientId> Generator::add_client(uint64_t seed, DeliverFn deliver, uint32_t version,
+                                       Build build) {
   State& s = *state_;
   std::lock_guard lock(s.mutex);
   if (s.stopping && seed != s.home->world.seed()) {
@@ -640,6 +723,7 @@ Result<ClientId> Generator::add_client(uint64_t seed, DeliverFn deliver, uint32_
   client->id = s.next_client++;
   client->world = std::move(world).value();
   client->version = version;
+  client->build = build;
   ++client->world->clients;
   client->world->last_used = ++s.world_clock;
   client->deliver = std::move(deliver);
@@ -724,10 +808,14 @@ void Generator::request(ClientId id, std::span<const server::Want> wants) {
       job->created = now;
       job->waiters.push_back(id);
       s.jobs.emplace(key, job);
-      s.by_age.push_back(job);
-      ++s.queued_jobs;
-      want.queued = true;
-      queued = true;
+      if (s.config.owners && client->build == Build::kAnywhere) {
+        s.fetch(job);
+      } else {
+        s.by_age.push_back(job);
+        ++s.queued_jobs;
+        want.queued = true;
+        queued = true;
+      }
     }
     if (want.queued) {
       client->queue.insert({want.priority, want.seq, key});

@@ -24,6 +24,7 @@
 #include "kernels/room_builder.hpp"
 #include "mesh/params.hpp"
 #include "proto/lod.hpp"
+#include "server/room_tier.hpp"
 #include "server/rooms.hpp"
 
 namespace grotto::server {
@@ -48,7 +49,17 @@ struct GeneratorConfig {
   // its turn among the urgent. 0: one class (plain round-robin).
   std::chrono::milliseconds urgent_within{1'000};
   kernels::RoomBuilder::Options builder{};  // OpenCL device choice (each worker has a builder)
+  // In a cluster (issue 29): where a room nobody here is building yet is asked for first (the
+  // room tier: its owner replica through nginx), for clients that may have it from there
+  // (Build::kAnywhere). A fetch that fails, answers something other than that room's frame, or
+  // takes longer than owner_timeout is built here instead. Null: every room is built here.
+  std::shared_ptr<RoomSource> owners;
+  std::chrono::milliseconds owner_timeout{1'000};
 };
+
+// Where a client's rooms may come from: kAnywhere, the room's owner when the generator has
+// owners, else built here; kHere, built here (the tier's requests to this replica as the owner).
+enum class Build { kAnywhere, kHere };
 
 // The build threads `config` runs: config.workers, or one per hardware thread when it is 0.
 size_t resolved_workers(const GeneratorConfig& config);
@@ -65,7 +76,7 @@ class Generator {
   static Result<std::unique_ptr<Generator>> create(const cave::World& world,
                                                    const mesh::MeshParams& mesh_params,
                                                    const GeneratorConfig& config, Metrics& metrics);
-  ~Generator();  // shutdown() then join
+  ~Generator();  // shutdown(), then joins the workers and waits for fetches in flight
 
   // A client of the generator's own world, speaking the newest protocol version.
   ClientId add_client(DeliverFn deliver);
@@ -74,7 +85,8 @@ class Generator {
   // Errors: world_mismatch when max_worlds is 1 and the seed is not the generator's; overloaded
   // when max_worlds worlds are open and each has clients.
   Result<ClientId> add_client(uint64_t seed, DeliverFn deliver,
-                              uint32_t version = proto::kProtocolVersion);
+                              uint32_t version = proto::kProtocolVersion,
+                              Build build = Build::kAnywhere);
   // Forgets the client: its queued wants are dropped (jobs nobody else wants are never built) and
   // nothing more is delivered to it once this returns.
   void remove_client(ClientId client);

@@ -177,6 +177,12 @@ std::string Metrics::render() const {
           rooms_deduplicated.value());
   counter(out, "grotto_rooms_failed_total", "Room jobs that ended in an error.",
           rooms_failed.value());
+  counter(out, "grotto_rooms_fetched_total",
+          "Rooms this replica had from their owner through the room tier instead of building them.",
+          rooms_fetched.value());
+  counter(out, "grotto_owner_failures_total",
+          "Rooms asked of their owner that failed, came late or were wrong, and were built here.",
+          owner_failures.value());
   counter(out, "grotto_batches_total", "Room build calls (one kernel launch each on OpenCL).",
           batches.value());
   gauge(out, "grotto_queue_depth", "Room jobs queued, not yet building.", queue_depth.value());

@@ -80,6 +80,8 @@ class Metrics {
   Counter rooms_cancelled;         // grotto_rooms_cancelled_total (wants cancelled before sent)
   Counter rooms_deduplicated;      // grotto_rooms_deduplicated_total (joined a job in flight)
   Counter rooms_failed;            // grotto_rooms_failed_total
+  Counter rooms_fetched;           // grotto_rooms_fetched_total (from their owner, issue 29)
+  Counter owner_failures;          // grotto_owner_failures_total (fetches built here instead)
   Counter batches;                 // grotto_batches_total (build calls / kernel launches)
   Gauge queue_depth;               // grotto_queue_depth (jobs queued, not building)
   Gauge rooms_in_flight;           // grotto_rooms_in_flight (wants not yet answered, all clients)

@@ -983,5 +983,193 @@ TEST(GeneratorWorlds, max_worlds_out_of_range_is_refused_by_name) {
   EXPECT_NE(g.error().message.find("max_worlds"), std::string::npos) << g.error().message;
 }
 
+// ---- rooms from their owner (issue 29) ----
+
+// A room tier without sockets: each fetch is answered on a thread of its own (never inside
+// fetch(), as RoomSource promises) by `answer`.
+class FakeOwners final : public RoomSource {
+ public:
+  explicit FakeOwners(std::function<Result<std::vector<uint8_t>>(const RoomKey&)> answer)
+      : answer_(std::move(answer)) {}
+  ~FakeOwners() override {
+    for (std::thread& t : threads_)
+      t.join();
+  }
+  void fetch(const RoomKey& key, std::chrono::milliseconds, Done done) override {
+    std::lock_guard lock(mutex_);
+    asked_.push_back(key.id);
+    threads_.emplace_back([this, key, done = std::move(done)] {
+      std::unique_lock hold(gate_mutex_);
+      gate_cv_.wait(hold, [&] { return open_; });
+      hold.unlock();
+      done(answer_(key));
+    });
+  }
+  std::vector<cave::RoomId> asked() {
+    std::lock_guard lock(mutex_);
+    return asked_;
+  }
+  void hold() { open_ = false; }
+  void open() {
+    std::lock_guard lock(gate_mutex_);
+    open_ = true;
+    gate_cv_.notify_all();
+  }
+
+ private:
+  std::function<Result<std::vector<uint8_t>>(const RoomKey&)> answer_;
+  std::mutex mutex_;
+  std::vector<cave::RoomId> asked_;
+  std::vector<std::thread> threads_;
+  std::mutex gate_mutex_;
+  std::condition_variable gate_cv_;
+  bool open_ = true;
+};
+
+// The frame a generator of the test world builds for `id` (lod 0), through a Build::kHere client.
+std::vector<uint8_t> frame_built_by(Generator& gen, cave::RoomId id) {
+  Inbox inbox;
+  auto client =
+      gen.add_client(gen.world().seed(), inbox.fn(), proto::kProtocolVersion, Build::kHere);
+  EXPECT_TRUE(client.ok());
+  std::vector<Want> one = wants_of({id});
+  gen.request(*client, one);
+  EXPECT_TRUE(inbox.wait_for(1));
+  gen.remove_client(*client);
+  Delivery d = inbox.got().at(0);
+  return d.room ? d.room->frame : std::vector<uint8_t>{};
+}
+
+TEST(GeneratorOwners, rooms_come_from_their_owner_once_and_are_not_built_here) {
+  Metrics owner_metrics;
+  std::unique_ptr<Generator> owner = make_generator(cpu_config(), owner_metrics);
+  ASSERT_TRUE(owner);
+  auto owners =
+      std::make_shared<FakeOwners>([&](const RoomKey& key) -> Result<std::vector<uint8_t>> {
+        return frame_built_by(*owner, key.id);
+      });
+  owners->hold();
+  Metrics metrics;
+  GeneratorConfig config = cpu_config();
+  config.owners = owners;
+  std::unique_ptr<Generator> replica = make_generator(config, metrics);
+  ASSERT_TRUE(replica);
+  const std::vector<cave::RoomId> ids = existing_rooms(4);
+  Inbox a, b;
+  ClientId ca = replica->add_client(a.fn()), cb = replica->add_client(b.fn());
+  std::vector<Want> wa = wants_of(ids), wb = wants_of({ids[1], ids[2]});
+  replica->request(ca, wa);
+  replica->request(cb, wb);  // joins the fetches in flight
+  owners->open();
+  ASSERT_TRUE(a.wait_for(ids.size()));
+  ASSERT_TRUE(b.wait_for(2));
+  EXPECT_EQ(owners->asked().size(), ids.size()) << "one fetch per room, whoever wants it";
+  EXPECT_EQ(metrics.rooms_fetched.value(), ids.size());
+  EXPECT_EQ(metrics.rooms_built.value(), 0u);
+  EXPECT_EQ(metrics.owner_failures.value(), 0u);
+  for (const Delivery& d : a.got()) {
+    ASSERT_TRUE(d.room) << d.error->message;
+    EXPECT_EQ(d.room->frame, frame_built_by(*owner, d.key.id));
+  }
+  // Fetched rooms are cached like built ones.
+  Inbox c;
+  ClientId cc = replica->add_client(c.fn());
+  std::vector<Want> wc = wants_of({ids[0]});
+  replica->request(cc, wc);
+  ASSERT_EQ(c.size(), 1u);
+  EXPECT_TRUE(c.got()[0].from_cache);
+}
+
+TEST(GeneratorOwners, an_owner_that_fails_or_answers_wrong_bytes_is_built_here) {
+  Metrics reference_metrics;
+  std::unique_ptr<Generator> reference = make_generator(cpu_config(), reference_metrics);
+  ASSERT_TRUE(reference);
+  const std::vector<cave::RoomId> ids = existing_rooms(5);
+  const cave::World other = cave::World::create(43, cave::LayoutParams{}).value();
+  // Each room's owner goes wrong in its own way: unreachable, garbage, another room's frame,
+  // the same room at another lod, and the same id in another world.
+  std::map<cave::RoomId, std::function<Result<std::vector<uint8_t>>()>> answers = {
+      {ids[0],
+       [] {
+         return Error{ErrorCode::kUnavailable, "connection refused"};
+       }},
+      {ids[1], [] { return std::vector<uint8_t>{'G', 'R', 'T', 'O', 1, 2, 3}; }},
+      {ids[2], [&] { return frame_built_by(*reference, ids[3]); }},
+      {ids[3],
+       [&] {
+         Inbox inbox;
+         auto c = reference->add_client(test_world().seed(), inbox.fn(), proto::kProtocolVersion,
+                                        Build::kHere);
+         std::vector<Want> w = {{ids[3], 1, 0}};
+         reference->request(*c, w);
+         EXPECT_TRUE(inbox.wait_for(1));
+         reference->remove_client(*c);
+         return inbox.got()[0].room->frame;
+       }},
+      {ids[4],
+       [&]() -> Result<std::vector<uint8_t>> {
+         Metrics m;
+         auto g = Generator::create(other, mesh::MeshParams{}, cpu_config(), m);
+         if (!g) return g.error();
+         // A room of the other world with the same id (sector 0,0,0 has enough rooms).
+         return frame_built_by(**g, ids[4]);
+       }},
+  };
+  auto owners =
+      std::make_shared<FakeOwners>([&](const RoomKey& key) { return answers.at(key.id)(); });
+  Metrics metrics;
+  GeneratorConfig config = cpu_config();
+  config.owners = owners;
+  std::unique_ptr<Generator> replica = make_generator(config, metrics);
+  ASSERT_TRUE(replica);
+  Inbox inbox;
+  ClientId c = replica->add_client(inbox.fn());
+  std::vector<Want> w = wants_of(ids);
+  replica->request(c, w);
+  ASSERT_TRUE(inbox.wait_for(ids.size()));
+  EXPECT_EQ(metrics.owner_failures.value(), ids.size());
+  EXPECT_EQ(metrics.rooms_fetched.value(), 0u);
+  EXPECT_EQ(metrics.rooms_built.value(), ids.size());
+  for (const Delivery& d : inbox.got()) {
+    ASSERT_TRUE(d.room) << d.error->message;
+    EXPECT_EQ(d.room->frame, frame_built_by(*reference, d.key.id)) << d.key.id.to_string();
+  }
+}
+
+TEST(GeneratorOwners, build_here_clients_never_ask_the_owner_and_cancelled_fetches_build_nothing) {
+  auto owners = std::make_shared<FakeOwners>([](const RoomKey&) -> Result<std::vector<uint8_t>> {
+    return Error{ErrorCode::kUnavailable, "down"};
+  });
+  owners->hold();
+  Metrics metrics;
+  GeneratorConfig config = cpu_config();
+  config.owners = owners;
+  std::unique_ptr<Generator> replica = make_generator(config, metrics);
+  ASSERT_TRUE(replica);
+  const std::vector<cave::RoomId> ids = existing_rooms(3);
+  Inbox here;
+  auto h =
+      replica->add_client(test_world().seed(), here.fn(), proto::kProtocolVersion, Build::kHere);
+  ASSERT_TRUE(h.ok());
+  std::vector<Want> one = wants_of({ids[0]});
+  replica->request(*h, one);
+  ASSERT_TRUE(here.wait_for(1));
+  EXPECT_TRUE(here.got()[0].room);
+  EXPECT_TRUE(owners->asked().empty());
+  // A player's rooms are asked of the owner; cancelled while the owner is silent, then the owner
+  // fails: nothing is built here and nothing delivered.
+  Inbox player;
+  ClientId p = replica->add_client(player.fn());
+  std::vector<Want> two = wants_of({ids[1], ids[2]});
+  replica->request(p, two);
+  EXPECT_EQ(owners->asked().size(), 2u);
+  replica->cancel(p, std::vector<cave::RoomId>{ids[1], ids[2]});
+  const uint64_t built = metrics.rooms_built.value();
+  owners->open();
+  replica.reset();  // waits for the fetches' answers
+  EXPECT_EQ(metrics.owner_failures.value(), 2u);
+  EXPECT_EQ(metrics.rooms_built.value(), built);
+  EXPECT_EQ(player.size(), 0u);
+}
 }  // namespace
 }  // namespace grotto::server
