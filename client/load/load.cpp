@@ -8,7 +8,9 @@
 #include <cstdio>
 #include <map>
 #include <memory>
+#include <set>
 #include <thread>
+#include <tuple>
 #include <vector>
 
 #include "cave/layout.hpp"
@@ -285,11 +287,16 @@ Result<LoadReport> run_load(const LoadOptions& options) {
     });
   }
 
+  // The distinct rooms the players received: (world, wire lod, room). Against what servers
+  // built (their grotto_rooms_built_total), it tells how often a room was built more than once.
+  std::set<std::tuple<uint64_t, uint8_t, uint64_t>> unique_rooms;
   std::vector<double> latencies, urgent_latencies, decodes;
   std::vector<std::vector<double>> latencies_by_second;
   double t = 0;  // seconds since t0, as of the loop's current step
   auto drain = [&](Player& p) {
     for (auto& room : p.stream->take_new_rooms()) {
+      unique_rooms.emplace(seed_of(p.index).value_or(report.seed.value_or(0)), room->lod,
+                           room->room.id.packed());
       if (burst) (void)p.graph.add(room->room);  // disagreements: --verify counts them
       if (verifier) verifier->push(p.index, std::move(room));
     }
@@ -453,6 +460,7 @@ Result<LoadReport> run_load(const LoadOptions& options) {
     if (!s.server.empty()) report.server = s.server;
     report.players_detail.push_back(std::move(pr));
   }
+  report.rooms_unique = unique_rooms.size();
   report.first_room_ms = summarize(std::move(first_rooms));
   report.latency_ms = summarize(std::move(latencies));
   report.urgent_latency_ms = summarize(std::move(urgent_latencies));

@@ -138,6 +138,7 @@ std::string format_table(const LoadReport& r) {
   appendf(out, "  bytes received    %10llu  (%.2f MB/s)\n", u(r.bytes), r.mb_per_s);
   appendf(out, "  rooms received    %10llu  rejected %llu, evicted %llu, given up %llu\n",
           u(r.rooms_received), u(r.rooms_rejected), u(r.rooms_evicted), u(r.rooms_given_up));
+  appendf(out, "  distinct rooms    %10llu  (world, lod, room)\n", u(r.rooms_unique));
   for (const auto& [seed, n] : r.rooms_received_by_seed) {
     appendf(out, "    of seed %-8s %10llu\n", std::to_string(seed).c_str(), u(n));
   }
@@ -270,6 +271,7 @@ std::string to_json_text(const LoadReport& r) {
       {"rooms",
        {{"ready", r.rooms_ready},
         {"received", r.rooms_received},
+        {"unique", r.rooms_unique},
         {"rejected", r.rooms_rejected},
         {"evicted", r.rooms_evicted},
         {"given_up", r.rooms_given_up},

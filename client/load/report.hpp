@@ -91,6 +91,9 @@ struct LoadReport {
   Distribution stall_ms;  // every stall (finished or open at the end)
   uint64_t rooms_ready = 0, rooms_received = 0, rooms_rejected = 0, rooms_evicted = 0,
            rooms_given_up = 0, requests = 0, cancels = 0, bytes = 0;
+  // Distinct (world, lod, room) the players received, whoever and however often: what a cluster
+  // had to build at least (compare the replicas' grotto_rooms_built_total).
+  uint64_t rooms_unique = 0;
   double rooms_per_s = 0, mb_per_s = 0;  // rooms_ready and bytes over elapsed_s (MB = 10^6 B)
   // Bandwidth per player in kbit/s (1000 bit/s): each player's mean over the run, and each
   // player's peak second (the sample is one per player).

@@ -137,6 +137,9 @@ void expect_consistent(const nlohmann::json& j, int players) {
   }
   EXPECT_EQ(j["rooms"]["ready"].get<uint64_t>(), ready);
   EXPECT_EQ(j["rooms"]["received"].get<uint64_t>(), received);
+  // Distinct (world, lod, room): at least one when anything came, at most what came.
+  EXPECT_LE(j["rooms"]["unique"].get<uint64_t>(), received);
+  EXPECT_EQ(j["rooms"]["unique"].get<uint64_t>() > 0, received > 0);
   EXPECT_EQ(j["bytes"].get<uint64_t>(), bytes);
   EXPECT_EQ(j["stalls"]["count"].get<uint64_t>(), stalls);
   EXPECT_EQ(j["stall_ms"]["count"].get<uint64_t>(), stalls);
@@ -331,6 +334,8 @@ TEST(GrottoLoad, seeds_are_assigned_round_robin_and_rooms_counted_per_seed) {
   EXPECT_EQ(j["rooms_received_by_seed"]["7"].get<uint64_t>(),
             j["rooms"]["received"].get<uint64_t>());
   EXPECT_EQ(j["errors"]["world_mismatch"].get<uint64_t>(), 2u) << j["errors"].dump();
+  // Players 0 and 2 start in the same room of world 7: their rooms count once in rooms.unique.
+  EXPECT_LT(j["rooms"]["unique"].get<uint64_t>(), j["rooms"]["received"].get<uint64_t>());
   std::filesystem::remove_all(dir);
 }
 
