@@ -418,6 +418,11 @@ struct Generator::State {
     std::vector<Outgoing> out;
     --fetches;
     fetched_cv.notify_all();
+    if (job->stage != Job::Stage::kFetching) {
+      // Built here meanwhile (build_here): the owner's answer is not needed.
+      if (room) cache.insert(*room);
+      return;
+    }
     if (room) {
       metrics.rooms_fetched.add();
       cache.insert(*room);
@@ -432,22 +437,27 @@ struct Generator::State {
         finish_job(job, nullptr,
                    Error{ErrorCode::kServiceRestart, "the generation service is stopping"}, out);
       } else {
-        // Built here: back into every waiter's queue, where it was (priority, then arrival).
-        job->stage = Job::Stage::kQueued;
-        job->created = Clock::now();
-        ++queued_jobs;
-        by_age.push_back(job);
-        for (ClientId id : job->waiters) {
-          Client& w = *clients.at(id);
-          Waiting& want = w.wants.at(job->key);
-          want.queued = true;
-          w.queue.insert({want.priority, want.seq, job->key});
-          touch(w);
-        }
+        build_here(job);
         work_cv.notify_all();
       }
     }
     deliver(lock, out);
+  }
+
+  // A fetching job goes to this replica's builders: into every waiter's queue, where it was
+  // (priority, then arrival). Its fetch's answer, when it comes, is not waited for.
+  void build_here(const JobPtr& job) {
+    job->stage = Job::Stage::kQueued;
+    job->created = Clock::now();
+    ++queued_jobs;
+    by_age.push_back(job);
+    for (ClientId id : job->waiters) {
+      Client& w = *clients.at(id);
+      Waiting& want = w.wants.at(job->key);
+      want.queued = true;
+      w.queue.insert({want.priority, want.seq, job->key});
+      touch(w);
+    }
   }
 
   // A frame from the owner, checked as untrusted input: it decodes, is of this key (version,
@@ -799,6 +809,12 @@ void Generator::request(ClientId id, std::span<const server::Want> wants) {
     auto j = s.jobs.find(key);
     if (j != s.jobs.end()) {
       s.metrics.rooms_deduplicated.add();
+      if (j->second->stage == Job::Stage::kFetching && client->build == Build::kHere) {
+        // This replica is the room's owner: the tier sent our own fetch back here. Waiting for
+        // the fetch would wait for ourselves; the job is built here now.
+        s.build_here(j->second);
+        queued = true;
+      }
       j->second->waiters.push_back(id);
       want.queued = j->second->stage == Job::Stage::kQueued;
     } else {

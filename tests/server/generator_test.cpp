@@ -1171,5 +1171,36 @@ TEST(GeneratorOwners, build_here_clients_never_ask_the_owner_and_cancelled_fetch
   EXPECT_EQ(metrics.rooms_built.value(), built);
   EXPECT_EQ(player.size(), 0u);
 }
+
+TEST(GeneratorOwners, the_owners_own_request_for_a_room_it_is_fetching_builds_it_here_at_once) {
+  // The tier hashes a room to its owner; when that is the replica asking, its fetch comes back
+  // to it as a Build::kHere request. Waiting for the fetch would wait for itself.
+  auto owners = std::make_shared<FakeOwners>([](const RoomKey&) -> Result<std::vector<uint8_t>> {
+    return Error{ErrorCode::kUnavailable, "the answer comes after the room was built"};
+  });
+  owners->hold();
+  Metrics metrics;
+  GeneratorConfig config = cpu_config();
+  config.owners = owners;
+  std::unique_ptr<Generator> replica = make_generator(config, metrics);
+  ASSERT_TRUE(replica);
+  const cave::RoomId id = existing_rooms(1)[0];
+  Inbox player, tier;
+  ClientId p = replica->add_client(player.fn());
+  std::vector<Want> one = wants_of({id});
+  replica->request(p, one);
+  auto t = replica->add_client(replica->world().seed(), tier.fn(), proto::kProtocolVersion,
+                               Build::kHere);
+  ASSERT_TRUE(t.ok());
+  replica->request(*t, one);
+  ASSERT_TRUE(player.wait_for(1));  // the owner's gate is still closed
+  ASSERT_TRUE(tier.wait_for(1));
+  EXPECT_TRUE(player.got()[0].room);
+  EXPECT_EQ(player.got()[0].room, tier.got()[0].room);
+  EXPECT_EQ(metrics.rooms_built.value(), 1u);
+  owners->open();
+  replica.reset();
+  EXPECT_EQ(metrics.owner_failures.value(), 0u) << "a fetch answered after the room was built";
+}
 }  // namespace
 }  // namespace grotto::server
