@@ -402,12 +402,20 @@ struct Generator::State {
   }
 
   // Asks the room's owner for a new job's room (under the lock: fetch() only posts).
-  void fetch(const JobPtr& job) {
+  // The wait is the want's slack (its priority, the time until the player can reach the room,
+  // less what building it here takes), between kMinOwnerWait and owner_timeout: a room the
+  // player is about to enter is built here if its owner has not answered within kMinOwnerWait
+  // (a silent owner costs that, not owner_timeout), far prefetch waits the whole timeout.
+  void fetch(const JobPtr& job, uint32_t priority_ms) {
+    constexpr std::chrono::milliseconds kBuildHere{100}, kMinOwnerWait{150};
+    const auto slack = std::chrono::milliseconds{priority_ms} - kBuildHere;
+    const auto wait =
+        std::clamp(slack, std::min(kMinOwnerWait, config.owner_timeout), config.owner_timeout);
     job->stage = Job::Stage::kFetching;
     ++fetches;
-    config.owners->fetch(
-        job->key, config.owner_timeout,
-        [this, job](Result<std::vector<uint8_t>> bytes) { fetched(job, std::move(bytes)); });
+    config.owners->fetch(job->key, wait, [this, job](Result<std::vector<uint8_t>> bytes) {
+      fetched(job, std::move(bytes));
+    });
   }
 
   // The owner's answer, on the fetcher's thread: the room for every waiter, or the job goes to
@@ -825,7 +833,7 @@ void Generator::request(ClientId id, std::span<const server::Want> wants) {
       job->waiters.push_back(id);
       s.jobs.emplace(key, job);
       if (s.config.owners && client->build == Build::kAnywhere) {
-        s.fetch(job);
+        s.fetch(job, w.priority);
       } else {
         s.by_age.push_back(job);
         ++s.queued_jobs;

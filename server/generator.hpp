@@ -52,7 +52,9 @@ struct GeneratorConfig {
   // In a cluster (issue 29): where a room nobody here is building yet is asked for first (the
   // room tier: its owner replica through nginx), for clients that may have it from there
   // (Build::kAnywhere). A fetch that fails, answers something other than that room's frame, or
-  // takes longer than owner_timeout is built here instead. Null: every room is built here.
+  // takes longer than its wait is built here instead: the want's slack (its priority less
+  // 100 ms) between 150 ms and owner_timeout, so a room a player is about to enter is not held
+  // up by a slow or silent owner. Null: every room is built here.
   std::shared_ptr<RoomSource> owners;
   std::chrono::milliseconds owner_timeout{1'000};
 };

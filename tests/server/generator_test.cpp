@@ -995,9 +995,10 @@ class FakeOwners final : public RoomSource {
     for (std::thread& t : threads_)
       t.join();
   }
-  void fetch(const RoomKey& key, std::chrono::milliseconds, Done done) override {
+  void fetch(const RoomKey& key, std::chrono::milliseconds timeout, Done done) override {
     std::lock_guard lock(mutex_);
     asked_.push_back(key.id);
+    timeouts_[key.id] = timeout;
     threads_.emplace_back([this, key, done = std::move(done)] {
       std::unique_lock hold(gate_mutex_);
       gate_cv_.wait(hold, [&] { return open_; });
@@ -1008,6 +1009,10 @@ class FakeOwners final : public RoomSource {
   std::vector<cave::RoomId> asked() {
     std::lock_guard lock(mutex_);
     return asked_;
+  }
+  std::map<cave::RoomId, std::chrono::milliseconds> timeouts() {
+    std::lock_guard lock(mutex_);
+    return timeouts_;
   }
   void hold() { open_ = false; }
   void open() {
@@ -1020,6 +1025,7 @@ class FakeOwners final : public RoomSource {
   std::function<Result<std::vector<uint8_t>>(const RoomKey&)> answer_;
   std::mutex mutex_;
   std::vector<cave::RoomId> asked_;
+  std::map<cave::RoomId, std::chrono::milliseconds> timeouts_;
   std::vector<std::thread> threads_;
   std::mutex gate_mutex_;
   std::condition_variable gate_cv_;
@@ -1201,6 +1207,28 @@ TEST(GeneratorOwners, the_owners_own_request_for_a_room_it_is_fetching_builds_it
   owners->open();
   replica.reset();
   EXPECT_EQ(metrics.owner_failures.value(), 0u) << "a fetch answered after the room was built";
+}
+
+TEST(GeneratorOwners, a_room_due_soon_waits_briefly_for_its_owner_far_prefetch_the_whole_timeout) {
+  auto owners = std::make_shared<FakeOwners>([](const RoomKey&) -> Result<std::vector<uint8_t>> {
+    return Error{ErrorCode::kUnavailable, "down"};
+  });
+  Metrics metrics;
+  GeneratorConfig config = cpu_config();
+  config.owners = owners;
+  config.owner_timeout = 1000ms;
+  std::unique_ptr<Generator> replica = make_generator(config, metrics);
+  ASSERT_TRUE(replica);
+  const std::vector<cave::RoomId> ids = existing_rooms(3);
+  Inbox inbox;
+  ClientId c = replica->add_client(inbox.fn());
+  std::vector<Want> w = {{ids[0], 0, 0}, {ids[1], 0, 600}, {ids[2], 0, 5000}};
+  replica->request(c, w);
+  ASSERT_TRUE(inbox.wait_for(3));
+  auto t = owners->timeouts();
+  EXPECT_EQ(t.at(ids[0]), 150ms) << "due now: built here after a short wait";
+  EXPECT_EQ(t.at(ids[1]), 500ms) << "its slack: 600 ms less 100 to build it here";
+  EXPECT_EQ(t.at(ids[2]), 1000ms) << "far prefetch: the whole owner_timeout";
 }
 }  // namespace
 }  // namespace grotto::server
