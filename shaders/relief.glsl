@@ -38,6 +38,15 @@
 //                runs down the slope and leaves its calcite in a line): straight runs in world
 //                space in four directions, each where it is near the local fall line, wavy
 //                across, with ragged lower edges; none under level ceilings.
+//   occlusion:   ambient occlusion from the relief itself (Relief::occlusion, per tessellated
+//                vertex: no extra pass): the rock's crevices (its finer octaves below their local
+//                mean, scaled by how rough the rock is there) and the feet of formations (each
+//                speleothem within a cell seen as an upright pillar: the share of the sky it hides,
+//                half of it where the pillar meets the floor or the ceiling).
+//   fine detail: relief_fine, shading only (normals and albedo in room.frag, no displacement, so
+//                collision is untouched): calcite and sand grain at 3.5 and 1.6 cm, solution pits
+//                1-3.5 cm across, joints a few millimetres wide; every octave faded by the pixel's
+//                footprint on the surface so none is ever finer than ~2 pixels (no shimmer).
 // The displacement is zero on portal rims (rim weight 1), so the seams between rooms stay where
 // the server put them; the shading (gradient, cavity) is not faded there, so the rim is no smooth
 // pale strip (docs/GALLERY.md, "The rim strip").
@@ -70,6 +79,9 @@ const float kReliefDraperySpacing = 0.9f; // metres between drapery lines of one
 const float kReliefDraperyRun = 2.6f;     // metres: the length of a drapery's run along the slope
 const float kReliefDraperyWidth = 0.07f;  // metres: half the thickness of a drapery
 const float kReliefDraperyAngle = 0.41f;  // radians: the first of the four drapery directions
+const float kReliefCrevice = 0.6f;        // occlusion at the bottom of the deepest crevice
+const float kReliefFoot = 1.2f;           // occlusion per unit of sky a formation hides
+const float kReliefOcclusionMin = 0.3f;   // the darkest ambient occlusion
 
 // An integer lattice point to [0, 1).
 RELIEF_FN float relief_hash(ivec3 c) {
@@ -127,6 +139,8 @@ struct Relief {
   float cavity;   // 0 in the rock's hollows, 1 on its crests (occlusion, tint)
   float spike;    // 0-1: calcite: how far up a speleothem or drapery the point is (1 at its
                   // tip), or under half a flowstone sheet's thickness (room.frag's colour)
+  float occlusion;  // ambient occlusion, kReliefOcclusionMin-1: 1 on open rock, less in the
+                    // rock's crevices and at the feet of formations (1 without relief)
 };
 
 // One speleothem candidate of the turned lattice: where it stands and how long it is.
@@ -233,6 +247,24 @@ RELIEF_FN float relief_column_weight(float gap) {
          (1.0f - smoothstep(kReliefColumnSpan - kReliefColumnFade, kReliefColumnSpan, gap));
 }
 
+// The share of a point's sky (cosine-weighted, as ambient light arrives) that an upright pillar
+// hides: radius a, its axis d metres away horizontally, rising `tall` metres past the point. It
+// spans 2 asin(a / d) of the azimuth and, over that span, everything below its top's elevation e
+// (sin^2 e of the light from those directions): half the sky where the pillar meets the point
+// (the crease at a stalagmite's foot), little a few radii away. Faded to zero at one lattice
+// cell, the farthest the 3 x 3 cells round a point are sure to hold every pillar, and inside
+// half the radius: a point high on the formation itself is on its convex flank, which hides
+// nothing of its own sky.
+RELIEF_FN float relief_pillar_occlusion(float d, float a, float tall) {
+  if (!(tall > 0.0f) || !(a > 0.0f)) return 0.0f;
+  float dd = max(d, a);
+  float azimuth = asin(min(a / dd, 1.0f)) * (1.0f / 3.14159265f);
+  float run = dd - a + 0.04f;  // the crease is rounded, not a knife edge
+  float sin2 = tall * tall / (tall * tall + run * run);
+  return azimuth * sin2 * smoothstep(0.5f * a, a, d) *
+         (1.0f - smoothstep(0.6f * kReliefCell, kReliefCell, d));
+}
+
 // The relief at world point p on a surface with unit normal n. roughness (0-1) is the patch's
 // channel, rim the rim weight (1 on a portal rim), room_radius the room's sphere radius and
 // strength scales everything (0: off).
@@ -245,6 +277,7 @@ RELIEF_FN Relief relief_at(vec3 p, vec3 n, float roughness, float rim, float roo
   r.hang_gradient = vec3(0.0f);
   r.cavity = 0.5f;
   r.spike = 0.0f;
+  r.occlusion = 1.0f;
   if (!(strength > 0.0f)) return r;
   // Near a rim the rock's and the flowstone's heights fade (exactly zero on the rim, whatever
   // rounding did to the rim weight: the neighbouring room puts the same vertex there), but not
@@ -288,6 +321,14 @@ RELIEF_FN Relief relief_at(vec3 p, vec3 n, float roughness, float rim, float roo
   r.height = keep * rock_amplitude * rock;
   r.gradient = rock_amplitude * rock_gradient;
   r.cavity = clamp(0.5f + 0.6f * rock, 0.0f, 1.0f);
+  // Crevices: how far the finer octaves put the point below their mean (-0.066; the 1.4 m octave
+  // is the local mean they ride on), deeper where the rock is rougher (amplitude over the
+  // nominal); the whole rock's height darkens the broad hollows a little. Not faded on rims, like
+  // the gradient: the same in both rooms.
+  float finer = 0.28f * (2.0f * ridge * ridge - 1.0f) + 0.16f * o2.x + 0.08f * o3.x;
+  float below = max(-0.066f - finer, 0.0f) * rock_amplitude / (strength * kReliefRock);
+  float crevice = kReliefCrevice * smoothstep(0.02f, 0.25f, below);
+  float broad = mix(0.7f, 1.0f, smoothstep(-0.45f, 0.2f, rock));
 
   // Flowstone: sheets poured down walls where the variety field is high, fluted by curtains.
   float flow_zone = smoothstep(0.35f, 0.65f, variety) * wall;
@@ -309,6 +350,8 @@ RELIEF_FN Relief relief_at(vec3 p, vec3 n, float roughness, float rim, float roo
     r.gradient = r.gradient * drown - 0.75f * rock_height * sheet_gradient +
                  sheet_amplitude * sheet_gradient;
     r.cavity = mix(r.cavity, 0.85f, sheet);
+    crevice *= drown;  // a sheet fills the crevices it covers
+    broad = mix(broad, 1.0f, sheet);
     r.spike = 0.45f * sheet;  // calcite (room.frag): tan, short of the cream of a growing tip
     vec3 scale = vec3(2.4f, 0.38f, 2.4f);
     vec4 f = relief_noise(p * scale + vec3(0.0f, 0.0f, 73.0f));
@@ -326,6 +369,7 @@ RELIEF_FN Relief relief_at(vec3 p, vec3 n, float roughness, float rim, float roo
   float best_length = 1.0f;
   vec2 best_gradient = vec2(0.0f);  // in the turned lattice's frame
   vec3 best_vertical = vec3(0.0f);  // world: a column side's reach follows the point's height
+  float feet = 0.0f;                // the sky that formations hide (relief_pillar_occlusion)
   if (under > 0.0f || ground > 0.0f) {
     // Bare zones have shorter ones.
     float longest = strength * relief_spike_length(room_radius) * keep *
@@ -347,8 +391,9 @@ RELIEF_FN Relief relief_at(vec3 p, vec3 n, float roughness, float rim, float roo
         bool column = sp.level >= 0.0f;
         // Stalactite: a concave cone, sharp at its tip; hangs down (negative hang). A column's
         // reaches its meeting level (kReliefColumnOverlap past it), convex and blunt.
-        float t = 1.0f - dist / sp.radius;
-        if (under > 0.0f && t > 0.0f) {
+        // (Cells within a lattice cell of p also darken its sky: relief_pillar_occlusion.)
+        float t = max(1.0f - dist / sp.radius, 0.0f);
+        if (under > 0.0f && dist < kReliefCell) {
           float reach = sp.len;
           float cw = 0.0f;
           if (column && level_roof > 0.0f) {
@@ -358,6 +403,10 @@ RELIEF_FN Relief relief_at(vec3 p, vec3 n, float roughness, float rim, float roo
           }
           float shape = mix(t * t, t * (2.0f - t), cw);
           float h = under * reach * shape;
+          // Its root hides the ceiling's sky round it: a pillar as wide as the cone at half its
+          // length (the concave cone's t = 0.71; the column's convex one's 0.29).
+          feet += relief_pillar_occlusion(dist, mix(0.29f, 0.71f, cw) * sp.radius,
+                                          under * reach - h);
           if (h > best) {
             best = h;
             best_length = under * reach;
@@ -371,8 +420,8 @@ RELIEF_FN Relief relief_at(vec3 p, vec3 n, float roughness, float rim, float roo
         // Stalagmite beneath it: half as tall, twice as wide, rounded on top; stands up. A
         // column's rises to its meeting level.
         float rf = 2.0f * sp.radius;
-        float s = dist / rf;
-        if (ground > 0.0f && s < 1.0f) {
+        float s = min(dist / rf, 1.0f);
+        if (ground > 0.0f && dist < kReliefCell) {
           float reach = 0.5f * sp.len;
           float cw = 0.0f;
           if (column && level_floor > 0.0f) {
@@ -387,6 +436,8 @@ RELIEF_FN Relief relief_at(vec3 p, vec3 n, float roughness, float rim, float roo
           float lf = reach * ground;
           float shape = (1.0f - s * s) * (1.0f - s * s);
           float h = lf * shape;
+          // The floor round its foot: a pillar as wide as the stalagmite at half its height.
+          feet += relief_pillar_occlusion(dist, 0.54f * rf, lf - h);
           if (h > best) {
             best = h;
             best_length = lf;
@@ -451,6 +502,8 @@ RELIEF_FN Relief relief_at(vec3 p, vec3 n, float roughness, float rim, float roo
            kReliefTurnCos * best_gradient.y - kReliefTurnSin * best_gradient.x) +
       best_vertical;
   r.spike = max(r.spike, best > 0.0f ? clamp(best / best_length, 0.0f, 1.0f) : 0.0f);
+  r.occlusion = max(broad * (1.0f - crevice) * (1.0f - min(kReliefFoot * feet, 0.7f)),
+                    kReliefOcclusionMin);
   return r;
 }
 
@@ -496,4 +549,102 @@ RELIEF_FN vec3 relief_pn_point(vec3 p0, vec3 p1, vec3 p2, vec3 n0, vec3 n1, vec3
   return p0 * (u * u * u) + p1 * (vv * vv * vv) + p2 * (t * t * t) + b210 * (3.0f * u * u * vv) +
          b120 * (3.0f * u * vv * vv) + b201 * (3.0f * u * u * t) + b021 * (3.0f * vv * vv * t) +
          b102 * (3.0f * u * t * t) + b012 * (3.0f * vv * t * t) + b111 * (6.0f * u * vv * t);
+}
+
+// ---- Fine detail (issue 27, item 5): shading below the tessellation's reach ----
+// What a wall 2 m away shows at 1080p (2.6 mm pixels), which the displaced mesh cannot carry: the
+// grain of calcite and sand, solution pits, hairline joints. Shading only: a tilt of the normal, a
+// change of albedo and a darkening of pits and joints; relief_at's displacement (and so collision
+// and the baked meshes) does not see it. Every octave fades by the pixel's footprint on the
+// surface (metres a pixel covers there), to nothing before its features shrink under ~2 pixels:
+// a frequency the pixel grid cannot carry is left out instead of aliasing into shimmer as the
+// view moves. The joints are box-filtered over the footprint instead, so a joint thinner than
+// a pixel greys the pixel by the share it covers.
+
+const float kReliefGrainCoarse = 0.035f;  // metres: the coarser grain's lattice cell
+const float kReliefGrainFine = 0.016f;    // metres: the finest grain's
+const float kReliefPitCell = 0.07f;       // metres: one pit at most per cell, 1-3.5 cm across
+const float kReliefPitShare = 0.35f;      // of the cells of pitted rock that hold a pit
+const float kReliefPitDepth = 0.004f;     // metres
+const float kReliefJointCell = 0.55f;     // metres: the joint field's lattice cell (horizontal;
+                                          // 3x that vertically: joints run down a wall)
+const float kReliefJointWidth = 0.0025f;  // metres: half a joint's width
+
+struct ReliefFine {
+  vec3 gradient;  // of the fine height, metres per metre (relief_normal tilts the normal by it)
+  float tint;     // albedo factor round 1: the grain's light and dark crystals
+  float cavity;   // 1 on open rock, less inside a pit or joint (darkens the albedo)
+};
+
+// How much of an octave whose features are `cell` metres across survives a footprint of
+// `footprint` metres: all of it from 4 pixels a cell, none at 2 or fewer.
+RELIEF_FN float relief_fine_fade(float cell, float footprint) {
+  return smoothstep(2.0f, 4.0f, cell / max(footprint, 1e-6f));
+}
+
+// The fine detail at world point p for a pixel covering `footprint` metres of the surface.
+// grain, pits and joints (0-1) weigh the three (room.frag: rock has all three, sediment grain,
+// calcite a finer grain); a weight of 0, or a footprint too coarse for an octave, skips its noise.
+RELIEF_FN ReliefFine relief_fine(vec3 p, float footprint, float grain, float pits, float joints) {
+  ReliefFine f;
+  f.gradient = vec3(0.0f);
+  f.tint = 1.0f;
+  f.cavity = 1.0f;
+  // Grain: two octaves of value noise, 3 mm and 1 mm high, +-10 % and +-8 % of the albedo.
+  float g1 = grain * relief_fine_fade(kReliefGrainCoarse, footprint);
+  float jag = 0.0f;  // the coarse grain, which also roughens a joint's edges
+  if (g1 > 0.0f) {
+    vec4 a = relief_noise(p * (1.0f / kReliefGrainCoarse) + vec3(7.0f, 0.0f, 0.0f));
+    f.gradient += (g1 * 0.003f / kReliefGrainCoarse) * relief_gradient(a);
+    f.tint += g1 * 0.10f * a.x;
+    jag = g1 * a.x;
+    float g2 = grain * relief_fine_fade(kReliefGrainFine, footprint);
+    if (g2 > 0.0f) {
+      vec4 b = relief_noise(p * (1.0f / kReliefGrainFine) + vec3(0.0f, 13.0f, 0.0f));
+      f.gradient += (g2 * 0.001f / kReliefGrainFine) * relief_gradient(b);
+      f.tint += g2 * 0.08f * b.x;
+    }
+  }
+  // Pits: round solution hollows, one at most per kReliefPitCell cell, centred far enough inside
+  // it that the hollow never crosses the cell's faces (so no neighbour cell need be looked at):
+  // a bowl of depth kReliefPitDepth, darker inside. Fades once a pit spans under ~4 pixels.
+  float gp = pits * relief_fine_fade(0.5f * kReliefPitCell, footprint);
+  if (gp > 0.0f) {
+    vec3 x = p * (1.0f / kReliefPitCell);
+    vec3 cell = floor(x);
+    ivec3 id = ivec3(cell);
+    if (relief_hash(id + ivec3(0, 0, 7001)) < kReliefPitShare) {
+      vec3 centre = cell + vec3(0.3f + 0.4f * relief_hash(id + ivec3(131, 0, 0)),
+                                0.3f + 0.4f * relief_hash(id + ivec3(0, 131, 0)),
+                                0.3f + 0.4f * relief_hash(id + ivec3(0, 0, 131)));
+      float radius = 0.12f + 0.13f * relief_hash(id + ivec3(17, 29, 31));  // cells
+      vec3 r = (x - centre) * kReliefPitCell;                                  // metres
+      float rm = radius * kReliefPitCell;
+      float q = dot(r, r) / (rm * rm);
+      if (q < 1.0f) {
+        // h = -depth (1 - q)^2: a bowl; dh/dp = 4 depth (1 - q) r / rm^2.
+        f.gradient += (gp * 4.0f * kReliefPitDepth * (1.0f - q) / (rm * rm)) * r;
+        f.cavity *= 1.0f - 0.35f * gp * (1.0f - q);
+      }
+    }
+  }
+  // Joints: hairline cracks along the zero lines of a noise stretched 3x vertically (joints run
+  // down a wall more than across it), kept where a second noise allows (runs, not a net), their
+  // edges roughened by the coarse grain where it shows. The distance to the line is the noise
+  // over its gradient's length; the pixel darkens by the share of its footprint the joint
+  // covers (a box filter), so a joint never flickers however thin it is on screen. The lines
+  // themselves fade once they crowd closer than ~4 pixels.
+  float gj = joints * relief_fine_fade(0.5f * kReliefJointCell, footprint);
+  if (gj > 0.0f) {
+    vec3 stretch = vec3(1.0f, 0.333f, 1.0f) * (1.0f / kReliefJointCell);
+    vec4 c = relief_noise(p * stretch + vec3(19.0f, -5.0f, 37.0f));
+    float slope = length(relief_gradient(c) * stretch) + 1e-4f;
+    float d = max(abs(c.x) / slope + 0.0025f * jag, 0.0f);
+    float w = kReliefJointWidth;
+    float lo = max(d - 0.5f * footprint, -w), hi = min(d + 0.5f * footprint, w);
+    float covered = max(hi - lo, 0.0f) / max(footprint, 1e-6f);
+    float run = relief_noise(p * (0.5f / kReliefJointCell) + vec3(-29.0f, 3.0f, 11.0f)).x;
+    f.cavity *= 1.0f - 0.7f * gj * smoothstep(0.0f, 0.25f, run) * min(covered, 1.0f);
+  }
+  return f;
 }

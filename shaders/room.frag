@@ -3,10 +3,12 @@
 //   material: floor (damp sediment), walls (limestone with strata of varying thickness),
 //             ceiling (darker), speleothems (calcite with growth rings, ochre to cream at the
 //             growing tip, a matte wet film and a little translucency; thesis §5.5's tint from
-//             displacement), fine bumps below the relief's 5 cm;
+//             displacement), fine detail below the relief's 5 cm (relief.glsl's relief_fine:
+//             grain, pits, joints), faded by the pixel's footprint so it never shimmers;
 //   light:    a headlamp a little above and right of the eye with a beam and 1/d^2-like falloff
-//             (so the relief casts shading the viewer can see), cavity occlusion from the relief,
-//             wet Blinn-Phong specular, a faint bounce;
+//             (so the relief casts shading the viewer can see), ambient occlusion from the
+//             relief (Relief::occlusion: crevices, formations' feet), wet Blinn-Phong specular, a
+//             faint bounce;
 //   output:   ACES filmic tone mapping and gamma, then fog towards the display-space fog colour
 //             (near black: the dark beyond the lamp), fully opaque at u_fog_end before the far
 //             plane, so the clear colour never shows through a closed cave (tests rely on it).
@@ -18,6 +20,7 @@ in vec3 t_normal;
 in float t_mineral;
 in float t_cavity;
 in float t_spike;
+in float t_occlusion;
 
 layout(location = 0) out vec4 frag_color;
 
@@ -29,7 +32,9 @@ uniform vec3 u_fog_color;  // display space
 uniform float u_fog_start;
 uniform float u_fog_end;
 uniform float u_lamp_range;       // metres at which the lamp falls to about a tenth
-uniform float u_normal_strength;  // fine bumps; 0: the relief's normal only
+uniform float u_fine_detail;  // relief_fine's grain, pits and joints; 0: none
+uniform float u_ao;           // 1: the relief's ambient occlusion (t_occlusion); 0: none
+uniform float u_pixel_scale;  // pixels per metre at 1 m along the view axis (room.tesc's too)
 uniform float u_exposure;
 uniform float u_glow;  // emissive minerals' strength; 0: none
 
@@ -50,19 +55,28 @@ void main() {
   if (dot(n, v) < 0.0) n = -n;
   vec3 world = t_position + u_anchor;
 
-  // Fine bumps (9 cm and 4 cm): the texture scale below the relief's.
-  vec4 b1 = relief_noise(world * 11.0 + vec3(7.0, 0.0, 0.0));
-  vec4 b2 = relief_noise(world * 27.0 + vec3(0.0, 13.0, 0.0));
-  vec3 bump = 0.010 * 11.0 * relief_gradient(b1) + 0.0035 * 27.0 * relief_gradient(b2);
-  vec3 s = relief_normal(n, bump * u_normal_strength);
+  // The pixel's footprint on the surface, metres: its size at this distance, stretched as the
+  // surface turns away (capped at 4x). From the interpolated normal and the distance, not from
+  // dFdx/dFdy of the position: those are constant over each tessellated triangle and jump from
+  // one to the next, which would show the triangles through the fade.
+  float footprint = dist / u_pixel_scale / max(dot(n, v), 0.25);
 
   // Where the surface faces: floors blend into walls into ceilings.
   float ground = smoothstep(0.35, 0.8, n.y);
   float ceiling = smoothstep(0.35, 0.8, -n.y);
+  float calcite = smoothstep(0.02, 0.2, t_spike);
 
   // Limestone walls: mottling at two scales, strata whose thickness wanders, bedding lines.
   vec4 m1 = relief_noise(world * 0.8 + vec3(5.0, 1.0, 3.0));
   vec4 m2 = relief_noise(world * 3.3 + vec3(-9.0, 4.0, 2.0));
+
+  // Fine detail: bare rock is grained, pitted in patches and jointed in runs; sediment grained;
+  // calcite only finely grained (its wet film smooths it).
+  float bare = (1.0 - ground) * (1.0 - calcite);
+  ReliefFine fine = relief_fine(world, footprint, u_fine_detail * mix(1.0, 0.5, calcite),
+                                u_fine_detail * bare * smoothstep(-0.2, 0.3, m1.x),
+                                u_fine_detail * bare);
+  vec3 s = relief_normal(n, fine.gradient);
   float mottle = 0.5 + 0.3 * m1.x + 0.2 * m2.x;
   float strata = relief_noise(vec3(world.x * 0.07, world.y * 2.6, world.z * 0.07) +
                               0.35 * vec3(m1.x, m1.x, m1.x)).x;
@@ -70,7 +84,7 @@ void main() {
   vec3 wall = mix(grey, buff, clamp(0.5 + 0.9 * strata, 0.0, 1.0)) * (0.75 + 0.5 * mottle);
 
   // Sediment floors: damp brown mud with grit, wetter in the hollows.
-  float grit = relief_noise(world * 19.0).x;
+  float grit = relief_fine_fade(0.05, footprint) * relief_noise(world * 19.0).x;
   vec3 mud = vec3(0.27, 0.21, 0.16) * (0.8 + 0.25 * mottle + 0.12 * grit);
   // Ceilings: the same rock, darker and greyer.
   vec3 roof = wall * vec3(0.62, 0.62, 0.66);
@@ -80,18 +94,19 @@ void main() {
   albedo = mix(albedo, vec3(0.36, 0.40, 0.44), 0.4 * t_mineral);
   // Speleothems are calcite over their whole length: ochre at the root, cream towards the tip
   // where it still grows, banded by growth rings a few centimetres apart.
-  float calcite = smoothstep(0.02, 0.2, t_spike);
-  float rings = relief_noise(vec3(world.x * 3.0, world.y * 35.0, world.z * 3.0)).x;
+  float rings = relief_fine_fade(0.028, footprint) *
+                relief_noise(vec3(world.x * 3.0, world.y * 35.0, world.z * 3.0)).x;
   vec3 dripstone =
       mix(vec3(0.55, 0.47, 0.36), vec3(0.78, 0.74, 0.66), smoothstep(0.2, 1.0, t_spike)) *
       (0.9 + 0.1 * rings);
   albedo = mix(albedo, dripstone, 0.9 * calcite);
+  albedo *= fine.tint * fine.cavity;
 
   // Wetness: floors' hollows and running flowstone (glossier), speleothems (a thin water film
   // on calcite: a broad, faint sheen, not a plastic highlight).
   float wet = clamp(0.55 * ground * (1.0 - t_cavity) + 0.25 * smoothstep(0.2, 0.8, m1.x), 0.0, 1.0);
   albedo *= 1.0 - 0.3 * wet * ground;
-  float occlusion = mix(0.25, 1.0, smoothstep(0.05, 0.85, t_cavity));
+  float occlusion = mix(1.0, t_occlusion, u_ao);
 
   // The headlamp.
   vec3 to_lamp = u_lamp - t_position;

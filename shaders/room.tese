@@ -24,6 +24,7 @@ out vec3 t_normal;    // after the relief
 out float t_mineral;
 out float t_cavity;   // relief.glsl's Relief::cavity (0.5 without relief)
 out float t_spike;    // relief.glsl's Relief::spike
+out float t_occlusion;  // relief.glsl's Relief::occlusion (1 without relief)
 
 uniform mat4 u_view_proj;      // anchor-relative world to clip space
 uniform vec3 u_anchor;         // the anchor in world space (noise is world-space)
@@ -148,5 +149,6 @@ void main() {
   t_mineral = s.mineral;
   t_cavity = r.cavity;
   t_spike = r.spike;
+  t_occlusion = r.occlusion;
   gl_Position = u_view_proj * vec4(displaced, 1.0);
 }

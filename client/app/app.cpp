@@ -188,6 +188,8 @@ Session::Session(const Options& o, render::Renderer& r, render::Overlay& ov,
   render_options.motion_blur = !o.no_motion_blur;
   render_options.exposure = static_cast<float>(o.exposure);
   render_options.headlamp = !o.no_headlamp;
+  render_options.ambient_occlusion = !o.no_ao;
+  if (o.no_fine_detail) render_options.fine_detail = 0;
   show_overlay = o.overlay.value_or(o.screenshot.empty() && !o.bench_s);
 }
 
@@ -550,7 +552,7 @@ int run_window(Session& s, GLFWwindow* window) {
   bool t_down = false, p_down = false, f_down = false, g_down = false, n_down = false;
   bool r_down = false, q_down = false;
   bool x_down = false, o_down = false, l_down = false, h_down = false, v_down = false;
-  bool b_down = false, m_down = false;
+  bool b_down = false, m_down = false, k_down = false, j_down = false;
   auto key = [&](int k) { return glfwGetKey(window, k) == GLFW_PRESS; };
   auto pressed = [&](int k, bool& was) {
     const bool now = key(k);
@@ -580,6 +582,9 @@ int run_window(Session& s, GLFWwindow* window) {
     if (pressed(GLFW_KEY_O, o_down)) ro.portal_culling = !ro.portal_culling;
     if (pressed(GLFW_KEY_B, b_down)) ro.bloom = !ro.bloom;
     if (pressed(GLFW_KEY_M, m_down)) ro.motion_blur = !ro.motion_blur;
+    if (pressed(GLFW_KEY_K, k_down)) ro.ambient_occlusion = !ro.ambient_occlusion;
+    if (pressed(GLFW_KEY_J, j_down))
+      ro.fine_detail = ro.fine_detail > 0 ? 0.0f : render::RenderOptions{}.fine_detail;
     if (pressed(GLFW_KEY_L, l_down))
       ro.lod = static_cast<render::LodHeuristic>((static_cast<int>(ro.lod) + 1) % 3);
     if (pressed(GLFW_KEY_H, h_down)) s.show_keys = !s.show_keys;

@@ -83,16 +83,17 @@ std::vector<render::OverlayLine> hud_lines(const HudState& s) {
   const char* surface = !r.tessellation                        ? "FLAT"
                         : r.surface == render::Surface::kPhong ? "PHONG"
                                                                : "PN";
-  lines.push_back(
-      {format("TESS %s %.0f  RELIEF %s  BLOOM %s  BLUR %s  PORTALS %s  LOD %s  %s", surface,
-              r.max_tess, on_off(r.displacement > 0), on_off(r.bloom), on_off(r.motion_blur),
-              on_off(r.portal_culling), render::lod_heuristic_name(r.lod), s.mode.c_str())});
+  lines.push_back({format(
+      "TESS %s %.0f  RELIEF %s  BLOOM %s  BLUR %s  PORTALS %s  LOD %s  DETAIL %s  AO %s  %s",
+      surface, r.max_tess, on_off(r.displacement > 0), on_off(r.bloom), on_off(r.motion_blur),
+      on_off(r.portal_culling), render::lod_heuristic_name(r.lod), on_off(r.fine_detail > 0),
+      on_off(r.ambient_occlusion), s.mode.c_str())});
   if (s.help) {
     lines.push_back(
         {"MOUSE LOOK  WASD MOVE  SHIFT RUN  SPACE JUMP/UP  C DOWN  G WALK/FLY  N NOCLIP"});
     lines.push_back(
-        {"T TESS  P PN/PHONG  X RELIEF  B BLOOM  M BLUR  O PORTALS  L LOD  R WIREFRAME"});
-    lines.push_back({"F THROW FLARE  Q HEADLAMP  V OVERLAY  H HELP  ESC QUIT"});
+        {"T TESS  P PN/PHONG  X RELIEF  J DETAIL  K AO  B BLOOM  M BLUR  O PORTALS  L LOD"});
+    lines.push_back({"F THROW FLARE  Q HEADLAMP  R WIREFRAME  V OVERLAY  H HELP  ESC QUIT"});
   } else {
     lines.push_back({"H: KEYS"});
   }

@@ -57,8 +57,9 @@ std::optional<int> parse_options(int argc, char** argv, Options& o) {
       "You walk with gravity and collide with the cave's walls.\n"
       "Mouse: look; W/A/S/D: move; Shift: run; Space: jump (walk) or rise (fly); C: descend "
       "(fly); G: walk/fly; N: noclip (debugging: through walls); T: tessellation on/off; P: PN "
-      "triangles/Phong; X: relief (displacement); B: bloom; M: motion blur; O: portal culling; "
-      "L: LOD heuristic; R: wireframe; F: throw a flare (it bounces, burns 30 s; 4 at most); Q: "
+      "triangles/Phong; X: relief (displacement); J: fine detail; K: ambient occlusion; B: bloom; "
+      "M: motion blur; O: portal culling; L: LOD heuristic; R: wireframe; F: throw a flare (it "
+      "bounces, burns 30 s; 4 at most); Q: "
       "headlamp on/off; H: the overlay's key list; V: overlay on/off; Esc: quit.\n"
       "Light in the dark: halls hold glow-worm colonies, glowing mineral seams and crystal "
       "clusters (the world's lights, the same for every player of a seed); most passages are "
@@ -142,6 +143,12 @@ std::optional<int> parse_options(int argc, char** argv, Options& o) {
   app.add_flag("--no-displacement", o.no_displacement,
                "Tessellate without the rock's relief (no displacement, stalactites or "
                "stalagmites; X toggles)");
+  app.add_flag("--no-fine-detail", o.no_fine_detail,
+               "No fine detail on the rock (the grain, pits and joints below 5 cm that the "
+               "shading adds, faded with distance; J toggles)");
+  app.add_flag("--no-ao", o.no_ao,
+               "No ambient occlusion (the relief's crevices and the feet of stalagmites, "
+               "stalactites and columns darken; K toggles)");
   app.add_flag("--no-bloom", o.no_bloom, "No glow around the mineral veins (B toggles)");
   app.add_flag("--no-motion-blur", o.no_motion_blur,
                "No blur along the camera's motion (M toggles)");

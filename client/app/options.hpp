@@ -53,6 +53,8 @@ struct Options {
   bool no_motion_blur = false;
   double exposure = 1.0;
   bool no_headlamp = false;      // Q toggles
+  bool no_ao = false;            // K toggles: the relief's ambient occlusion
+  bool no_fine_detail = false;   // J toggles: grain, pits and joints (relief_fine)
   bool no_world_lights = false;  // the world's glow-worms, seams and crystals (cave/lights.hpp)
   int flares = 0;                // --flares: thrown from the start pose before a screenshot
   std::string gl = "auto";       // --gl: auto, glfw or egl (see gl_context.hpp)

@@ -251,17 +251,23 @@ Result<Renderer> Renderer::create() {
   if (!cap.ok()) return cap.error();
   r.cap_ = std::move(cap).value();
   const Program& p = r.room_;
-  r.u_ = {p.uniform("u_room_offset"),   p.uniform("u_room_radius"),  p.uniform("u_relief_margin"),
-          p.uniform("u_camera"),        p.uniform("u_max_tess"),     p.uniform("u_max_dist"),
-          p.uniform("u_view_proj"),     p.uniform("u_anchor"),       p.uniform("u_surface"),
-          p.uniform("u_phong_alpha"),   p.uniform("u_displacement"), p.uniform("u_fog_color"),
-          p.uniform("u_fog_start"),     p.uniform("u_fog_end"),      p.uniform("u_lamp_range"),
-          p.uniform("u_lod"),           p.uniform("u_pixel_scale"),  p.uniform("u_target_pixels"),
-          p.uniform("u_patch_culling"), p.uniform("u_frustum"),      p.uniform("u_normal_strength"),
-          p.uniform("u_lamp"),          p.uniform("u_forward"),      p.uniform("u_exposure"),
-          p.uniform("u_glow"),          p.uniform("u_light_count"),  p.uniform("u_light_position"),
-          p.uniform("u_light_color"),   p.uniform("u_light_glow"),   p.uniform("u_light_bound"),
-          p.uniform("u_light_index"),   p.uniform("u_headlamp"),     p.uniform("u_haze")};
+  r.u_ = {p.uniform("u_room_offset"),   p.uniform("u_room_radius"),
+          p.uniform("u_relief_margin"), p.uniform("u_camera"),
+          p.uniform("u_max_tess"),      p.uniform("u_max_dist"),
+          p.uniform("u_view_proj"),     p.uniform("u_anchor"),
+          p.uniform("u_surface"),       p.uniform("u_phong_alpha"),
+          p.uniform("u_displacement"),  p.uniform("u_fog_color"),
+          p.uniform("u_fog_start"),     p.uniform("u_fog_end"),
+          p.uniform("u_lamp_range"),    p.uniform("u_lod"),
+          p.uniform("u_pixel_scale"),   p.uniform("u_target_pixels"),
+          p.uniform("u_patch_culling"), p.uniform("u_frustum"),
+          p.uniform("u_fine_detail"),   p.uniform("u_ao"),
+          p.uniform("u_lamp"),          p.uniform("u_forward"),
+          p.uniform("u_exposure"),      p.uniform("u_glow"),
+          p.uniform("u_light_count"),   p.uniform("u_light_position"),
+          p.uniform("u_light_color"),   p.uniform("u_light_glow"),
+          p.uniform("u_light_bound"),   p.uniform("u_light_index"),
+          p.uniform("u_headlamp"),      p.uniform("u_haze")};
   auto bloom = Program::build(bloom_stages());
   if (!bloom.ok()) return bloom.error();
   r.bloom_ = std::move(bloom).value();
@@ -351,7 +357,8 @@ FrameStats Renderer::draw(const GpuRoomCache& cache, const Camera& camera, int w
   glUniform1f(u_.fog_start, o.fog_start);
   glUniform1f(u_.fog_end, o.fog_end);
   glUniform1f(u_.lamp_range, o.lamp_range);
-  glUniform1f(u_.normal_strength, o.normal_strength);
+  glUniform1f(u_.fine_detail, std::max(o.fine_detail, 0.0f));
+  glUniform1f(u_.ao, o.ambient_occlusion ? 1.0f : 0.0f);
   glUniform1f(u_.exposure, o.exposure);
   glUniform1f(u_.glow, o.glow);
   glUniform3fv(u_.forward, 1, glm::value_ptr(forward));

@@ -68,10 +68,15 @@ struct RenderOptions {
   // Scattering per metre of the haze that the world's lights and flares light (shaders/
   // lights.glsl): halos round sources, shafts of light across a hall. 0: none.
   float haze = 0.03f;
-  float normal_strength = 1.0f;  // the rock's fine bumps (< 5 cm); 0: none
-  float exposure = 1.0f;         // before the filmic tone curve
-  float glow = 1.0f;             // glowing mineral veins; 0: none
-  bool bloom = true;             // Kawase bloom of the glow (post pass)
+  // The rock's fine detail (shaders/relief.glsl's relief_fine: grain, pits and joints from 5 cm
+  // down to 1.6 cm, shading only, faded by each pixel's footprint); 0: none.
+  float fine_detail = 1.0f;
+  // Ambient occlusion from the relief (Relief::occlusion: its crevices and the feet of
+  // formations, per tessellated vertex, no extra pass); off: none.
+  bool ambient_occlusion = true;
+  float exposure = 1.0f;  // before the filmic tone curve
+  float glow = 1.0f;      // glowing mineral veins; 0: none
+  bool bloom = true;      // Kawase bloom of the glow (post pass)
   float bloom_strength = 1.0f;
   int bloom_passes = 5;               // Kawase passes at a quarter of the resolution
   bool motion_blur = true;            // camera motion blur (post pass)
@@ -165,7 +170,7 @@ class Renderer {
   struct RoomUniforms {
     GLint room_offset, room_radius, relief_margin, camera, max_tess, max_dist, view_proj, anchor,
         surface, phong_alpha, displacement, fog_color, fog_start, fog_end, lamp_range, lod,
-        pixel_scale, target_pixels, patch_culling, frustum, normal_strength, lamp, forward,
+        pixel_scale, target_pixels, patch_culling, frustum, fine_detail, ao, lamp, forward,
         exposure, glow, light_count, light_position, light_color, light_glow, light_bound,
         light_index, headlamp, haze;
   } u_{};

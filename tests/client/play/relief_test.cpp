@@ -520,5 +520,30 @@ TEST(Relief, only_level_patches_need_the_columns_margin) {
   EXPECT_GT(deepest, tight);
 }
 
+// relief_fine (shading below 5 cm) leaves nothing where a pixel covers more than half of its
+// coarsest octave (the joints' 27.5 cm), and gives grain, pits and joints where pixels are
+// millimetres; the relief's ambient occlusion is 1 without relief and within its bounds with it.
+TEST(Relief, fine_detail_vanishes_under_coarse_pixels_and_occlusion_stays_in_bounds) {
+  int detailed = 0;
+  for (int i = 0; i < 400; ++i) {
+    const glm::vec3 p{0.37f * i, 1.3f + 0.011f * i, -0.23f * i};
+    const rl::ReliefFine coarse = rl::relief_fine(p, 0.14f, 1, 1, 1);
+    EXPECT_EQ(coarse.gradient, glm::vec3(0.0f));
+    EXPECT_EQ(coarse.tint, 1.0f);
+    EXPECT_EQ(coarse.cavity, 1.0f);
+    const rl::ReliefFine fine = rl::relief_fine(p, 0.002f, 1, 1, 1);
+    detailed += glm::length(fine.gradient) > 0.01f && fine.tint != 1.0f;
+    EXPECT_GT(fine.cavity, 0.0f);
+    EXPECT_LE(fine.cavity, 1.0f);
+    EXPECT_EQ(rl::relief_at(p, {0, 1, 0}, 0.5f, 0, kHall, 0).occlusion, 1.0f);
+    for (const glm::vec3& n : {glm::vec3(0, 1, 0), glm::vec3(0, -1, 0), glm::vec3(1, 0, 0)}) {
+      const float o = relief(p, n).occlusion;
+      EXPECT_GE(o, rl::kReliefOcclusionMin);
+      EXPECT_LE(o, 1.0f);
+    }
+  }
+  EXPECT_GT(detailed, 350);
+}
+
 }  // namespace
 }  // namespace grotto::play
