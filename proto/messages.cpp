@@ -34,32 +34,6 @@ std::string seed_text(uint64_t seed) {
   return std::to_string(seed);
 }
 
-Result<uint64_t> parse_seed(const std::string& s, std::string_view field) {
-  bool digits = !s.empty() && s.size() <= 20 &&
-                std::all_of(s.begin(), s.end(), [](char c) { return c >= '0' && c <= '9'; });
-  uint64_t v = 0;
-  if (digits && (s.size() == 1 || s[0] != '0')) {
-    auto [end, ec] = std::from_chars(s.data(), s.data() + s.size(), v);
-    if (ec == std::errc() && end == s.data() + s.size()) return v;
-  }
-  return field_error(field,
-                     "must be an unsigned 64-bit integer in decimal, no sign or leading "
-                     "zeros (got '" +
-                         echo(s) + "')");
-}
-
-Result<uint64_t> parse_digest(const std::string& s, std::string_view field) {
-  bool hex = s.size() == 16 && std::all_of(s.begin(), s.end(), [](char c) {
-               return (c >= '0' && c <= '9') || (c >= 'a' && c <= 'f');
-             });
-  uint64_t v = 0;
-  if (hex) {
-    std::from_chars(s.data(), s.data() + s.size(), v, 16);
-    return v;
-  }
-  return field_error(field, "must be 16 lowercase hexadecimal digits (got '" + echo(s) + "')");
-}
-
 Result<cave::RoomId> room_id(const json& value, const std::string& field) {
   if (!value.is_string()) {
     return field_error(
@@ -147,9 +121,9 @@ Result<ClientMessage> parse_hello(const Fields& f, Ref ref) {
   PROTO_TRY(m.versions, versions(*list, "versions"));
   std::optional<std::string> text;
   PROTO_TRY(text, f.optional_string("seed", 64));
-  if (text) PROTO_TRY(m.seed, parse_seed(*text, "seed"));
+  if (text) PROTO_TRY(m.seed, parse_seed_text(*text, "seed"));
   PROTO_TRY(text, f.optional_string("params", 64));
-  if (text) PROTO_TRY(m.params, parse_digest(*text, "params"));
+  if (text) PROTO_TRY(m.params, parse_digest_text(*text, "params"));
   PROTO_TRY(text, f.optional_string("name", kMaxNameBytes));
   if (text) {
     if (Status s = printable(*text, "name"); !s) return s.error();
@@ -322,9 +296,9 @@ Result<ServerMessage> parse_welcome(const Fields& f, Ref ref) {
   if (Status s = printable(m.server, "server"); !s) return s.error();
   std::string text;
   PROTO_TRY(text, f.string("seed", 64));
-  PROTO_TRY(m.seed, parse_seed(text, "seed"));
+  PROTO_TRY(m.seed, parse_seed_text(text, "seed"));
   PROTO_TRY(text, f.string("params", 64));
-  PROTO_TRY(m.params, parse_digest(text, "params"));
+  PROTO_TRY(m.params, parse_digest_text(text, "params"));
   const json* limits = nullptr;
   PROTO_TRY(limits, f.object("limits"));
   Result<Limits> l = parse_limits(*limits);
@@ -629,6 +603,32 @@ std::string echo(std::string_view untrusted) {
   }
   if (untrusted.size() > n) out += "...";
   return out;
+}
+
+Result<uint64_t> parse_seed_text(std::string_view s, std::string_view field) {
+  bool digits = !s.empty() && s.size() <= 20 &&
+                std::all_of(s.begin(), s.end(), [](char c) { return c >= '0' && c <= '9'; });
+  uint64_t v = 0;
+  if (digits && (s.size() == 1 || s[0] != '0')) {
+    auto [end, ec] = std::from_chars(s.data(), s.data() + s.size(), v);
+    if (ec == std::errc() && end == s.data() + s.size()) return v;
+  }
+  return field_error(field,
+                     "must be an unsigned 64-bit integer in decimal, no sign or leading "
+                     "zeros (got '" +
+                         echo(s) + "')");
+}
+
+Result<uint64_t> parse_digest_text(std::string_view s, std::string_view field) {
+  bool hex = s.size() == 16 && std::all_of(s.begin(), s.end(), [](char c) {
+               return (c >= '0' && c <= '9') || (c >= 'a' && c <= 'f');
+             });
+  uint64_t v = 0;
+  if (hex) {
+    std::from_chars(s.data(), s.data() + s.size(), v, 16);
+    return v;
+  }
+  return field_error(field, "must be 16 lowercase hexadecimal digits (got '" + echo(s) + "')");
 }
 
 std::string digest_text(uint64_t digest) {

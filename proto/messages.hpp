@@ -235,6 +235,12 @@ ErrorMessage error_reply(const Error& error, Ref ref = std::nullopt,
 // A parameter digest as the wire writes it: 16 lowercase hex digits.
 std::string digest_text(uint64_t digest);
 
+// A seed (hello.seed, welcome.seed, a room path's) in its one text form: an unsigned 64-bit
+// integer in decimal, no sign or leading zeros. Errors (kBadMessage) name `field`.
+Result<uint64_t> parse_seed_text(std::string_view text, std::string_view field);
+// A parameter digest in its one text form (digest_text's). Errors (kBadMessage) name `field`.
+Result<uint64_t> parse_digest_text(std::string_view text, std::string_view field);
+
 // At most kMaxEchoBytes of untrusted text, control and non-ASCII bytes shown as '?', with "..."
 // when cut: safe to put in an error message or a log line.
 std::string echo(std::string_view untrusted);

@@ -123,6 +123,23 @@ uint64_t Metrics::errors(ErrorCode code) const {
   return i >= 0 && i < kErrorCodeCount ? errors_[i].value() : 0;
 }
 
+namespace {
+size_t room_http_status_index(int status) {
+  const auto& all = Metrics::kRoomHttpStatuses;
+  auto it = std::find(all.begin(), all.end(), status);
+  if (it == all.end()) it = std::find(all.begin(), all.end(), 500);
+  return static_cast<size_t>(it - all.begin());
+}
+}  // namespace
+
+void Metrics::count_room_http_refusal(int status) {
+  room_http_refusals_[room_http_status_index(status)].add();
+}
+
+uint64_t Metrics::room_http_refusals(int status) const {
+  return room_http_refusals_[room_http_status_index(status)].value();
+}
+
 void Metrics::set_compute_path(std::string path) {
   std::lock_guard lock(path_mutex_);
   compute_path_ = std::move(path);
@@ -161,6 +178,21 @@ std::string Metrics::render() const {
           connections_rejected.value());
   counter(out, "grotto_http_requests_total", "Plain HTTP requests answered.",
           http_requests_total.value());
+  counter(out, "grotto_rooms_http_served_total",
+          "Room URLs answered with the room (GET or HEAD): peer replicas, caches, any client.",
+          rooms_http_served.value());
+  counter(out, "grotto_rooms_http_not_modified_total",
+          "Room URLs answered 304: the request's If-None-Match held the room's ETag.",
+          rooms_http_not_modified.value());
+  counter(out, "grotto_rooms_http_bytes_total", "Room frame bytes in 200 answers to room URLs.",
+          rooms_http_bytes.value());
+  header(out, "grotto_rooms_http_refused_total", "counter",
+         "Room URLs refused, by HTTP status (400 bad path, 401 token, 404 not served or no such "
+         "room, 405 method, 429 rate, 503 overloaded or stopping, 500 failed).");
+  for (size_t i = 0; i < kRoomHttpStatuses.size(); ++i) {
+    out += "grotto_rooms_http_refused_total{status=\"" + std::to_string(kRoomHttpStatuses[i]) +
+           "\"} " + std::to_string(room_http_refusals_[i].value()) + '\n';
+  }
   counter(out, "grotto_messages_total", "Control messages received from clients.",
           messages_total.value());
   counter(out, "grotto_rooms_requested_total", "Room wants received in requests.",

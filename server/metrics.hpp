@@ -59,9 +59,20 @@ class Metrics {
                                  // max_handshakes)
   Gauge handshakes_open;         // grotto_handshakes_open (sessions not yet past hello)
   Counter http_requests_total;   // grotto_http_requests_total
-  Counter accept_failures;       // grotto_accept_failures_total (EMFILE and the like)
-  Gauge sockets_open;            // grotto_sockets_open (accepted TCP sockets, upgraded or not)
-  Counter sockets_shed;          // grotto_sockets_shed_total (closed at accept: too many open)
+  // Rooms over HTTP (PROTOCOL.md, "Rooms over HTTP"): GETs of a room URL answered with the room
+  // (a peer replica's owner fetch, a cache or CDN, any client), answered 304 (the client's ETag
+  // matched), and refused (any 4xx or 5xx, by status). HEAD counts as a GET.
+  Counter rooms_http_served;        // grotto_rooms_http_served_total
+  Counter rooms_http_not_modified;  // grotto_rooms_http_not_modified_total
+  Counter rooms_http_bytes;         // grotto_rooms_http_bytes_total (frame bytes in 200 bodies)
+  // grotto_rooms_http_refused_total{status="..."}: one of kRoomHttpStatuses (another counts as
+  // 500).
+  static constexpr std::array<int, 7> kRoomHttpStatuses = {400, 401, 404, 405, 429, 500, 503};
+  void count_room_http_refusal(int status);
+  uint64_t room_http_refusals(int status) const;
+  Counter accept_failures;  // grotto_accept_failures_total (EMFILE and the like)
+  Gauge sockets_open;       // grotto_sockets_open (accepted TCP sockets, upgraded or not)
+  Counter sockets_shed;     // grotto_sockets_shed_total (closed at accept: too many open)
   // Out of file descriptors, a few reserve descriptors are traded for connections that are
   // answered health-only (/healthz, /readyz, /metrics; server.cpp, "the fd reserve").
   Gauge fd_reserve_held;               // grotto_fd_reserve_held (reserve descriptors held now)
@@ -109,6 +120,7 @@ class Metrics {
 
  private:
   std::array<Counter, 32> errors_{};
+  std::array<Counter, kRoomHttpStatuses.size()> room_http_refusals_{};
   mutable std::mutex path_mutex_;
   std::string compute_path_;
 };

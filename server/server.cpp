@@ -33,10 +33,13 @@
 #include <vector>
 
 #include "cave/layout.hpp"
+#include "core/random.hpp"
+#include "proto/room_path.hpp"
 #include "proto/token.hpp"
 #include "proto/world_digest.hpp"
 #include "server/conversation.hpp"
 #include "server/fd_limit.hpp"
+#include "server/room_fetch.hpp"
 #include "server/send_queue.hpp"
 
 namespace grotto::server {
@@ -70,6 +73,12 @@ constexpr auto kReserveDeadline = std::chrono::milliseconds{1000};
 constexpr auto kReservePause = std::chrono::milliseconds{100};
 // Silent connections closed in one turn of the accept strand (the rest wait for the next turn).
 constexpr int kReserveDrainPerTurn = 256;
+// Rooms over HTTP (PROTOCOL.md, "Rooms over HTTP"). A room GET is a want due in half a second:
+// most are a player's room fetched from its owner or through a cache, soon needed, but it should
+// not go before the rooms players stand in (priority 0).
+constexpr uint32_t kRoomGetPriorityMs = 500;
+constexpr const char* kRoomCacheControl = "public, max-age=31536000, immutable";
+constexpr const char* kRoomContentType = "application/octet-stream";
 
 class WsSession;
 
@@ -139,6 +148,8 @@ struct Server::Impl {
   std::vector<std::thread> threads;
   tcp::endpoint bound;
   std::atomic<bool> stopping{false};
+  // Room GETs waiting for the generator, all HTTP connections together (at most max_connections).
+  std::atomic<int> room_gets{0};
   bool stopped = false;  // guarded by stop_mutex
   std::mutex stop_mutex;
 
@@ -655,6 +666,7 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
       return;
     }
     server_.metrics.http_requests_total.add();
+    if (path.starts_with(proto::kRoomPathPrefix)) return serve_room(req, path);
     if (req.method() != http::verb::get && req.method() != http::verb::head) {
       return respond(req, http::status::method_not_allowed, "text/plain", "GET only\n");
     }
@@ -679,9 +691,10 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
       for (uint32_t v = proto::kMinProtocolVersion; v <= proto::kProtocolVersion; ++v)
         versions += (versions.empty() ? "" : ",") + std::to_string(v);
       return respond(req, http::status::ok, "application/json",
-                     "{\"server\":\"" + product_version() +
-                         "\",\"protocol\":" + std::to_string(proto::kProtocolVersion) +
-                         ",\"protocols\":[" + versions + "]}\n");
+                     "{\"server\":\"" + product_version() + "\",\"protocol\":" +
+                         std::to_string(proto::kProtocolVersion) + ",\"protocols\":[" + versions +
+                         "],\"seed\":\"" + std::to_string(server_.generator->world().seed()) +
+                         "\",\"params\":\"" + proto::digest_text(server_.params_digest) + "\"}\n");
     }
     if (path == proto::kWebSocketPath) {
       return respond(req, http::status::upgrade_required, "text/plain",
@@ -689,6 +702,195 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
                      true);
     }
     return respond(req, http::status::not_found, "text/plain", "not found\n");
+  }
+
+  // ---- rooms over HTTP (PROTOCOL.md, "Rooms over HTTP"): the bytes of the WebSocket room frame,
+  // immutable and cacheable, built through the generator like any want ----
+
+  // What the answer needs of the request, kept while the room is fetched.
+  struct RoomRequest {
+    unsigned http_version = 11;
+    bool keep_alive = true;
+    bool head = false;
+    std::string if_none_match;
+  };
+
+  // The checks in PROTOCOL.md's order: method, path, token, rate, then what the path asks (the
+  // version, the world's parameters, the lod, the world and the room).
+  template <class Request>
+  void serve_room(const Request& req, std::string_view path) {
+    RoomRequest r{req.version(), req.keep_alive(), req.method() == http::verb::head,
+                  std::string(req[http::field::if_none_match])};
+    if (req.method() != http::verb::get && req.method() != http::verb::head) {
+      return refuse_room(r, http::status::method_not_allowed, "room URLs take GET and HEAD only");
+    }
+    auto parsed = proto::parse_room_path(path);
+    if (!parsed) return refuse_room(r, http::status::bad_request, parsed.error().message);
+    if (const std::string& token = server_.config.token; !token.empty()) {
+      // The WebSocket's rule: a server with a token serves nothing to a client without it.
+      constexpr std::string_view kBearer = "Bearer ";
+      auto field = req[http::field::authorization];
+      std::string_view given(field.data(), field.size());
+      if (given.empty()) {
+        return refuse_room(r, http::status::unauthorized,
+                           "missing token (send Authorization: Bearer <token>)");
+      }
+      if (!given.starts_with(kBearer) ||
+          !proto::token_equals(token, given.substr(kBearer.size()))) {
+        return refuse_room(r, http::status::unauthorized, "wrong token");
+      }
+    }
+    const proto::Limits& limits = server_.config.limits;
+    if (!take_room_token()) {
+      return refuse_room(r, http::status::too_many_requests,
+                         "request rate over request_rate (" + std::to_string(limits.request_rate) +
+                             " rooms/s, request_burst " + std::to_string(limits.request_burst) +
+                             " on this connection); slow down");
+    }
+    const proto::RoomPath& p = *parsed;
+    if (!proto::speaks_version(p.version)) {
+      return refuse_room(r, http::status::not_found,
+                         "protocol version " + std::to_string(p.version) +
+                             " is not served here (versions " +
+                             std::to_string(proto::kMinProtocolVersion) + " to " +
+                             std::to_string(proto::kProtocolVersion) + ")");
+    }
+    if (p.params != server_.params_digest) {
+      return refuse_room(r, http::status::not_found,
+                         "world parameters " + proto::digest_text(p.params) +
+                             " are not this server's (" +
+                             proto::digest_text(server_.params_digest) + ")");
+    }
+    if (p.lod > limits.max_lod) {
+      return refuse_room(r, http::status::not_found,
+                         "lod " + std::to_string(p.lod) + " is not served here (max_lod " +
+                             std::to_string(limits.max_lod) + ")");
+    }
+    if (server_.room_gets.fetch_add(1) >= server_.config.max_connections) {
+      server_.room_gets.fetch_sub(1);
+      return refuse_room(r, http::status::service_unavailable,
+                         "overloaded: " + std::to_string(server_.config.max_connections) +
+                             " room requests already wait for a build (max_connections); retry "
+                             "later");
+    }
+    auto executor = stream_.get_executor();
+    auto gate = server_.gate;
+    fetch_room(
+        *server_.generator, RoomKey{p.id, static_cast<uint8_t>(p.lod), p.seed, p.version},
+        kRoomGetPriorityMs, Build::kHere,
+        [executor, gate](std::function<void()> f) {
+          std::lock_guard lock(gate->mutex);
+          if (gate->open) net::post(executor, std::move(f));
+        },
+        [self = shared_from_this(), r = std::move(r)](Result<RoomPtr> room) mutable {
+          self->server_.room_gets.fetch_sub(1);
+          self->on_room(std::move(r), std::move(room));
+        });
+  }
+
+  void on_room(RoomRequest r, Result<RoomPtr> room) {
+    if (!room) {
+      const Error& e = room.error();
+      switch (e.code) {
+        case ErrorCode::kNotFound:
+        case ErrorCode::kWorldMismatch:  // a seed this server does not serve
+          return refuse_room(r, http::status::not_found, e.message);
+        case ErrorCode::kOverloaded:
+        case ErrorCode::kServiceRestart:
+          return refuse_room(r, http::status::service_unavailable,
+                             std::string(proto::wire_code_name(e.code)) + ": " + e.message);
+        default:
+          return refuse_room(r, http::status::internal_server_error, e.message);
+      }
+    }
+    const std::vector<uint8_t>& frame = (*room)->frame;
+    // Strong: the same bytes give the same tag on every replica and build (FNV-1a, as the world
+    // digest), different bytes a different one.
+    const std::string etag = "\"" + proto::digest_text(fnv1a64(frame.data(), frame.size())) + "\"";
+    auto res =
+        std::make_shared<http::response<http::string_body>>(http::status::ok, r.http_version);
+    res->set(http::field::server, product_version());
+    res->set(http::field::cache_control, kRoomCacheControl);
+    res->set(http::field::etag, etag);
+    if (etag_matches(r.if_none_match, etag)) {
+      res->result(http::status::not_modified);
+      server_.metrics.rooms_http_not_modified.add();
+    } else {
+      res->set(http::field::content_type, kRoomContentType);
+      res->set("X-Content-Type-Options", "nosniff");
+      res->content_length(frame.size());
+      if (!r.head) res->body().assign(frame.begin(), frame.end());
+      server_.metrics.rooms_http_served.add();
+      if (!r.head) server_.metrics.rooms_http_bytes.add(frame.size());
+    }
+    send_room_answer(std::move(res), r.keep_alive);
+  }
+
+  // RFC 9110 13.1.2: If-None-Match compares weakly, "*" matches any tag.
+  static bool etag_matches(std::string_view header, std::string_view etag) {
+    while (!header.empty()) {
+      size_t comma = header.find(',');
+      std::string_view tag = header.substr(0, comma);
+      while (!tag.empty() && (tag.front() == ' ' || tag.front() == '\t'))
+        tag.remove_prefix(1);
+      while (!tag.empty() && (tag.back() == ' ' || tag.back() == '\t'))
+        tag.remove_suffix(1);
+      if (tag.starts_with("W/")) tag.remove_prefix(2);
+      if (tag == "*" || tag == etag) return true;
+      if (comma == std::string_view::npos) break;
+      header.remove_prefix(comma + 1);
+    }
+    return false;
+  }
+
+  // A refused room URL: the status, a one-line reason, never stored by a cache (a 404 for another
+  // world's parameters is true of this replica only, e.g. during a roll-out).
+  void refuse_room(const RoomRequest& r, http::status status, const std::string& reason) {
+    server_.metrics.count_room_http_refusal(static_cast<int>(status));
+    spdlog::debug("event=room_http_refused status={} reason=\"{}\"", static_cast<int>(status),
+                  proto::echo(reason));
+    auto res = std::make_shared<http::response<http::string_body>>(status, r.http_version);
+    res->set(http::field::server, product_version());
+    res->set(http::field::content_type, "text/plain");
+    res->set(http::field::cache_control, "no-store");
+    if (status == http::status::method_not_allowed) res->set(http::field::allow, "GET, HEAD");
+    if (status == http::status::unauthorized) {
+      res->set(http::field::www_authenticate, "Bearer realm=\"grotto\"");
+    }
+    if (status == http::status::too_many_requests || status == http::status::service_unavailable) {
+      res->set(http::field::retry_after, "1");
+    }
+    res->body() = reason + "\n";
+    res->prepare_payload();
+    if (r.head) res->body().clear();
+    send_room_answer(std::move(res), r.keep_alive);
+  }
+
+  void send_room_answer(std::shared_ptr<http::response<http::string_body>> res, bool keep_alive) {
+    res->keep_alive(keep_alive);
+    stream_.expires_after(server_.config.http_timeout);
+    http::async_write(stream_, *res,
+                      [self = shared_from_this(), res](beast::error_code ec, std::size_t) {
+                        self->on_write(ec, res->keep_alive());
+                      });
+  }
+
+  // The request rate of a WebSocket connection (PROTOCOL.md, Rooms in flight), per HTTP
+  // connection: one room a GET, from a bucket of request_burst refilled at request_rate a second.
+  bool take_room_token() {
+    const proto::Limits& l = server_.config.limits;
+    if (l.request_rate == 0) return true;
+    const auto now = Clock::now();
+    if (!room_tokens_at_) {
+      room_tokens_ = l.request_burst;
+    } else {
+      const double seconds = std::chrono::duration<double>(now - *room_tokens_at_).count();
+      room_tokens_ = std::min<double>(l.request_burst, room_tokens_ + seconds * l.request_rate);
+    }
+    room_tokens_at_ = now;
+    if (room_tokens_ < 1) return false;
+    room_tokens_ -= 1;
+    return true;
   }
 
   // Out of file descriptors, this connection holds a reserve descriptor: health and metrics answer
@@ -770,6 +972,8 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
   Server::Impl& server_;
   beast::tcp_stream stream_;
   bool first_request_ = true;
+  double room_tokens_ = 0;                           // take_room_token's bucket
+  std::optional<Clock::time_point> room_tokens_at_;  // unset until the first room GET
   beast::flat_buffer buffer_{kHttpHeaderLimit + kHttpBodyLimit};
   std::optional<http::request_parser<http::string_body>> parser_;
 };

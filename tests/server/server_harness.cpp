@@ -1,5 +1,7 @@
 #include "server_harness.hpp"
 
+#include "harness_plain.hpp"
+
 #include <gtest/gtest.h>
 #include <poll.h>
 #include <signal.h>
@@ -251,6 +253,82 @@ HttpReply http_get(uint16_t port, const std::string& target, size_t body_bytes, 
   });
   ioc.run_for(timeout);
   return out;
+}
+
+std::vector<HttpAnswer> http_exchange(uint16_t port, const std::vector<HttpRequest>& requests,
+                                      std::chrono::milliseconds timeout) {
+  net::io_context ioc;
+  beast::tcp_stream stream(ioc);
+  std::vector<HttpAnswer> out;
+  beast::error_code ec;
+  stream.expires_after(timeout);
+  stream.connect(tcp::endpoint(net::ip::make_address("127.0.0.1"), port), ec);
+  if (ec) return out;
+  beast::flat_buffer buffer;
+  for (const HttpRequest& r : requests) {
+    http::request<http::empty_body> req(http::verb::get, r.target, 11);
+    if (auto verb = http::string_to_verb(r.method); verb != http::verb::unknown) {
+      req.method(verb);
+    } else {
+      req.method_string(r.method);
+    }
+    req.set(http::field::host, "127.0.0.1");
+    for (const auto& [name, value] : r.headers)
+      req.set(name, value);
+    http::response_parser<http::string_body> parser;
+    parser.body_limit(64 << 20);
+    if (req.method() == http::verb::head) parser.skip(true);
+    bool answered = false;
+    stream.expires_after(timeout);
+    http::async_write(stream, req, [&](beast::error_code e, std::size_t) {
+      if (e) return;
+      http::async_read(stream, buffer, parser,
+                       [&](beast::error_code e2, std::size_t) { answered = !e2; });
+    });
+    ioc.restart();
+    ioc.run_for(timeout);
+    if (!answered) break;
+    auto res = parser.release();
+    HttpAnswer a;
+    a.status = static_cast<int>(res.result_int());
+    for (const auto& f : res) {
+      std::string name(f.name_string());
+      for (char& c : name)
+        c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+      a.headers[name] = std::string(f.value());
+    }
+    a.body = std::move(res.body());
+    out.push_back(std::move(a));
+  }
+  return out;
+}
+
+std::string websocket_room_frame(uint16_t port, RoomId room, uint32_t lod, uint32_t version,
+                                 const std::string& token) {
+  Client client(port);
+  EXPECT_FALSE(client.connect());
+  grotto::proto::Hello h;
+  h.ref = 1;
+  h.versions = {version};
+  h.name = "room-frame";
+  if (!token.empty()) h.token = token;
+  EXPECT_FALSE(client.send(h));
+  auto welcome = client.next_text();
+  if (!welcome || !welcome->as<grotto::proto::Welcome>()) {
+    ADD_FAILURE() << "no welcome: " << (welcome ? welcome->data : "nothing");
+    return {};
+  }
+  grotto::proto::Request r;
+  r.ref = 2;
+  r.rooms.push_back({room, lod, 0});
+  EXPECT_FALSE(client.send(r));
+  auto [ec, in] = client.read();
+  if (ec || in.text) {
+    ADD_FAILURE() << "no room frame: " << (ec ? ec.message() : in.data);
+    return {};
+  }
+  client.close();
+  return in.data;
 }
 
 std::optional<double> metric(const std::string& exposition, const std::string& name) {
