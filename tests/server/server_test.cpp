@@ -21,10 +21,13 @@
 
 #include "cave/layout.hpp"
 #include "codec/room_codec.hpp"
+#include "harness_plain.hpp"
 #include "mesh/context.hpp"
 #include "mesh/room_mesh.hpp"
 #include "proto/messages.hpp"
 #include "proto/room_frame.hpp"
+#include "proto/room_path.hpp"
+#include "proto/world_digest.hpp"
 #include "server/config.hpp"
 #include "server/server.hpp"
 #include "server_harness.hpp"
@@ -751,6 +754,24 @@ TEST(ServerShutdown, a_connection_arriving_during_the_drain_gets_service_restart
   auto reason = late.wait_close();
   EXPECT_EQ(reason.code, 1001);
   EXPECT_EQ(std::string(reason.reason.c_str()), "service_restart");
+  // A room URL during the drain: 503 service_restart once the generator has stopped taking work
+  // (until then it may still be served), answered, never refused at TCP (PROTOCOL.md, Rooms over
+  // HTTP).
+  const auto& c = server->config();
+  grotto::proto::RoomPath path;
+  path.seed = c.seed;
+  path.params = grotto::proto::world_params_digest(c.layout, c.mesh);
+  path.id = sector_rooms(c.seed, {0, 0, 0}).front().id;
+  HttpAnswer room;
+  while (Clock::now() < deadline) {
+    auto answers = http_exchange(server->port(), {{"GET", grotto::proto::room_path(path), {}}});
+    ASSERT_EQ(answers.size(), 1u);
+    room = answers.front();
+    if (room.status != 200) break;
+  }
+  EXPECT_EQ(room.status, 503);
+  EXPECT_TRUE(room.body.starts_with("service_restart: ")) << room.body;
+  EXPECT_EQ(room.header("retry-after"), "1");
   // The holder answers its close: the drain ends, and then the port is closed.
   EXPECT_EQ(holder.wait_close().code, 1001);
   stopper.join();
