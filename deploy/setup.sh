@@ -21,6 +21,7 @@ packages=(
   clang libclang-rt-14-dev  # libFuzzer (tests/fuzz); its runtime is in libclang-rt-14-dev
   dpkg-dev  # dpkg-source: unpacks Draco's source package with Debian's patches (tests/fuzz)
   nginx  # tests/deploy: the load balancer in front of grotto-server replicas
+  curl  # tests/deploy/cluster_test.sh: room URLs through the cache (headers, ETag, 304)
   python3-yaml systemd  # tests/deploy/manifests_test.sh: YAML checks, systemd-analyze verify
   gltfpack  # tests/tools: a second, independent reader of grotto-layout --glb files
 )

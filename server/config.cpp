@@ -13,6 +13,7 @@
 #include "cave/layout.hpp"
 #include "proto/config_json.hpp"
 #include "proto/token.hpp"
+#include "server/room_tier.hpp"
 
 #ifndef GROTTO_VERSION
 #define GROTTO_VERSION "0.0.0"
@@ -209,6 +210,17 @@ const std::vector<Setting>& settings() {
         "(round-robin within each class); 0: one class",
         0, 600'000, [](ServerConfig & c) -> auto& { return c.generator.urgent_within; }));
     t.push_back(string_setting(
+        "room-tier",
+        "Cluster: the room tier, http://HOST:PORT (nginx in front of the replicas, "
+        "deploy/nginx): rooms this replica's players want are asked of their owner replica there "
+        "first, and built here when it fails or is late; empty: every room is built here",
+        {}, [](ServerConfig & c) -> auto& { return c.room_tier; }));
+    t.push_back(ms_setting(
+        "owner-timeout-ms",
+        "Cluster: the longest a room asked of the room tier may take before it is built here "
+        "(a room due sooner waits its slack less 500 ms, at least 150 ms)",
+        1, 60'000, [](ServerConfig & c) -> auto& { return c.generator.owner_timeout; }));
+    t.push_back(string_setting(
         "opencl-device",
         "OpenCL device: auto, gpu, accelerator, cpu, none (CPU reference) or a name substring; "
         "empty: $GROTTO_OPENCL_DEVICE, else auto",
@@ -343,6 +355,11 @@ Status validate(const ServerConfig& config) {
     return invalid_argument("limits out of range (see --help)");
   }
   if (config.max_connections < 1) return invalid_argument("max-connections must be >= 1");
+  if (!config.room_tier.empty()) {
+    if (auto url = parse_tier_url(config.room_tier); !url) {
+      return invalid_argument("room-tier: " + url.error().message);
+    }
+  }
   if (config.max_handshakes < 1) return invalid_argument("max-handshakes must be >= 1");
   if (config.send_queue_bytes < 1024) return invalid_argument("send-queue-bytes must be >= 1024");
   if (config.bind.empty()) return invalid_argument("bind must not be empty");

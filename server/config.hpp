@@ -33,6 +33,10 @@ struct ServerConfig {
   std::chrono::milliseconds http_timeout{10'000};  // a plain HTTP request or a WebSocket upgrade
   std::chrono::milliseconds drain_timeout{5'000};  // stop(): bound on the graceful close
   GeneratorConfig generator{};
+  // The room tier (issue 29, deploy/nginx): http://HOST:PORT where this replica asks for rooms
+  // before building them (their owner replica answers, through nginx's cache); empty: none.
+  // grotto-server opens it (server/room_tier) into generator.owners.
+  std::string room_tier;
   std::string log_level = "info";  // trace, debug, info, warn, error, off
   // The shared secret every hello must carry (proto/token.hpp); empty: none required.
   // parse_command_line reads it from token_file, else from $GROTTO_TOKEN. Never logged.

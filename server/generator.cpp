@@ -403,11 +403,12 @@ struct Generator::State {
 
   // Asks the room's owner for a new job's room (under the lock: fetch() only posts).
   // The wait is the want's slack (its priority, the time until the player can reach the room,
-  // less what building it here takes), between kMinOwnerWait and owner_timeout: a room the
-  // player is about to enter is built here if its owner has not answered within kMinOwnerWait
-  // (a silent owner costs that, not owner_timeout), far prefetch waits the whole timeout.
+  // less what building it here may take behind other work), between kMinOwnerWait and
+  // owner_timeout: a room the player is about to enter is built here if its owner has not
+  // answered within kMinOwnerWait (a silent owner costs that, not owner_timeout), far prefetch
+  // waits the whole timeout.
   void fetch(const JobPtr& job, uint32_t priority_ms) {
-    constexpr std::chrono::milliseconds kBuildHere{100}, kMinOwnerWait{150};
+    constexpr std::chrono::milliseconds kBuildHere{500}, kMinOwnerWait{150};
     const auto slack = std::chrono::milliseconds{priority_ms} - kBuildHere;
     const auto wait =
         std::clamp(slack, std::min(kMinOwnerWait, config.owner_timeout), config.owner_timeout);

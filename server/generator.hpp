@@ -53,7 +53,7 @@ struct GeneratorConfig {
   // room tier: its owner replica through nginx), for clients that may have it from there
   // (Build::kAnywhere). A fetch that fails, answers something other than that room's frame, or
   // takes longer than its wait is built here instead: the want's slack (its priority less
-  // 100 ms) between 150 ms and owner_timeout, so a room a player is about to enter is not held
+  // 500 ms) between 150 ms and owner_timeout, so a room a player is about to enter is not held
   // up by a slow or silent owner. Null: every room is built here.
   std::shared_ptr<RoomSource> owners;
   std::chrono::milliseconds owner_timeout{1'000};

@@ -9,9 +9,12 @@
 #include <cstdio>
 #include <cstdlib>
 
+#include "proto/room_path.hpp"
+#include "proto/world_digest.hpp"
 #include "server/config.hpp"
 #include "server/fd_limit.hpp"
 #include "server/opencl_probe.hpp"
+#include "server/room_tier.hpp"
 #include "server/server.hpp"
 
 int main(int argc, char** argv) {
@@ -37,6 +40,25 @@ int main(int argc, char** argv) {
     spdlog::warn("event=compute_path_fallback reason=\"{}\"", *why);
     config.generator.builder.device.device = "none";
     config.generator.builder.device.none_reason = "CPU fallback: " + *why;
+  }
+
+  // In a cluster, rooms come from their owner replica through the room tier first.
+  if (!config.room_tier.empty()) {
+    grotto::server::RoomTierConfig tier;
+    tier.url = config.room_tier;
+    tier.max_body_bytes = config.limits.max_frame_bytes;
+    const uint64_t params = grotto::proto::world_params_digest(config.layout, config.mesh);
+    tier.path_of = [params](const grotto::server::RoomKey& key) {
+      return grotto::proto::room_path({key.version, key.seed, params, key.lod, key.id});
+    };
+    auto opened = grotto::server::RoomTier::create(std::move(tier));
+    if (!opened) {
+      std::fprintf(stderr, "grotto-server: %s\n", opened.error().message.c_str());
+      return 2;
+    }
+    config.generator.owners = std::move(opened).value();
+    spdlog::info("event=room_tier url={} owner_timeout_ms={}", config.room_tier,
+                 config.generator.owner_timeout.count());
   }
 
   // Block the signals before any thread starts, so every thread inherits the mask and sigwait

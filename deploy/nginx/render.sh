@@ -14,9 +14,11 @@ usage() {
   cat <<'EOF'
 Usage: render.sh --prefix DIR --listen [ADDR:]PORT --replicas HOST:PORT[,HOST:PORT...] [options]
 
-Writes DIR/conf/nginx.conf for grotto-server replicas behind nginx (WebSocket on /ws hashed by
-the requested world seed, /healthz of nginx itself, /replica/<i>/{metrics,healthz,readyz} of
-replica i, counted from 0 in --replicas order) and checks it with `nginx -t`.
+Writes DIR/conf/nginx.conf for grotto-server replicas behind nginx and checks it with `nginx -t`:
+players' WebSockets on /ws to the replica with the fewest connections; room URLs (/rooms/...) to
+each room's owner replica (consistent hash of the path) through a cache in DIR/temp/rooms, the
+room tier that replicas started with --room-tier http://ADDR:PORT use; /healthz of nginx itself;
+/replica/<i>/{metrics,healthz,readyz} of replica i, counted from 0 in --replicas order.
 
 Options:
   --prefix DIR           nginx prefix: conf/, logs/ (access.log, error.log), temp/, nginx.pid
@@ -26,6 +28,9 @@ Options:
   --max-fails N          passive health check: failed connects before a replica is skipped (default 1)
   --fail-timeout SECONDS how long a failed replica is skipped, and the window for --max-fails (default 5)
   --workers N            nginx worker processes, or auto (default 1)
+  --room-cache-size SIZE rooms kept on disk by the tier's cache, nginx size syntax (default 1g)
+  --owners LIST          comma-separated HOST:PORT of the replicas that own rooms (the tier's ring;
+                         default: --replicas), e.g. builders that take no players
   --nginx PATH           the nginx binary (default: nginx on PATH, else /usr/sbin/nginx)
   --run                  after writing, exec nginx in the foreground (daemon off) in DIR
   --print-command        print the nginx command line that --run would exec, and exit
@@ -41,10 +46,10 @@ die() {
 }
 
 prefix="" listen="" replicas="" metrics_allow="127.0.0.1" max_fails=1 fail_timeout=5 workers=1
-nginx_bin="" run=0 print_command=0
+nginx_bin="" run=0 print_command=0 room_cache_size=1g owners=""
 while [[ $# -gt 0 ]]; do
   case "$1" in
-    --prefix | --listen | --replicas | --metrics-allow | --max-fails | --fail-timeout | --workers | --nginx)
+    --prefix | --listen | --replicas | --metrics-allow | --max-fails | --fail-timeout | --workers | --nginx | --room-cache-size | --owners)
       [[ $# -ge 2 ]] || die "$1 needs a value"
       case "$1" in
         --prefix) prefix=$2 ;;
@@ -55,6 +60,8 @@ while [[ $# -gt 0 ]]; do
         --fail-timeout) fail_timeout=$2 ;;
         --workers) workers=$2 ;;
         --nginx) nginx_bin=$2 ;;
+        --room-cache-size) room_cache_size=$2 ;;
+        --owners) owners=$2 ;;
       esac
       shift 2
       ;;
@@ -73,6 +80,7 @@ valid_port() { [[ "$1" =~ ^[0-9]{1,5}$ ]] && ((10#$1 >= 1 && 10#$1 <= 65535)); }
 valid_port "${listen##*:}" || die "--listen: '$listen' needs a port in 1..65535 ([ADDR:]PORT)"
 [[ "$max_fails" =~ ^[0-9]+$ ]] || die "--max-fails: must be a whole number (got '$max_fails')"
 [[ "$fail_timeout" =~ ^[1-9][0-9]*$ ]] || die "--fail-timeout: must be whole seconds >= 1 (got '$fail_timeout')"
+[[ "$room_cache_size" =~ ^[1-9][0-9]*[kKmMgG]?$ ]] || die "--room-cache-size: must be a size like 512m or 2g (got '$room_cache_size')"
 [[ "$workers" == auto || "$workers" =~ ^[1-9][0-9]?$ ]] || die "--workers: must be 1..99 or auto (got '$workers')"
 
 IFS=, read -r -a replica_list <<<"$replicas"
@@ -81,6 +89,12 @@ host_port_re='^[][A-Za-z0-9.:_-]+:[0-9]+$'  # a name, IPv4 or [IPv6], then :PORT
 for r in "${replica_list[@]}"; do
   [[ "$r" =~ $host_port_re ]] && valid_port "${r##*:}" ||
     die "--replicas: '$r' is not HOST:PORT with a port in 1..65535"
+done
+IFS=, read -r -a owner_list <<<"${owners:-$replicas}"
+[[ ${#owner_list[@]} -ge 1 ]] || die "--owners: no replica given"
+for r in "${owner_list[@]}"; do
+  [[ "$r" =~ $host_port_re ]] && valid_port "${r##*:}" ||
+    die "--owners: '$r' is not HOST:PORT with a port in 1..65535"
 done
 IFS=, read -r -a allow_list <<<"$metrics_allow"
 for a in "${allow_list[@]}"; do
@@ -97,7 +111,10 @@ fi
 mkdir -p "$prefix/conf" "$prefix/logs" "$prefix/temp" || die "--prefix: cannot create '$prefix'"
 prefix=$(cd "$prefix" && pwd)
 
-upstream_servers=""
+upstream_servers="" owner_servers=""
+for r in "${owner_list[@]}"; do
+  owner_servers+="    server $r max_fails=$max_fails fail_timeout=${fail_timeout}s;"$'\n'
+done
 replica_upstreams=""
 replica_locations=""
 allow_lines=""
@@ -128,8 +145,10 @@ conf=$(<"$template")
 conf=${conf//@WORKERS@/$workers}
 conf=${conf//@WORKER_CONNECTIONS@/4096}
 conf=${conf//@LISTEN@/$listen}
+conf=${conf//@ROOM_CACHE_SIZE@/$room_cache_size}
 conf=${conf//@METRICS_ALLOW@/$metrics_allow}
 conf=${conf//@UPSTREAM_SERVERS@/${upstream_servers%$'\n'}}
+conf=${conf//@OWNER_SERVERS@/${owner_servers%$'\n'}}
 conf=${conf//@REPLICA_UPSTREAMS@/${replica_upstreams%$'\n'}}
 conf=${conf//@REPLICA_LOCATIONS@/${replica_locations%$'\n'}}
 printf '%s\n' "$conf" >"$prefix/conf/nginx.conf"

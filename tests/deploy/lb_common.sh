@@ -24,6 +24,9 @@ lb_init() {
     exit 1
   fi
   lb_dir=$(mktemp -d "${TMPDIR:-/tmp}/grotto-$1.XXXXXX")
+  # nginx started as root runs its workers as an unprivileged user, which must enter the prefix
+  # (the room tier's cache lives in it).
+  chmod 755 "$lb_dir"
   trap lb_cleanup EXIT
   trap 'exit 130' INT TERM
 }

@@ -302,6 +302,10 @@ check(m and lm and size(*m.groups()) <= 0.8 * size(*lm.groups()),
       f"the tier's proxy_cache_path max_size must stay under 80 % of the emptyDir's sizeLimit {limit} "
       "(temp files and the cache manager's lag; a pod over it is evicted)")
 
+# grotto-server asks the tier's Service for rooms.
+tier_url = f"http://{tier_svc['metadata']['name']}:{tier_svc['spec']['ports'][0]['port']}"
+check(config.get("room-tier") == tier_url,
+      f"grotto-server.json's room-tier is {config.get('room-tier')!r}, not the tier's Service {tier_url}")
 for e in errors:
     print("FAIL: " + e)
 sys.exit(1 if errors else 0)

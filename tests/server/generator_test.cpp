@@ -1222,12 +1222,12 @@ TEST(GeneratorOwners, a_room_due_soon_waits_briefly_for_its_owner_far_prefetch_t
   const std::vector<cave::RoomId> ids = existing_rooms(3);
   Inbox inbox;
   ClientId c = replica->add_client(inbox.fn());
-  std::vector<Want> w = {{ids[0], 0, 0}, {ids[1], 0, 600}, {ids[2], 0, 5000}};
+  std::vector<Want> w = {{ids[0], 0, 0}, {ids[1], 0, 1100}, {ids[2], 0, 5000}};
   replica->request(c, w);
   ASSERT_TRUE(inbox.wait_for(3));
   auto t = owners->timeouts();
   EXPECT_EQ(t.at(ids[0]), 150ms) << "due now: built here after a short wait";
-  EXPECT_EQ(t.at(ids[1]), 500ms) << "its slack: 600 ms less 100 to build it here";
+  EXPECT_EQ(t.at(ids[1]), 600ms) << "its slack: 1,100 ms less 500 to build it here";
   EXPECT_EQ(t.at(ids[2]), 1000ms) << "far prefetch: the whole owner_timeout";
 }
 }  // namespace
