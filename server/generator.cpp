@@ -414,9 +414,9 @@ struct Generator::State {
         std::clamp(slack, std::min(kMinOwnerWait, config.owner_timeout), config.owner_timeout);
     job->stage = Job::Stage::kFetching;
     ++fetches;
-    config.owners->fetch(job->key, wait, [this, job](Result<std::vector<uint8_t>> bytes) {
-      fetched(job, std::move(bytes));
-    });
+    config.owners->fetch(
+        job->key, priority_ms, wait,
+        [this, job](Result<std::vector<uint8_t>> bytes) { fetched(job, std::move(bytes)); });
   }
 
   // The owner's answer, on the fetcher's thread: the room for every waiter, or the job goes to

@@ -55,6 +55,7 @@ using Response = http::response_parser<http::vector_body<uint8_t>>;
 
 struct Fetch {
   std::string target;
+  uint32_t priority_ms = 0;
   Clock::time_point deadline;
   RoomSource::Done done;
   std::unique_ptr<Stream> stream;
@@ -132,6 +133,7 @@ struct RoomTier::Impl {
     f->request = {http::verb::get, f->target, 11};
     f->request.set(http::field::host, host + ":" + port);
     f->request.set(http::field::user_agent, "grotto-server room tier");
+    f->request.set("Grotto-Priority", std::to_string(f->priority_ms));
     f->request.keep_alive(true);
     f->stream->expires_at(f->deadline);
     http::async_write(*f->stream, f->request, [this, f](beast::error_code ec, size_t) {
@@ -244,9 +246,11 @@ RoomTier::~RoomTier() {
   if (i->thread.joinable()) i->thread.join();
 }
 
-void RoomTier::fetch(const RoomKey& key, std::chrono::milliseconds timeout, Done done) {
+void RoomTier::fetch(const RoomKey& key, uint32_t priority_ms, std::chrono::milliseconds timeout,
+                     Done done) {
   auto f = std::make_shared<Fetch>();
   f->target = impl_->config.path_of(key);
+  f->priority_ms = priority_ms;
   f->deadline = Clock::now() + timeout;
   f->done = std::move(done);
   Impl* i = impl_.get();

@@ -31,7 +31,9 @@ class RoomSource {
   // thread: with the bytes of a 200 answer, or an error saying what went wrong (unreachable,
   // timed out, an HTTP status other than 200 with the first line of its body). The bytes are
   // not checked here: the caller decodes them like any untrusted frame.
-  virtual void fetch(const RoomKey& key, std::chrono::milliseconds timeout, Done done) = 0;
+  // `priority_ms` is how soon the room is needed (a want's priority), passed to the owner.
+  virtual void fetch(const RoomKey& key, uint32_t priority_ms, std::chrono::milliseconds timeout,
+                     Done done) = 0;
 };
 
 struct RoomTierConfig {
@@ -49,7 +51,9 @@ class RoomTier final : public RoomSource {
   static Result<std::unique_ptr<RoomTier>> create(RoomTierConfig config);
   ~RoomTier() override;  // fails what is pending ("room tier stopped"), joins the thread
 
-  void fetch(const RoomKey& key, std::chrono::milliseconds timeout, Done done) override;
+  // GET of path_of(key) with Grotto-Priority: priority_ms (PROTOCOL.md, "Rooms over HTTP").
+  void fetch(const RoomKey& key, uint32_t priority_ms, std::chrono::milliseconds timeout,
+             Done done) override;
 
   struct Impl;
 

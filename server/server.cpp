@@ -77,6 +77,9 @@ constexpr int kReserveDrainPerTurn = 256;
 // most are a player's room fetched from its owner or through a cache, soon needed, but it should
 // not go before the rooms players stand in (priority 0).
 constexpr uint32_t kRoomGetPriorityMs = 500;
+// A room GET may say how soon it is needed (a replica's owner fetch passes its player's want):
+// the Grotto-Priority header, whole milliseconds up to this.
+constexpr uint32_t kMaxRoomGetPriorityMs = 3'600'000;
 constexpr const char* kRoomCacheControl = "public, max-age=31536000, immutable";
 constexpr const char* kRoomContentType = "application/octet-stream";
 
@@ -747,6 +750,20 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
                              " rooms/s, request_burst " + std::to_string(limits.request_burst) +
                              " on this connection); slow down");
     }
+    uint32_t priority = kRoomGetPriorityMs;
+    if (auto field = req["Grotto-Priority"]; !field.empty()) {
+      std::string_view text(field.data(), field.size());
+      uint64_t ms = 0;
+      const bool digits = text.size() <= 7 && text.find_first_not_of("0123456789") == text.npos;
+      for (char c : text)
+        ms = ms * 10 + static_cast<uint64_t>(c - '0');
+      if (!digits || ms > kMaxRoomGetPriorityMs) {
+        return refuse_room(r, http::status::bad_request,
+                           "Grotto-Priority must be whole milliseconds from 0 to " +
+                               std::to_string(kMaxRoomGetPriorityMs));
+      }
+      priority = static_cast<uint32_t>(ms);
+    }
     const proto::RoomPath& p = *parsed;
     if (!proto::speaks_version(p.version)) {
       return refuse_room(r, http::status::not_found,
@@ -776,8 +793,8 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
     auto executor = stream_.get_executor();
     auto gate = server_.gate;
     fetch_room(
-        *server_.generator, RoomKey{p.id, static_cast<uint8_t>(p.lod), p.seed, p.version},
-        kRoomGetPriorityMs, Build::kHere,
+        *server_.generator, RoomKey{p.id, static_cast<uint8_t>(p.lod), p.seed, p.version}, priority,
+        Build::kHere,
         [executor, gate](std::function<void()> f) {
           std::lock_guard lock(gate->mutex);
           if (gate->open) net::post(executor, std::move(f));

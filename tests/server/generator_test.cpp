@@ -995,7 +995,7 @@ class FakeOwners final : public RoomSource {
     for (std::thread& t : threads_)
       t.join();
   }
-  void fetch(const RoomKey& key, std::chrono::milliseconds timeout, Done done) override {
+  void fetch(const RoomKey& key, uint32_t, std::chrono::milliseconds timeout, Done done) override {
     std::lock_guard lock(mutex_);
     asked_.push_back(key.id);
     timeouts_[key.id] = timeout;

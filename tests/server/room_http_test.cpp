@@ -202,6 +202,24 @@ TEST(RoomsOverHttp, bad_room_urls_get_their_status_and_a_one_line_reason) {
   EXPECT_EQ(get(server->port(), good).status, 200) << "the server still serves";
 }
 
+// Grotto-Priority (how soon the room is needed; a replica's owner fetch passes its player's)
+// takes whole milliseconds up to an hour; anything else is refused, naming the header.
+TEST(RoomsOverHttp, grotto_priority_is_whole_milliseconds_or_refused) {
+  auto c = config();
+  auto server = start(c);
+  ASSERT_TRUE(server);
+  const std::string good = url(c, spawn_sector_rooms(c, 1).front());
+  for (const char* bad : {"soon", "-1", "1.5", "3600001", "99999999999"}) {
+    auto a = get(server->port(), good, {{"Grotto-Priority", bad}});
+    EXPECT_EQ(a.status, 400) << bad;
+    EXPECT_NE(a.body.find("Grotto-Priority must be whole milliseconds from 0 to 3600000"),
+              std::string::npos)
+        << bad << ": " << a.body;
+  }
+  for (const char* ok : {"0", "250", "3600000"})
+    EXPECT_EQ(get(server->port(), good, {{"Grotto-Priority", ok}}).status, 200) << ok;
+}
+
 // A server with a token serves rooms only to requests that carry it, as it serves players only
 // after a hello with it (PROTOCOL.md, "Rooms over HTTP").
 TEST(RoomsOverHttp, with_a_token_room_urls_need_it) {

@@ -53,6 +53,10 @@ class ScriptedServer {
     std::lock_guard lock(mutex_);
     return targets_;
   }
+  std::vector<std::string> priorities() const {
+    std::lock_guard lock(mutex_);
+    return priorities_;
+  }
 
  private:
   void run() {
@@ -80,6 +84,10 @@ class ScriptedServer {
       {
         std::lock_guard lock(mutex_);
         targets_.push_back(request.substr(4, request.find(' ', 4) - 4));
+        const size_t at = request.find("Grotto-Priority: ");
+        priorities_.push_back(at == std::string::npos
+                                  ? ""
+                                  : request.substr(at + 17, request.find("\r\n", at) - at - 17));
       }
       std::string answer;
       switch (reply) {
@@ -117,6 +125,7 @@ class ScriptedServer {
   std::atomic<int> accepted_{0};
   mutable std::mutex mutex_;
   std::vector<std::string> targets_;
+  std::vector<std::string> priorities_;  // each request's Grotto-Priority
 };
 
 std::unique_ptr<RoomTier> tier(const std::string& url, size_t max_body = size_t{4} << 20) {
@@ -139,7 +148,7 @@ RoomKey key(uint32_t index) {
 Result<std::vector<uint8_t>> fetch(RoomTier& t, RoomKey k, std::chrono::milliseconds timeout = 5s) {
   std::promise<Result<std::vector<uint8_t>>> answer;
   auto got = answer.get_future();
-  t.fetch(k, timeout, [&](Result<std::vector<uint8_t>> r) { answer.set_value(std::move(r)); });
+  t.fetch(k, 250, timeout, [&](Result<std::vector<uint8_t>> r) { answer.set_value(std::move(r)); });
   EXPECT_EQ(got.wait_for(60s), std::future_status::ready);
   return got.get();
 }
@@ -157,6 +166,8 @@ TEST(RoomTier, answers_come_back_byte_for_byte_over_one_kept_alive_connection) {
   EXPECT_EQ(server.accepted(), 1);
   EXPECT_EQ(server.targets(),
             (std::vector<std::string>{"/rooms/0.0.0.r0", "/rooms/0.0.0.r1", "/rooms/0.0.0.r2"}));
+  // How soon each room is needed goes to the owner, which queues it by that.
+  EXPECT_EQ(server.priorities(), (std::vector<std::string>{"250", "250", "250"}));
 }
 
 TEST(RoomTier, a_connection_the_server_closed_is_replaced_without_an_error) {
