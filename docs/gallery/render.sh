@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# Renders docs/GALLERY.md's pictures: each pose with the relief on and off (--no-displacement),
+# Renders docs/GALLERY.md's pictures: each pose with the relief on and off (--no-displacement; the
+# last poses with and without the fine detail or the ambient occlusion instead),
 # through EGL (no window system: Mesa's llvmpipe here, a GPU's driver where there is one), from an
 # in-process server (CPU reference). About 4 s a picture at 1920x1080 on llvmpipe.
 # Usage: bash docs/gallery/render.sh [build dir, default build]  (from the repository root)
@@ -51,13 +52,13 @@ elif kind == 'entrance':
     yaw, pitch = look([-x for x in n])
 print('%.2f,%.2f,%.2f,%.1f,%.1f' % (p[0], p[1], p[2], yaw, pitch))" "${@:3}"
 }
-shoot() {  # name seed extra-args...
-  local name=$1 seed=$2
+shoot() {  # name seed extra-args...; OFF=flag: what the -off picture leaves out (default: the relief)
+  local name=$1 seed=$2 off=${OFF:---no-displacement}
   shift 2
   [[ -n $only && $only != "$name" ]] && return 0
   for relief in on off; do
     local flags=()
-    [[ $relief == off ]] && flags=(--no-displacement)
+    [[ $relief == off ]] && flags=("$off")
     "$client" --gl egl --device none --seed "$seed" --width "${size%x*}" --height "${size#*x}" \
       --tess-max 8 --lod distance --frames 3 --wait 120 --no-motion-blur --mode fly \
       --screenshot "$out/$name-$relief.png" --json "$out/$name-$relief.json" \
@@ -89,3 +90,14 @@ shoot hall-up-7 7 --pose "$(pose 7 0.0.0.r0 floor 60 55)"
 # Light in the dark: the headlamp off, one flare thrown into the hall (it falls, bounces and lies
 # burning), and the world's lights.
 shoot hall-flare-95 95 --pose "$(pose 95 1.0.1.r0 across 0 -5)" --no-headlamp --flares 1
+# Columns (issue 27): where a level floor and ceiling are 2.5-3.5 m apart a column cell's
+# stalactite and stalagmite join. Halls never hold one (their ceilings are 10-30 m up and slope
+# where they come down); seed 7's passage room 0.0.1.r59 (r = 3.8 m, floor at y 39.8, ceiling
+# 2.4 m above) holds two, 0.9 m apart, found by scanning the column cells of sectors 0,0,0 to
+# 1,0,1 in seeds 3, 7 and 95 (37 joined in all, every one in a room of radius 2.8-6 m).
+shoot column-field-7 7 --pose 90.20,41.00,112.30,-90.0,0.0
+# Fine detail (the -off picture without it, --no-fine-detail): the same room's wall 1.9 m away.
+OFF=--no-fine-detail shoot detail-wall-7 7 --pose 89.50,41.00,111.80,180.0,0.0
+# Ambient occlusion (the -off picture without it, --no-ao): stalagmites' feet on the floor of
+# seed 7's hall, the fluted wall behind.
+OFF=--no-ao shoot ao-stalagmites-7 7 --pose 44.85,63.90,33.99,146.2,-21.8
