@@ -392,7 +392,13 @@ Status apply_config_file(const std::string& path, ServerConfig& config) {
 
 CommandLine parse_command_line(int argc, const char* const* argv) {
   CommandLine out;
+  // GCC 12 at -O3 (the README's Release build) warns that the destructor of this value's
+  // strings may read them uninitialized, a false positive of its -Wmaybe-uninitialized, silenced
+  // here only.
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
   const ServerConfig defaults{};
+#pragma GCC diagnostic pop
   CLI::App app{
       product_version() +
           ": streams procedurally generated cave rooms to game clients over WebSocket "
