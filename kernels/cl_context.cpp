@@ -165,7 +165,18 @@ Result<std::unique_ptr<ComputeContext::State>> open_device(const Candidate& chos
   cl_int code = CL_SUCCESS;
   state.context = cl::Context(chosen.device, nullptr, nullptr, nullptr, &code);
   if (code != CL_SUCCESS) return cl_error(code, "clCreateContext", __FILE__, __LINE__);
-  state.queue = cl::CommandQueue(state.context, chosen.device, 0, &code);
+  // In order, as before; with profiling where asked and the device lists it (every conformant
+  // device does), falling back to a plain queue rather than failing.
+  cl_command_queue_properties supported = 0;
+  chosen.device.getInfo(CL_DEVICE_QUEUE_ON_HOST_PROPERTIES, &supported);
+  state.profiling = config.profiling && (supported & CL_QUEUE_PROFILING_ENABLE) != 0;
+  state.queue = cl::CommandQueue(state.context, chosen.device,
+                                 state.profiling ? CL_QUEUE_PROFILING_ENABLE : 0, &code);
+  if (code != CL_SUCCESS && state.profiling) {
+    spdlog::warn("opencl queue profiling refused ({}); using a plain queue", cl_error_name(code));
+    state.profiling = false;
+    state.queue = cl::CommandQueue(state.context, chosen.device, 0, &code);
+  }
   if (code != CL_SUCCESS) {
     return cl_error(code, "clCreateCommandQueueWithProperties", __FILE__, __LINE__);
   }
@@ -237,6 +248,11 @@ std::string ComputeContext::describe() const {
          i.device_version + "\" compute_units=" + std::to_string(i.compute_units);
 }
 
+bool ComputeContext::profiling() const {
+  assert(state_ != nullptr);
+  return state_->profiling;
+}
+
 const std::filesystem::path& ComputeContext::cache_dir() const {
   assert(state_ != nullptr);
   return state_->cache_dir;
@@ -268,6 +284,19 @@ Status enqueue_1d(const ComputeContext& ctx, const cl::Kernel& kernel, size_t gl
   GROTTO_CL_TRY(ctx.queue().enqueueNDRangeKernel(kernel, cl::NullRange, cl::NDRange(global_size),
                                                  cl::NullRange));
   return {};
+}
+
+double event_ms(const cl::Event& event) {
+  return event_span_ms(event, event);
+}
+
+double event_span_ms(const cl::Event& first, const cl::Event& last) {
+  cl_ulong start = 0, end = 0;
+  if (first.getProfilingInfo(CL_PROFILING_COMMAND_START, &start) != CL_SUCCESS ||
+      last.getProfilingInfo(CL_PROFILING_COMMAND_END, &end) != CL_SUCCESS || end < start) {
+    return 0;
+  }
+  return 1e-6 * static_cast<double>(end - start);
 }
 
 }  // namespace grotto::kernels

@@ -46,6 +46,11 @@ struct DeviceConfig {
   std::string cache_dir{};
   // True: every build_program() in this context compiles from source or the in-process cache.
   bool disable_disk_cache = false;
+  // True: the queue records when each command ran (CL_QUEUE_PROFILING_ENABLE), so kernels can
+  // report the device's upload, kernel and download times (kernels::LaunchStats). Every OpenCL
+  // device must support it (it is the mandated minimum of CL_DEVICE_QUEUE_ON_HOST_PROPERTIES);
+  // a device that does not report it gets a plain queue, and ComputeContext::profiling() says so.
+  bool profiling = true;
   // With device "none": why OpenCL is off, for the compute path and logs (empty: "disabled by
   // configuration"). grotto-server sets it when its OpenCL probe failed.
   std::string none_reason{};
@@ -121,6 +126,9 @@ class ComputeContext {
   const DeviceInfo& info() const;
   // One log line of key=value fields: platform, device, type, driver, compute units.
   std::string describe() const;
+  // Whether queue() records command times (DeviceConfig::profiling and the device allow it):
+  // cl::Event::getProfilingInfo on its commands' events then succeeds.
+  bool profiling() const;
   // The resolved disk-cache directory; empty when the disk cache is off.
   const std::filesystem::path& cache_dir() const;
   BuildStats stats() const;
@@ -212,15 +220,38 @@ Result<cl::Buffer> make_buffer(const ComputeContext& ctx, cl_mem_flags flags, si
   return buffer;
 }
 
-// Blocking read of the first `count` elements of `buffer` into out[0, count); it waits for the
-// commands queued before it (the queue is in order).
+// Enqueues a copy of data[0, count) into the start of `buffer` and returns without waiting:
+// data must stay valid and unchanged until the write has completed (a later blocking read on the
+// same in-order queue, or `done`). *done (if given) receives the write's event, for profiling.
 template <typename T>
-Status read_buffer(const ComputeContext& ctx, const cl::Buffer& buffer, T* out, size_t count) {
+Status enqueue_write(const ComputeContext& ctx, const cl::Buffer& buffer, const T* data,
+                     size_t count, cl::Event* done = nullptr) {
   static_assert(std::is_trivially_copyable_v<T>);
   if (count == 0) return {};
-  GROTTO_CL_TRY(ctx.queue().enqueueReadBuffer(buffer, CL_TRUE, 0, count * sizeof(T), out));
+  GROTTO_CL_TRY(
+      ctx.queue().enqueueWriteBuffer(buffer, CL_FALSE, 0, count * sizeof(T), data, nullptr, done));
   return {};
 }
+
+// Read of the first `count` elements of `buffer` into out[0, count), after the commands queued
+// before it (the queue is in order). Blocking by default; with blocking = false it returns at once
+// and out must stay valid until the read has completed (a later blocking read, or `done`).
+// *done (if given) receives the read's event, for profiling.
+template <typename T>
+Status read_buffer(const ComputeContext& ctx, const cl::Buffer& buffer, T* out, size_t count,
+                   bool blocking = true, cl::Event* done = nullptr) {
+  static_assert(std::is_trivially_copyable_v<T>);
+  if (count == 0) return {};
+  GROTTO_CL_TRY(ctx.queue().enqueueReadBuffer(buffer, blocking ? CL_TRUE : CL_FALSE, 0,
+                                              count * sizeof(T), out, nullptr, done));
+  return {};
+}
+
+// Milliseconds between a completed command's CL_PROFILING_COMMAND_START and _END: how long the
+// device ran it, without the host's enqueue or wait. 0 when the queue does not profile.
+double event_ms(const cl::Event& event);
+// Milliseconds from `first`'s start to `last`'s end (commands of one queue); 0 without profiling.
+double event_span_ms(const cl::Event& first, const cl::Event& last);
 
 // Sets arguments 0, 1, 2, ... of `kernel`; the error names the first argument that failed.
 template <typename... Args>

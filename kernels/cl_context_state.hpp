@@ -15,6 +15,7 @@ struct ComputeContext::State {
   cl::Context context;
   cl::Device device;
   cl::CommandQueue queue;
+  bool profiling = false;           // the queue was created with CL_QUEUE_PROFILING_ENABLE
   std::filesystem::path cache_dir;  // empty: disk cache off
 
   // Guards programs and stats, and is held for a whole build so that two threads asking for the

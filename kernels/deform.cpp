@@ -1,6 +1,7 @@
 #include "kernels/deform.hpp"
 
 #include <algorithm>
+#include <chrono>
 
 #include "embedded_cl/deform.hpp"
 #include "embedded_cl/deform_core.hpp"
@@ -11,6 +12,16 @@ namespace grotto::kernels {
 using mesh::core::GrottoPortal;
 using mesh::core::GrottoRoom;
 using mesh::core::GrottoShape;
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double ms_between(Clock::time_point a, Clock::time_point b) {
+  return std::chrono::duration<double, std::milli>(b - a).count();
+}
+
+}  // namespace
 
 std::string deform_source() {
   std::string s(source_deform_prelude());
@@ -73,7 +84,7 @@ Status DeformKernel::run(std::span<const mesh::DeformInput> batch,
       ++end;
     }
     if (Status s = launch(batch.subspan(begin, end - begin),
-                          std::span(outputs).subspan(begin, end - begin));
+                          std::span(outputs).subspan(begin, end - begin), stats);
         !s) {
       return s;
     }
@@ -89,7 +100,8 @@ Status DeformKernel::run(std::span<const mesh::DeformInput> batch,
 }
 
 Status DeformKernel::launch(std::span<const mesh::DeformInput> rooms,
-                            std::span<DeformOutput> outputs) {
+                            std::span<DeformOutput> outputs, LaunchStats* stats) {
+  const Clock::time_point t_prepare = Clock::now();
   // Flatten the batch into groups of `lanes_` vertices of one room, each group carrying its room's
   // index (thesis §4.2.1's obstacle: "each room must reference different portal data"). A room's
   // last group is padded with copies of its last direction. Per group: x[lanes] y[lanes] z[lanes].
@@ -121,10 +133,14 @@ Status DeformKernel::launch(std::span<const mesh::DeformInput> rooms,
   if (groups == 0) return {};
   const size_t slots = groups * lanes;
   if (portals.empty()) portals.push_back({});  // no zero-size buffers; never read
-  auto room_buf = make_buffer(*ctx_, CL_MEM_READ_ONLY, records.data(), records.size());
-  auto portal_buf = make_buffer(*ctx_, CL_MEM_READ_ONLY, portals.data(), portals.size());
-  auto index_buf = make_buffer(*ctx_, CL_MEM_READ_ONLY, group_room.data(), groups);
-  auto dir_buf = make_buffer(*ctx_, CL_MEM_READ_ONLY, directions.data(), directions.size());
+
+  // The inputs go up by explicit writes rather than CL_MEM_COPY_HOST_PTR, so the queue's events
+  // time the copies apart from the kernel (issue 30: where a launch's time goes).
+  const Clock::time_point t_allocate = Clock::now();
+  auto room_buf = make_buffer<GrottoRoom>(*ctx_, CL_MEM_READ_ONLY, records.size());
+  auto portal_buf = make_buffer<GrottoPortal>(*ctx_, CL_MEM_READ_ONLY, portals.size());
+  auto index_buf = make_buffer<uint32_t>(*ctx_, CL_MEM_READ_ONLY, groups);
+  auto dir_buf = make_buffer<float>(*ctx_, CL_MEM_READ_ONLY, directions.size());
   auto pos_buf = make_buffer<float>(*ctx_, CL_MEM_WRITE_ONLY, 3 * slots);
   auto clear_buf = make_buffer<float>(*ctx_, CL_MEM_WRITE_ONLY, slots);
   for (auto* b : {&room_buf, &portal_buf, &index_buf, &dir_buf, &pos_buf, &clear_buf}) {
@@ -135,14 +151,45 @@ Status DeformKernel::launch(std::span<const mesh::DeformInput> rooms,
       !s) {
     return s;
   }
-  // Explicit work-groups (the kernel ignores the padding): on PoCL's CPU device the driver's own
-  // choice was slower than fixed groups (docs/BENCHMARKS.md).
-  size_t global = (groups + local_size_ - 1) / local_size_ * local_size_;
-  GROTTO_CL_TRY(ctx_->queue().enqueueNDRangeKernel(kernel_, cl::NullRange, cl::NDRange(global),
-                                                   cl::NDRange(local_size_)));
   std::vector<float> positions(3 * slots), clearance(slots);
-  if (Status s = read_buffer(*ctx_, *pos_buf, positions.data(), positions.size()); !s) return s;
-  if (Status s = read_buffer(*ctx_, *clear_buf, clearance.data(), slots); !s) return s;
+  const Clock::time_point t_queue = Clock::now();
+  // Non-blocking writes and first read: the vectors outlive the blocking last read, which the
+  // in-order queue completes after everything before it. Explicit work-groups (the kernel ignores
+  // the padding): on PoCL's CPU device the driver's own choice was slower than fixed groups
+  // (docs/BENCHMARKS.md).
+  const size_t global = (groups + local_size_ - 1) / local_size_ * local_size_;
+  cl::Event writes[4], run, reads[2];
+  auto enqueue = [&]() -> Status {
+    if (Status s = enqueue_write(*ctx_, *room_buf, records.data(), records.size(), &writes[0]);
+        !s) {
+      return s;
+    }
+    if (Status s = enqueue_write(*ctx_, *portal_buf, portals.data(), portals.size(), &writes[1]);
+        !s) {
+      return s;
+    }
+    if (Status s = enqueue_write(*ctx_, *index_buf, group_room.data(), groups, &writes[2]); !s) {
+      return s;
+    }
+    if (Status s = enqueue_write(*ctx_, *dir_buf, directions.data(), directions.size(), &writes[3]);
+        !s) {
+      return s;
+    }
+    GROTTO_CL_TRY(ctx_->queue().enqueueNDRangeKernel(kernel_, cl::NullRange, cl::NDRange(global),
+                                                     cl::NDRange(local_size_), nullptr, &run));
+    if (Status s =
+            read_buffer(*ctx_, *pos_buf, positions.data(), positions.size(), false, &reads[0]);
+        !s) {
+      return s;
+    }
+    return read_buffer(*ctx_, *clear_buf, clearance.data(), slots, true, &reads[1]);
+  };
+  if (Status s = enqueue(); !s) {
+    // Commands already queued may still read or write the vectors above: let them end first.
+    ctx_->queue().finish();
+    return s;
+  }
+  const Clock::time_point t_unpack = Clock::now();
   for (size_t r = 0; r < rooms.size(); ++r) {
     size_t first = records[r].first_vertex, count = rooms[r].donor->directions.size();
     DeformOutput& out = outputs[r];
@@ -153,6 +200,24 @@ Status DeformKernel::launch(std::span<const mesh::DeformInput> rooms,
       size_t l = (first + v) % lanes;
       out.positions[v] = {group[l], group[lanes + l], group[2 * lanes + l]};
     }
+  }
+  if (stats) {
+    stats->prepare_ms += ms_between(t_prepare, t_allocate);
+    stats->allocate_ms += ms_between(t_allocate, t_queue);
+    stats->queue_wall_ms += ms_between(t_queue, t_unpack);
+    stats->unpack_ms += ms_between(t_unpack, Clock::now());
+    for (const cl::Event& e : writes)
+      stats->upload_ms += event_ms(e);
+    stats->kernel_ms += event_ms(run);
+    for (const cl::Event& e : reads)
+      stats->download_ms += event_ms(e);
+    stats->device_span_ms += event_span_ms(writes[0], reads[1]);
+    stats->upload_bytes += records.size() * sizeof(GrottoRoom) +
+                           portals.size() * sizeof(GrottoPortal) + groups * sizeof(uint32_t) +
+                           directions.size() * sizeof(float);
+    stats->download_bytes += (positions.size() + clearance.size()) * sizeof(float);
+    stats->global_size = global;
+    stats->local_size = local_size_;
   }
   return {};
 }

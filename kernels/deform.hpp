@@ -18,11 +18,40 @@ struct DeformOutput {
   std::vector<float> clearance;
 };
 
-// What one run() did, for benchmarks and metrics.
+// What run() did, for benchmarks and metrics; every field adds up over the runs given the same
+// stats (except the last launch's NDRange shape). Times are milliseconds. The device's three are
+// the queue's event profiles (CL_PROFILING_COMMAND_START to _END of each command): how long the
+// device spent on the commands, without the host's enqueue or wait; they stay 0 when the queue
+// does not profile (ComputeContext::profiling()). The host's parts are the calling thread's
+// steady clock.
 struct LaunchStats {
   size_t launches = 0;
   size_t rooms = 0;
   size_t vertices = 0;
+  // Host: flattening the batch into the kernel's layout (room and portal tables, each group's
+  // room, directions de-interleaved into lanes).
+  double prepare_ms = 0;
+  // Host: creating the launch's buffers (they get their data from the writes below) and the host
+  // vectors the outputs are read into.
+  double allocate_ms = 0;
+  // Device: the four input writes, the kernel, the two output reads (sums of their durations).
+  double upload_ms = 0;
+  double kernel_ms = 0;
+  double download_ms = 0;
+  // Device: from the first write's start to the last read's end; minus the three above, the
+  // device's idle gaps between the commands.
+  double device_span_ms = 0;
+  // Host: from enqueueing the first write to the last read's return; minus device_span_ms, the
+  // driver's cost of enqueueing, staging host memory and signalling completion.
+  double queue_wall_ms = 0;
+  // Host: the outputs copied out of lanes into each room's vectors.
+  double unpack_ms = 0;
+  size_t upload_bytes = 0;
+  size_t download_bytes = 0;
+  // The last launch's NDRange: work items (whole work-groups, the padding idle) and group size;
+  // each work item deforms lanes() vertices of one room.
+  size_t global_size = 0;
+  size_t local_size = 0;
 };
 
 // The built kernel plus the level-of-detail shapes (mesh parameters) on one device. The world
@@ -48,7 +77,8 @@ class DeformKernel {
  private:
   DeformKernel(ComputeContext& ctx, cl::Kernel kernel, cl::Buffer shapes, size_t max_constant_bytes,
                BuildOrigin origin, int lanes);
-  Status launch(std::span<const mesh::DeformInput> rooms, std::span<DeformOutput> outputs);
+  Status launch(std::span<const mesh::DeformInput> rooms, std::span<DeformOutput> outputs,
+                LaunchStats* stats);
 
   static constexpr size_t kPreferredGroupSize = 128;
 

@@ -141,6 +141,51 @@ TEST_F(DeformKernelTest, batched_and_single_room_launches_agree) {
   }
 }
 
+// Issue 30: a launch's time split by the queue's events. With profiling (the default) the device's
+// upload, kernel and download are timed and fit in the device's span; without it they read 0, and
+// either way the results are the same bits.
+TEST_F(DeformKernelTest, a_profiled_queue_splits_the_launch_into_upload_kernel_and_download) {
+  ASSERT_TRUE(device_->profiling()) << "PoCL accepts CL_QUEUE_PROFILING_ENABLE";
+  auto plain_ctx = ComputeContext::create(DeviceConfig{.device = "auto", .profiling = false});
+  ASSERT_TRUE(plain_ctx.ok()) << plain_ctx.error().message;
+  EXPECT_FALSE(plain_ctx->profiling());
+  std::vector<mesh::DeformInput> batch = inputs(mesh::Lod::kPatch, 3);
+  std::vector<DeformOutput> outs[2];
+  LaunchStats stats[2];
+  ComputeContext* contexts[2] = {device_, &plain_ctx.value()};
+  for (int k = 0; k < 2; ++k) {
+    auto created = DeformKernel::create(*contexts[k], *mesh_);
+    ASSERT_TRUE(created.ok()) << created.error().message;
+    DeformKernel kernel = std::move(created).value();
+    ASSERT_TRUE(kernel.run(batch, outs[k], &stats[k]).ok());
+  }
+  const LaunchStats& s = stats[0];
+  EXPECT_GT(s.upload_ms, 0.0);
+  EXPECT_GT(s.kernel_ms, 0.0);
+  EXPECT_GT(s.download_ms, 0.0);
+  EXPECT_GE(s.device_span_ms, s.kernel_ms);
+  EXPECT_GE(s.queue_wall_ms, s.kernel_ms);
+  EXPECT_GT(s.prepare_ms + s.allocate_ms + s.unpack_ms, 0.0);
+  EXPECT_EQ(s.launches, 1u);
+  ASSERT_GT(s.local_size, 0u);
+  EXPECT_EQ(s.global_size % s.local_size, 0u);
+  const size_t lanes = device_->info().device_type == "cpu" ? 8 : 1;
+  EXPECT_GE(s.global_size * lanes, s.vertices);
+  // Positions and clearance of every padded slot come back: 16 bytes each.
+  EXPECT_GE(s.download_bytes, 16 * s.vertices);
+  EXPECT_GE(s.upload_bytes, 12 * s.vertices);
+  EXPECT_EQ(stats[1].upload_ms + stats[1].kernel_ms + stats[1].download_ms, 0.0);
+  EXPECT_EQ(stats[1].upload_bytes, s.upload_bytes);
+  ASSERT_EQ(outs[0].size(), outs[1].size());
+  for (size_t r = 0; r < outs[0].size(); ++r) {
+    ASSERT_EQ(outs[0][r].positions.size(), outs[1][r].positions.size());
+    EXPECT_EQ(std::memcmp(outs[0][r].positions.data(), outs[1][r].positions.data(),
+                          outs[0][r].positions.size() * sizeof(mesh::core::float3)),
+              0);
+    EXPECT_EQ(outs[0][r].clearance, outs[1][r].clearance);
+  }
+}
+
 // One kernel serves every world with its mesh parameters: rooms of two worlds, interleaved in one
 // run, each match the CPU reference of their own world, in a single launch.
 TEST_F(DeformKernelTest, a_batch_mixing_two_worlds_matches_each_worlds_cpu_reference) {
