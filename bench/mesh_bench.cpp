@@ -75,6 +75,10 @@ int main(int argc, char** argv) {
                  "the server streams)")
       ->check(CLI::IsMember(std::vector<std::string>{"detail", "patch"}))
       ->capture_default_str();
+  bool no_profiling = false;
+  app.add_flag("--no-profiling", no_profiling,
+               "Open OpenCL queues without CL_QUEUE_PROFILING_ENABLE (the device split reads 0): "
+               "to check that profiling costs nothing");
   CLI11_PARSE(app, argc, argv);
 
   cave::World world = cave::World::create(seed, cave::LayoutParams{}).value();
@@ -149,8 +153,8 @@ int main(int argc, char** argv) {
   spdlog::set_level(spdlog::level::warn);
   for (std::string device : {"auto", "none"}) {
     for (int threads : {1, 2}) {
-      auto builder =
-          kernels::RoomBuilder::create(ctx, {kernels::DeviceConfig{.device = device}, threads});
+      auto builder = kernels::RoomBuilder::create(
+          ctx, {kernels::DeviceConfig{.device = device, .profiling = !no_profiling}, threads});
       (void)builder.build(rooms, lod);  // warm-up (PoCL compiles for the work-group size)
       double cpu_ms = 0;
       double ms = median_ms(
@@ -189,7 +193,7 @@ int main(int argc, char** argv) {
   report["whole_cave"] = whole;
   report["deform_cpu_time_ms"] = deform_cpu_time_ms;
 
-  auto device = kernels::ComputeContext::create();
+  auto device = kernels::ComputeContext::create(kernels::DeviceConfig{.profiling = !no_profiling});
   if (!device) {
     spdlog::warn("no OpenCL device: {}", device.error().message);
     report["opencl"] = {{"available", false}, {"reason", device.error().message}};
@@ -203,10 +207,70 @@ int main(int argc, char** argv) {
     kernels::DeformKernel kernel = std::move(kernel_result).value();
     std::vector<kernels::DeformOutput> out;
     (void)kernel.run(inputs, out);  // warm-up: PoCL compiles for the work-group size here
-    kernels::LaunchStats stats;
+    std::vector<kernels::LaunchStats> runs;
     double deform_cl_cpu_ms = 0;
     double deform_cl_ms = median_ms(
-        reps, [&] { (void)kernel.run(inputs, out, &stats); }, &deform_cl_cpu_ms);
+        reps,
+        [&] {
+          kernels::LaunchStats s;
+          (void)kernel.run(inputs, out, &s);
+          runs.push_back(s);
+        },
+        &deform_cl_cpu_ms);
+    const kernels::LaunchStats& stats = runs.front();
+    // Issue 30: where the batched launch's time goes, each part the median over the runs above.
+    auto median_of = [&](double kernels::LaunchStats::*field) {
+      std::vector<double> v;
+      for (const kernels::LaunchStats& r : runs)
+        v.push_back(r.*field);
+      return bench::median(v);
+    };
+    // What one work item does per vertex (grotto_deform_vertex in common/mesh/deform_core.h):
+    // loops over its room's n portals (rim noise, collars, the noise fade, the clearance), over the
+    // n(n-1)/2 portal pairs in small rooms (two Hermite splines each), and 3D noise evaluations:
+    // one rim noise per portal, the surface octaves, the big-room octave (always evaluated), two
+    // for a floor. Averaged over the batch's vertices.
+    double portals_per_vertex = 0, pairs_per_vertex = 0, noises_per_vertex = 0;
+    double big_share = 0, floor_share = 0;
+    const mesh::core::GrottoShape& shape = ctx.shape(lod);
+    for (const mesh::DeformInput& in : inputs) {
+      const double v = static_cast<double>(in.donor->directions.size());
+      const double n = static_cast<double>(in.portals.size());
+      const bool big = in.record.big_amplitude != 0.0f && shape.keep_distance > 0.0f;
+      portals_per_vertex += v * n;
+      pairs_per_vertex += big ? 0 : v * n * (n - 1) / 2;
+      noises_per_vertex += v * (n + shape.octaves + 1 + (in.record.has_floor ? 2 : 0));
+      big_share += big ? v : 0;
+      floor_share += in.record.has_floor ? v : 0;
+    }
+    const double all = static_cast<double>(std::max<size_t>(donor_vertices, 1));
+    nlohmann::json work_per_vertex = {{"portals", portals_per_vertex / all},
+                                      {"portal_pairs", pairs_per_vertex / all},
+                                      {"noise_evaluations", noises_per_vertex / all},
+                                      {"surface_octaves", shape.octaves},
+                                      {"share_in_big_rooms", big_share / all},
+                                      {"share_in_floored_rooms", floor_share / all}};
+    using LS = kernels::LaunchStats;
+    nlohmann::json deform_split = {
+        {"profiled", dev.profiling()},
+        {"run_ms", deform_cl_ms},
+        {"prepare_ms", median_of(&LS::prepare_ms)},
+        {"allocate_ms", median_of(&LS::allocate_ms)},
+        {"upload_ms", median_of(&LS::upload_ms)},
+        {"kernel_ms", median_of(&LS::kernel_ms)},
+        {"download_ms", median_of(&LS::download_ms)},
+        {"device_span_ms", median_of(&LS::device_span_ms)},
+        {"queue_wall_ms", median_of(&LS::queue_wall_ms)},
+        {"unpack_ms", median_of(&LS::unpack_ms)},
+        {"upload_bytes", stats.upload_bytes},
+        {"download_bytes", stats.download_bytes},
+        {"launches", stats.launches},
+        {"vertices", stats.vertices},
+        {"lanes", kernel.lanes()},
+        {"work_group_size", stats.local_size},
+        {"global_size", stats.global_size},
+        {"work_groups", stats.local_size ? stats.global_size / stats.local_size : 0},
+        {"work_per_vertex", work_per_vertex}};
 
     // Figure 3-11: time per launch against buffer size.
     nlohmann::json sizes = nlohmann::json::array();
@@ -251,7 +315,9 @@ int main(int argc, char** argv) {
     report["opencl"] = {{"available", true},
                         {"device", dev.describe()},
                         {"deform_ms", deform_cl_ms},
-                        {"launches_per_run", stats.launches / reps},
+                        {"launches_per_run", stats.launches},
+                        // Per stage on the device, the one batched launch of every room.
+                        {"device_stages", {{"deform", deform_split}}},
                         {"lanes", kernel.lanes()},
                         {"deform_speedup_vs_cpu", deform_cpu_ms / deform_cl_ms},
                         // CPU time of all of PoCL's threads: the work per core, whatever else
@@ -294,6 +360,25 @@ int main(int argc, char** argv) {
                 cl["deform_work_ratio_vs_cpu"].get<double>());
     std::printf("%-26s %10.1f  (thesis C++: 9000 ms, %.0fx faster)\n", "total (OpenCL)",
                 cl["total_ms"].get<double>(), cl["total_vs_thesis_cpp_9s"].get<double>());
+    auto& split = cl["device_stages"]["deform"];
+    std::printf(
+        "deform split (ms, median): prepare %.2f  allocate %.2f  upload %.2f  kernel %.2f  "
+        "download %.2f  unpack %.2f  | device span %.2f  queue wall %.2f%s\n",
+        split["prepare_ms"].get<double>(), split["allocate_ms"].get<double>(),
+        split["upload_ms"].get<double>(), split["kernel_ms"].get<double>(),
+        split["download_ms"].get<double>(), split["unpack_ms"].get<double>(),
+        split["device_span_ms"].get<double>(), split["queue_wall_ms"].get<double>(),
+        split["profiled"].get<bool>() ? "" : "  (queue not profiled: device parts 0)");
+    std::printf("deform NDRange: %zu work items in groups of %zu, %d vertices each\n",
+                split["global_size"].get<size_t>(), split["work_group_size"].get<size_t>(),
+                split["lanes"].get<int>());
+    auto& work = split["work_per_vertex"];
+    std::printf(
+        "per vertex (mean): %.2f portals, %.2f portal pairs, %.2f noise evaluations; %.0f %% of "
+        "vertices in big rooms, %.0f %% on floors\n",
+        work["portals"].get<double>(), work["portal_pairs"].get<double>(),
+        work["noise_evaluations"].get<double>(), 100 * work["share_in_big_rooms"].get<double>(),
+        100 * work["share_in_floored_rooms"].get<double>());
     std::printf("%-26s %10.1f\n", "100 single-room launches",
                 cl["one_launch_per_room_ms"].get<double>());
     std::printf("%-26s %10.2f  (%zu vertices)\n", "smallest-room launch",
