@@ -327,7 +327,9 @@ RELIEF_FN Relief relief_at(vec3 p, vec3 n, float roughness, float rim, float roo
   // the gradient: the same in both rooms.
   float finer = 0.28f * (2.0f * ridge * ridge - 1.0f) + 0.16f * o2.x + 0.08f * o3.x;
   float below = max(-0.066f - finer, 0.0f) * rock_amplitude / (strength * kReliefRock);
-  float crevice = kReliefCrevice * smoothstep(0.02f, 0.25f, below);
+  // Only the deepest hollows (below the finer octaves' 5th percentile at nominal roughness; the
+  // 10th on the roughest walls): a wider band blotched whole walls like stains.
+  float crevice = kReliefCrevice * smoothstep(0.12f, 0.32f, below);
   float broad = mix(0.7f, 1.0f, smoothstep(-0.45f, 0.2f, rock));
 
   // Flowstone: sheets poured down walls where the variety field is high, fluted by curtains.
