@@ -270,7 +270,12 @@ int main(int argc, char** argv) {
         {"work_group_size", stats.local_size},
         {"global_size", stats.global_size},
         {"work_groups", stats.local_size ? stats.global_size / stats.local_size : 0},
-        {"work_per_vertex", work_per_vertex}};
+        {"work_per_vertex", work_per_vertex},
+        {"kernel_info",
+         {{"max_work_group_size", kernel.info().max_work_group_size},
+          {"preferred_work_group_multiple", kernel.info().preferred_multiple},
+          {"private_mem_bytes", kernel.info().private_mem_bytes},
+          {"local_mem_bytes", kernel.info().local_mem_bytes}}}};
 
     // Figure 3-11: time per launch against buffer size.
     nlohmann::json sizes = nlohmann::json::array();
@@ -372,6 +377,14 @@ int main(int argc, char** argv) {
     std::printf("deform NDRange: %zu work items in groups of %zu, %d vertices each\n",
                 split["global_size"].get<size_t>(), split["work_group_size"].get<size_t>(),
                 split["lanes"].get<int>());
+    auto& info = split["kernel_info"];
+    std::printf(
+        "deform kernel: max work-group %zu, preferred multiple %zu, private %llu B per item, "
+        "local %llu B per group\n",
+        info["max_work_group_size"].get<size_t>(),
+        info["preferred_work_group_multiple"].get<size_t>(),
+        static_cast<unsigned long long>(info["private_mem_bytes"].get<uint64_t>()),
+        static_cast<unsigned long long>(info["local_mem_bytes"].get<uint64_t>()));
     auto& work = split["work_per_vertex"];
     std::printf(
         "per vertex (mean): %.2f portals, %.2f portal pairs, %.2f noise evaluations; %.0f %% of "

@@ -54,6 +54,18 @@ Result<DeformKernel> DeformKernel::create(ComputeContext& ctx, const mesh::MeshC
   DeformKernel k(ctx, std::move(kernel).value(), std::move(shape_buffer).value(),
                  static_cast<size_t>(max_constant), program->origin(), lanes);
   k.local_size_ = std::clamp<size_t>(max_group, 1, kPreferredGroupSize);
+  // For reports only: a query the driver does not answer leaves its field 0.
+  k.info_.max_work_group_size = max_group;
+  const cl::Kernel& built = k.kernel_;
+  built.getWorkGroupInfo(ctx.device(), CL_KERNEL_PREFERRED_WORK_GROUP_SIZE_MULTIPLE,
+                         &k.info_.preferred_multiple);
+  cl_ulong bytes = 0;
+  if (built.getWorkGroupInfo(ctx.device(), CL_KERNEL_PRIVATE_MEM_SIZE, &bytes) == CL_SUCCESS) {
+    k.info_.private_mem_bytes = bytes;
+  }
+  if (built.getWorkGroupInfo(ctx.device(), CL_KERNEL_LOCAL_MEM_SIZE, &bytes) == CL_SUCCESS) {
+    k.info_.local_mem_bytes = bytes;
+  }
   return k;
 }
 

@@ -54,6 +54,18 @@ struct LaunchStats {
   size_t local_size = 0;
 };
 
+// What the driver says about the built kernel on its device (clGetKernelWorkGroupInfo), for
+// reasoning about occupancy: the largest work-group it can run (on GPUs lower than the device's
+// limit when each work item needs many registers), the work-group multiple it prefers (the SIMD
+// width: 32 on NVIDIA), and its memory per work item (private: registers spilled and arrays the
+// compiler could not keep in registers; NVIDIA's "local memory") and per group (__local).
+struct KernelInfo {
+  size_t max_work_group_size = 0;
+  size_t preferred_multiple = 0;
+  uint64_t private_mem_bytes = 0;
+  uint64_t local_mem_bytes = 0;
+};
+
 // The built kernel plus the level-of-detail shapes (mesh parameters) on one device. The world
 // comes with each room (its record's noise_seed), so one kernel, and one launch, serves every
 // world whose mesh parameters it was built with. Not thread-safe: use one per thread (the
@@ -73,6 +85,7 @@ class DeformKernel {
 
   BuildOrigin build_origin() const { return origin_; }
   int lanes() const { return lanes_; }
+  const KernelInfo& info() const { return info_; }
 
  private:
   DeformKernel(ComputeContext& ctx, cl::Kernel kernel, cl::Buffer shapes, size_t max_constant_bytes,
@@ -89,6 +102,7 @@ class DeformKernel {
   size_t max_constant_bytes_;
   BuildOrigin origin_;
   int lanes_;
+  KernelInfo info_;
 };
 
 // The source the kernel is built from: prelude + shared core + kernel (GROTTO_LANES comes with the

@@ -69,6 +69,9 @@ TEST_F(DeformKernelTest, lanes_default_to_eight_on_cpu_devices_and_reject_other_
   auto created = DeformKernel::create(*device_, *mesh_);
   ASSERT_TRUE(created.ok()) << created.error().message;
   EXPECT_EQ(created->lanes(), device_->info().device_type == "cpu" ? 8 : 1);
+  // The driver's word on the kernel, for occupancy reports (mesh_bench): at least one group fits.
+  EXPECT_GT(created->info().max_work_group_size, 0u);
+  EXPECT_GT(created->info().preferred_multiple, 0u);
   auto bad = DeformKernel::create(*device_, *mesh_, 4);
   ASSERT_FALSE(bad.ok());
   EXPECT_NE(bad.error().message.find("lanes"), std::string::npos) << bad.error().message;
