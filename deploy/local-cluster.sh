@@ -99,7 +99,7 @@ stop_all() {
   for p in "${replica_pid[@]}"; do
     kill -TERM "$p" 2>/dev/null
   done
-  # Replicas drain (their --drain-ms) and exit; nothing waits longer than 30 s.
+  # Replicas drain (their --drain-timeout-ms) and exit; nothing waits longer than 30 s.
   local deadline=$((SECONDS + 30)) p
   for p in "${pids[@]}"; do
     while kill -0 "$p" 2>/dev/null && ((SECONDS < deadline)); do sleep 0.1; done

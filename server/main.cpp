@@ -47,6 +47,7 @@ int main(int argc, char** argv) {
     grotto::server::RoomTierConfig tier;
     tier.url = config.room_tier;
     tier.max_body_bytes = config.limits.max_frame_bytes;
+    tier.token = config.token;  // the owners share it (one cluster, one token)
     const uint64_t params = grotto::proto::world_params_digest(config.layout, config.mesh);
     tier.path_of = [params](const grotto::server::RoomKey& key) {
       return grotto::proto::room_path({key.version, key.seed, params, key.lod, key.id});

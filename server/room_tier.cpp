@@ -134,6 +134,7 @@ struct RoomTier::Impl {
     f->request.set(http::field::host, host + ":" + port);
     f->request.set(http::field::user_agent, "grotto-server room tier");
     f->request.set("Grotto-Priority", std::to_string(f->priority_ms));
+    if (!config.token.empty()) f->request.set(http::field::authorization, "Bearer " + config.token);
     f->request.keep_alive(true);
     f->stream->expires_at(f->deadline);
     http::async_write(*f->stream, f->request, [this, f](beast::error_code ec, size_t) {

@@ -40,7 +40,10 @@ struct RoomTierConfig {
   std::string url;                                     // http://HOST:PORT, the tier's address
   std::function<std::string(const RoomKey&)> path_of;  // the room's URL path, from '/'
   size_t max_connections = 16;                         // kept-alive connections to the tier at most
-  size_t max_body_bytes = size_t{4} << 20;             // a longer answer is an error
+  // The cluster's shared token (ServerConfig::token), sent as Authorization: Bearer so that an
+  // owner with a token serves the room (PROTOCOL.md, "Rooms over HTTP"); empty: none sent.
+  std::string token;
+  size_t max_body_bytes = size_t{4} << 20;  // a longer answer is an error
 };
 
 class RoomTier final : public RoomSource {

@@ -57,6 +57,10 @@ class ScriptedServer {
     std::lock_guard lock(mutex_);
     return priorities_;
   }
+  std::vector<std::string> authorizations() const {
+    std::lock_guard lock(mutex_);
+    return authorizations_;
+  }
 
  private:
   void run() {
@@ -84,6 +88,11 @@ class ScriptedServer {
       {
         std::lock_guard lock(mutex_);
         targets_.push_back(request.substr(4, request.find(' ', 4) - 4));
+        const size_t auth = request.find("Authorization: ");
+        authorizations_.push_back(
+            auth == std::string::npos
+                ? ""
+                : request.substr(auth + 15, request.find("\r\n", auth) - auth - 15));
         const size_t at = request.find("Grotto-Priority: ");
         priorities_.push_back(at == std::string::npos
                                   ? ""
@@ -125,12 +134,15 @@ class ScriptedServer {
   std::atomic<int> accepted_{0};
   mutable std::mutex mutex_;
   std::vector<std::string> targets_;
-  std::vector<std::string> priorities_;  // each request's Grotto-Priority
+  std::vector<std::string> priorities_;      // each request's Grotto-Priority
+  std::vector<std::string> authorizations_;  // and its Authorization
 };
 
-std::unique_ptr<RoomTier> tier(const std::string& url, size_t max_body = size_t{4} << 20) {
+std::unique_ptr<RoomTier> tier(const std::string& url, size_t max_body = size_t{4} << 20,
+                               const std::string& token = "") {
   RoomTierConfig c;
   c.url = url;
+  c.token = token;
   c.path_of = [](const RoomKey& key) { return "/rooms/" + key.id.to_string(); };
   c.max_body_bytes = max_body;
   auto t = RoomTier::create(c);
@@ -168,6 +180,15 @@ TEST(RoomTier, answers_come_back_byte_for_byte_over_one_kept_alive_connection) {
             (std::vector<std::string>{"/rooms/0.0.0.r0", "/rooms/0.0.0.r1", "/rooms/0.0.0.r2"}));
   // How soon each room is needed goes to the owner, which queues it by that.
   EXPECT_EQ(server.priorities(), (std::vector<std::string>{"250", "250", "250"}));
+  EXPECT_EQ(server.authorizations(), (std::vector<std::string>{"", "", ""})) << "no token";
+}
+
+TEST(RoomTier, the_clusters_token_goes_to_the_owner) {
+  ScriptedServer server({{Reply::kRoom}});
+  auto t = tier(server.url(), size_t{4} << 20, "s3cret");
+  ASSERT_TRUE(t);
+  EXPECT_EQ(text(fetch(*t, key(0))), "ROOM!");
+  EXPECT_EQ(server.authorizations(), std::vector<std::string>{"Bearer s3cret"});
 }
 
 TEST(RoomTier, a_connection_the_server_closed_is_replaced_without_an_error) {
