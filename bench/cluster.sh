@@ -34,6 +34,7 @@ for ((r = 1; r <= runs; r++)); do
   chmod 755 "$dir"
   port=$((20000 + RANDOM % 40000))
   load_before=$(cut -d' ' -f1 /proc/loadavg)
+  : >"$dir/cluster.log"
   bash "$repo/deploy/local-cluster.sh" --replicas "$replicas" --listen "127.0.0.1:$port" \
     --prefix "$dir/c" --server "$server" >"$dir/cluster.log" 2>&1 &
   cluster=$!
