@@ -51,10 +51,11 @@ struct GeneratorConfig {
   kernels::RoomBuilder::Options builder{};  // OpenCL device choice (each worker has a builder)
   // In a cluster (issue 29): where a room nobody here is building yet is asked for first (the
   // room tier: its owner replica through nginx), for clients that may have it from there
-  // (Build::kAnywhere). A fetch that fails, answers something other than that room's frame, or
-  // takes longer than its wait is built here instead: the want's slack (its priority less
-  // 500 ms) between 150 ms and owner_timeout, so a room a player is about to enter is not held
-  // up by a slow or silent owner. Null: every room is built here.
+  // (Build::kAnywhere), unless it is due now (priority 0: the player waits; built here). A fetch
+  // that fails, answers something other than that room's frame, or takes longer than its wait is
+  // built here instead: the want's slack (its priority less 500 ms) between 150 ms and
+  // owner_timeout, so a room a player is about to enter is not held up by a slow or silent owner.
+  // Null: every room is built here.
   std::shared_ptr<RoomSource> owners;
   std::chrono::milliseconds owner_timeout{1'000};
 };

@@ -985,6 +985,9 @@ TEST(GeneratorWorlds, max_worlds_out_of_range_is_refused_by_name) {
 
 // ---- rooms from their owner (issue 29) ----
 
+// A want due in 2 s: asked of its owner (a want due now is built here at once).
+constexpr uint32_t kPrefetch = 2000;
+
 // A room tier without sockets: each fetch is answered on a thread of its own (never inside
 // fetch(), as RoomSource promises) by `answer`.
 class FakeOwners final : public RoomSource {
@@ -1063,7 +1066,7 @@ TEST(GeneratorOwners, rooms_come_from_their_owner_once_and_are_not_built_here) {
   const std::vector<cave::RoomId> ids = existing_rooms(4);
   Inbox a, b;
   ClientId ca = replica->add_client(a.fn()), cb = replica->add_client(b.fn());
-  std::vector<Want> wa = wants_of(ids), wb = wants_of({ids[1], ids[2]});
+  std::vector<Want> wa = wants_of(ids, 0, kPrefetch), wb = wants_of({ids[1], ids[2]}, 0, kPrefetch);
   replica->request(ca, wa);
   replica->request(cb, wb);  // joins the fetches in flight
   owners->open();
@@ -1130,7 +1133,7 @@ TEST(GeneratorOwners, an_owner_that_fails_or_answers_wrong_bytes_is_built_here) 
   ASSERT_TRUE(replica);
   Inbox inbox;
   ClientId c = replica->add_client(inbox.fn());
-  std::vector<Want> w = wants_of(ids);
+  std::vector<Want> w = wants_of(ids, 0, kPrefetch);
   replica->request(c, w);
   ASSERT_TRUE(inbox.wait_for(ids.size()));
   EXPECT_EQ(metrics.owner_failures.value(), ids.size());
@@ -1166,7 +1169,7 @@ TEST(GeneratorOwners, build_here_clients_never_ask_the_owner_and_cancelled_fetch
   // fails: nothing is built here and nothing delivered.
   Inbox player;
   ClientId p = replica->add_client(player.fn());
-  std::vector<Want> two = wants_of({ids[1], ids[2]});
+  std::vector<Want> two = wants_of({ids[1], ids[2]}, 0, kPrefetch);
   replica->request(p, two);
   EXPECT_EQ(owners->asked().size(), 2u);
   replica->cancel(p, std::vector<cave::RoomId>{ids[1], ids[2]});
@@ -1193,7 +1196,7 @@ TEST(GeneratorOwners, the_owners_own_request_for_a_room_it_is_fetching_builds_it
   const cave::RoomId id = existing_rooms(1)[0];
   Inbox player, tier;
   ClientId p = replica->add_client(player.fn());
-  std::vector<Want> one = wants_of({id});
+  std::vector<Want> one = wants_of({id}, 0, kPrefetch);
   replica->request(p, one);
   auto t = replica->add_client(replica->world().seed(), tier.fn(), proto::kProtocolVersion,
                                Build::kHere);
@@ -1209,7 +1212,8 @@ TEST(GeneratorOwners, the_owners_own_request_for_a_room_it_is_fetching_builds_it
   EXPECT_EQ(metrics.owner_failures.value(), 0u) << "a fetch answered after the room was built";
 }
 
-TEST(GeneratorOwners, a_room_due_soon_waits_briefly_for_its_owner_far_prefetch_the_whole_timeout) {
+TEST(GeneratorOwners,
+     a_room_due_now_is_built_here_one_due_soon_waits_briefly_far_prefetch_longest) {
   auto owners = std::make_shared<FakeOwners>([](const RoomKey&) -> Result<std::vector<uint8_t>> {
     return Error{ErrorCode::kUnavailable, "down"};
   });
@@ -1219,14 +1223,15 @@ TEST(GeneratorOwners, a_room_due_soon_waits_briefly_for_its_owner_far_prefetch_t
   config.owner_timeout = 1000ms;
   std::unique_ptr<Generator> replica = make_generator(config, metrics);
   ASSERT_TRUE(replica);
-  const std::vector<cave::RoomId> ids = existing_rooms(3);
+  const std::vector<cave::RoomId> ids = existing_rooms(4);
   Inbox inbox;
   ClientId c = replica->add_client(inbox.fn());
-  std::vector<Want> w = {{ids[0], 0, 0}, {ids[1], 0, 1100}, {ids[2], 0, 5000}};
+  std::vector<Want> w = {{ids[0], 0, 100}, {ids[1], 0, 1100}, {ids[2], 0, 5000}, {ids[3], 0, 0}};
   replica->request(c, w);
-  ASSERT_TRUE(inbox.wait_for(3));
+  ASSERT_TRUE(inbox.wait_for(4));
   auto t = owners->timeouts();
-  EXPECT_EQ(t.at(ids[0]), 150ms) << "due now: built here after a short wait";
+  EXPECT_EQ(t.at(ids[0]), 150ms) << "due in 100 ms: built here after a short wait";
+  EXPECT_FALSE(t.count(ids[3])) << "due now (the player waits): built here, not asked";
   EXPECT_EQ(t.at(ids[1]), 600ms) << "its slack: 1,100 ms less 500 to build it here";
   EXPECT_EQ(t.at(ids[2]), 1000ms) << "far prefetch: the whole owner_timeout";
 }
