@@ -422,17 +422,19 @@ struct Generator::State {
   // The owner's answer, on the fetcher's thread: the room for every waiter, or the job goes to
   // this replica's builders.
   void fetched(const JobPtr& job, Result<std::vector<uint8_t>> bytes) {
-    Result<RoomPtr> room = bytes ? checked(*job, std::move(bytes).value()) : bytes.error();
     std::unique_lock lock(mutex);
+    // Built here meanwhile (build_here, e.g. the owner was this replica): the owner's answer is
+    // not needed, so it is not decoded and checked either.
+    const bool wanted = job->stage == Job::Stage::kFetching;
+    lock.unlock();
+    Result<RoomPtr> room = !wanted ? Result<RoomPtr>(Error{ErrorCode::kInternal, "not needed"})
+                           : bytes ? checked(*job, std::move(bytes).value())
+                                   : Result<RoomPtr>(bytes.error());
+    lock.lock();
     std::vector<Outgoing> out;
-    --fetches;
-    fetched_cv.notify_all();
     if (job->stage != Job::Stage::kFetching) {
-      // Built here meanwhile (build_here): the owner's answer is not needed.
-      if (room) cache.insert(*room);
-      return;
-    }
-    if (room) {
+      if (wanted && room) cache.insert(*room);  // built here while it was checked
+    } else if (room) {
       metrics.rooms_fetched.add();
       cache.insert(*room);
       finish_job(job, *room, std::nullopt, out);
@@ -451,6 +453,9 @@ struct Generator::State {
       }
     }
     deliver(lock, out);
+    // Last, under the lock: ~Generator waits for this count, and deliver() let go of the lock.
+    --fetches;
+    fetched_cv.notify_all();
   }
 
   // A fetching job goes to this replica's builders: into every waiter's queue, where it was
