@@ -1035,6 +1035,22 @@ class FakeOwners final : public RoomSource {
   bool open_ = true;
 };
 
+// Owners that answer every fetch with an unavailable error saying `why`.
+std::shared_ptr<FakeOwners> failing_owners(std::string why) {
+  return std::make_shared<FakeOwners>([why](const RoomKey&) -> Result<std::vector<uint8_t>> {
+    return Error{ErrorCode::kUnavailable, why};
+  });
+}
+
+// A generator of the test world (CPU path, one worker) that asks `owners` first.
+std::unique_ptr<Generator> replica_asking(std::shared_ptr<RoomSource> owners, Metrics& metrics,
+                                          std::chrono::milliseconds owner_timeout = 1000ms) {
+  GeneratorConfig config = cpu_config();
+  config.owners = std::move(owners);
+  config.owner_timeout = owner_timeout;
+  return make_generator(config, metrics);
+}
+
 // The frame a generator of the test world builds for `id` (lod 0), through a Build::kHere client.
 std::vector<uint8_t> frame_built_by(Generator& gen, cave::RoomId id) {
   Inbox inbox;
@@ -1059,9 +1075,7 @@ TEST(GeneratorOwners, rooms_come_from_their_owner_once_and_are_not_built_here) {
       });
   owners->hold();
   Metrics metrics;
-  GeneratorConfig config = cpu_config();
-  config.owners = owners;
-  std::unique_ptr<Generator> replica = make_generator(config, metrics);
+  std::unique_ptr<Generator> replica = replica_asking(owners, metrics);
   ASSERT_TRUE(replica);
   const std::vector<cave::RoomId> ids = existing_rooms(4);
   Inbox a, b;
@@ -1127,9 +1141,7 @@ TEST(GeneratorOwners, an_owner_that_fails_or_answers_wrong_bytes_is_built_here) 
   auto owners =
       std::make_shared<FakeOwners>([&](const RoomKey& key) { return answers.at(key.id)(); });
   Metrics metrics;
-  GeneratorConfig config = cpu_config();
-  config.owners = owners;
-  std::unique_ptr<Generator> replica = make_generator(config, metrics);
+  std::unique_ptr<Generator> replica = replica_asking(owners, metrics);
   ASSERT_TRUE(replica);
   Inbox inbox;
   ClientId c = replica->add_client(inbox.fn());
@@ -1146,14 +1158,10 @@ TEST(GeneratorOwners, an_owner_that_fails_or_answers_wrong_bytes_is_built_here) 
 }
 
 TEST(GeneratorOwners, build_here_clients_never_ask_the_owner_and_cancelled_fetches_build_nothing) {
-  auto owners = std::make_shared<FakeOwners>([](const RoomKey&) -> Result<std::vector<uint8_t>> {
-    return Error{ErrorCode::kUnavailable, "down"};
-  });
+  auto owners = failing_owners("down");
   owners->hold();
   Metrics metrics;
-  GeneratorConfig config = cpu_config();
-  config.owners = owners;
-  std::unique_ptr<Generator> replica = make_generator(config, metrics);
+  std::unique_ptr<Generator> replica = replica_asking(owners, metrics);
   ASSERT_TRUE(replica);
   const std::vector<cave::RoomId> ids = existing_rooms(3);
   Inbox here;
@@ -1184,14 +1192,10 @@ TEST(GeneratorOwners, build_here_clients_never_ask_the_owner_and_cancelled_fetch
 TEST(GeneratorOwners, the_owners_own_request_for_a_room_it_is_fetching_builds_it_here_at_once) {
   // The tier hashes a room to its owner; when that is the replica asking, its fetch comes back
   // to it as a Build::kHere request. Waiting for the fetch would wait for itself.
-  auto owners = std::make_shared<FakeOwners>([](const RoomKey&) -> Result<std::vector<uint8_t>> {
-    return Error{ErrorCode::kUnavailable, "the answer comes after the room was built"};
-  });
+  auto owners = failing_owners("the answer comes after the room was built");
   owners->hold();
   Metrics metrics;
-  GeneratorConfig config = cpu_config();
-  config.owners = owners;
-  std::unique_ptr<Generator> replica = make_generator(config, metrics);
+  std::unique_ptr<Generator> replica = replica_asking(owners, metrics);
   ASSERT_TRUE(replica);
   const cave::RoomId id = existing_rooms(1)[0];
   Inbox player, tier;
@@ -1214,14 +1218,9 @@ TEST(GeneratorOwners, the_owners_own_request_for_a_room_it_is_fetching_builds_it
 
 TEST(GeneratorOwners,
      a_room_due_now_is_built_here_one_due_soon_waits_briefly_far_prefetch_longest) {
-  auto owners = std::make_shared<FakeOwners>([](const RoomKey&) -> Result<std::vector<uint8_t>> {
-    return Error{ErrorCode::kUnavailable, "down"};
-  });
+  auto owners = failing_owners("down");
   Metrics metrics;
-  GeneratorConfig config = cpu_config();
-  config.owners = owners;
-  config.owner_timeout = 1000ms;
-  std::unique_ptr<Generator> replica = make_generator(config, metrics);
+  std::unique_ptr<Generator> replica = replica_asking(owners, metrics);
   ASSERT_TRUE(replica);
   const std::vector<cave::RoomId> ids = existing_rooms(4);
   Inbox inbox;
