@@ -57,6 +57,9 @@ struct RenderOptions {
   bool portal_culling = true;
   // The TCS discards patches provably outside the frustum or facing away from the camera.
   bool patch_culling = true;
+  // Rooms whose rock (sphere, relief and hanging formations) is wholly outside the frustum are
+  // not drawn; off only to check and measure that test.
+  bool room_culling = true;
   LodHeuristic lod = LodHeuristic::kScreenSpace;  // near relief dense, far relief cheap
   float target_pixels = 6;                        // kScreenSpace: pixels per tessellated segment
   float fog_start = 18;                           // metres

@@ -545,5 +545,36 @@ TEST(Relief, fine_detail_vanishes_under_coarse_pixels_and_occlusion_stays_in_bou
   EXPECT_GT(detailed, 350);
 }
 
+// The renderer culls rooms and portals with the relief's bound split in two (client/render:
+// Margin): the part along the normal within relief_normal_bound in any direction, the hanging part
+// within relief_hang_bound along y only. Each part holds on its own, for every kind of surface:
+// rough walls, slopes, ceilings with the longest speleothems, floors, columns, small rooms and
+// halls.
+TEST(Relief, the_normal_and_the_hanging_parts_keep_their_own_bounds) {
+  const glm::vec3 normals[] = {{0, -1, 0}, {0, 1, 0}, kSlopeNormal,
+                               glm::normalize(glm::vec3(1, 0.2f, 0)),
+                               glm::normalize(glm::vec3(0.5f, -0.8f, 0.2f)),
+                               glm::normalize(glm::vec3(-0.3f, 0.9f, 0.1f)), {1, 0, 0}};
+  const float along = rl::relief_normal_bound(1.0f);
+  for (float radius : {3.5f, 8.0f, kHall}) {
+    const float hanging = rl::relief_hang_bound(1.0f, radius);
+    float worst_height = 0, worst_hang = 0;
+    for (const glm::vec3& n : normals)
+      for (float roughness : {0.0f, 1.0f})
+        for (float a = -12; a <= 12; a += 0.09f)
+          for (float b = -12; b <= 12; b += 0.37f) {
+            const glm::vec3 p{a, 3.0f + 0.2f * b, b};
+            const rl::Relief r = rl::relief_at(p, n, roughness, 0.0f, radius, 1.0f);
+            worst_height = std::max(worst_height, std::abs(r.height));
+            worst_hang = std::max(worst_hang, std::abs(r.hang));
+          }
+    std::printf("radius %.1f m: along the normal %.2f of %.2f m, hanging %.2f of %.2f m\n", radius,
+                worst_height, along, worst_hang, hanging);
+    EXPECT_LE(worst_height, along) << radius;
+    EXPECT_LE(worst_hang, hanging) << radius;
+    EXPECT_GT(worst_hang, 0.5f * hanging) << "the samples reach the long formations";
+  }
+}
+
 }  // namespace
 }  // namespace grotto::play

@@ -275,6 +275,38 @@ TEST(Renderer, portal_culling_outside_every_room_draws_everything) {
   EXPECT_EQ(stats.rooms_drawn + stats.rooms_culled, stats.rooms_reached);
 }
 
+// Room culling against the frustum never drops a visible room: the same pixels as drawing every
+// loaded room, with fewer rooms drawn. The formations hang along gravity, so the test widens a
+// room's sphere by the relief along the normal and stretches it up and down by their length
+// (relief_test checks each part's bound on its own; these poses pass even without the vertical
+// part, so this test guards the frustum test's sides and signs, not that margin).
+TEST(Renderer, room_culling_draws_fewer_rooms_and_the_same_pixels) {
+  REQUIRE_GL();
+  Scene scene;
+  ASSERT_TRUE(scene.ok());
+  constexpr int kPoses = 30;
+  RenderOptions on;
+  on.max_tess = 8;
+  on.portal_culling = false;  // every loaded room goes to the frustum test
+  RenderOptions off = on;
+  off.room_culling = false;
+  int drawn_on = 0, drawn_off = 0;
+  for (int i = 0; i < kPoses; ++i) {
+    Camera camera = pose(i, kPoses);
+    camera.pitch = (i % 3 - 1) * 0.6;  // level, up at the formations, down at the floor
+    FrameStats a, b;
+    const Image with = scene.draw(camera, on, &a);
+    const Image without = scene.draw(camera, off, &b);
+    EXPECT_EQ(differing_pixels(with, without), 0) << "pose " << i;
+    EXPECT_EQ(b.rooms_culled, 0);
+    drawn_on += a.rooms_drawn;
+    drawn_off += b.rooms_drawn;
+  }
+  EXPECT_LT(drawn_on, drawn_off * 9 / 10) << "room culling drops little";
+  std::printf("room culling: %d rooms drawn over %d poses (%d without)\n", drawn_on, kPoses,
+              drawn_off);
+}
+
 // Patch culling in the TCS discards patches (fewer triangles out of the tessellator) and never a
 // visible one: the same pixels as without it, for both surfaces. Checked to fail without the
 // margins.
