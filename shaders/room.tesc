@@ -96,9 +96,25 @@ float surface_margin(vec3 p0, vec3 p1, vec3 p2) {
   return (u_surface == 0 ? 0.0 : longest) + relief + 0.01;
 }
 
-bool outside_frustum(vec3 p0, vec3 p1, vec3 p2, float margin) {
+// surface_margin split as the renderer culls rooms (client/render, Margin): the surface lies within
+// `around` of the flat triangle in any direction, moved further by at most `vertical` up or down
+// (the speleothems and columns hang along gravity; the rock and flowstone move along the normal).
+// For the frustum test, which only needs the distance along each plane's normal, that is tighter
+// than one isotropic margin at the frustum's sides.
+void frustum_margins(vec3 p0, vec3 p1, vec3 p2, out float around, out float vertical) {
+  vec3 e0 = p1 - p0, e1 = p2 - p1, e2 = p0 - p2;
+  float longest = sqrt(max(dot(e0, e0), max(dot(e1, e1), dot(e2, e2))));
+  vertical = relief_hang_bound(u_displacement, u_room_radius);
+  if (!relief_level_possible(normalize(v_normal[0]), normalize(v_normal[1]),
+                             normalize(v_normal[2])))
+    vertical = min(vertical, u_displacement * relief_spike_length(u_room_radius));
+  around = (u_surface == 0 ? 0.0 : longest) + relief_normal_bound(u_displacement) + 0.01;
+}
+
+bool outside_frustum(vec3 p0, vec3 p1, vec3 p2, float around, float vertical) {
   for (int k = 0; k < 6; ++k) {
     vec4 plane = u_frustum[k];
+    float margin = around + abs(plane.y) * vertical;  // unit normals
     if (dot(plane.xyz, p0) + plane.w < -margin && dot(plane.xyz, p1) + plane.w < -margin &&
         dot(plane.xyz, p2) + plane.w < -margin)
       return true;
@@ -138,8 +154,10 @@ void main() {
   if (gl_InvocationID == 0) {
     vec3 p0 = v_position[0], p1 = v_position[1], p2 = v_position[2];
     if (u_patch_culling) {
-      float margin = surface_margin(p0, p1, p2);
-      if (outside_frustum(p0, p1, p2, margin) || facing_away(p0, p1, p2, kBackMargins * margin)) {
+      float around, vertical;
+      frustum_margins(p0, p1, p2, around, vertical);
+      if (outside_frustum(p0, p1, p2, around, vertical) ||
+          facing_away(p0, p1, p2, kBackMargins * surface_margin(p0, p1, p2))) {
         gl_TessLevelOuter[0] = 0.0;
         gl_TessLevelOuter[1] = 0.0;
         gl_TessLevelOuter[2] = 0.0;
