@@ -9,6 +9,9 @@
 #include <cstdio>
 #include <fstream>
 #include <functional>
+#include <string>
+#include <thread>
+#include <vector>
 #include <nlohmann/json.hpp>
 
 #include "kernels/deform.hpp"
@@ -75,6 +78,10 @@ int main(int argc, char** argv) {
                  "the server streams)")
       ->check(CLI::IsMember(std::vector<std::string>{"detail", "patch"}))
       ->capture_default_str();
+  std::string device_choice;
+  app.add_option("--device", device_choice,
+                 "OpenCL device: auto, gpu, accelerator, cpu or a name substring; empty: "
+                 "$GROTTO_OPENCL_DEVICE, else auto (bench/gpu.sh runs each it finds)");
   bool no_profiling = false;
   app.add_flag("--no-profiling", no_profiling,
                "Open OpenCL queues without CL_QUEUE_PROFILING_ENABLE (the device split reads 0): "
@@ -151,15 +158,21 @@ int main(int argc, char** argv) {
   // in the CPU's lanes, assemble) on 1 and 2 threads, plus the layout: the issue's "whole cave".
   nlohmann::json whole = nlohmann::json::array();
   spdlog::set_level(spdlog::level::warn);
-  for (std::string device : {"auto", "none"}) {
-    for (int threads : {1, 2}) {
+  // 1 and 2 threads, and every hardware thread where there are more (issue 30: the CPU stages
+  // use every core).
+  std::vector<int> thread_counts = {1, 2};
+  if (const int hw = static_cast<int>(std::thread::hardware_concurrency()); hw > 2) {
+    thread_counts.push_back(hw);
+  }
+  for (std::string device : {device_choice, std::string("none")}) {
+    for (int threads : thread_counts) {
       auto builder = kernels::RoomBuilder::create(
           ctx, {kernels::DeviceConfig{.device = device, .profiling = !no_profiling}, threads});
       (void)builder.build(rooms, lod);  // warm-up (PoCL compiles for the work-group size)
       double cpu_ms = 0;
       double ms = median_ms(
           reps, [&] { (void)builder.build(rooms, lod); }, &cpu_ms);
-      whole.push_back({{"device", device},
+      whole.push_back({{"device", device.empty() ? std::string("auto") : device},
                        {"path", builder.path()},
                        {"threads", threads},
                        {"build_ms", ms},
@@ -193,7 +206,8 @@ int main(int argc, char** argv) {
   report["whole_cave"] = whole;
   report["deform_cpu_time_ms"] = deform_cpu_time_ms;
 
-  auto device = kernels::ComputeContext::create(kernels::DeviceConfig{.profiling = !no_profiling});
+  auto device = kernels::ComputeContext::create(
+      kernels::DeviceConfig{.device = device_choice, .profiling = !no_profiling});
   if (!device) {
     spdlog::warn("no OpenCL device: {}", device.error().message);
     report["opencl"] = {{"available", false}, {"reason", device.error().message}};

@@ -1,0 +1,184 @@
+#!/usr/bin/env bash
+# The thesis's CPU-versus-GPU question on whatever this machine has (issue 30): builds mesh_bench,
+# server_bench and grotto-client (Release, in build-gpu/ unless --build-dir says otherwise), then
+# runs
+#   - mesh_bench (the 100-room detail cave) on each OpenCL device it finds (the keywords gpu,
+#     accelerator and cpu, each in its own process, one row per distinct device) and on the CPU
+#     reference: the deform launch with its device split (upload, kernel, download), the whole
+#     cave through RoomBuilder on 1, 2 and every hardware thread;
+#   - server_bench (fresh patch rooms, built and encoded, sector cache on) on the CPU reference
+#     and on each device found;
+#   - grotto-client --bench (the scripted path, 1920x1080) with MaxTess 8, MaxTess 64 and
+#     tessellation off, through EGL and, where DISPLAY is set, GLFW: one row per distinct
+#     renderer;
+# and prints one Markdown table with the machine (CPU model and flags, cores, load average, GPUs
+# that nvidia-smi lists). The JSON reports stay in --out.
+#
+#   bash bench/gpu.sh [--build-dir DIR] [--no-build] [--out DIR] [--quick]
+#
+# --quick: 3 repetitions, 500 rooms, 4 s of frames (a smoke run); otherwise 5, 2,000 and 10 s.
+# A device whose run fails or crashes is reported as such and the others go on (a machine's own
+# PoCL has crashed a server before: each device runs in its own process). Exit: 0 when the table
+# was printed, 1 when the build failed or nothing could run, 2 on a bad flag.
+set -u
+cd "$(dirname "$0")/.."
+
+build_dir=build-gpu build=1 out="" quick=0
+usage() { sed -n '2,/^set -u/p' "$0" | sed '$d' | sed 's/^# \{0,1\}//'; }
+while (($#)); do
+  case "$1" in
+    --build-dir) build_dir=${2:-} && shift ;;
+    --no-build) build=0 ;;
+    --out) out=${2:-} && shift ;;
+    --quick) quick=1 ;;
+    -h | --help) usage && exit 0 ;;
+    *) echo "gpu.sh: unknown flag '$1' (--help lists them)" >&2 && exit 2 ;;
+  esac
+  shift
+done
+[[ -n "$build_dir" ]] || { echo "gpu.sh: --build-dir needs a directory" >&2; exit 2; }
+out=${out:-$build_dir/gpu-report}
+mkdir -p "$out" || { echo "gpu.sh: cannot create $out" >&2; exit 1; }
+if ((quick)); then reps=3 rooms=500 seconds=4; else reps=5 rooms=2000 seconds=10; fi
+
+if ((build)); then
+  echo "gpu.sh: building mesh_bench, server_bench and grotto-client (Release) in $build_dir" >&2
+  cmake -S . -B "$build_dir" -DCMAKE_BUILD_TYPE=Release -DGROTTO_BUILD_TESTS=OFF >"$out/build.log" 2>&1 &&
+    cmake --build "$build_dir" -j "$(nproc)" --target mesh_bench server_bench grotto-client \
+      >>"$out/build.log" 2>&1 ||
+    { echo "gpu.sh: the build failed (see $out/build.log)" >&2; exit 1; }
+fi
+bin=$build_dir/bin
+for b in mesh_bench server_bench grotto-client; do
+  [[ -x "$bin/$b" ]] || { echo "gpu.sh: $bin/$b is missing (build it, or drop --no-build)" >&2; exit 1; }
+done
+
+# The machine, before anything runs.
+{
+  echo "cpu=$(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | sed 's/^ *//')"
+  echo "cores=$(nproc)"
+  echo "flags=$(grep -m1 '^flags' /proc/cpuinfo | tr ' ' '\n' | grep -E '^(avx2|avx512f)$' | tr '\n' ' ')"
+  echo "load=$(cut -d' ' -f1-3 /proc/loadavg)"
+  command -v nvidia-smi >/dev/null && echo "gpus=$(nvidia-smi -L 2>/dev/null | tr '\n' ';')"
+} >"$out/machine.txt"
+
+# mesh_bench on each device keyword; the first keyword that reaches a device names it.
+found=()
+for d in gpu accelerator cpu; do
+  echo "gpu.sh: mesh_bench --device $d" >&2
+  timeout 900 "$bin/mesh_bench" --device "$d" --repetitions "$reps" --json "$out/mesh-$d.json" \
+    >"$out/mesh-$d.log" 2>&1
+  rc=$?
+  echo "$rc" >"$out/mesh-$d.rc"
+  ((rc == 0)) && python3 - "$out/mesh-$d.json" <<'EOF' && found+=("$d")
+import json, sys
+sys.exit(0 if json.load(open(sys.argv[1]))["opencl"].get("available") else 1)
+EOF
+done
+
+echo "gpu.sh: server_bench --devices none ${found[*]}" >&2
+timeout 1800 "$bin/server_bench" --rooms "$rooms" --repetitions "$reps" --devices none "${found[@]}" \
+  --json "$out/server.json" >"$out/server.log" 2>&1
+echo $? >"$out/server.rc"
+
+renderers=(egl)
+[[ -n "${DISPLAY:-}" ]] && renderers+=(glfw)
+for gl in "${renderers[@]}"; do
+  for setting in tess8 tess64 flat; do
+    case $setting in
+      tess8) flags=(--tess-max 8) ;;
+      tess64) flags=(--tess-max 64) ;;
+      flat) flags=(--no-tess) ;;
+    esac
+    echo "gpu.sh: grotto-client --bench $seconds --gl $gl ${flags[*]}" >&2
+    timeout 600 "$bin/grotto-client" --gl "$gl" --device none --width 1920 --height 1080 \
+      --bench "$seconds" "${flags[@]}" --json "$out/client-$gl-$setting.json" \
+      >"$out/client-$gl-$setting.log" 2>&1
+    echo $? >"$out/client-$gl-$setting.rc"
+  done
+done
+
+python3 - "$out" <<'EOF'
+import json, os, sys
+out = sys.argv[1]
+def load(path):
+    try:
+        with open(path) as f:
+            return json.load(f)
+    except (OSError, ValueError):
+        return None
+def rc(path):
+    try:
+        return open(path).read().strip()
+    except OSError:
+        return "?"
+machine = dict(l.rstrip("\n").split("=", 1) for l in open(os.path.join(out, "machine.txt")) if "=" in l)
+print(f"Machine: {machine.get('cpu', '?')}, {machine.get('cores', '?')} cores, flags: "
+      f"{machine.get('flags', '').strip() or 'no avx2/avx512f'}, load average {machine.get('load', '?')}"
+      + (f"; GPUs: {machine['gpus']}" if machine.get("gpus") else "; no nvidia-smi"))
+print()
+print("| measure | device or renderer | result |")
+print("| --- | --- | --- |")
+seen, ran = set(), 0
+cpu_rows = None
+for d in ("gpu", "accelerator", "cpu"):
+    report = load(os.path.join(out, f"mesh-{d}.json"))
+    if report is None:
+        print(f"| mesh_bench --device {d} | - | failed (exit {rc(os.path.join(out, f'mesh-{d}.rc'))}) |")
+        continue
+    ran += 1
+    cl = report["opencl"]
+    cave = f"{report['rooms']} rooms, {report['donor_vertices']:,} vertices"
+    if cpu_rows is None:
+        cpu_rows = [w for w in report["whole_cave"] if w["device"] == "none"]
+        print(f"| deform, {cave}, CPU reference, 1 thread | CPU | {report['stages_ms']['deform_cpu']:.2f} ms |")
+    if not cl.get("available"):
+        print(f"| mesh_bench --device {d} | none found | {cl.get('reason', '')[:90]} |")
+        continue
+    if cl["device"] in seen:
+        continue
+    seen.add(cl["device"])
+    name = cl["device"].split('device="')[-1].split('"')[0]
+    split = cl["device_stages"]["deform"]
+    print(f"| deform, {cave}, one batched launch | {name} | {cl['deform_ms']:.2f} ms "
+          f"(upload {split['upload_ms']:.2f}, kernel {split['kernel_ms']:.2f}, download "
+          f"{split['download_ms']:.2f}; {cl['deform_speedup_vs_cpu']:.1f}x the CPU) |")
+    for w in report["whole_cave"]:
+        if w["device"] != "none":
+            print(f"| whole cave, {w['threads']} thread(s) | {name} | {w['whole_cave_ms']:.1f} ms |")
+for w in cpu_rows or []:
+    print(f"| whole cave, {w['threads']} thread(s) | CPU reference | {w['whole_cave_ms']:.1f} ms |")
+server = load(os.path.join(out, "server.json"))
+if server is None:
+    print(f"| server_bench | - | failed (exit {rc(os.path.join(out, 'server.rc'))}) |")
+else:
+    ran += 1
+    for p in server["pipeline"]:
+        if p.get("sector_cache_entries", 0) == 0:
+            continue
+        path = p["path"].split('device="')[-1].split('"')[0] if p["path"].startswith("opencl") else "CPU reference"
+        print(f"| server_bench, fresh patch rooms, cache on (--devices {p['device'] or 'auto'}) | {path} | "
+              f"{p['rooms_per_second']:,.0f} rooms/s (build {p['build_ms_per_room']:.3f}, "
+              f"encode {p['encode_ms_per_room']:.3f} ms a room) |")
+renderers = {}
+clients = [os.path.join(out, f"client-{gl}-{setting}.json") for gl in ("egl", "glfw")
+           for setting in ("tess8", "tess64", "flat")]
+for path in (p for p in clients if os.path.exists(p[:-5] + ".rc")):
+    r = load(path)
+    stem = os.path.basename(path)[len("client-"):-len(".json")]
+    if r is None:
+        print(f"| grotto-client --bench, {stem} | - | failed (exit {rc(path[:-5] + '.rc')}) |")
+        continue
+    ran += 1
+    gl, setting = stem.split("-", 1)
+    key = (r["gl_renderer"], setting)
+    if key in renderers:
+        continue
+    renderers[key] = r
+    what = {"tess8": "MaxTess 8", "tess64": "MaxTess 64", "flat": "tessellation off"}[setting]
+    print(f"| grotto-client 1920x1080, {what} ({gl}) | {r['gl_renderer']} | median {r['median_ms']:.1f} ms, "
+          f"p99 {r['p99_ms']:.1f} ms, {r['fps']:.1f} fps, {r['frames']} frames |")
+print()
+print(f"Reports: {out}")
+sys.exit(0 if ran else 1)
+EOF
