@@ -188,7 +188,8 @@ class SectorBuilder {
   // Links may shrink to keep clear of a sphere they would nearly touch, down to the smallest link
   // radius: chains then slip past other chains instead of failing.
   Sphere shrink_to_clear(Sphere s) const {
-    for (int j : nearby(s, params_.wall_clearance)) {
+    nearby(s, params_.wall_clearance, near_shrink_);
+    for (int j : near_shrink_) {
       const Sphere& o = nodes_[j].sphere;
       double d = distance(s.centre, o.centre);
       bool near_miss = d >= s.radius + o.radius && d < s.radius + o.radius + params_.wall_clearance;
@@ -263,7 +264,8 @@ class SectorBuilder {
         s.centre[a] = lo_[a] + params_.sector_size * rng.uniform(0.3, 0.7);
       }
       bool clear = true;
-      for (int j : nearby(s, params_.wall_clearance)) {
+      nearby(s, params_.wall_clearance, near_hub_);
+      for (int j : near_hub_) {
         const Sphere& o = nodes_[j].sphere;
         if (distance(s.centre, o.centre) < s.radius + o.radius + params_.wall_clearance) {
           clear = false;
@@ -312,7 +314,8 @@ class SectorBuilder {
       int a = static_cast<int>(rng.below(static_cast<uint32_t>(nodes_.size())));
       const Sphere sa = nodes_[a].sphere;
       std::vector<int> far;
-      for (int b : nearby(sa, 4.0 * params_.link_radius_max)) {
+      nearby(sa, 4.0 * params_.link_radius_max, near_loops_);
+      for (int b : near_loops_) {
         if (b != a && hops_apart(a, b, kMinLoopLength)) far.push_back(b);
       }
       if (far.empty()) continue;
@@ -405,7 +408,8 @@ class SectorBuilder {
   std::optional<std::vector<Edge>> try_place(const Sphere& s) const {
     if (!inside_box(s)) return std::nullopt;
     // Spheres farther than this cannot make or touch a portal of s (see the checks below).
-    std::vector<int> near = nearby(s, std::max(params_.wall_clearance, params_.portal_gap));
+    std::vector<int>& near = near_place_;
+    nearby(s, std::max(params_.wall_clearance, params_.portal_gap), near);
     std::vector<Edge> made;
     for (int j : near) {
       const Sphere& o = nodes_[j].sphere;
@@ -498,9 +502,11 @@ class SectorBuilder {
 
   // Spatial index (thesis §3.1.2): the spheres whose gap to s is below `margin`, found in the 27
   // cells around s's centre (complete for margins up to the one the cell size was chosen for).
-  // The order is the grid's, which depends only on what was added: deterministic.
-  std::vector<int> nearby(const Sphere& s, double margin) const {
-    std::vector<int> out;
+  // The order is the grid's, which depends only on what was added: deterministic. Into `out`
+  // (cleared first): each caller keeps its own buffer (near_*_ below), so the layout's ~13,000
+  // queries a sector allocate nothing.
+  void nearby(const Sphere& s, double margin, std::vector<int>& out) const {
+    out.clear();
     int cx = cell_coord(s.centre.x, 0), cy = cell_coord(s.centre.y, 1),
         cz = cell_coord(s.centre.z, 2);
     for (int x = std::max(cx - 1, 0); x <= std::min(cx + 1, dim_ - 1); ++x) {
@@ -514,7 +520,6 @@ class SectorBuilder {
         }
       }
     }
-    return out;
   }
 
   int find(int i) {
@@ -552,6 +557,8 @@ class SectorBuilder {
   std::vector<int> parent_;
   std::vector<std::vector<int>> grid_;
   std::vector<uint32_t> visited_;  // scratch for hops_apart
+  // nearby()'s answers, one buffer per caller so that no answer is overwritten while in use.
+  mutable std::vector<int> near_shrink_, near_hub_, near_loops_, near_place_;
   uint32_t visit_stamp_ = 0;
 };
 
