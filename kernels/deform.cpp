@@ -111,17 +111,59 @@ Status DeformKernel::run(std::span<const mesh::DeformInput> batch,
   return {};
 }
 
+Status DeformKernel::upload_donors(std::span<const mesh::DeformInput> rooms, LaunchStats* stats) {
+  const size_t lanes = static_cast<size_t>(lanes_);
+  bool grown = false;
+  for (const mesh::DeformInput& room : rooms) {
+    const auto& dirs = room.donor->directions;
+    const uint32_t next = static_cast<uint32_t>(donor_directions_.size() / (3 * lanes));
+    if (!donor_first_group_.try_emplace({room.donor->frequency, dirs.size()}, next).second) {
+      continue;
+    }
+    grown = true;
+    // Groups of `lanes` directions, x[lanes] y[lanes] z[lanes]; the last padded with copies of the
+    // donor's last direction.
+    for (size_t first = 0; first < dirs.size(); first += lanes) {
+      for (int axis = 0; axis < 3; ++axis) {
+        for (size_t l = 0; l < lanes; ++l) {
+          const auto& d = dirs[std::min(first + l, dirs.size() - 1)];
+          donor_directions_.push_back(axis == 0 ? d.x : axis == 1 ? d.y : d.z);
+        }
+      }
+    }
+  }
+  if (!grown) return {};
+  auto buffer = make_buffer<float>(*ctx_, CL_MEM_READ_ONLY, donor_directions_.size());
+  if (!buffer) return buffer.error();
+  cl::Event write;
+  if (Status s = enqueue_write(*ctx_, *buffer, donor_directions_.data(), donor_directions_.size(),
+                               &write);
+      !s) {
+    ctx_->queue().finish();
+    return s;
+  }
+  // Waited for: the host copy grows in a later launch, and a launch that fails after this point
+  // returns without draining the queue.
+  GROTTO_CL_TRY(write.wait());
+  donor_buffer_ = std::move(buffer).value();
+  if (stats) {
+    stats->upload_bytes += donor_directions_.size() * sizeof(float);
+    stats->upload_ms += event_ms(write);
+  }
+  return {};
+}
+
 Status DeformKernel::launch(std::span<const mesh::DeformInput> rooms,
                             std::span<DeformOutput> outputs, LaunchStats* stats) {
   const Clock::time_point t_prepare = Clock::now();
-  // Flatten the batch into groups of `lanes_` vertices of one room, each group carrying its room's
-  // index (thesis §4.2.1's obstacle: "each room must reference different portal data"). A room's
-  // last group is padded with copies of its last direction. Per group: x[lanes] y[lanes] z[lanes].
+  // The batch as groups of `lanes_` vertices of one room, each group carrying its room's index
+  // (thesis §4.2.1's obstacle: "each room must reference different portal data") and its place
+  // among the resident donor directions. A room's last group is padded (the donor's groups are).
   const size_t lanes = static_cast<size_t>(lanes_);
+  if (Status s = upload_donors(rooms, stats); !s) return s;
   std::vector<GrottoRoom> records;
   std::vector<GrottoPortal> portals;
-  std::vector<uint32_t> group_room;
-  std::vector<float> directions;
+  std::vector<uint32_t> group_room, group_dir;
   for (size_t r = 0; r < rooms.size(); ++r) {
     const auto& dirs = rooms[r].donor->directions;
     GrottoRoom rec = rooms[r].record;
@@ -129,16 +171,11 @@ Status DeformKernel::launch(std::span<const mesh::DeformInput> rooms,
     rec.first_vertex = static_cast<uint32_t>(group_room.size() * lanes);
     records.push_back(rec);
     portals.insert(portals.end(), rooms[r].portals.begin(), rooms[r].portals.end());
-    for (size_t first = 0; first < dirs.size(); first += lanes) {
+    const uint32_t first_dir = donor_first_group_.at({rooms[r].donor->frequency, dirs.size()});
+    const size_t count = (dirs.size() + lanes - 1) / lanes;
+    for (size_t k = 0; k < count; ++k) {
       group_room.push_back(static_cast<uint32_t>(r));
-      size_t base = directions.size();
-      directions.resize(base + 3 * lanes);
-      for (size_t l = 0; l < lanes; ++l) {
-        const auto& d = dirs[std::min(first + l, dirs.size() - 1)];
-        directions[base + l] = d.x;
-        directions[base + lanes + l] = d.y;
-        directions[base + 2 * lanes + l] = d.z;
-      }
+      group_dir.push_back(first_dir + static_cast<uint32_t>(k));
     }
   }
   const size_t groups = group_room.size();
@@ -152,14 +189,15 @@ Status DeformKernel::launch(std::span<const mesh::DeformInput> rooms,
   auto room_buf = make_buffer<GrottoRoom>(*ctx_, CL_MEM_READ_ONLY, records.size());
   auto portal_buf = make_buffer<GrottoPortal>(*ctx_, CL_MEM_READ_ONLY, portals.size());
   auto index_buf = make_buffer<uint32_t>(*ctx_, CL_MEM_READ_ONLY, groups);
-  auto dir_buf = make_buffer<float>(*ctx_, CL_MEM_READ_ONLY, directions.size());
+  auto dir_index_buf = make_buffer<uint32_t>(*ctx_, CL_MEM_READ_ONLY, groups);
   auto pos_buf = make_buffer<float>(*ctx_, CL_MEM_WRITE_ONLY, 3 * slots);
   auto clear_buf = make_buffer<float>(*ctx_, CL_MEM_WRITE_ONLY, slots);
-  for (auto* b : {&room_buf, &portal_buf, &index_buf, &dir_buf, &pos_buf, &clear_buf}) {
+  for (auto* b : {&room_buf, &portal_buf, &index_buf, &dir_index_buf, &pos_buf, &clear_buf}) {
     if (!*b) return b->error();
   }
-  if (Status s = set_kernel_args(kernel_, shapes_, *room_buf, *portal_buf, *index_buf, *dir_buf,
-                                 *pos_buf, *clear_buf, static_cast<cl_uint>(groups));
+  if (Status s = set_kernel_args(kernel_, shapes_, *room_buf, *portal_buf, *index_buf,
+                                 *dir_index_buf, *donor_buffer_, *pos_buf, *clear_buf,
+                                 static_cast<cl_uint>(groups));
       !s) {
     return s;
   }
@@ -183,7 +221,7 @@ Status DeformKernel::launch(std::span<const mesh::DeformInput> rooms,
     if (Status s = enqueue_write(*ctx_, *index_buf, group_room.data(), groups, &writes[2]); !s) {
       return s;
     }
-    if (Status s = enqueue_write(*ctx_, *dir_buf, directions.data(), directions.size(), &writes[3]);
+    if (Status s = enqueue_write(*ctx_, *dir_index_buf, group_dir.data(), groups, &writes[3]);
         !s) {
       return s;
     }
@@ -225,8 +263,7 @@ Status DeformKernel::launch(std::span<const mesh::DeformInput> rooms,
       stats->download_ms += event_ms(e);
     stats->device_span_ms += event_span_ms(writes[0], reads[1]);
     stats->upload_bytes += records.size() * sizeof(GrottoRoom) +
-                           portals.size() * sizeof(GrottoPortal) + groups * sizeof(uint32_t) +
-                           directions.size() * sizeof(float);
+                           portals.size() * sizeof(GrottoPortal) + 2 * groups * sizeof(uint32_t);
     stats->download_bytes += (positions.size() + clearance.size()) * sizeof(float);
     stats->global_size = global;
     stats->local_size = local_size_;

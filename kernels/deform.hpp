@@ -3,6 +3,8 @@
 // bit-identical to mesh::deform_cpu.
 #pragma once
 
+#include <map>
+#include <optional>
 #include <span>
 #include <vector>
 
@@ -95,8 +97,17 @@ class DeformKernel {
 
   static constexpr size_t kPreferredGroupSize = 128;
 
+  // Resident donor directions (issue 30: upload a batch's compact inputs, not what the device
+  // already holds): every donor sphere a launch has used, by (frequency, vertex count), as groups
+  // of lanes_ directions in donor_directions_ (the host's copy) and donor_buffer_ (the device's,
+  // rewritten whole when a new donor joins: a few times in a process's life).
+  Status upload_donors(std::span<const mesh::DeformInput> rooms, LaunchStats* stats);
+
   ComputeContext* ctx_;
   cl::Kernel kernel_;
+  std::map<std::pair<int, size_t>, uint32_t> donor_first_group_;
+  std::vector<float> donor_directions_;
+  std::optional<cl::Buffer> donor_buffer_;
   size_t local_size_ = 1;
   cl::Buffer shapes_;
   size_t max_constant_bytes_;
