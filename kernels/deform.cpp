@@ -241,14 +241,17 @@ Status DeformKernel::launch(std::span<const mesh::DeformInput> rooms,
   }
   const Clock::time_point t_unpack = Clock::now();
   for (size_t r = 0; r < rooms.size(); ++r) {
-    size_t first = records[r].first_vertex, count = rooms[r].donor->directions.size();
+    // A room's vertices start a group (first_vertex is a multiple of lanes): group by group, each
+    // x[lanes] y[lanes] z[lanes] into the room's vertices.
+    const size_t first = records[r].first_vertex, count = rooms[r].donor->directions.size();
     DeformOutput& out = outputs[r];
     out.positions.resize(count);
     out.clearance.assign(clearance.begin() + first, clearance.begin() + first + count);
-    for (size_t v = 0; v < count; ++v) {
-      const float* group = &positions[3 * ((first + v) / lanes * lanes)];
-      size_t l = (first + v) % lanes;
-      out.positions[v] = {group[l], group[lanes + l], group[2 * lanes + l]};
+    const float* group = &positions[3 * first];
+    for (size_t v = 0; v < count; v += lanes, group += 3 * lanes) {
+      const size_t n = std::min(lanes, count - v);
+      for (size_t l = 0; l < n; ++l)
+        out.positions[v + l] = {group[l], group[lanes + l], group[2 * lanes + l]};
     }
   }
   if (stats) {
