@@ -153,6 +153,17 @@ Status DeformKernel::upload_donors(std::span<const mesh::DeformInput> rooms, Lau
   return {};
 }
 
+Result<cl::Buffer*> DeformKernel::scratch(Scratch& s, cl_mem_flags flags, size_t bytes) {
+  if (!s.buffer || s.bytes < bytes) {
+    const size_t grown = std::max(bytes, s.bytes + s.bytes / 2);
+    auto buffer = make_buffer<uint8_t>(*ctx_, flags, grown);
+    if (!buffer) return buffer.error();
+    s.buffer = std::move(buffer).value();
+    s.bytes = grown;
+  }
+  return &*s.buffer;
+}
+
 Status DeformKernel::launch(std::span<const mesh::DeformInput> rooms,
                             std::span<DeformOutput> outputs, LaunchStats* stats) {
   const Clock::time_point t_prepare = Clock::now();
@@ -186,22 +197,28 @@ Status DeformKernel::launch(std::span<const mesh::DeformInput> rooms,
   // The inputs go up by explicit writes rather than CL_MEM_COPY_HOST_PTR, so the queue's events
   // time the copies apart from the kernel (issue 30: where a launch's time goes).
   const Clock::time_point t_allocate = Clock::now();
-  auto room_buf = make_buffer<GrottoRoom>(*ctx_, CL_MEM_READ_ONLY, records.size());
-  auto portal_buf = make_buffer<GrottoPortal>(*ctx_, CL_MEM_READ_ONLY, portals.size());
-  auto index_buf = make_buffer<uint32_t>(*ctx_, CL_MEM_READ_ONLY, groups);
-  auto dir_index_buf = make_buffer<uint32_t>(*ctx_, CL_MEM_READ_ONLY, groups);
-  auto pos_buf = make_buffer<float>(*ctx_, CL_MEM_WRITE_ONLY, 3 * slots);
-  auto clear_buf = make_buffer<float>(*ctx_, CL_MEM_WRITE_ONLY, slots);
+  auto room_buf = scratch(rooms_, CL_MEM_READ_ONLY, records.size() * sizeof(GrottoRoom));
+  auto portal_buf = scratch(portals_, CL_MEM_READ_ONLY, portals.size() * sizeof(GrottoPortal));
+  auto index_buf = scratch(group_rooms_, CL_MEM_READ_ONLY, groups * sizeof(uint32_t));
+  auto dir_index_buf = scratch(group_dirs_, CL_MEM_READ_ONLY, groups * sizeof(uint32_t));
+  auto pos_buf = scratch(positions_, CL_MEM_WRITE_ONLY, 3 * slots * sizeof(float));
+  auto clear_buf = scratch(clearance_, CL_MEM_WRITE_ONLY, slots * sizeof(float));
   for (auto* b : {&room_buf, &portal_buf, &index_buf, &dir_index_buf, &pos_buf, &clear_buf}) {
     if (!*b) return b->error();
   }
-  if (Status s = set_kernel_args(kernel_, shapes_, *room_buf, *portal_buf, *index_buf,
-                                 *dir_index_buf, *donor_buffer_, *pos_buf, *clear_buf,
+  if (Status s = set_kernel_args(kernel_, shapes_, **room_buf, **portal_buf, **index_buf,
+                                 **dir_index_buf, *donor_buffer_, **pos_buf, **clear_buf,
                                  static_cast<cl_uint>(groups));
       !s) {
     return s;
   }
-  std::vector<float> positions(3 * slots), clearance(slots);
+  // Grown, never shrunk: no zero-filling megabytes each launch. The read fills [0, slots).
+  if (host_clearance_.size() < slots) {
+    host_positions_.resize(3 * slots);
+    host_clearance_.resize(slots);
+  }
+  std::vector<float>& positions = host_positions_;
+  std::vector<float>& clearance = host_clearance_;
   const Clock::time_point t_queue = Clock::now();
   // Non-blocking writes and first read: the vectors outlive the blocking last read, which the
   // in-order queue completes after everything before it. Explicit work-groups (the kernel ignores
@@ -210,29 +227,29 @@ Status DeformKernel::launch(std::span<const mesh::DeformInput> rooms,
   const size_t global = (groups + local_size_ - 1) / local_size_ * local_size_;
   cl::Event writes[4], run, reads[2];
   auto enqueue = [&]() -> Status {
-    if (Status s = enqueue_write(*ctx_, *room_buf, records.data(), records.size(), &writes[0]);
+    if (Status s = enqueue_write(*ctx_, **room_buf, records.data(), records.size(), &writes[0]);
         !s) {
       return s;
     }
-    if (Status s = enqueue_write(*ctx_, *portal_buf, portals.data(), portals.size(), &writes[1]);
+    if (Status s = enqueue_write(*ctx_, **portal_buf, portals.data(), portals.size(), &writes[1]);
         !s) {
       return s;
     }
-    if (Status s = enqueue_write(*ctx_, *index_buf, group_room.data(), groups, &writes[2]); !s) {
+    if (Status s = enqueue_write(*ctx_, **index_buf, group_room.data(), groups, &writes[2]); !s) {
       return s;
     }
-    if (Status s = enqueue_write(*ctx_, *dir_index_buf, group_dir.data(), groups, &writes[3]);
+    if (Status s = enqueue_write(*ctx_, **dir_index_buf, group_dir.data(), groups, &writes[3]);
         !s) {
       return s;
     }
     GROTTO_CL_TRY(ctx_->queue().enqueueNDRangeKernel(kernel_, cl::NullRange, cl::NDRange(global),
                                                      cl::NDRange(local_size_), nullptr, &run));
     if (Status s =
-            read_buffer(*ctx_, *pos_buf, positions.data(), positions.size(), false, &reads[0]);
+            read_buffer(*ctx_, **pos_buf, positions.data(), 3 * slots, false, &reads[0]);
         !s) {
       return s;
     }
-    return read_buffer(*ctx_, *clear_buf, clearance.data(), slots, true, &reads[1]);
+    return read_buffer(*ctx_, **clear_buf, clearance.data(), slots, true, &reads[1]);
   };
   if (Status s = enqueue(); !s) {
     // Commands already queued may still read or write the vectors above: let them end first.
@@ -267,7 +284,7 @@ Status DeformKernel::launch(std::span<const mesh::DeformInput> rooms,
     stats->device_span_ms += event_span_ms(writes[0], reads[1]);
     stats->upload_bytes += records.size() * sizeof(GrottoRoom) +
                            portals.size() * sizeof(GrottoPortal) + 2 * groups * sizeof(uint32_t);
-    stats->download_bytes += (positions.size() + clearance.size()) * sizeof(float);
+    stats->download_bytes += 4 * slots * sizeof(float);
     stats->global_size = global;
     stats->local_size = local_size_;
   }

@@ -108,6 +108,15 @@ class DeformKernel {
   std::map<std::pair<int, size_t>, uint32_t> donor_first_group_;
   std::vector<float> donor_directions_;
   std::optional<cl::Buffer> donor_buffer_;
+  // A launch's buffers and result vectors, kept for the next one and grown when a batch needs
+  // more (by half again, so a server's batches settle on one size).
+  struct Scratch {
+    std::optional<cl::Buffer> buffer;
+    size_t bytes = 0;
+  };
+  Result<cl::Buffer*> scratch(Scratch& s, cl_mem_flags flags, size_t bytes);
+  Scratch rooms_, portals_, group_rooms_, group_dirs_, positions_, clearance_;
+  std::vector<float> host_positions_, host_clearance_;
   size_t local_size_ = 1;
   cl::Buffer shapes_;
   size_t max_constant_bytes_;
