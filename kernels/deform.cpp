@@ -111,15 +111,18 @@ Status DeformKernel::run(std::span<const mesh::DeformInput> batch,
   return {};
 }
 
-Status DeformKernel::upload_donors(std::span<const mesh::DeformInput> rooms, LaunchStats* stats) {
+Status DeformKernel::upload_donors(std::span<const mesh::DeformInput> rooms,
+                                   std::vector<uint32_t>& first_groups, LaunchStats* stats) {
   const size_t lanes = static_cast<size_t>(lanes_);
   bool grown = false;
+  first_groups.clear();
   for (const mesh::DeformInput& room : rooms) {
     const auto& dirs = room.donor->directions;
     const uint32_t next = static_cast<uint32_t>(donor_directions_.size() / (3 * lanes));
-    if (!donor_first_group_.try_emplace({room.donor->frequency, dirs.size()}, next).second) {
-      continue;
-    }
+    const auto [it, fresh] =
+        donor_first_group_.try_emplace({room.donor->frequency, dirs.size()}, next);
+    first_groups.push_back(it->second);
+    if (!fresh) continue;
     grown = true;
     // Groups of `lanes` directions, x[lanes] y[lanes] z[lanes]; the last padded with copies of the
     // donor's last direction.
@@ -136,8 +139,8 @@ Status DeformKernel::upload_donors(std::span<const mesh::DeformInput> rooms, Lau
   auto buffer = make_buffer<float>(*ctx_, CL_MEM_READ_ONLY, donor_directions_.size());
   if (!buffer) return buffer.error();
   cl::Event write;
-  if (Status s = enqueue_write(*ctx_, *buffer, donor_directions_.data(), donor_directions_.size(),
-                               &write);
+  if (Status s =
+          enqueue_write(*ctx_, *buffer, donor_directions_.data(), donor_directions_.size(), &write);
       !s) {
     ctx_->queue().finish();
     return s;
@@ -171,7 +174,8 @@ Status DeformKernel::launch(std::span<const mesh::DeformInput> rooms,
   // (thesis §4.2.1's obstacle: "each room must reference different portal data") and its place
   // among the resident donor directions. A room's last group is padded (the donor's groups are).
   const size_t lanes = static_cast<size_t>(lanes_);
-  if (Status s = upload_donors(rooms, stats); !s) return s;
+  std::vector<uint32_t> first_dirs;  // per room: its donor's first group on the device
+  if (Status s = upload_donors(rooms, first_dirs, stats); !s) return s;
   std::vector<GrottoRoom> records;
   std::vector<GrottoPortal> portals;
   std::vector<uint32_t> group_room, group_dir;
@@ -182,11 +186,10 @@ Status DeformKernel::launch(std::span<const mesh::DeformInput> rooms,
     rec.first_vertex = static_cast<uint32_t>(group_room.size() * lanes);
     records.push_back(rec);
     portals.insert(portals.end(), rooms[r].portals.begin(), rooms[r].portals.end());
-    const uint32_t first_dir = donor_first_group_.at({rooms[r].donor->frequency, dirs.size()});
     const size_t count = (dirs.size() + lanes - 1) / lanes;
     for (size_t k = 0; k < count; ++k) {
       group_room.push_back(static_cast<uint32_t>(r));
-      group_dir.push_back(first_dir + static_cast<uint32_t>(k));
+      group_dir.push_back(first_dirs[r] + static_cast<uint32_t>(k));
     }
   }
   const size_t groups = group_room.size();
@@ -206,9 +209,9 @@ Status DeformKernel::launch(std::span<const mesh::DeformInput> rooms,
   for (auto* b : {&room_buf, &portal_buf, &index_buf, &dir_index_buf, &pos_buf, &clear_buf}) {
     if (!*b) return b->error();
   }
-  if (Status s = set_kernel_args(kernel_, shapes_, **room_buf, **portal_buf, **index_buf,
-                                 **dir_index_buf, *donor_buffer_, **pos_buf, **clear_buf,
-                                 static_cast<cl_uint>(groups));
+  if (Status s =
+          set_kernel_args(kernel_, shapes_, **room_buf, **portal_buf, **index_buf, **dir_index_buf,
+                          *donor_buffer_, **pos_buf, **clear_buf, static_cast<cl_uint>(groups));
       !s) {
     return s;
   }
@@ -244,8 +247,7 @@ Status DeformKernel::launch(std::span<const mesh::DeformInput> rooms,
     }
     GROTTO_CL_TRY(ctx_->queue().enqueueNDRangeKernel(kernel_, cl::NullRange, cl::NDRange(global),
                                                      cl::NDRange(local_size_), nullptr, &run));
-    if (Status s =
-            read_buffer(*ctx_, **pos_buf, positions.data(), 3 * slots, false, &reads[0]);
+    if (Status s = read_buffer(*ctx_, **pos_buf, positions.data(), 3 * slots, false, &reads[0]);
         !s) {
       return s;
     }

@@ -31,12 +31,13 @@ struct LaunchStats {
   size_t rooms = 0;
   size_t vertices = 0;
   // Host: flattening the batch into the kernel's layout (room and portal tables, each group's
-  // room, directions de-interleaved into lanes).
+  // room and donor group; a donor's directions de-interleaved into lanes the first time it comes).
   double prepare_ms = 0;
-  // Host: creating the launch's buffers (they get their data from the writes below) and the host
-  // vectors the outputs are read into.
+  // Host: growing the launch's buffers and the host vectors the outputs are read into, where this
+  // batch needs more than an earlier one (they are kept from launch to launch).
   double allocate_ms = 0;
-  // Device: the four input writes, the kernel, the two output reads (sums of their durations).
+  // Device: the input writes (four, and a new donor's directions), the kernel, the two output
+  // reads (sums of their durations).
   double upload_ms = 0;
   double kernel_ms = 0;
   double download_ms = 0;
@@ -100,8 +101,10 @@ class DeformKernel {
   // Resident donor directions (issue 30: upload a batch's compact inputs, not what the device
   // already holds): every donor sphere a launch has used, by (frequency, vertex count), as groups
   // of lanes_ directions in donor_directions_ (the host's copy) and donor_buffer_ (the device's,
-  // rewritten whole when a new donor joins: a few times in a process's life).
-  Status upload_donors(std::span<const mesh::DeformInput> rooms, LaunchStats* stats);
+  // rewritten whole when a new donor joins: a few times in a process's life). first_groups[i]
+  // receives rooms[i]'s donor's first group there.
+  Status upload_donors(std::span<const mesh::DeformInput> rooms,
+                       std::vector<uint32_t>& first_groups, LaunchStats* stats);
 
   ComputeContext* ctx_;
   cl::Kernel kernel_;
