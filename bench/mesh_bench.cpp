@@ -9,10 +9,10 @@
 #include <cstdio>
 #include <fstream>
 #include <functional>
+#include <nlohmann/json.hpp>
 #include <string>
 #include <thread>
 #include <vector>
-#include <nlohmann/json.hpp>
 
 #include "kernels/deform.hpp"
 #include "kernels/room_builder.hpp"

@@ -130,7 +130,6 @@ class Bench {
     glGenQueries(1, &query);
     for (const render::Camera& camera : path) {
       for (size_t c = 0; c < configs.size(); ++c) {
-        framebuffer_.bind();
         glBeginQuery(GL_PRIMITIVES_GENERATED, query);
         render::FrameStats stats = draw(configs[c], camera);
         glEndQuery(GL_PRIMITIVES_GENERATED);

@@ -94,8 +94,7 @@ bool sphere_outside(const std::array<glm::vec4, 6>& planes, glm::vec3 c, float r
                     Margin margin) {
   for (const glm::vec4& p : planes) {
     const glm::vec3 n{p};
-    const float reach =
-        (radius + margin.around) * glm::length(n) + margin.vertical * std::abs(n.y);
+    const float reach = (radius + margin.around) * glm::length(n) + margin.vertical * std::abs(n.y);
     if (glm::dot(n, c) + p.w < -reach) return true;
   }
   return false;

@@ -551,10 +551,13 @@ TEST(Relief, fine_detail_vanishes_under_coarse_pixels_and_occlusion_stays_in_bou
 // rough walls, slopes, ceilings with the longest speleothems, floors, columns, small rooms and
 // halls.
 TEST(Relief, the_normal_and_the_hanging_parts_keep_their_own_bounds) {
-  const glm::vec3 normals[] = {{0, -1, 0}, {0, 1, 0}, kSlopeNormal,
+  const glm::vec3 normals[] = {{0, -1, 0},
+                               {0, 1, 0},
+                               kSlopeNormal,
                                glm::normalize(glm::vec3(1, 0.2f, 0)),
                                glm::normalize(glm::vec3(0.5f, -0.8f, 0.2f)),
-                               glm::normalize(glm::vec3(-0.3f, 0.9f, 0.1f)), {1, 0, 0}};
+                               glm::normalize(glm::vec3(-0.3f, 0.9f, 0.1f)),
+                               {1, 0, 0}};
   const float along = rl::relief_normal_bound(1.0f);
   for (float radius : {3.5f, 8.0f, kHall}) {
     const float hanging = rl::relief_hang_bound(1.0f, radius);
