@@ -18,7 +18,7 @@ lb_start_replicas 3
 lb_start_nginx --fail-timeout "$fail_timeout"
 
 timeout 75 "$GROTTO_LOAD" --server "ws://127.0.0.1:$lb_nginx_port/ws" --players 12 --mode walk \
-  --duration 25 --verify --json "$lb_dir/load.json" --quiet --io-threads 2 --decode-workers 1 \
+  --duration 35 --verify --json "$lb_dir/load.json" --quiet --io-threads 2 --decode-workers 1 \
   >"$lb_dir/load.log" 2>&1 &
 load_pid=$!
 lb_pids+=("$load_pid")
