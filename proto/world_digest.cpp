@@ -31,7 +31,7 @@ class Canonical {
 
 uint64_t layout_params_digest(const cave::LayoutParams& p) {
   Canonical c;
-  c.text("grotto.layout.v2");  // a new field or order is a new tag
+  c.text("grotto.layout.v3");  // a new field or order is a new tag
   c.f64(p.sector_size);
   c.i64(p.gates_min);
   c.i64(p.gates_max);
@@ -44,6 +44,9 @@ uint64_t layout_params_digest(const cave::LayoutParams& p) {
   c.f64(p.portal_gap);
   c.f64(p.floor_min_radius);
   c.f64(p.floor_depth);
+  c.f64(p.ceiling_spring);
+  c.f64(p.ceiling_bend);
+  c.f64(p.ceiling_rise);
   c.f64(p.region_scale);
   c.i64(p.region_sharpness);
   for (const cave::Character& k : p.characters) {
@@ -74,10 +77,10 @@ uint64_t world_params_digest(const cave::LayoutParams& layout, const mesh::MeshP
     c.f64(l.edge_length);
     c.f64(static_cast<double>(l.octaves));
   }
-  // Version 2 of the deformation: halls keep their sphere and rest on floors, donors are capped
-  // by frequency, and the spline's rim point is pulled in near a portal's axis line. The
-  // algorithm itself is part of the world, not only its numbers.
-  c.text("grotto.mesh.v2");
+  // Version 3 of the deformation: halls keep their sphere, rest on floors and lower their wall
+  // onto a ceiling, donors are capped by frequency, and the spline's rim point is pulled in near
+  // a portal's axis line. The algorithm itself is part of the world, not only its numbers.
+  c.text("grotto.mesh.v3");
   for (const auto& l : m.lods)
     c.f64(static_cast<double>(l.max_frequency));
   for (double v : {m.axis_fade_edges, m.keep_distance, m.wall_allow, m.wall_softness,

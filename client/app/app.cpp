@@ -28,7 +28,7 @@ namespace client = grotto::client;
 
 constexpr double kPi = 3.14159265358979323846;
 // m/s told to the stream while waiting: 40-80 m of horizon (the fixed 4 s, halved behind the
-// camera), so that every room whose portal lies within the fog's end (40 m) is asked for.
+// camera), so that every room whose portal lies within the fog's end (64 m) is asked for.
 constexpr double kPlanSpeed = 20;
 
 int fail(const std::string& message) {

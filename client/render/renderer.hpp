@@ -62,10 +62,12 @@ struct RenderOptions {
   bool room_culling = true;
   LodHeuristic lod = LodHeuristic::kScreenSpace;  // near relief dense, far relief cheap
   float target_pixels = 6;                        // kScreenSpace: pixels per tessellated segment
-  float fog_start = 18;                           // metres
-  float fog_end = 40;                             // fully fogged here; must be below far_plane
+  // Fog into darkness: a hall is up to 68 m across, and its far wall, lit by its own lights or a
+  // flare, should show from its entrance.
+  float fog_start = 24;  // metres
+  float fog_end = 64;    // fully fogged here; must be below far_plane
   float near_plane = 0.05f;
-  float far_plane = 60;
+  float far_plane = 96;
   float lamp_range = 14;  // metres at which the headlamp falls to about a tenth
   bool headlamp = true;   // off: only the world's lights and flares light the cave
   // Scattering per metre of the haze that the world's lights and flares light (shaders/

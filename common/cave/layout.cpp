@@ -15,6 +15,24 @@ std::optional<double> floor_height(const LayoutParams& params, const Sphere& sph
   return sphere.centre.y - params.floor_depth * sphere.radius;
 }
 
+std::optional<Ceiling> room_ceiling(const LayoutParams& params, const Sphere& sphere) {
+  if (!floor_height(params, sphere) || params.ceiling_rise >= 1) return std::nullopt;
+  Ceiling c;
+  c.spring = sphere.centre.y + params.ceiling_spring * sphere.radius;
+  c.bend = params.ceiling_bend * sphere.radius;
+  // The sphere's top (spring + (1 - spring) r above the centre) lands ceiling_rise x r above it.
+  double above = (1.0 - params.ceiling_spring - 0.5 * params.ceiling_bend) * sphere.radius;
+  c.squash = (1.0 - params.ceiling_rise) * sphere.radius / above;
+  return c;
+}
+
+double Ceiling::lower(double y) const {
+  double t = y - spring;
+  if (t <= 0) return y;
+  double ramp = t < bend ? t * t / (2.0 * bend) : t - 0.5 * bend;
+  return y - squash * ramp;
+}
+
 namespace {
 
 const Room* find_room(const std::vector<Room>& rooms, RoomId id) {
@@ -147,13 +165,29 @@ Spawn spawn(const World& world, const SectorSource& sectors) {
   auto layout = sectors({0, 0, 0});
   double half = 0.5 * world.params().sector_size;
   Vec3 centre{half, half, half};
+  // Not in a hall (its centre floats metres above the floor) but in a room that opens into one
+  // when there is one: the player starts at a hall's entrance. Then the nearest to the centre.
+  auto is_hall = [&](const Room& r) { return floor_height(world.params(), r.sphere).has_value(); };
+  auto beside_hall = [&](const Room& r) {
+    for (const Portal& p : r.portals) {
+      const Room* n = find_room(layout->rooms, p.neighbour);
+      if (n && is_hall(*n)) return true;
+    }
+    return false;
+  };
   const Room* best = nullptr;
+  bool best_beside = false;
   for (const Room& r : layout->rooms) {
-    if (!best ||
-        length_squared(r.sphere.centre - centre) < length_squared(best->sphere.centre - centre)) {
+    if (is_hall(r)) continue;
+    const bool beside = beside_hall(r);
+    if (!best || beside > best_beside ||
+        (beside == best_beside &&
+         length_squared(r.sphere.centre - centre) < length_squared(best->sphere.centre - centre))) {
       best = &r;
+      best_beside = beside;
     }
   }
+  if (!best && !layout->rooms.empty()) best = &layout->rooms.front();
   // A sector always links its gates with at least one interior room.
   assert(best);
   if (!best) best = &layout->gates.front();

@@ -36,6 +36,20 @@ struct Sphere {
 // within params.wall_clearance above it.
 std::optional<double> floor_height(const LayoutParams& params, const Sphere& sphere);
 
+// The ceiling of a room with a floor (params.ceiling_*): above `spring` (world y) the wall is
+// lowered by squash x ramp(y - spring), where the ramp eases in over `bend` metres
+// (t^2 / (2 bend) below it, t - bend / 2 beyond), so the sphere's upper cap becomes a low dome
+// with a smooth shoulder. The mesh lowers its wall so (mesh/deform_core.h, away from portals);
+// no portal of the room opens above `spring`.
+struct Ceiling {
+  double spring = 0;  // world y
+  double bend = 0;    // metres
+  double squash = 0;  // in (0, 1]
+  // Where a point at world height y of the room's sphere ends up.
+  double lower(double y) const;
+};
+std::optional<Ceiling> room_ceiling(const LayoutParams& params, const Sphere& sphere);
+
 // The disc where two rooms' spheres overlap (thesis Figure 3-2), seen from one of them.
 struct Portal {
   Vec3 centre;
@@ -123,8 +137,9 @@ const Room* room_at(const SectorLayout& layout, Vec3 point);
 // whose cap holds it (overlapping spheres can put it there). Where a player starts in the room.
 Vec3 interior_point(const Room& room);
 
-// The deterministic place a new player starts: the interior room of sector (0,0,0) closest to
-// the sector's centre.
+// The deterministic place a new player starts: an interior room of sector (0,0,0) without a
+// floor (not a hall), one with a portal into a hall when there is one (a hall's entrance),
+// closest to the sector's centre; the first interior room when all have floors.
 RoomId spawn_room(const World& world);
 // spawn_room's room and where in it a player starts (interior_point).
 struct Spawn {

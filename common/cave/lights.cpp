@@ -53,7 +53,7 @@ struct Candidate {
 // Where a light of this kind could sit: glow-worms on the ceiling's cap, seams on the walls,
 // crystals on the floor (or low on the wall of a room without one).
 Candidate candidate(LightKind kind, const Room& room, std::optional<double> floor,
-                    const LightParams& p, Rng& rng) {
+                    const std::optional<Ceiling>& ceiling, const LightParams& p, Rng& rng) {
   const Vec3 c = room.sphere.centre;
   const double r = room.sphere.radius;
   Vec3 d = random_direction(rng);
@@ -79,7 +79,10 @@ Candidate candidate(LightKind kind, const Room& room, std::optional<double> floo
       break;
   }
   d = normalize(d);
-  return {c + d * (p.wall_fraction * r), -d};
+  Vec3 at = c + d * (p.wall_fraction * r);
+  // Under a hall's low dome, on it: the wall there is lowered as the mesh lowers it.
+  if (ceiling) at.y = ceiling->lower(at.y);
+  return {at, -d};
 }
 
 bool acceptable(const Candidate& k, const Room& room, std::optional<double> floor,
@@ -113,6 +116,7 @@ std::vector<WorldLight> room_lights(uint64_t seed, const LayoutParams& layout, c
                                     const LightParams& p) {
   Rng rng(hash_words(seed, kLightStream, room.id.packed()));
   const std::optional<double> floor = floor_height(layout, room.sphere);
+  const std::optional<Ceiling> ceiling = room_ceiling(layout, room.sphere);
   const double r = room.sphere.radius;
   int count = 0;
   if (floor) {
@@ -128,7 +132,7 @@ std::vector<WorldLight> room_lights(uint64_t seed, const LayoutParams& layout, c
     Rng lr(hash_combine(rng.next_u64(), static_cast<uint64_t>(i)));
     const LightKind kind = pick_kind(lr, floor.has_value());
     for (int t = 0; t < tries; ++t) {
-      const Candidate k = candidate(kind, room, floor, p, lr);
+      const Candidate k = candidate(kind, room, floor, ceiling, p, lr);
       if (!acceptable(k, room, floor, p, out)) continue;
       WorldLight l;
       l.kind = kind;

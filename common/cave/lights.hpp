@@ -21,7 +21,7 @@
 namespace grotto::cave {
 
 // Bumped whenever placement, kinds or colours change: part of the world digest.
-inline constexpr const char* kLightsVersion = "grotto.lights.v1";
+inline constexpr const char* kLightsVersion = "grotto.lights.v2";
 
 enum class LightKind : uint8_t {
   kGlowWorms = 0,    // a colony of blue-green dots on a ceiling

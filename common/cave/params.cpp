@@ -92,8 +92,8 @@ std::array<Character, kCharacterCount> LayoutParams::default_characters() {
   maze.tunnel_chance = 0.7;
   maze.loops = 5;               // mazes are interconnected
   maze.hall_probability = 0.3;  // a breakdown chamber where the maze collapsed
-  maze.hall_radius_min = 12.0;
-  maze.hall_radius_max = 18.0;
+  maze.hall_radius_min = 15.0;
+  maze.hall_radius_max = 20.0;
 
   Character shafts;  // vertical shafts (Figure 3-3, lower right)
   shafts.name = "shafts";
@@ -107,8 +107,8 @@ std::array<Character, kCharacterCount> LayoutParams::default_characters() {
   shafts.tunnel_chance = 0.6;
   shafts.loops = 3;
   shafts.hall_probability = 0.4;  // a tall chamber where shafts meet
-  shafts.hall_radius_min = 12.0;
-  shafts.hall_radius_max = 18.0;
+  shafts.hall_radius_min = 15.0;
+  shafts.hall_radius_max = 22.0;
 
   Character caverns;  // large open spaces
   caverns.name = "caverns";
@@ -121,9 +121,9 @@ std::array<Character, kCharacterCount> LayoutParams::default_characters() {
   caverns.bias = {1.0, 0.4, 1.0};
   caverns.tunnel_chance = 0.2;
   caverns.loops = 2;
-  caverns.hall_probability = 1.0;  // every cavern sector has a hall 28-40 m across
-  caverns.hall_radius_min = 14.0;
-  caverns.hall_radius_max = 20.0;
+  caverns.hall_probability = 1.0;  // every cavern sector has a hall 32-68 m across
+  caverns.hall_radius_min = 16.0;
+  caverns.hall_radius_max = 34.0;
   return {maze, shafts, caverns};
 }
 
@@ -133,16 +133,28 @@ LayoutParams LayoutParams::uniform(const Character& c) {
   return p;
 }
 
-double max_room_radius(const LayoutParams& params) {
+double max_grown_radius(const LayoutParams& params) {
   double r = std::max(params.gate_radius_max, params.link_radius_max);
   for (const Character& c : params.characters) {
-    r = std::max({r, c.small_radius_max, c.big_radius_max, c.hall_radius_max});
+    r = std::max({r, c.small_radius_max, c.big_radius_max});
+  }
+  return r;
+}
+
+double max_room_radius(const LayoutParams& params) {
+  double r = max_grown_radius(params);
+  for (const Character& c : params.characters) {
+    r = std::max(r, c.hall_radius_max);
   }
   return r;
 }
 
 double gate_edge_margin(const LayoutParams& p) {
   return (2.0 * p.gate_radius_max + p.wall_clearance) / std::sqrt(2.0);
+}
+
+double hall_clearance(const LayoutParams& p) {
+  return 2.0 * p.gate_radius_max + p.wall_clearance + face_margin(p);
 }
 
 double face_margin(const LayoutParams& p) {
@@ -189,6 +201,25 @@ Status validate(const LayoutParams& p) {
     check.fail("floor_depth must be in [0, 0.9] of the radius, 0 for no floors (got " +
                number(p.floor_depth) + ")");
   }
+  if (!(p.ceiling_bend > 0 && p.ceiling_bend <= 1)) {
+    check.fail("ceiling_bend must be in (0, 1] of the radius (got " + number(p.ceiling_bend) + ")");
+  }
+  if (!(p.ceiling_spring >= 0 && p.ceiling_spring + p.ceiling_bend <= 1)) {
+    check.fail("ceiling_spring must be in [0, 1 - ceiling_bend] of the radius (got " +
+               number(p.ceiling_spring) + ")");
+  }
+  if (!(p.ceiling_rise >= p.ceiling_spring + 0.5 * p.ceiling_bend)) {
+    check.fail("ceiling_rise must be at least ceiling_spring + ceiling_bend / 2 (" +
+               number(p.ceiling_spring + 0.5 * p.ceiling_bend) + "), >= 1 for no ceilings (got " +
+               number(p.ceiling_rise) + ")");
+  }
+  // A floored room's portals open between its floor and its ceiling's spring: a player fits.
+  double band = (p.floor_depth + p.ceiling_spring) * p.floor_min_radius - p.wall_clearance;
+  if (p.ceiling_rise < 1 && std::isfinite(band) && band < 2.0 * p.min_portal_radius) {
+    check.fail("floored rooms leave " + number(band) +
+               " m between floor and ceiling_spring for portals, less than 2 x min_portal_radius" +
+               " (raise floor_min_radius, floor_depth or ceiling_spring)");
+  }
   for (int i = 0; i < kCharacterCount; ++i) {
     const Character& c = p.characters[i];
     std::string f = "characters[" + std::to_string(i) + "].";
@@ -223,11 +254,18 @@ Status validate(const LayoutParams& p) {
                number(p.min_portal_radius) + ")");
   }
   // Gates keep away from face edges by their radius plus the clearance, and a sector must leave
-  // room in the middle for rooms of every size between its gates.
-  double needed = 2.0 * gate_edge_margin(p) + 4.0 * max_room_radius(p);
+  // room in the middle for rooms of every size between its gates, and for its hall with a gate
+  // and a link room between it and each face.
+  double needed = 2.0 * gate_edge_margin(p) + 4.0 * max_grown_radius(p);
   if (std::isfinite(p.sector_size) && std::isfinite(needed) && p.sector_size < needed) {
     check.fail("sector_size (" + number(p.sector_size) + ") must be at least " + number(needed) +
                " for these radii (2 x the gates' edge margin + 4 x the largest radius)");
+  }
+  double hall_needed = 2.0 * (max_room_radius(p) + hall_clearance(p));
+  if (std::isfinite(p.sector_size) && std::isfinite(hall_needed) && p.sector_size < hall_needed) {
+    check.fail("sector_size (" + number(p.sector_size) + ") must be at least " +
+               number(hall_needed) +
+               " for these halls (2 x (the largest hall radius + a gate and a link room))");
   }
   return check.status();
 }

@@ -59,6 +59,13 @@ struct LayoutParams {
   // or within wall_clearance above it.
   double floor_min_radius = 12.0;
   double floor_depth = 0.2;
+  // ... and a ceiling (cave::room_ceiling): their sphere keeps its wall up to ceiling_spring x
+  // radius above the centre, then leans in over ceiling_bend x radius to a low dome whose top is
+  // ceiling_rise x radius above the centre (a breakdown chamber's roof along a bedding plane, not
+  // a planetarium). No portal of theirs opens above the spring. ceiling_rise >= 1: no ceiling.
+  double ceiling_spring = 0.2;
+  double ceiling_bend = 0.3;
+  double ceiling_rise = 0.5;
   // Region field: characters change over about this many sectors.
   double region_scale = 4.0;
   // How sharply one character dominates a region: weights go as field^sharpness, so 0 makes
@@ -80,6 +87,8 @@ Status validate(const LayoutParams& params);
 
 // The largest sphere radius any room can have under these parameters.
 double max_room_radius(const LayoutParams& params);
+// The same without halls: what the rooms grown and linked between gates and halls can have.
+double max_grown_radius(const LayoutParams& params);
 
 // How far gate centres keep from the edges of their face: gates on two faces that meet at an
 // edge are then at least 2 x gate_radius_max + wall_clearance apart (the margin times sqrt 2).
@@ -89,6 +98,10 @@ double gate_edge_margin(const LayoutParams& params);
 // clearance and the portal gap (plus a little for the angle test), so both rules hold across
 // sector faces too.
 double face_margin(const LayoutParams& params);
+
+// How far a hall keeps from its sector's faces: a gate's width and the clearance, so a gate may
+// sit anywhere on a face and a link room still fit between it and the hall.
+double hall_clearance(const LayoutParams& params);
 
 inline constexpr double kMaxSectorSize = 256.0;  // metres; bounds the work per sector
 

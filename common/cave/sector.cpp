@@ -13,7 +13,7 @@ namespace {
 constexpr uint64_t kFaceStream = 0x6761746573000001ull;    // "gates"
 constexpr uint64_t kSectorStream = 0x736563746f720001ull;  // "sector"
 constexpr uint64_t kHallStream = 0x68616c6c00000001ull;    // "hall": whether a sector has one
-constexpr int kMaxAttempts = 8;
+constexpr int kMaxAttempts = 10;
 // A chain may add rooms enough to cross its sector a few times over, and try 15 per room.
 int max_chain_rooms(const LayoutParams& p) {
   return std::max(40, static_cast<int>(3.0 * p.sector_size / p.link_radius_min));
@@ -79,6 +79,15 @@ bool below_floor(const LayoutParams& params, const Sphere& s, const Disc& disc) 
   if (!floor) return false;
   double tilt = std::max(0.0, 1.0 - disc.normal.y * disc.normal.y);
   return disc.centre.y - disc.radius * std::sqrt(tilt) < *floor + params.wall_clearance;
+}
+
+// True when the disc reaches above the spring of sphere s's ceiling: the mesh lowers the wall
+// there, and a rim must stay where the layout put it.
+bool above_spring(const LayoutParams& params, const Sphere& s, const Disc& disc) {
+  std::optional<Ceiling> ceiling = room_ceiling(params, s);
+  if (!ceiling) return false;
+  double tilt = std::max(0.0, 1.0 - disc.normal.y * disc.normal.y);
+  return disc.centre.y + disc.radius * std::sqrt(tilt) > ceiling->spring;
 }
 
 double distance_to_disc(Vec3 p, const Disc& disc) {
@@ -254,14 +263,21 @@ class SectorBuilder {
     return push;
   }
 
-  // A big room in the middle half of the sector, clear of every gate; -1 when none fits.
+  // A big room in the middle half of the sector, clear of every gate; -1 when none fits. A hall
+  // keeps hall_clearance from every face (validate() made the sector big enough), so a gate
+  // anywhere on a face and a link room fit beside it.
   int place_hub(Rng& rng, const Character& c, double hall_radius) {
+    const double size = params_.sector_size;
+    const double lo = std::max(0.3 * size, hall_radius + hall_clearance(params_));
+    const double hi =
+        std::max(lo, std::min(0.7 * size, size - hall_radius - hall_clearance(params_)));
     for (int tries = 0; tries < 16; ++tries) {
       Sphere s;
       s.radius = rng.uniform(c.big_radius_min, c.big_radius_max);
       if (hall_radius > 0) s.radius = hall_radius;
       for (int a = 0; a < 3; ++a) {
-        s.centre[a] = lo_[a] + params_.sector_size * rng.uniform(0.3, 0.7);
+        s.centre[a] = lo_[a] + (hall_radius > 0 ? lo + (hi - lo) * rng.uniform(0.0, 1.0)
+                                                : size * rng.uniform(0.3, 0.7));
       }
       bool clear = true;
       nearby(s, params_.wall_clearance, near_hub_);
@@ -419,6 +435,7 @@ class SectorBuilder {
       auto disc = overlap_disc(s, o, params_.min_portal_radius);
       if (!disc) return std::nullopt;
       if (below_floor(params_, s, *disc) || below_floor(params_, o, *disc)) return std::nullopt;
+      if (above_spring(params_, s, *disc) || above_spring(params_, o, *disc)) return std::nullopt;
       made.push_back({-1, j, *disc});
     }
     if (made.empty() || made.size() > static_cast<size_t>(kMaxPortalsPerRoom)) {
@@ -615,7 +632,16 @@ SectorLayout generate_sector(const World& world, SectorCoord sector) {
   for (int attempt = 0; attempt < kMaxAttempts; ++attempt) {
     Rng rng(hash_words(world.seed(), kSectorStream, sector.x, sector.y, sector.z, attempt));
     SectorBuilder builder(world.params(), sector, gates);
-    bool linked = builder.link_gates(rng, character.blend, hall_radius);
+    // A big hall leaves the chains little room to reach its wall between floor and spring (with
+    // eight attempts at full size, 1 sector in ~600 of seed 7 failed them all): later attempts
+    // shrink it, and the last two make the hub a plain big room, as a sector without a hall.
+    double hub_hall = hall_radius;
+    if (attempt >= kMaxAttempts - 2) {
+      hub_hall = 0;
+    } else if (attempt >= kMaxAttempts - 5) {
+      hub_hall *= 1.0 - 0.15 * (attempt - (kMaxAttempts - 6));
+    }
+    bool linked = builder.link_gates(rng, character.blend, hub_hall);
     int link_rooms = builder.interior_count();
     builder.grow(rng, character.blend);
     builder.close_loops(rng, character.blend.loops);

@@ -41,7 +41,7 @@ typedef struct {
   float pad0, pad1, pad2;
 } GrottoPortal;
 
-/* One room of a batch. 16 floats/uints. */
+/* One room of a batch. 20 floats/uints. */
 typedef struct {
   float ox, oy, oz;    /* sphere centre in the room frame (|o| < one grid step) */
   float radius;        /* sphere radius */
@@ -55,6 +55,10 @@ typedef struct {
   uint noise_seed; /* the room's world's noise seed: a batch may mix worlds */
   uint has_floor;  /* 1: the wall rests on a floor at floor_y (the layout's cave::floor_height) */
   float floor_y;   /* in the room frame */
+  /* A room's ceiling (cave::room_ceiling; ceiling_squash 0: none): above ceiling_y (room frame)
+   * the wall is lowered by ceiling_squash x a ramp that eases in over ceiling_bend metres. */
+  float ceiling_y, ceiling_bend, ceiling_squash;
+  float pad;
 } GrottoRoom;
 
 /* Noise and shape parameters of one level of detail. 32 floats/uints. */
@@ -465,6 +469,15 @@ GROTTO_FN gfloat3 grotto_deform_vertex(uint seed, GROTTO_CONSTANT const GrottoSh
     gfloat lifted =
         pos.y + 0.5f * (rise + grotto_sqrt(rise * rise + s->wall_softness * s->wall_softness));
     pos.y = pos.y + (lifted - pos.y) * keep;
+  }
+  if (room->ceiling_squash > 0.0f) {
+    /* The ceiling: the wall above the spring comes down onto a low dome (cave::Ceiling::lower),
+     * away from portals (they open below the spring). */
+    gfloat t = pos.y - room->ceiling_y;
+    t = t > 0.0f ? t : 0.0f;
+    float bend = room->ceiling_bend;
+    gfloat ramp = t < bend ? t * t / (2.0f * bend) : t - 0.5f * bend;
+    pos.y = pos.y - room->ceiling_squash * ramp * keep;
   }
 
   *clearance = grotto_least_height(portals, n, pos);

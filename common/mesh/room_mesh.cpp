@@ -295,6 +295,12 @@ DeformInput prepare_room(const MeshContext& ctx, const cave::Room& room, Lod lod
     in.record.has_floor = 1;
     in.record.floor_y = static_cast<float>(*floor - in.origin.y);
   }
+  if (std::optional<cave::Ceiling> ceiling =
+          cave::room_ceiling(ctx.world().params(), room.sphere)) {
+    in.record.ceiling_y = static_cast<float>(ceiling->spring - in.origin.y);
+    in.record.ceiling_bend = static_cast<float>(ceiling->bend);
+    in.record.ceiling_squash = static_cast<float>(ceiling->squash);
+  }
   in.record.first_portal = 0;
   in.record.portal_count = static_cast<core::uint>(room.portals.size());
   in.record.first_vertex = 0;

@@ -217,6 +217,56 @@ TEST_P(LayoutGeometry, no_portal_opens_below_a_floor) {
   EXPECT_GT(floored, 0) << "the region should hold rooms with floors";
 }
 
+// ... and ceilings (the mesh lowers the wall above the spring onto a low dome), so no portal of
+// theirs reaches above the spring: a rim stays where the layout put it.
+TEST_P(LayoutGeometry, no_portal_opens_above_a_ceilings_spring) {
+  int ceilinged = 0;
+  for (const Room& r : region_->rooms) {
+    std::optional<Ceiling> ceiling = room_ceiling(world_->params(), r.sphere);
+    EXPECT_EQ(ceiling.has_value(), floor_height(world_->params(), r.sphere).has_value())
+        << r.id.to_string();
+    if (!ceiling) continue;
+    ++ceilinged;
+    for (const Portal& p : r.portals) {
+      double highest =
+          p.centre.y + p.radius * std::sqrt(std::max(0.0, 1.0 - p.normal.y * p.normal.y));
+      EXPECT_LE(highest, ceiling->spring) << r.id.to_string() << " -> " << p.neighbour.to_string();
+    }
+  }
+  EXPECT_GT(ceilinged, 0) << "the region should hold rooms with ceilings";
+}
+
+// The ceiling's profile: the sphere below the spring untouched, its top at ceiling_rise x radius
+// above the centre, a smooth shoulder (the ramp's slope is continuous at both ends of the bend)
+// and heights kept in order (the dome never folds over).
+TEST(Ceiling, lowers_the_cap_onto_a_dome_of_the_rise_asked_for) {
+  LayoutParams params;
+  Sphere hall{{10, 50, -20}, 30};
+  std::optional<Ceiling> c = room_ceiling(params, hall);
+  ASSERT_TRUE(c.has_value());
+  EXPECT_DOUBLE_EQ(c->spring, 50 + params.ceiling_spring * 30);
+  EXPECT_DOUBLE_EQ(c->lower(c->spring), c->spring);
+  EXPECT_DOUBLE_EQ(c->lower(40.0), 40.0);
+  EXPECT_NEAR(c->lower(80.0), 50 + params.ceiling_rise * 30, 1e-9);
+  double last = c->lower(c->spring - 1);
+  for (double y = c->spring - 1; y <= 80.0; y += 0.01) {
+    double lowered = c->lower(y);
+    EXPECT_GE(lowered, last - 1e-12) << y;
+    EXPECT_LE(lowered, y) << y;
+    last = lowered;
+  }
+  const double h = 1e-6;
+  for (double joint : {c->spring, c->spring + c->bend}) {
+    double below = (c->lower(joint) - c->lower(joint - h)) / h;
+    double above = (c->lower(joint + h) - c->lower(joint)) / h;
+    EXPECT_NEAR(below, above, 1e-4) << joint;
+  }
+  // Rooms without floors have none; ceiling_rise >= 1 turns them off.
+  EXPECT_FALSE(room_ceiling(params, Sphere{{0, 0, 0}, params.floor_min_radius - 1}));
+  params.ceiling_rise = 1;
+  EXPECT_FALSE(room_ceiling(params, hall));
+}
+
 // The cavern character links every sector's gates through a hall: its hub is a room of the
 // hall radii, with a floor, joined to the cave.
 TEST(Halls, every_cavern_sector_is_linked_through_a_hall) {

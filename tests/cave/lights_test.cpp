@@ -96,7 +96,7 @@ TEST(WorldLights, every_hall_has_three_to_six_lights_and_most_passages_none) {
 TEST(WorldLights, lights_lie_inside_their_room_above_its_floor_and_clear_of_portals) {
   const LayoutParams params;
   const LightParams lp;
-  size_t checked = 0;
+  size_t checked = 0, under_ceilings = 0;
   for (uint64_t seed : {3ull, 7ull, 95ull}) {
     for (const Room& r : sample(seed).rooms) {
       const auto floor = floor_height(params, r.sphere);
@@ -106,6 +106,14 @@ TEST(WorldLights, lights_lie_inside_their_room_above_its_floor_and_clear_of_port
         EXPECT_LT(distance(l.position, r.sphere.centre), r.sphere.radius) << r.id.to_string();
         if (floor) {
           EXPECT_GE(l.position.y, *floor + lp.floor_lift - 1e-9) << r.id.to_string();
+        }
+        // Under a hall's dome: below where the ceiling lowered the sphere's cap above it.
+        if (const auto ceiling = room_ceiling(params, r.sphere)) {
+          Vec3 d = l.position - r.sphere.centre;
+          double cap = r.sphere.centre.y +
+                       std::sqrt(r.sphere.radius * r.sphere.radius - d.x * d.x - d.z * d.z);
+          EXPECT_LT(l.position.y, ceiling->lower(cap)) << r.id.to_string();
+          ++under_ceilings;
         }
         for (const Portal& p : r.portals)
           EXPECT_GE(distance(l.position, p.centre), p.radius + lp.portal_clearance);
@@ -118,6 +126,7 @@ TEST(WorldLights, lights_lie_inside_their_room_above_its_floor_and_clear_of_port
     }
   }
   EXPECT_GT(checked, 10u);
+  EXPECT_GT(under_ceilings, 10u);
 }
 
 TEST(WorldLights, glow_worms_hang_on_ceilings_and_crystals_lie_low) {

@@ -63,6 +63,13 @@ TEST(LayoutParams, bad_values_name_the_field) {
   expect_rejected([](LayoutParams& p) { p.region_scale = 1e-20; }, "region_scale");
   expect_rejected([](LayoutParams& p) { p.portal_gap = 3; }, "portal_gap");
   expect_rejected([](LayoutParams& p) { p.min_portal_radius = 1.8; }, "min_portal_radius");
+  expect_rejected([](LayoutParams& p) { p.ceiling_bend = 0; }, "ceiling_bend");
+  expect_rejected([&](LayoutParams& p) { p.ceiling_spring = nan; }, "ceiling_spring");
+  expect_rejected([](LayoutParams& p) { p.ceiling_spring = 0.8; }, "ceiling_spring");
+  expect_rejected([](LayoutParams& p) { p.ceiling_rise = 0.3; }, "ceiling_rise");
+  expect_rejected([](LayoutParams& p) { p.ceiling_spring = 0; },
+                  "between floor and ceiling_spring");
+  expect_rejected([](LayoutParams& p) { p.characters[2].hall_radius_max = 40; }, "for these halls");
 }
 
 TEST(SectorCharacter, weights_sum_to_one_and_vary_smoothly_over_space) {

@@ -582,6 +582,8 @@ FarRoom far_room(const grotto::Vec3& spawn) {
   FarRoom best;
   double best_error = 1e9;
   for (const auto& room : sector.rooms) {
+    // A passage (a small room), not a hall: 8 m around a big room's centre may reach no portal.
+    if (room.sphere.radius >= 6.0) continue;
     const grotto::Vec3 p = grotto::cave::interior_point(room);
     const double error = std::abs(grotto::distance(p, spawn) - 100.0);
     if (error < best_error) {

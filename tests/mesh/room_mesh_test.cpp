@@ -252,5 +252,43 @@ TEST(RoomMesh, halls_keep_their_volume_and_rest_on_flat_floors) {
   EXPECT_GE(flat_at_floor / flat_area, 0.9);
 }
 
+// Halls have ceilings (cave::room_ceiling): the wall above the spring comes down onto a low dome,
+// so a hall tens of metres across is not as tall as it is wide. Every vertex of a hall stays
+// below the sphere's cap lowered as the layout says (the noise may push the wall wall_allow
+// outside the sphere; the dome's shoulder takes it along), the highest vertex is near the rise
+// the layout asks for, and the hall is much wider than tall.
+TEST(RoomMesh, halls_lower_their_cap_onto_a_ceiling) {
+  const cave::LayoutParams caverns =
+      cave::LayoutParams::uniform(cave::LayoutParams::default_characters()[2]);
+  const cave::World world = cave::World::create(95, caverns).value();
+  const MeshContext ctx = MeshContext::create(world, MeshParams{}).value();
+  const cave::Region region = cave::generate_region(world, {0, 0, 0}, {1, 0, 0});
+  int halls = 0;
+  for (const cave::Room& room : region.rooms) {
+    std::optional<cave::Ceiling> ceiling = cave::room_ceiling(world.params(), room.sphere);
+    if (!ceiling) continue;
+    ++halls;
+    const RoomMesh m = build_room_mesh(ctx, room, Lod::kPatch).value();
+    const double r = room.sphere.radius, allow = ctx.params().wall_allow + 0.05;
+    double top = -1e9, lo_x = 1e9, hi_x = -1e9;
+    for (size_t v = 0; v < m.vertex_count(); ++v) {
+      const Vec3 p = m.world_position(v) - room.sphere.centre;
+      top = std::max(top, p.y);
+      lo_x = std::min(lo_x, p.x);
+      hi_x = std::max(hi_x, p.x);
+      const double out = r + allow;
+      const double cap = std::sqrt(std::max(0.0, out * out - p.x * p.x - p.z * p.z));
+      EXPECT_LE(p.y, ceiling->lower(room.sphere.centre.y + cap) - room.sphere.centre.y + 1e-3)
+          << room.id.to_string() << " vertex " << v;
+    }
+    const double rise = world.params().ceiling_rise * r;
+    EXPECT_LT(top, rise + allow + 0.1 * r) << room.id.to_string();
+    EXPECT_GT(top, rise - 0.15 * r) << room.id.to_string();
+    const double floor = room.sphere.centre.y - *cave::floor_height(world.params(), room.sphere);
+    EXPECT_GT((hi_x - lo_x) / (top + floor), 2.0) << room.id.to_string();
+  }
+  EXPECT_GE(halls, 2);
+}
+
 }  // namespace
 }  // namespace grotto::mesh

@@ -12,13 +12,13 @@ namespace {
 TEST(WorldDigest, default_parameters_have_a_pinned_digest) {
   // Changing this value changes every world's digest: clients drop their caches. Do it only
   // with a change to the layout parameters or their canonical form.
-  // Changed in issue 27: halls and floors (grotto.layout.v2).
-  EXPECT_EQ(layout_params_digest(cave::LayoutParams{}), 0xb719eb666042f98aull);
+  // Changed in issue 27: halls and floors (grotto.layout.v2), then ceilings (grotto.layout.v3).
+  EXPECT_EQ(layout_params_digest(cave::LayoutParams{}), 0x9c8782f0f3856b30ull);
 }
 
 TEST(WorldDigest, every_field_changes_the_digest) {
   const cave::LayoutParams base;
-  std::vector<cave::LayoutParams> variants(12, base);
+  std::vector<cave::LayoutParams> variants(15, base);
   variants[0].sector_size += 1;
   variants[1].gates_max += 1;
   variants[2].min_portal_radius = std::nextafter(base.min_portal_radius, 2.0);
@@ -31,6 +31,9 @@ TEST(WorldDigest, every_field_changes_the_digest) {
   variants[9].characters[2].hall_radius_max -= 1;
   variants[10].floor_depth = 0.25;
   variants[11].floor_min_radius = 10;
+  variants[12].ceiling_spring = 0.25;
+  variants[13].ceiling_bend = 0.25;
+  variants[14].ceiling_rise = 0.55;
   const uint64_t d = layout_params_digest(base);
   for (std::size_t i = 0; i < variants.size(); ++i) {
     EXPECT_NE(layout_params_digest(variants[i]), d) << "variant " << i;
@@ -52,8 +55,9 @@ TEST(WorldDigest, the_servers_digest_is_pinned_and_sees_the_mesh_settings) {
   const uint64_t d = world_params_digest(layout, mesh);
   // Changed in issue 18: the digest folds in the world grid (1/64 m since then); in issue 27:
   // the deformation's version 2 (halls keep their sphere, floors, the axis fade, donor caps),
-  // then the world's lights (cave/lights.hpp: grotto.lights.v1 and its parameters).
-  EXPECT_EQ(d, 0x29a2b8c03927cb75ull);
+  // then the world's lights (cave/lights.hpp: grotto.lights.v1 and its parameters), then the
+  // halls' ceilings and larger halls (grotto.layout.v3, grotto.mesh.v3, grotto.lights.v2).
+  EXPECT_EQ(d, 0x2f926a9c2617d8d1ull);
   EXPECT_NE(d, layout_params_digest(layout));
   std::vector<mesh::MeshParams> variants(12, mesh);
   variants[0].lods[0].edge_length += 0.125;

@@ -22,16 +22,11 @@ Cave build() {
     EXPECT_TRUE(m.ok()) << r.id.to_string();
     if (m.ok()) c.rooms.emplace(r.id, ready(m.value(), r));
   }
-  // The interior room nearest the sector's centre, its interior point.
-  const double half = 0.5 * world.params().sector_size;
-  const Vec3 centre{half, half, half};
-  const cave::Room* best = nullptr;
-  for (const cave::Room& r : region.sectors.front().rooms)
-    if (!best ||
-        length_squared(r.sphere.centre - centre) < length_squared(best->sphere.centre - centre))
-      best = &r;
-  c.spawn_room = best->id;
-  c.spawn = cave::interior_point(*best);
+  // Where the server spawns a player (cave::spawn).
+  const cave::Room& spawn = *region.find(cave::spawn_room(world));
+  c.spawn_room = spawn.id;
+  c.spawn = cave::interior_point(spawn);
+  c.spawn_radius = spawn.sphere.radius;
   return c;
 }
 

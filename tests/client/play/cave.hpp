@@ -15,7 +15,8 @@ namespace grotto::play::test {
 struct Cave {
   std::map<cave::RoomId, client::ReadyRoom> rooms;  // every room of the sector and its gates
   cave::RoomId spawn_room = cave::RoomId::interior({0, 0, 0}, 0);
-  Vec3 spawn;  // the server's spawn point (SectorCache::spawn's rule)
+  Vec3 spawn;               // the server's spawn point (cave::spawn)
+  double spawn_radius = 0;  // the spawn room's sphere radius
 };
 
 const Cave& sector_zero();

