@@ -27,9 +27,10 @@ using Clock = std::chrono::steady_clock;
 namespace client = grotto::client;
 
 constexpr double kPi = 3.14159265358979323846;
-// m/s told to the stream while waiting: 40-80 m of horizon (the fixed 4 s, halved behind the
-// camera), so that every room whose portal lies within the fog's end (64 m) is asked for.
-constexpr double kPlanSpeed = 20;
+// m/s told to the stream while waiting: 64-128 m of horizon (the fixed 4 s, halved behind the
+// camera), so that every room whose portal lies within the fog's end (64 m) is asked for, behind
+// the camera too (at 20 m/s a hall's portal 47 m behind was waited for and never asked for).
+constexpr double kPlanSpeed = 32;
 
 int fail(const std::string& message) {
   std::fprintf(stderr, "grotto-client: %s\n", message.c_str());

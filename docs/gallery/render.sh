@@ -74,10 +74,10 @@ shoot cavern-95 95 --pose "$(pose 95 0.0.0.r0 centre 0 200 10)"
 shoot stalactites-95 95 --pose "$(pose 95 0.0.0.r0 centre 0 200 55)"
 shoot floor-7 7 --pose "$(pose 7 0.0.0.r0 floor 20 -15)"
 shoot tunnel-7 7 --pose "$(pose 7 0.0.0.r73 along)"
-shoot tunnel-95 95 --pose "$(pose 95 0.0.0.r69 along)"
+shoot tunnel-95 95 --pose "$(pose 95 0.0.0.r21 along)"
 shoot shaft-up-7 7 --pose "$(pose 7 0.0.0.r14 centre 0 140 80)"
-shoot shaft-up-95 95 --pose "$(pose 95 0.0.0.r7 centre 0 140 80)"
-shoot cavern-3 3 --pose "$(pose 3 0.0.0.r64 centre 0 90 -10)"
+shoot shaft-up-95 95 --pose "$(pose 95 0.0.0.r16 centre 0 140 80)"
+shoot cavern-3 3 --pose "$(pose 3 0.0.0.r64 centre 0 270 -10)"
 shoot portal-3 3 --pose room:0.0.0.r86
 shoot ceiling-3 3 --pose "$(pose 3 0.0.0.r0 centre 0.3 30 50)"
 shoot flythrough-95 95 --flythrough 8
@@ -95,9 +95,9 @@ shoot hall-flare-95 95 --pose "$(pose 95 1.0.1.r0 across 0 -5)" --no-headlamp --
 # where they come down); seed 7's passage room 0.0.1.r59 (r = 3.8 m, floor at y 39.8, ceiling
 # 2.4 m above) holds two, 0.9 m apart, found by scanning the column cells of sectors 0,0,0 to
 # 1,0,1 in seeds 3, 7 and 95 (37 joined in all, every one in a room of radius 2.8-6 m).
-shoot column-field-7 7 --pose 90.20,41.00,112.30,-90.0,0.0
+shoot column-field-7 7 --pose 11.62,72.53,7.10,96.0,-6.0
 # Fine detail (the -off picture without it, --no-fine-detail): the same room's wall 1.9 m away.
-OFF=--no-fine-detail shoot detail-wall-7 7 --pose 89.50,41.00,111.80,180.0,0.0
+OFF=--no-fine-detail shoot detail-wall-7 7 --pose 64.00,54.44,50.40,120.0,0.0
 # Ambient occlusion (the -off picture without it, --no-ao): stalagmites' feet on the floor of
 # seed 7's hall, the fluted wall behind.
-OFF=--no-ao shoot ao-stalagmites-7 7 --pose 44.85,63.90,33.99,146.2,-21.8
+OFF=--no-ao shoot ao-stalagmites-7 7 --pose 52.00,54.44,31.00,60.0,-25.0
