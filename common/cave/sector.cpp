@@ -179,8 +179,9 @@ class SectorBuilder {
           double a = portal_radius(rng, h.radius, s.radius, kLinkPortal);
           s.centre = h.centre + dir * centre_distance(h.radius, s.radius, a);
         }
-        if (auto edges = try_place(shrink_to_clear(s))) {
-          head = add_interior(shrink_to_clear(s), std::move(*edges));
+        s = shrink_to_clear(s);
+        if (auto edges = try_place(s)) {
+          head = add_interior(s, std::move(*edges));
           if (head < 0) return false;
           ++rooms;
           fails = 0;
@@ -504,7 +505,7 @@ class SectorBuilder {
       nodes_[e.b].edges.push_back(index);
       unite(n, e.b);
     }
-    grid_[cell_index(s.centre)].push_back(n);
+    grid_[cell_index(s.centre)].push_back({s, n});
     return n;
   }
 
@@ -529,10 +530,9 @@ class SectorBuilder {
     for (int x = std::max(cx - 1, 0); x <= std::min(cx + 1, dim_ - 1); ++x) {
       for (int y = std::max(cy - 1, 0); y <= std::min(cy + 1, dim_ - 1); ++y) {
         for (int z = std::max(cz - 1, 0); z <= std::min(cz + 1, dim_ - 1); ++z) {
-          for (int j : grid_[(static_cast<size_t>(x) * dim_ + y) * dim_ + z]) {
-            const Sphere& o = nodes_[j].sphere;
-            double reach = s.radius + o.radius + margin;
-            if (length_squared(o.centre - s.centre) < reach * reach) out.push_back(j);
+          for (const Cell& c : grid_[(static_cast<size_t>(x) * dim_ + y) * dim_ + z]) {
+            double reach = s.radius + c.sphere.radius + margin;
+            if (length_squared(c.sphere.centre - s.centre) < reach * reach) out.push_back(c.node);
           }
         }
       }
@@ -572,7 +572,13 @@ class SectorBuilder {
   std::vector<Node> nodes_;
   std::vector<Edge> edges_;
   std::vector<int> parent_;
-  std::vector<std::vector<int>> grid_;
+  // Each cell holds its spheres by value beside their node index: a query reads them in one
+  // contiguous run instead of one node (and cache line) each, in the same order.
+  struct Cell {
+    Sphere sphere;
+    int node;
+  };
+  std::vector<std::vector<Cell>> grid_;
   std::vector<uint32_t> visited_;  // scratch for hops_apart
   // nearby()'s answers, one buffer per caller so that no answer is overwritten while in use.
   mutable std::vector<int> near_shrink_, near_hub_, near_loops_, near_place_;
