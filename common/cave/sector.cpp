@@ -71,23 +71,24 @@ double centre_distance(double r1, double r2, double a) {
   return std::sqrt(r1 * r1 - a * a) + std::sqrt(r2 * r2 - a * a);
 }
 
+// How far a disc's rim reaches above and below its centre.
+double half_height(const Disc& disc) {
+  return disc.radius * std::sqrt(std::max(0.0, 1.0 - disc.normal.y * disc.normal.y));
+}
+
 // True when the disc comes within the wall clearance of the floor of sphere s (its lowest point
 // under the floor plane plus the clearance): the floor's undulation and its join with the wall
 // stay clear of the rim.
 bool below_floor(const LayoutParams& params, const Sphere& s, const Disc& disc) {
   std::optional<double> floor = floor_height(params, s);
-  if (!floor) return false;
-  double tilt = std::max(0.0, 1.0 - disc.normal.y * disc.normal.y);
-  return disc.centre.y - disc.radius * std::sqrt(tilt) < *floor + params.wall_clearance;
+  return floor && disc.centre.y - half_height(disc) < *floor + params.wall_clearance;
 }
 
 // True when the disc reaches above the spring of sphere s's ceiling: the mesh lowers the wall
 // there, and a rim must stay where the layout put it.
 bool above_spring(const LayoutParams& params, const Sphere& s, const Disc& disc) {
   std::optional<Ceiling> ceiling = room_ceiling(params, s);
-  if (!ceiling) return false;
-  double tilt = std::max(0.0, 1.0 - disc.normal.y * disc.normal.y);
-  return disc.centre.y + disc.radius * std::sqrt(tilt) > ceiling->spring;
+  return ceiling && disc.centre.y + half_height(disc) > ceiling->spring;
 }
 
 double distance_to_disc(Vec3 p, const Disc& disc) {

@@ -199,6 +199,16 @@ TEST(RoomMesh, a_straight_shaft_is_a_tube_not_a_string_of_beads) {
   EXPECT_LT(median, 1.25);
 }
 
+// Two sectors of seed 95 where every sector is a cavern (so each has its hall).
+struct CavernWorld {
+  cave::World world =
+      cave::World::create(95,
+                          cave::LayoutParams::uniform(cave::LayoutParams::default_characters()[2]))
+          .value();
+  MeshContext ctx = MeshContext::create(world, MeshParams{}).value();
+  cave::Region region = cave::generate_region(world, {0, 0, 0}, {1, 0, 0});
+};
+
 // Halls keep their space (issue 27): a cavern world's big rooms keep their sphere away from
 // their portals (the median vertex stands >= 0.85 of the radius from the centre; the spline
 // tubes between small portals left 0.66-0.71), and rooms with a floor rest on it: of the
@@ -206,11 +216,10 @@ TEST(RoomMesh, a_straight_shaft_is_a_tube_not_a_string_of_beads) {
 // the flat area is the floor: nearly all of it within the floor's undulation of the layout's
 // floor height.
 TEST(RoomMesh, halls_keep_their_volume_and_rest_on_flat_floors) {
-  const cave::LayoutParams caverns =
-      cave::LayoutParams::uniform(cave::LayoutParams::default_characters()[2]);
-  const cave::World world = cave::World::create(95, caverns).value();
-  const MeshContext ctx = MeshContext::create(world, MeshParams{}).value();
-  const cave::Region region = cave::generate_region(world, {0, 0, 0}, {1, 0, 0});
+  const CavernWorld cavern;
+  const cave::World& world = cavern.world;
+  const MeshContext& ctx = cavern.ctx;
+  const cave::Region& region = cavern.region;
   const double cos15 = std::cos(15.0 * 3.14159265358979323846 / 180.0);
   std::vector<double> kept;
   double up_area = 0, flat_area = 0, flat_at_floor = 0;
@@ -258,11 +267,10 @@ TEST(RoomMesh, halls_keep_their_volume_and_rest_on_flat_floors) {
 // outside the sphere; the dome's shoulder takes it along), the highest vertex is near the rise
 // the layout asks for, and the hall is much wider than tall.
 TEST(RoomMesh, halls_lower_their_cap_onto_a_ceiling) {
-  const cave::LayoutParams caverns =
-      cave::LayoutParams::uniform(cave::LayoutParams::default_characters()[2]);
-  const cave::World world = cave::World::create(95, caverns).value();
-  const MeshContext ctx = MeshContext::create(world, MeshParams{}).value();
-  const cave::Region region = cave::generate_region(world, {0, 0, 0}, {1, 0, 0});
+  const CavernWorld cavern;
+  const cave::World& world = cavern.world;
+  const MeshContext& ctx = cavern.ctx;
+  const cave::Region& region = cavern.region;
   int halls = 0;
   for (const cave::Room& room : region.rooms) {
     std::optional<cave::Ceiling> ceiling = cave::room_ceiling(world.params(), room.sphere);
