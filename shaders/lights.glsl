@@ -25,7 +25,8 @@ uniform int u_light_count;                         // lights that can reach this
 uniform int u_light_index[GROTTO_MAX_LIGHTS];      // which of the arrays' lights they are
 uniform vec4 u_light_position[GROTTO_MAX_LIGHTS];  // xyz anchor-relative; w: range (m)
 uniform vec4 u_light_color[GROTTO_MAX_LIGHTS];     // rgb: linear colour x intensity at 1 m
-uniform vec4 u_light_glow[GROTTO_MAX_LIGHTS];      // x: glowing patch radius (m); y: GLOW_*
+uniform vec4 u_light_glow[GROTTO_MAX_LIGHTS];      // x: glowing patch radius (m); y: GLOW_*;
+                                                   // z: the light's own number in [0, 1)
 uniform vec4 u_light_bound[GROTTO_MAX_LIGHTS];     // xyz anchor-relative centre; w: radius, 0: none
 uniform float u_headlamp;                          // 1: the headlamp is on; 0: off
 uniform float u_haze;                              // scattering per metre of the lit haze
@@ -37,10 +38,60 @@ float light_falloff(float d, float range, float soft) {
   return window * window / (soft * soft + d * d);
 }
 
+// A line `width` metres wide at signed distance d (metres) from its middle, as the share of a
+// pixel covering `footprint` metres that it lights: a line thinner than the pixel fades instead of
+// breaking into dashes.
+float vein_line(float d, float width, float footprint) {
+  float w = max(width, 1e-4);
+  float cover = max(w, footprint);
+  return (w / cover) * (1.0 - smoothstep(0.5 * cover, cover, abs(d)));
+}
+
+// A vein where a fracture meets the rock (limestone's calcite veins, a glowing mineral's seam):
+// the planes dot(p, dir) = (k + phase) x spacing, bent by slow noise so that each wanders a few
+// decimetres, `width` metres wide where widest, pinching and swelling along its run. On a wall a
+// plane leaves a long, nearly straight trace; two sets of them cross, as joints do.
+float vein_trace(vec3 p, vec3 dir, float spacing, float phase, float width, float footprint) {
+  float bend = 0.6 * relief_noise(p * 0.21 + dir * 5.0).x;
+  float t = (dot(p, dir) + bend) / spacing + phase;
+  float d = (fract(t + 0.5) - 0.5) * spacing;
+  float swell = clamp(0.55 + 0.6 * relief_noise(p * 0.9 + dir * 11.0).x, 0.1, 1.0);
+  return vein_line(d, width * swell, footprint);
+}
+
+// A glow-worm colony's larvae (Arachnocampa): points of light a few millimetres across, one in a
+// share of the cells of a `cell`-metre lattice that follows clusters (~0.5 m) and thins out
+// towards the colony's ragged edge, each at its own place in its cell and of its own brightness,
+// measured across the surface (normal n) so that every larva near the rock shows. A larva smaller
+// than the pixel's footprint spreads over the pixel with its light kept (its peak held where it
+// would wash out to white, so the colony keeps its colour); where the lattice itself is finer than
+// a pixel, the colony is its mean glow, mottled by the clusters (no shimmer).
+float glow_worms(vec3 world, vec3 n, float footprint) {
+  const float cell = 0.07, larva = 0.005;
+  float occupied = 0.7 *
+                   (0.3 + 0.7 * smoothstep(-0.5, 0.6, relief_noise(world * 1.9 + vec3(4.0, 1.0, 0.0)).x)) *
+                   smoothstep(-0.6, 0.2, relief_noise(world * 0.6 + vec3(0.0, 9.0, 2.0)).x);
+  ivec3 c = ivec3(floor(world / cell));
+  vec3 at = (vec3(c) + 0.2 + 0.6 * vec3(relief_hash(c + ivec3(11, 0, 0)),
+                                        relief_hash(c + ivec3(0, 13, 0)),
+                                        relief_hash(c + ivec3(0, 0, 17)))) * cell;
+  vec3 off = world - at;
+  off -= n * dot(off, n);
+  float spread = max(larva, footprint);
+  float bright = relief_hash(c) < occupied ? 0.4 + 0.6 * relief_hash(c + ivec3(5, 7, 3)) : 0.0;
+  float dots = bright * (larva * larva) / (spread * spread) *
+               exp(-dot(off, off) / (spread * spread));
+  // The mean over many cells: occupied x mean brightness x a larva's light over a cell's area.
+  float mean = occupied * 0.7 * 3.14159 * larva * larva / (cell * cell);
+  return mix(min(dots, 0.05), mean, smoothstep(0.5 * cell, cell, footprint));
+}
+
 // What the lights add to a surface point p (anchor-relative; `world` the same point in world
-// space) with shading normal s, unit vector v towards the eye and albedo (occlusion applied).
-// wrap: translucency (calcite lets light wrap round). glow: the emissive mask for bloom.
-vec3 lights_shade(vec3 p, vec3 world, vec3 s, vec3 v, vec3 albedo, float wrap, out float glow) {
+// space) with shading normal s, unit vector v towards the eye and albedo (occlusion applied);
+// footprint: the pixel's size on the surface (metres). wrap: translucency (calcite lets light
+// wrap round). glow: the emissive mask for bloom.
+vec3 lights_shade(vec3 p, vec3 world, vec3 s, vec3 v, vec3 albedo, float wrap, float footprint,
+                  out float glow) {
   vec3 sum = vec3(0.0);
   glow = 0.0;
   for (int k = 0; k < u_light_count; ++k) {
@@ -57,7 +108,9 @@ vec3 lights_shade(vec3 p, vec3 world, vec3 s, vec3 v, vec3 albedo, float wrap, o
     vec3 l = to_light / max(d, 1e-4);
     int kind = int(u_light_glow[i].y + 0.5);
     float soft = kind == GLOW_WORMS ? max(u_light_glow[i].x, 1.0) : 1.0;
-    vec3 radiance = u_light_color[i].rgb * (light_falloff(d, range, soft) * inside);
+    // A colony's larvae shine down and out, not along their own rock: its patch is unlit by it.
+    float self_lit = kind == GLOW_WORMS ? smoothstep(0.5, 1.5, d / soft) : 1.0;
+    vec3 radiance = u_light_color[i].rgb * (light_falloff(d, range, soft) * inside * self_lit);
     float lambert = max((dot(s, l) + wrap) / (1.0 + wrap), 0.0);
     vec3 h = normalize(l + v);
     float sheen = pow(max(dot(s, h), 0.0), 24.0) * 0.08;
@@ -69,11 +122,17 @@ vec3 lights_shade(vec3 p, vec3 world, vec3 s, vec3 v, vec3 albedo, float wrap, o
       float near = 1.0 - smoothstep(0.2 * size, size, d);
       float pattern;
       if (kind == GLOW_WORMS) {
-        // Thousands of tiny lights: sparse dots a couple of centimetres across.
-        pattern = smoothstep(0.55, 0.8, relief_noise(world * 14.0 + vec3(3.0, 0.0, 1.0)).x);
+        // Thousands of tiny lights: a starry patch of larvae.
+        pattern = 40.0 * glow_worms(world, s, footprint);
       } else if (kind == GLOW_SEAM) {
-        // A vein: a thin ridge of low-frequency noise.
-        pattern = smoothstep(0.9, 0.98, 1.0 - abs(relief_noise(world * 1.1 + vec3(0.0, 7.0, 0.0)).x));
+        // The mineral's vein through the source, in a fracture's plane (its direction the
+        // light's own, steep as joints are), with a thinner one crossing it.
+        float a = 6.2832 * u_light_glow[i].z;
+        vec3 dir = normalize(vec3(cos(a), 0.25 * sin(3.0 * a), sin(a)));
+        vec3 across = normalize(cross(dir, vec3(0.3, 1.0, 0.2)));
+        vec3 q = world - p + u_light_position[i].xyz;  // the source in world space
+        pattern = max(vein_trace(world - q, dir, 1e4, 0.0, 0.09, footprint),
+                      0.7 * vein_trace(world - q, across, 1e4, 0.0, 0.035, footprint));
       } else if (kind == GLOW_CRYSTALS) {
         // Facets: cells of noise that catch and hold the light.
         pattern = smoothstep(0.25, 0.6, relief_noise(world * 4.0 + vec3(0.0, 0.0, 11.0)).x);
@@ -82,7 +141,7 @@ vec3 lights_shade(vec3 p, vec3 world, vec3 s, vec3 v, vec3 albedo, float wrap, o
       }
       vec3 tint = u_light_color[i].rgb / max(max(u_light_color[i].r, u_light_color[i].g),
                                              max(u_light_color[i].b, 1e-4));
-      float strength = kind == GLOW_FLARE ? 12.0 : (kind == GLOW_WORMS ? 6.0 : 2.5);
+      float strength = kind == GLOW_FLARE ? 12.0 : 2.5;
       sum += tint * (strength * pattern * near);
       glow = max(glow, pattern * near);
     }
@@ -115,7 +174,9 @@ vec3 lights_haze(vec3 c, vec3 p) {
     }
     vec3 to_light = u_light_position[i].xyz - c;
     float t0 = dot(to_light, v);
-    float a2 = 1.0 + max(dot(to_light, to_light) - t0 * t0, 0.0);
+    // A colony lights the haze from its whole patch: a wide, faint glow, no hot centre.
+    float soft = int(u_light_glow[i].y + 0.5) == GLOW_WORMS ? max(u_light_glow[i].x, 1.0) : 1.0;
+    float a2 = soft * soft + max(dot(to_light, to_light) - t0 * t0, 0.0);
     float a = sqrt(a2);
     // The integral of 1 / (a^2 + u^2)^2 du: u / (2 a^2 (a^2 + u^2)) + atan(u / a) / (2 a^3).
     float u1 = t_hi - t0, u0 = t_lo - t0;

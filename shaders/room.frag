@@ -100,6 +100,16 @@ void main() {
       mix(vec3(0.55, 0.47, 0.36), vec3(0.78, 0.74, 0.66), smoothstep(0.2, 1.0, t_spike)) *
       (0.9 + 0.1 * rings);
   albedo = mix(albedo, dripstone, 0.9 * calcite);
+  // Calcite veins where the rock is rich in minerals (not in the floors' sediment): the traces of
+  // two sets of steep joints (fractures 2-3 m apart that water filled), long and nearly straight
+  // across a wall, in runs with bare rock between, the second set thinner and rarer; pale in the
+  // light, and faintly glowing.
+  float veins = smoothstep(0.55, 0.85, t_mineral) * (1.0 - calcite) * (1.0 - ground) *
+                max(smoothstep(0.05, 0.4, relief_noise(world * 0.3 + vec3(0.0, 0.0, 29.0)).x) *
+                        vein_trace(world, vec3(0.87, 0.12, 0.48), 2.3, 0.0, 0.03, footprint),
+                    smoothstep(0.2, 0.5, relief_noise(world * 0.25 + vec3(7.0, 0.0, 3.0)).x) *
+                        vein_trace(world, vec3(-0.47, 0.1, 0.88), 3.1, 0.4, 0.015, footprint));
+  albedo = mix(albedo, vec3(0.72, 0.70, 0.64), 0.8 * veins);
   albedo *= fine.tint * fine.cavity;
 
   // Wetness: floors' hollows and running flowstone (glossier), speleothems (a thin water film
@@ -126,13 +136,12 @@ void main() {
   vec3 color = albedo * occlusion * (lambert * lamp + vec3(0.012, 0.014, 0.018)) +
                specular * lambert * lamp * mix(0.5, 1.0, occlusion);
 
-  // Glowing mineral veins: thin ridges of noise where the mineral channel is high.
-  float vein = 1.0 - abs(relief_noise(world * 1.6 + vec3(0.0, 0.0, 29.0)).x);
-  float glow = u_glow * smoothstep(0.6, 0.9, t_mineral) * smoothstep(0.965, 0.995, vein);
+  // The veins' faint glow (bloom's mask).
+  float glow = 0.35 * u_glow * veins;
   color += glow * vec3(0.2, 0.85, 0.7) * 0.9;
   // The world's lights and flares (lights.glsl), and the haze they light.
   float source_glow;
-  color += lights_shade(t_position, world, s, v, albedo * occlusion, wrap, source_glow);
+  color += lights_shade(t_position, world, s, v, albedo * occlusion, wrap, footprint, source_glow);
   glow = max(glow, source_glow);
   vec3 haze = pow(aces(lights_haze(u_camera, t_position) * u_exposure), vec3(1.0 / 2.2));
 
