@@ -24,14 +24,16 @@ struct LodParams {
   double edge_length;  // target edge of the donor sphere and of rim loops, metres
   int octaves;         // surface noise octaves used (of MeshParams::octave_*)
   // The donor sphere's frequency is at most this (10 f^2 + 2 vertices): a hall's mesh gets
-  // longer edges instead of more vertices, so its payload stays within the streaming budget
-  // (the patch level's 28: 7,842 vertices before the portals are cut; the GPU's tessellation
-  // adds the detail).
+  // longer edges instead of more vertices, so its payload and its cost stay within the
+  // streaming budgets (the patch level's 24: 5,762 vertices before the portals are cut, edges of
+  // ~1.1 m in a 25 m hall; the GPU's tessellation adds the detail). A hall is the first room of
+  // many players, and its encode and decode cost by the vertex: 28 (7,842) doubled the p99 of a
+  // crowd joining over 2 s (docs/BENCHMARKS.md, "Capacity with the defaults").
   int max_frequency;
 };
 
 struct MeshParams {
-  std::array<LodParams, kLodCount> lods{{{0.25, 4, 64}, {0.56, 3, 28}}};
+  std::array<LodParams, kLodCount> lods{{{0.25, 4, 64}, {0.56, 3, 24}}};
   // Every frequency (cycles per metre) is a multiple of kNoiseFrequencyStep, so that noise repeats
   // exactly over the noise period and the wrap of world positions leaves no seam (validate()).
   // Surface noise octaves (thesis §3.1.6): cycles per metre and metres of displacement.
