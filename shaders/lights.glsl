@@ -48,15 +48,25 @@ float vein_line(float d, float width, float footprint) {
 }
 
 // A vein where a fracture meets the rock (limestone's calcite veins, a glowing mineral's seam):
-// the planes dot(p, dir) = (k + phase) x spacing, bent by slow noise so that each wanders a few
-// decimetres, `width` metres wide where widest, pinching and swelling along its run. On a wall a
-// plane leaves a long, nearly straight trace; two sets of them cross, as joints do.
+// the plane dot(p, dir) = 0 bent by slow noise so that it wanders a few decimetres; its signed
+// distance from p (metres), and its width there, `width` where widest, pinching and swelling.
+float vein_plane(vec3 p, vec3 dir) {
+  return dot(p, dir) + 0.6 * relief_noise(p * 0.21 + dir * 5.0).x;
+}
+float vein_width(vec3 p, vec3 dir, float width) {
+  return width * clamp(0.55 + 0.6 * relief_noise(p * 0.9 + dir * 11.0).x, 0.1, 1.0);
+}
+
+// The vein of one plane through p = 0 (a seam through its source).
+float vein_through(vec3 p, vec3 dir, float width, float footprint) {
+  return vein_line(vein_plane(p, dir), vein_width(p, dir, width), footprint);
+}
+
+// A set of such veins, planes `spacing` metres apart shifted by `phase` of it: on a wall each
+// leaves a long, nearly straight trace; two sets cross, as joints do.
 float vein_trace(vec3 p, vec3 dir, float spacing, float phase, float width, float footprint) {
-  float bend = 0.6 * relief_noise(p * 0.21 + dir * 5.0).x;
-  float t = (dot(p, dir) + bend) / spacing + phase;
-  float d = (fract(t + 0.5) - 0.5) * spacing;
-  float swell = clamp(0.55 + 0.6 * relief_noise(p * 0.9 + dir * 11.0).x, 0.1, 1.0);
-  return vein_line(d, width * swell, footprint);
+  float t = vein_plane(p, dir) / spacing + phase;
+  return vein_line((fract(t + 0.5) - 0.5) * spacing, vein_width(p, dir, width), footprint);
 }
 
 // A glow-worm colony's larvae (Arachnocampa): points of light a few millimetres across, one in a
@@ -130,9 +140,9 @@ vec3 lights_shade(vec3 p, vec3 world, vec3 s, vec3 v, vec3 albedo, float wrap, f
         float a = 6.2832 * u_light_glow[i].z;
         vec3 dir = normalize(vec3(cos(a), 0.25 * sin(3.0 * a), sin(a)));
         vec3 across = normalize(cross(dir, vec3(0.3, 1.0, 0.2)));
-        vec3 q = world - p + u_light_position[i].xyz;  // the source in world space
-        pattern = max(vein_trace(world - q, dir, 1e4, 0.0, 0.09, footprint),
-                      0.7 * vein_trace(world - q, across, 1e4, 0.0, 0.035, footprint));
+        vec3 from_source = p - u_light_position[i].xyz;
+        pattern = max(vein_through(from_source, dir, 0.09, footprint),
+                      0.7 * vein_through(from_source, across, 0.035, footprint));
       } else if (kind == GLOW_CRYSTALS) {
         // Facets: cells of noise that catch and hold the light.
         pattern = smoothstep(0.25, 0.6, relief_noise(world * 4.0 + vec3(0.0, 0.0, 11.0)).x);

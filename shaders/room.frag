@@ -104,11 +104,14 @@ void main() {
   // two sets of steep joints (fractures 2-3 m apart that water filled), long and nearly straight
   // across a wall, in runs with bare rock between, the second set thinner and rarer; pale in the
   // light, and faintly glowing.
-  float veins = smoothstep(0.55, 0.85, t_mineral) * (1.0 - calcite) * (1.0 - ground) *
-                max(smoothstep(0.05, 0.4, relief_noise(world * 0.3 + vec3(0.0, 0.0, 29.0)).x) *
-                        vein_trace(world, vec3(0.87, 0.12, 0.48), 2.3, 0.0, 0.03, footprint),
-                    smoothstep(0.2, 0.5, relief_noise(world * 0.25 + vec3(7.0, 0.0, 3.0)).x) *
-                        vein_trace(world, vec3(-0.47, 0.1, 0.88), 3.1, 0.4, 0.015, footprint));
+  // Their six noises only where veins can be (most of the rock has none).
+  float veins = smoothstep(0.55, 0.85, t_mineral) * (1.0 - calcite) * (1.0 - ground);
+  if (veins > 0.0) {
+    veins *= max(smoothstep(0.05, 0.4, relief_noise(world * 0.3 + vec3(0.0, 0.0, 29.0)).x) *
+                     vein_trace(world, vec3(0.87, 0.12, 0.48), 2.3, 0.0, 0.03, footprint),
+                 smoothstep(0.2, 0.5, relief_noise(world * 0.25 + vec3(7.0, 0.0, 3.0)).x) *
+                     vein_trace(world, vec3(-0.47, 0.1, 0.88), 3.1, 0.4, 0.015, footprint));
+  }
   albedo = mix(albedo, vec3(0.72, 0.70, 0.64), 0.8 * veins);
   albedo *= fine.tint * fine.cavity;
 
