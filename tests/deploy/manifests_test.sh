@@ -324,6 +324,10 @@ http_status() {
 start_server() {
   local config=$1 log=$2
   port=
+  # Emptied here, not by the redirection below: that runs in the child, and until it does, the
+  # loop would read the port of the previous server from the same file.
+  : >"$log"
+  : >"$log.err"
   env "${server_env[@]}" "$server" --config "$config" --bind 127.0.0.1 --port 0 \
     --opencl-device none --workers 1 --io-threads 1 >"$log" 2>"$log.err" &
   pid=$!
