@@ -6,6 +6,7 @@
 
 #include <cstdint>
 #include <span>
+#include <string_view>
 
 #include "cave/params.hpp"
 #include "mesh/params.hpp"
@@ -19,9 +20,15 @@ uint64_t layout_params_digest(const cave::LayoutParams& params);
 // rooms it sends, each serialized canonically (fixed order, little-endian, doubles as IEEE bits).
 uint64_t fold_digest(uint64_t digest, std::span<const uint8_t> bytes);
 
+// The relief's part of the world digest: the GLSL source of shaders/relief.glsl as code, that is
+// without its // comments and with every run of white space one blank (so a comment or a line
+// break changes nothing, a constant or an operator changes the digest).
+uint64_t relief_source_digest(std::string_view glsl);
+
 // The digest a server announces in welcome.params: the layout's, folded with every mesh setting
 // that also shapes the rooms (lods, octaves, rim, big-room and channel settings), doubles as IEEE
-// bits, little-endian.
+// bits, little-endian, the world's light placement and the relief's source (relief and
+// formations, drawn by the client and evaluated by engines: shaders/relief.hpp).
 uint64_t world_params_digest(const cave::LayoutParams& layout, const mesh::MeshParams& mesh);
 
 }  // namespace grotto::proto
