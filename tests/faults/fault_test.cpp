@@ -424,8 +424,19 @@ TEST(Squatters, upgrades_without_hello_do_not_take_players_places) {
   ASSERT_FALSE(player.connect());
   player.hello("player");
   Client squat1(server->port()), squat2(server->port()), squat3(server->port());
+  // The server admits a socket just after its upgrade's answer: wait until each squatter holds
+  // its place, or under load the second could be admitted before the first and the first,
+  // finding the pool full, be the one refused.
+  const auto admitted = [&](size_t sessions) {
+    const auto deadline = Clock::now() + 10s;
+    while (server->sessions() < sessions && Clock::now() < deadline)
+      std::this_thread::sleep_for(5ms);
+    return server->sessions();
+  };
   ASSERT_FALSE(squat1.connect());
+  ASSERT_EQ(admitted(2), 2u);
   ASSERT_FALSE(squat2.connect());
+  ASSERT_EQ(admitted(3), 3u);
   // The handshake pool is full: the next one is refused at once.
   ASSERT_FALSE(squat3.connect());
   auto e = squat3.next_error();
