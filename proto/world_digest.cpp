@@ -1,7 +1,5 @@
 #include "proto/world_digest.hpp"
 
-#include <algorithm>
-#include <string>
 #include <string_view>
 #include <vector>
 
@@ -9,7 +7,6 @@
 #include "core/bytes.hpp"
 #include "core/grid.hpp"
 #include "core/random.hpp"
-#include "embedded_cl/relief.hpp"
 
 namespace grotto::proto {
 namespace {
@@ -74,28 +71,6 @@ uint64_t fold_digest(uint64_t digest, std::span<const uint8_t> bytes) {
   return fnv1a64(bytes.data(), bytes.size(), digest);
 }
 
-uint64_t relief_source_digest(std::string_view glsl) {
-  std::string code;
-  code.reserve(glsl.size());
-  bool blank = false;
-  for (std::size_t i = 0; i < glsl.size(); ++i) {
-    if (glsl.compare(i, 2, "//") == 0) {  // the subset has no strings: // always starts a comment
-      i = std::min(glsl.find('\n', i), glsl.size()) - 1;
-      blank = true;
-    } else if (glsl[i] == ' ' || glsl[i] == '\t' || glsl[i] == '\n' || glsl[i] == '\r') {
-      blank = true;
-    } else {
-      if (blank && !code.empty()) code.push_back(' ');
-      blank = false;
-      code.push_back(glsl[i]);
-    }
-  }
-  Canonical c;
-  c.text("grotto.relief");
-  c.text(code);
-  return fold_digest(0xcbf29ce484222325ull, c.bytes());
-}
-
 uint64_t world_params_digest(const cave::LayoutParams& layout, const mesh::MeshParams& m) {
   Canonical c;
   for (const auto& l : m.lods) {
@@ -138,7 +113,7 @@ uint64_t world_params_digest(const cave::LayoutParams& layout, const mesh::MeshP
   }
   // The relief and formations the client draws and engines evaluate (shaders/relief.hpp): part
   // of the world though no room's bytes depend on them.
-  c.u64(relief_source_digest(kernels::source_relief()));
+  c.text(kReliefVersion);
   return fold_digest(layout_params_digest(layout), c.bytes());
 }
 

@@ -20,15 +20,16 @@ uint64_t layout_params_digest(const cave::LayoutParams& params);
 // rooms it sends, each serialized canonically (fixed order, little-endian, doubles as IEEE bits).
 uint64_t fold_digest(uint64_t digest, std::span<const uint8_t> bytes);
 
-// The relief's part of the world digest: the GLSL source of shaders/relief.glsl as code, that is
-// without its // comments and with every run of white space one blank (so a comment or a line
-// break changes nothing, a constant or an operator changes the digest).
-uint64_t relief_source_digest(std::string_view glsl);
+// The version of the rock's relief and formations (shaders/relief.glsl's relief_at: what the
+// client draws and engines evaluate for collision), folded into the world digest. No room's bytes
+// depend on it, yet it is part of the world. A test pins relief_at's values at sample points to
+// this version (tests/client/play/relief_test.cpp): a change of the relief fails it until the
+// version moves on, while a change of how it is drawn (relief_at_sampled's filtering) does not.
+inline constexpr std::string_view kReliefVersion = "grotto.relief.v1";
 
 // The digest a server announces in welcome.params: the layout's, folded with every mesh setting
 // that also shapes the rooms (lods, octaves, rim, big-room and channel settings), doubles as IEEE
-// bits, little-endian, the world's light placement and the relief's source (relief and
-// formations, drawn by the client and evaluated by engines: shaders/relief.hpp).
+// bits, little-endian, the world's light placement and the relief's version (kReliefVersion).
 uint64_t world_params_digest(const cave::LayoutParams& layout, const mesh::MeshParams& mesh);
 
 }  // namespace grotto::proto

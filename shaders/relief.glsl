@@ -82,6 +82,7 @@ const float kReliefDraperyAngle = 0.41f;  // radians: the first of the four drap
 const float kReliefCrevice = 0.6f;        // occlusion at the bottom of the deepest crevice
 const float kReliefFoot = 1.2f;           // occlusion per unit of sky a formation hides
 const float kReliefOcclusionMin = 0.3f;   // the darkest ambient occlusion
+const float kReliefSampling = 2.0f;       // tessellation steps a drawn spike is at least wide
 
 // An integer lattice point to [0, 1).
 RELIEF_FN float relief_hash(ivec3 c) {
@@ -265,11 +266,27 @@ RELIEF_FN float relief_pillar_occlusion(float d, float a, float tall) {
          (1.0f - smoothstep(0.6f * kReliefCell, kReliefCell, d));
 }
 
-// The relief at world point p on a surface with unit normal n. roughness (0-1) is the patch's
-// channel, rim the rim weight (1 on a portal rim), room_radius the room's sphere radius and
-// strength scales everything (0: off).
-RELIEF_FN Relief relief_at(vec3 p, vec3 n, float roughness, float rim, float room_radius,
-                           float strength) {
+// A formation `half_width` metres wide at its base (a spike's radius, a curtain's half
+// thickness), drawn on a surface sampled every `spacing` metres (the tessellation's step): a spike
+// narrower than a step is one vertex pulled down, a shard as long as the spike; a curtain thinner
+// than a step, a saw blade. So it is drawn at least kReliefSampling steps wide (.x, at most
+// `widest`, the lattice's bound), and its height scaled by .y (squared for a cone, whose volume
+// then stays; once for a curtain, whose cross-section does): far formations show as the blunter
+// shapes the step can carry, near ones as they are, and none vanishes at once.
+RELIEF_FN vec2 relief_sampled(float half_width, float spacing, float widest) {
+  float wide = sqrt(half_width * half_width +
+                    kReliefSampling * kReliefSampling * spacing * spacing);
+  return vec2(min(wide, widest), half_width / wide);
+}
+
+// The relief at world point p on a surface with unit normal n, as drawn by a mesh sampled every
+// `spacing` metres (room.tese: the tessellation's step there; 0: exactly, as relief_at below
+// gives it to collision, baking and engines). roughness (0-1) is the patch's channel, rim the rim
+// weight (1 on a portal rim), room_radius the room's sphere radius and strength scales everything
+// (0: off). The spacing widens the speleothems (columns aside) and draperies to the step
+// (relief_sampled), so none is drawn as a shard or a saw blade.
+RELIEF_FN Relief relief_at_sampled(vec3 p, vec3 n, float roughness, float rim, float room_radius,
+                                   float strength, float spacing) {
   Relief r;
   r.height = 0.0f;
   r.gradient = vec3(0.0f);
@@ -391,40 +408,59 @@ RELIEF_FN Relief relief_at(vec3 p, vec3 n, float roughness, float rim, float roo
         vec2 d = here - sp.centre;
         float dist = length(d);
         bool column = sp.level >= 0.0f;
+        // As sampled (relief_sampled): the stalactite's radius and length, its stalagmite's.
+        // Columns, the thickest, keep theirs, so floor and ceiling still meet.
+        float radius = sp.radius;
+        float len = sp.len;
+        float rf = 2.0f * sp.radius;
+        float len_g = 0.5f * sp.len;
+        // The share of its length each keeps: its calcite's cream fades with it (a blunted
+        // spike is not a cream disc; from afar the rock round it shows as much).
+        float kept = 1.0f;
+        float kept_g = 1.0f;
+        if (spacing > 0.0f && !column) {
+          vec2 a = relief_sampled(radius, spacing, 0.45f);
+          radius = a.x;
+          kept = a.y * a.y;
+          len *= kept;
+          vec2 b = relief_sampled(rf, spacing, 0.9f);
+          rf = b.x;
+          kept_g = b.y * b.y;
+          len_g *= kept_g;
+        }
         // Stalactite: a concave cone, sharp at its tip; hangs down (negative hang). A column's
         // reaches its meeting level (kReliefColumnOverlap past it), convex and blunt.
         // (Cells within a lattice cell of p also darken its sky: relief_pillar_occlusion.)
-        float t = max(1.0f - dist / sp.radius, 0.0f);
+        float t = max(1.0f - dist / radius, 0.0f);
         if (under > 0.0f && dist < kReliefCell) {
-          float reach = sp.len;
+          float reach = len;
           float cw = 0.0f;
           if (column && level_roof > 0.0f) {
             float gap = mod(y_here - sp.level - kReliefColumnStub, kReliefColumnSpan);
             cw = level_roof * relief_column_weight(gap);
-            reach = mix(sp.len, (gap + kReliefColumnStub + kReliefColumnOverlap) * keep, cw);
+            reach = mix(len, (gap + kReliefColumnStub + kReliefColumnOverlap) * keep, cw);
           }
           float shape = mix(t * t, t * (2.0f - t), cw);
           float h = under * reach * shape;
           // Its root hides the ceiling's sky round it: a pillar as wide as the cone at half its
           // length (the concave cone's t = 0.71; the column's convex one's 0.29).
-          feet += relief_pillar_occlusion(dist, mix(0.29f, 0.71f, cw) * sp.radius,
+          feet += relief_pillar_occlusion(dist, mix(0.29f, 0.71f, cw) * radius,
                                           under * reach - h);
           if (h > best) {
             best = h;
-            best_length = under * reach;
+            best_length = under * reach / kept;
             // d/dp of -h: the profile's slope along d, and the reach's along the height.
             float slope = mix(2.0f * t, 2.0f - 2.0f * t, cw);
-            best_gradient = dist > 1e-5f ? (under * reach * slope / (sp.radius * dist)) * d
+            best_gradient = dist > 1e-5f ? (under * reach * slope / (radius * dist)) * d
                                          : vec2(0.0f);
             best_vertical = -(under * shape * cw * keep) * y_gradient;
           }
         }
         // Stalagmite beneath it: half as tall, twice as wide, rounded on top; stands up. A
         // column's rises to its meeting level.
-        float rf = 2.0f * sp.radius;
         float s = min(dist / rf, 1.0f);
         if (ground > 0.0f && dist < kReliefCell) {
-          float reach = 0.5f * sp.len;
+          float reach = len_g;
           float cw = 0.0f;
           if (column && level_floor > 0.0f) {
             float gap = mod(sp.level - y_here - kReliefColumnBase, kReliefColumnSpan);
@@ -433,7 +469,7 @@ RELIEF_FN Relief relief_at(vec3 p, vec3 n, float roughness, float rim, float roo
             // stalactite first).
             cw = level_floor * relief_column_weight(gap) *
                  (1.0f - smoothstep(kReliefColumnRise - kReliefColumnFade, kReliefColumnRise, gap));
-            reach = mix(0.5f * sp.len, (gap + kReliefColumnBase + kReliefColumnOverlap) * keep, cw);
+            reach = mix(len_g, (gap + kReliefColumnBase + kReliefColumnOverlap) * keep, cw);
           }
           float lf = reach * ground;
           float shape = (1.0f - s * s) * (1.0f - s * s);
@@ -442,7 +478,7 @@ RELIEF_FN Relief relief_at(vec3 p, vec3 n, float roughness, float rim, float roo
           feet += relief_pillar_occlusion(dist, 0.54f * rf, lf - h);
           if (h > best) {
             best = h;
-            best_length = lf;
+            best_length = lf / kept_g;
             best_gradient = (-4.0f * lf * (1.0f - s * s) / (rf * rf)) * d;
             best_vertical = -(ground * shape * cw * keep) * y_gradient;
           }
@@ -459,6 +495,15 @@ RELIEF_FN Relief relief_at(vec3 p, vec3 n, float roughness, float rim, float roo
   if (drape_zone > 0.0f) {
     vec2 fall = vec2(n.x, n.z) / slope;
     float deepest = 0.5f * strength * relief_spike_length(room_radius) * keep * drape_zone;
+    // As sampled (relief_sampled): thicker and shallower where the step is coarse.
+    float width = kReliefDraperyWidth;
+    float kept = 1.0f;
+    if (spacing > 0.0f) {
+      vec2 a = relief_sampled(width, spacing, 0.3f);
+      width = a.x;
+      kept = a.y;
+      deepest *= kept;
+    }
     for (int i = 0; i < 4; ++i) {
       float angle = kReliefDraperyAngle + 0.7853982f * float(i);
       vec2 along_dir = vec2(cos(angle), sin(angle));
@@ -471,7 +516,7 @@ RELIEF_FN Relief relief_at(vec3 p, vec3 n, float roughness, float rim, float roo
       // Wavy across (8 cm, 0.45 m wavelength), a ragged lower edge.
       vec4 wave = relief_noise(vec3(along * 2.2f, line * 1.37f, float(i) * 7.1f));
       float off = across - line * kReliefDraperySpacing + 0.08f * wave.x;
-      float qa = off / kReliefDraperyWidth;
+      float qa = off / width;
       if (!(abs(qa) < 1.0f)) continue;
       float run = floor(along / kReliefDraperyRun);
       ivec3 key = ivec3(int(line), int(run), i);
@@ -486,11 +531,11 @@ RELIEF_FN Relief relief_at(vec3 p, vec3 n, float roughness, float rim, float roo
       if (h > best) {
         best = h;
         // Calcite a shade darker than a speleothem's tip (room.frag): ochre bands, not cream.
-        best_length = 1.6f * depth;
+        best_length = 1.6f * depth / kept;
         // Across the curtain only (its slow changes along the run are left out): d off / dp
         // is the across direction plus the wave's slope along the run.
         vec2 d_off = across_dir + (0.08f * 2.2f * wave.y) * along_dir;
-        vec2 g = (-4.0f * depth * (1.0f - qa * qa) * qa / kReliefDraperyWidth) * d_off;
+        vec2 g = (-4.0f * depth * (1.0f - qa * qa) * qa / width) * d_off;
         // The hang is -h: store in best_vertical (world) and clear the lattice-frame part.
         best_gradient = vec2(0.0f);
         best_vertical = vec3(-g.x, 0.0f, -g.y);
@@ -507,6 +552,12 @@ RELIEF_FN Relief relief_at(vec3 p, vec3 n, float roughness, float rim, float roo
   r.occlusion = max(broad * (1.0f - crevice) * (1.0f - min(kReliefFoot * feet, 0.7f)),
                     kReliefOcclusionMin);
   return r;
+}
+
+// The relief itself (relief_at_sampled, sampled exactly).
+RELIEF_FN Relief relief_at(vec3 p, vec3 n, float roughness, float rim, float room_radius,
+                           float strength) {
+  return relief_at_sampled(p, n, roughness, rim, room_radius, strength, 0.0f);
 }
 
 // The unit normal of the surface after relief: the patch normal tilted against the height's

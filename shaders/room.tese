@@ -32,6 +32,14 @@ uniform int u_surface;         // 0 flat, 1 PN triangles, 2 Phong tessellation
 uniform float u_phong_alpha;   // Phong tessellation shape factor (0.75 in the paper)
 uniform float u_displacement;  // relief strength: 1 the designed relief, 0 none
 uniform float u_room_radius;   // the room's sphere radius: speleothems grow with it
+// What room.tesc's level heuristic needs, to know the step the relief is sampled at:
+uniform float u_patch_edge;    // the room's median patch edge, metres (0: sample exactly)
+uniform vec3 u_camera;         // anchor-relative
+uniform float u_max_tess;      // MaxTess
+uniform float u_max_dist;      // MaxDist, metres
+uniform int u_lod;             // 0 distance, 1 screen space, 2 silhouette
+uniform float u_pixel_scale;   // pixels spanned by 1 m seen face-on at 1 m distance
+uniform float u_target_pixels; // screen space: pixels per tessellated segment
 
 #pragma grotto_include "relief.glsl"
 
@@ -127,6 +135,25 @@ Sample interior(vec3 w) {
   return s;
 }
 
+// The tessellation's step near anchor-relative point p: the room's median patch edge over the level
+// room.tesc gives an edge there (the silhouette heuristic's full level, its finest), so the
+// relief draws no spike or curtain narrower than the mesh can carry (relief_at_sampled). A
+// function of the point and uniforms alone: the patches that share a vertex give it the same
+// step, and the same displacement.
+float sample_spacing(vec3 p) {
+  if (!(u_patch_edge > 0.0)) return 0.0;
+  precise vec3 d = p - u_camera;
+  precise float dist = sqrt(dot(d, d));
+  float level;
+  if (u_lod == 1) {
+    level = clamp(u_patch_edge * u_pixel_scale / (max(dist, 1e-3) * u_target_pixels), 1.0,
+                  u_max_tess);
+  } else {
+    level = max(1.0, u_max_tess * cos(clamp(dist / u_max_dist, 0.0, 1.0) * 1.5707963267948966));
+  }
+  return u_patch_edge / level;
+}
+
 void main() {
   vec3 w = gl_TessCoord;
   Sample s;
@@ -141,7 +168,8 @@ void main() {
     s = interior(w);
 
   precise vec3 world = s.position + u_anchor;
-  Relief r = relief_at(world, s.normal, s.roughness, s.rim, u_room_radius, u_displacement);
+  Relief r = relief_at_sampled(world, s.normal, s.roughness, s.rim, u_room_radius, u_displacement,
+                               sample_spacing(s.position));
   // Rock and flowstone along the normal, speleothems plumb (relief_displace).
   precise vec3 displaced = s.position + s.normal * r.height + vec3(0.0, r.hang, 0.0);
   t_position = displaced;

@@ -293,7 +293,8 @@ Result<Renderer> Renderer::create() {
           p.uniform("u_light_count"),   p.uniform("u_light_position"),
           p.uniform("u_light_color"),   p.uniform("u_light_glow"),
           p.uniform("u_light_bound"),   p.uniform("u_light_index"),
-          p.uniform("u_headlamp"),      p.uniform("u_haze")};
+          p.uniform("u_headlamp"),      p.uniform("u_haze"),
+          p.uniform("u_patch_edge")};
   auto bloom = Program::build(bloom_stages());
   if (!bloom.ok()) return bloom.error();
   r.bloom_ = std::move(bloom).value();
@@ -473,6 +474,7 @@ FrameStats Renderer::draw(const GpuRoomCache& cache, const Camera& camera, int w
     const float room_radius = static_cast<float>(room.room.sphere.radius);
     glUniform1f(u_.room_radius, room_radius);
     glUniform1f(u_.relief_margin, relief::relief_bound(relief, room_radius));
+    glUniform1f(u_.patch_edge, room.patch_edge);
     {
       // Only the lights that can reach this room's rock, or whose haze lies between it and the
       // camera (the camera is inside their bound): on llvmpipe every light a fragment loops

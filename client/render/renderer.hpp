@@ -177,7 +177,7 @@ class Renderer {
         surface, phong_alpha, displacement, fog_color, fog_start, fog_end, lamp_range, lod,
         pixel_scale, target_pixels, patch_culling, frustum, fine_detail, ao, lamp, forward,
         exposure, glow, light_count, light_position, light_color, light_glow, light_bound,
-        light_index, headlamp, haze;
+        light_index, headlamp, haze, patch_edge;
   } u_{};
   struct BloomUniforms {
     GLint source, texel, downsample, offset;

@@ -1,6 +1,9 @@
 #include "client/render/room_cache.hpp"
 
+#include <algorithm>
 #include <cstddef>
+
+#include <glm/glm.hpp>
 
 namespace grotto::render {
 
@@ -19,6 +22,23 @@ std::vector<RoomVertex> room_vertices(const codec::DecodedRoom& mesh) {
     v.rim = i < mesh.rim_portal.size() && mesh.rim_portal[i] >= 0 ? 1.0f : 0.0f;
   }
   return out;
+}
+
+float median_edge_length(const codec::DecodedRoom& mesh) {
+  std::vector<float> lengths;
+  lengths.reserve(mesh.indices.size());
+  const auto at = [&](uint32_t i) {
+    const mesh::core::float3& p = mesh.positions[i];
+    return glm::vec3(p.x, p.y, p.z);
+  };
+  for (size_t t = 0; t + 2 < mesh.indices.size(); t += 3) {
+    for (int k = 0; k < 3; ++k)
+      lengths.push_back(glm::distance(at(mesh.indices[t + k]), at(mesh.indices[t + (k + 1) % 3])));
+  }
+  if (lengths.empty()) return 0;
+  auto mid = lengths.begin() + static_cast<std::ptrdiff_t>(lengths.size() / 2);
+  std::nth_element(lengths.begin(), mid, lengths.end());
+  return *mid;
 }
 
 void GpuRoomCache::upload(const client::ReadyRoom& room) {
@@ -46,6 +66,7 @@ void GpuRoomCache::upload(const client::ReadyRoom& room) {
   attribute(4, 1, offsetof(RoomVertex, rim));
   glBindVertexArray(0);
   g.index_count = static_cast<GLsizei>(room.mesh.indices.size());
+  g.patch_edge = median_edge_length(room.mesh);
   g.bytes = vertices.size() * sizeof(RoomVertex) + room.mesh.indices.size() * sizeof(uint32_t);
   bytes_ += g.bytes;
   rooms_.emplace(room.room.id, std::move(g));

@@ -30,6 +30,10 @@ static_assert(sizeof(RoomVertex) == 9 * sizeof(float));
 // The vertices of a decoded room in RoomVertex layout (pure: testable without a GPU).
 std::vector<RoomVertex> room_vertices(const codec::DecodedRoom& mesh);
 
+// The median length of the room's triangle edges, metres (0 for no triangles): the step of the
+// tessellation at level 1, from which room.tese knows the step the relief is drawn at.
+float median_edge_length(const codec::DecodedRoom& mesh);
+
 struct GpuRoom {
   cave::Room room;  // descriptor: sphere and portals (fog caps, culling)
   Vec3 origin;      // on the grid
@@ -37,7 +41,8 @@ struct GpuRoom {
   Buffer vertices;
   Buffer indices;
   GLsizei index_count = 0;
-  size_t bytes = 0;  // GPU bytes of both buffers
+  float patch_edge = 0;  // median_edge_length of its mesh
+  size_t bytes = 0;      // GPU bytes of both buffers
 };
 
 class GpuRoomCache {

@@ -12,6 +12,8 @@
 
 #include "client/play/collision.hpp"
 #include "client/play/player.hpp"
+#include "core/random.hpp"
+#include "proto/world_digest.hpp"
 #include "shaders/relief.hpp"
 #include "shapes.hpp"
 
@@ -187,6 +189,114 @@ TEST(Relief, speleothems_grow_in_rows_along_cracks_with_bare_rock_between) {
     close += nearest < 2.0;
   }
   EXPECT_GT(close, static_cast<int>(0.8 * static_cast<double>(all.size())));
+}
+
+// A stalactite drawn from a mesh sampled every `spacing` metres (room.tese passes the
+// tessellation's step) is widened to two steps and shortened so that its volume stays: at level 8
+// a far patch steps 0.3-0.7 m, and a spike drawn as it is became one vertex pulled down, a shard.
+// Stalactites under a level ceiling, not columns, whose neighbours stand 0.95 m off or more (so
+// no other, widened to the lattice's bound of 0.45 m, reaches into the disc weighed).
+TEST(Relief, sampled_coarsely_a_spike_is_drawn_two_steps_wide_and_keeps_its_volume) {
+  const glm::vec3 down{0.0f, -1.0f, 0.0f};
+  const auto all = speleothems(rl::relief_spike_length(kHall));
+  std::vector<glm::vec3> roots;
+  for (const auto& [cell, s] : all) {
+    if (s.level >= 0 || std::abs(cell.first) >= 29 || std::abs(cell.second) >= 29) continue;
+    float nearest = 1e9f;
+    for (const auto& [other, t] : all)
+      if (other != cell) nearest = std::min(nearest, glm::length(s.centre - t.centre));
+    if (nearest < 0.95f) continue;
+    // The lattice's turned frame (relief_turn) back to world x, z.
+    const float u = s.centre.x, v = s.centre.y;
+    roots.emplace_back(rl::kReliefTurnCos * u + rl::kReliefTurnSin * v, 10.0f,
+                       -rl::kReliefTurnSin * u + rl::kReliefTurnCos * v);
+  }
+  struct Drawn {
+    double volume = 0;  // cubic metres below the ceiling
+    float support = 0;  // metres from the root where it hangs 1 % of its length or more
+    float peak = 0;     // the deepest hang, metres (negative)
+  };
+  constexpr float kStep = 0.01f;
+  const auto drawn = [&](glm::vec3 root, float spacing) {
+    std::vector<std::pair<float, float>> samples;  // (distance from the root, hang)
+    Drawn d;
+    for (float a = -0.47f; a <= 0.47f; a += kStep)
+      for (float b = -0.47f; b <= 0.47f; b += kStep) {
+        if (std::hypot(a, b) > 0.47f) continue;
+        const glm::vec3 p = root + glm::vec3(a, 0.0f, b);
+        const float hang = rl::relief_at_sampled(p, down, 0.0f, 0.0f, kHall, 1.0f, spacing).hang;
+        if (spacing == 0.0f) {
+          EXPECT_EQ(hang, rl::relief_at(p, down, 0.0f, 0.0f, kHall, 1.0f).hang);
+        }
+        d.volume += std::max(-hang, 0.0f) * kStep * kStep;
+        d.peak = std::min(d.peak, hang);
+        samples.emplace_back(std::hypot(a, b), hang);
+      }
+    for (const auto& [r, hang] : samples)
+      if (hang < 0.01f * d.peak) d.support = std::max(d.support, r);
+    return d;
+  };
+  int checked = 0;
+  for (const glm::vec3& root : roots) {
+    const Drawn exact = drawn(root, 0.0f);
+    if (exact.support < 0.05f) continue;  // a straw: too thin for a 1 cm grid to weigh
+    for (float spacing : {0.05f, 0.12f, 0.2f}) {
+      const Drawn d = drawn(root, spacing);
+      SCOPED_TRACE(::testing::Message()
+                   << "root " << root.x << " " << root.z << " spacing " << spacing << ": radius "
+                   << exact.support << " -> " << d.support << ", length " << -exact.peak << " -> "
+                   << -d.peak);
+      EXPECT_LE(d.peak, 0.0f);
+      EXPECT_GT(d.peak, exact.peak);  // shorter
+      EXPECT_GE(d.support, 0.85f * std::min(2.0f * spacing, 0.45f));
+      EXPECT_GE(d.support, exact.support - kStep);
+      // Its volume stays while its radius is within the lattice's bound (0.45 m).
+      const float r = std::hypot(exact.support, 2.0f * spacing);
+      if (r < 0.4f) {
+        EXPECT_NEAR(d.volume, exact.volume, 0.06 * exact.volume);
+      }
+      ++checked;
+    }
+  }
+  EXPECT_GE(checked, 15) << roots.size() << " isolated stalactites";
+}
+
+// The relief is part of the world: relief_at's values at 4,000 fixed points (every normal, slope,
+// roughness, rim weight and room size), rounded to 0.1 mm (a thousandth for the unitless parts)
+// and hashed, are pinned to the relief version the world digest folds (proto::kReliefVersion).
+// A change of the relief fails this until the version moves on (every client's cache and every
+// engine's baked collision then see a new world); a change of how it is drawn does not.
+TEST(Relief, its_values_are_pinned_to_the_version_in_the_world_digest) {
+  std::vector<uint8_t> bytes;
+  const auto put = [&](float v, float unit) {
+    const int64_t q = std::llround(static_cast<double>(v) / unit);
+    for (int k = 0; k < 8; ++k)
+      bytes.push_back(static_cast<uint8_t>(static_cast<uint64_t>(q) >> (8 * k)));
+  };
+  Rng rng(27);
+  const auto next = [&] { return static_cast<float>(rng.uniform()); };
+  for (int i = 0; i < 4000; ++i) {
+    const glm::vec3 p{200.0f * next() - 100.0f, 60.0f * next() - 30.0f, 200.0f * next() - 100.0f};
+    const glm::vec3 n =
+        glm::normalize(glm::vec3(next() - 0.5f, 2.0f * next() - 1.0f, next() - 0.5f));
+    const float roughness = next(), rim = next() < 0.1f ? next() : 0.0f;
+    const float radius = 2.0f + 30.0f * next();
+    const rl::Relief r = rl::relief_at(p, n, roughness, rim, radius, 1.0f);
+    for (float v : {r.height, r.hang})
+      put(v, 1e-4f);
+    for (float v : {r.gradient.x, r.gradient.y, r.gradient.z, r.hang_gradient.x, r.hang_gradient.y,
+                    r.hang_gradient.z, r.cavity, r.spike, r.occlusion})
+      put(v, 1e-3f);
+  }
+  const uint64_t digest = fnv1a64(bytes.data(), bytes.size());
+  // One row a version: a new relief adds a row (and moves proto::kReliefVersion), never edits one.
+  const std::map<std::string_view, uint64_t> pinned = {
+      {"grotto.relief.v1", 0x3ce883fafaec6c06ull},
+  };
+  ASSERT_TRUE(pinned.count(proto::kReliefVersion)) << proto::kReliefVersion << " has no row";
+  EXPECT_EQ(digest, pinned.at(proto::kReliefVersion))
+      << "relief_at's values changed (now 0x" << std::hex << digest << "): that is a new world. "
+      << "Move proto::kReliefVersion on (proto/world_digest.hpp) and add its row here.";
 }
 
 TEST(Relief, nothing_moves_on_a_portal_rim) {

@@ -86,6 +86,16 @@ TEST(RoomVertices, carry_every_channel_and_mark_rims) {
   EXPECT_EQ(v[1].rim, 1.0f);
 }
 
+// room.tese's step of the tessellation at level 1 (u_patch_edge): the median triangle edge.
+TEST(RoomVertices, the_median_edge_is_the_patch_step) {
+  codec::DecodedRoom m;
+  EXPECT_EQ(median_edge_length(m), 0.0f);  // no triangles: the relief is drawn exactly
+  // Two triangles: edges 1, 1, sqrt 2 and 2, 2, sqrt 8; the median of six is the fourth, 2.
+  m.positions = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0, 0, 5}, {2, 0, 5}, {0, 2, 5}};
+  m.indices = {0, 1, 2, 3, 4, 5};
+  EXPECT_FLOAT_EQ(median_edge_length(m), 2.0f);
+}
+
 TEST(RenderAnchor, keeps_room_offsets_exact_in_float) {
   // A room origin on the 1/256 m grid, 10^4 m from the world origin: its offset from the anchor
   // survives the float conversion bit for bit.
