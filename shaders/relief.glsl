@@ -82,7 +82,7 @@ const float kReliefDraperyAngle = 0.41f;  // radians: the first of the four drap
 const float kReliefCrevice = 0.6f;        // occlusion at the bottom of the deepest crevice
 const float kReliefFoot = 1.2f;           // occlusion per unit of sky a formation hides
 const float kReliefOcclusionMin = 0.3f;   // the darkest ambient occlusion
-const float kReliefSampling = 2.0f;       // tessellation steps a drawn spike is at least wide
+const float kReliefSampling = 1.0f;       // tessellation steps a drawn spike's radius at least is
 
 // An integer lattice point to [0, 1).
 RELIEF_FN float relief_hash(ivec3 c) {
@@ -269,10 +269,11 @@ RELIEF_FN float relief_pillar_occlusion(float d, float a, float tall) {
 // A formation `half_width` metres wide at its base (a spike's radius, a curtain's half
 // thickness), drawn on a surface sampled every `spacing` metres (the tessellation's step): a spike
 // narrower than a step is one vertex pulled down, a shard as long as the spike; a curtain thinner
-// than a step, a saw blade. So it is drawn at least kReliefSampling steps wide (.x, at most
-// `widest`, the lattice's bound), and its height scaled by .y (squared for a cone, whose volume
-// then stays; once for a curtain, whose cross-section does): far formations show as the blunter
-// shapes the step can carry, near ones as they are, and none vanishes at once.
+// than a step, a saw blade. So its half-width is at least about kReliefSampling steps (.x; at
+// most `widest`, the lattice's bound): two steps across, a few vertices to carry its shape. Its
+// height is scaled by .y (squared for a cone, whose volume then stays; once for a curtain, whose
+// cross-section does): far formations show as the blunter shapes the step can carry, near ones
+// as they are, and none vanishes at once.
 RELIEF_FN vec2 relief_sampled(float half_width, float spacing, float widest) {
   float wide = sqrt(half_width * half_width +
                     kReliefSampling * kReliefSampling * spacing * spacing);

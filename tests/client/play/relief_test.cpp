@@ -192,11 +192,12 @@ TEST(Relief, speleothems_grow_in_rows_along_cracks_with_bare_rock_between) {
 }
 
 // A stalactite drawn from a mesh sampled every `spacing` metres (room.tese passes the
-// tessellation's step) is widened to two steps and shortened so that its volume stays: at level 8
-// a far patch steps 0.3-0.7 m, and a spike drawn as it is became one vertex pulled down, a shard.
+// tessellation's step) is widened to two steps across and shortened so that its volume stays: at
+// level 8 a far patch steps 0.3-0.7 m, and a spike drawn as it was became one vertex pulled down,
+// a shard.
 // Stalactites under a level ceiling, not columns, whose neighbours stand 0.95 m off or more (so
 // no other, widened to the lattice's bound of 0.45 m, reaches into the disc weighed).
-TEST(Relief, sampled_coarsely_a_spike_is_drawn_two_steps_wide_and_keeps_its_volume) {
+TEST(Relief, sampled_coarsely_a_spike_is_drawn_two_steps_across_and_keeps_its_volume) {
   const glm::vec3 down{0.0f, -1.0f, 0.0f};
   const auto all = speleothems(rl::relief_spike_length(kHall));
   std::vector<glm::vec3> roots;
@@ -248,10 +249,10 @@ TEST(Relief, sampled_coarsely_a_spike_is_drawn_two_steps_wide_and_keeps_its_volu
                    << -d.peak);
       EXPECT_LE(d.peak, 0.0f);
       EXPECT_GT(d.peak, exact.peak);  // shorter
-      EXPECT_GE(d.support, 0.85f * std::min(2.0f * spacing, 0.45f));
+      EXPECT_GE(d.support, 0.85f * std::min(spacing, 0.45f));
       EXPECT_GE(d.support, exact.support - kStep);
       // Its volume stays while its radius is within the lattice's bound (0.45 m).
-      const float r = std::hypot(exact.support, 2.0f * spacing);
+      const float r = std::hypot(exact.support, spacing);
       if (r < 0.4f) {
         EXPECT_NEAR(d.volume, exact.volume, 0.06 * exact.volume);
       }
