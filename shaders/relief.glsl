@@ -83,6 +83,9 @@ const float kReliefCrevice = 0.6f;        // occlusion at the bottom of the deep
 const float kReliefFoot = 1.2f;           // occlusion per unit of sky a formation hides
 const float kReliefOcclusionMin = 0.3f;   // the darkest ambient occlusion
 const float kReliefSampling = 1.0f;       // tessellation steps a drawn spike's radius at least is
+// and a drawn curtain's half thickness: a curtain shows its crest along its whole run, and a crest
+// over fewer than four samples across zigzags between the rows of samples (teeth).
+const float kReliefCurtainSampling = 2.0f;
 
 // An integer lattice point to [0, 1).
 RELIEF_FN float relief_hash(ivec3 c) {
@@ -269,14 +272,13 @@ RELIEF_FN float relief_pillar_occlusion(float d, float a, float tall) {
 // A formation `half_width` metres wide at its base (a spike's radius, a curtain's half
 // thickness), drawn on a surface sampled every `spacing` metres (the tessellation's step): a spike
 // narrower than a step is one vertex pulled down, a shard as long as the spike; a curtain thinner
-// than a step, a saw blade. So its half-width is at least about kReliefSampling steps (.x; at
-// most `widest`, the lattice's bound): two steps across, a few vertices to carry its shape. Its
+// than a step, a saw blade. So its half-width is at least about `spacing` (.x; at most `widest`,
+// the lattice's bound; callers pass kReliefSampling or kReliefCurtainSampling steps). Its
 // height is scaled by .y (squared for a cone, whose volume then stays; once for a curtain, whose
 // cross-section does): far formations show as the blunter shapes the step can carry, near ones
 // as they are, and none vanishes at once.
 RELIEF_FN vec2 relief_sampled(float half_width, float spacing, float widest) {
-  float wide = sqrt(half_width * half_width +
-                    kReliefSampling * kReliefSampling * spacing * spacing);
+  float wide = sqrt(half_width * half_width + spacing * spacing);
   return vec2(min(wide, widest), half_width / wide);
 }
 
@@ -420,11 +422,11 @@ RELIEF_FN Relief relief_at_sampled(vec3 p, vec3 n, float roughness, float rim, f
         float kept = 1.0f;
         float kept_g = 1.0f;
         if (spacing > 0.0f && !column) {
-          vec2 a = relief_sampled(radius, spacing, 0.45f);
+          vec2 a = relief_sampled(radius, kReliefSampling * spacing, 0.45f);
           radius = a.x;
           kept = a.y * a.y;
           len *= kept;
-          vec2 b = relief_sampled(rf, spacing, 0.9f);
+          vec2 b = relief_sampled(rf, kReliefSampling * spacing, 0.9f);
           rf = b.x;
           kept_g = b.y * b.y;
           len_g *= kept_g;
@@ -500,7 +502,7 @@ RELIEF_FN Relief relief_at_sampled(vec3 p, vec3 n, float roughness, float rim, f
     float width = kReliefDraperyWidth;
     float kept = 1.0f;
     if (spacing > 0.0f) {
-      vec2 a = relief_sampled(width, spacing, 0.3f);
+      vec2 a = relief_sampled(width, kReliefCurtainSampling * spacing, 0.3f);
       width = a.x;
       kept = a.y;
       deepest *= kept;
