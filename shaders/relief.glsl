@@ -145,7 +145,33 @@ struct Relief {
                   // tip), or under half a flowstone sheet's thickness (room.frag's colour)
   float occlusion;  // ambient occlusion, kReliefOcclusionMin-1: 1 on open rock, less in the
                     // rock's crevices and at the feet of formations (1 without relief)
+  vec3 warp;        // the rock's domain warp: its octaves are noise at p + warp
+  float rock;       // metres: the rock's amplitude there (under a flowstone sheet, what shows)
 };
+
+// The rock's octaves above its broadest: their feature sizes in metres (1 / frequency).
+const float kReliefRidgeSize = 0.645f;
+const float kReliefOctave2Size = 0.3125f;
+const float kReliefOctave3Size = 0.149f;
+
+// The rock's octaves above its broadest at the warped point q (relief_at; relief_rock_detail).
+RELIEF_FN vec4 relief_ridge_noise(vec3 q) {
+  return relief_noise(q * 1.55f + vec3(31.0f, 0.0f, 0.0f));
+}
+RELIEF_FN vec4 relief_octave2_noise(vec3 q) {
+  return relief_noise(q * 3.2f + vec3(-17.0f, 5.0f, 0.0f));
+}
+RELIEF_FN vec4 relief_octave3_noise(vec3 q) {
+  return relief_noise(q * 6.7f + vec3(0.0f, 47.0f, 11.0f));
+}
+
+// The share of a rock octave of feature size `size` metres that a mesh sampled every `spacing`
+// metres carries: all of it at four samples a feature or more, none at two or fewer, where it
+// would only fold the surface into facets. What the mesh cannot carry, room.frag adds to the
+// shading normal per pixel (relief_rock_detail).
+RELIEF_FN float relief_octave_kept(float size, float spacing) {
+  return 1.0f - smoothstep(0.25f * size, 0.5f * size, spacing);
+}
 
 // One speleothem candidate of the turned lattice: where it stands and how long it is.
 struct Speleothem {
@@ -298,6 +324,8 @@ RELIEF_FN Relief relief_at_sampled(vec3 p, vec3 n, float roughness, float rim, f
   r.cavity = 0.5f;
   r.spike = 0.0f;
   r.occlusion = 1.0f;
+  r.warp = vec3(0.0f);
+  r.rock = 0.0f;
   if (!(strength > 0.0f)) return r;
   // Near a rim the rock's and the flowstone's heights fade (exactly zero on the rim, whatever
   // rounding did to the rim weight: the neighbouring room puts the same vertex there), but not
@@ -320,26 +348,40 @@ RELIEF_FN Relief relief_at_sampled(vec3 p, vec3 n, float roughness, float rim, f
   vec3 warp = vec3(relief_noise(w + vec3(3.1f, 7.7f, 1.3f)).x,
                    relief_noise(w + vec3(-5.2f, 2.4f, 8.8f)).x,
                    relief_noise(w + vec3(9.4f, -3.3f, 4.6f)).x);
-  vec3 q = p + 0.45f * warp;
+  r.warp = 0.45f * warp;
+  vec3 q = p + r.warp;
   vec4 o0 = relief_noise(q * 0.7f);
-  vec4 o1 = relief_noise(q * 1.55f + vec3(31.0f, 0.0f, 0.0f));
-  vec4 o2 = relief_noise(q * 3.2f + vec3(-17.0f, 5.0f, 0.0f));
-  vec4 o3 = relief_noise(q * 6.7f + vec3(0.0f, 47.0f, 11.0f));
+  vec4 o1 = relief_ridge_noise(q);
+  vec4 o2 = relief_octave2_noise(q);
+  vec4 o3 = relief_octave3_noise(q);
   // A ridge softened (|x| as sqrt(x^2 + e)): crested, yet smooth enough that tessellation at
   // level 8 does not saw its crest into teeth.
   float soft = sqrt(o1.x * o1.x + 0.05f);
   float ridge = 1.0f - soft;
   float ridge_sign = o1.x / soft;
   float rock = 0.45f * o0.x + 0.28f * (2.0f * ridge * ridge - 1.0f) + 0.16f * o2.x + 0.08f * o3.x;
+  // As sampled: the octaves the mesh cannot carry leave its shape (relief_octave_kept); the
+  // cavity and the crevices below still see the whole rock.
+  float kept1 = 1.0f, kept2 = 1.0f, kept3 = 1.0f;
+  if (spacing > 0.0f) {
+    kept1 = relief_octave_kept(kReliefRidgeSize, spacing);
+    kept2 = relief_octave_kept(kReliefOctave2Size, spacing);
+    kept3 = relief_octave_kept(kReliefOctave3Size, spacing);
+  }
+  float shape = spacing > 0.0f ? 0.45f * o0.x + kept1 * 0.28f * (2.0f * ridge * ridge - 1.0f) +
+                                     kept2 * 0.16f * o2.x + kept3 * 0.08f * o3.x
+                               : rock;
   vec3 rock_gradient = (0.45f * 0.7f) * relief_gradient(o0) +
-                       (0.28f * 4.0f * 1.55f) * ridge * -ridge_sign * relief_gradient(o1) +
-                       (0.16f * 3.2f) * relief_gradient(o2) + (0.08f * 6.7f) * relief_gradient(o3);
+                       (kept1 * 0.28f * 4.0f * 1.55f) * ridge * -ridge_sign * relief_gradient(o1) +
+                       (kept2 * 0.16f * 3.2f) * relief_gradient(o2) +
+                       (kept3 * 0.08f * 6.7f) * relief_gradient(o3);
   // Floors are sediment (smoother), ceilings the roughest.
   float rock_amplitude = strength * kReliefRock * mix(0.35f, 1.0f, clamp(roughness, 0.0f, 1.0f)) *
                          mix(0.5f, 1.35f, variety) * mix(1.0f, 0.45f, ground) *
                          mix(1.0f, 1.2f, under);
-  r.height = keep * rock_amplitude * rock;
+  r.height = keep * rock_amplitude * shape;
   r.gradient = rock_amplitude * rock_gradient;
+  r.rock = rock_amplitude;
   r.cavity = clamp(0.5f + 0.6f * rock, 0.0f, 1.0f);
   // Crevices: how far the finer octaves put the point below their mean (-0.066; the 1.4 m octave
   // is the local mean they ride on), deeper where the rock is rougher (amplitude over the
@@ -366,12 +408,13 @@ RELIEF_FN Relief relief_at_sampled(vec3 p, vec3 n, float roughness, float rim, f
     float sheet = flow_zone * cover * cover * (3.0f - 2.0f * cover);
     vec3 sheet_gradient = flow_zone * 6.0f * cover * (1.0f - cover) * cover_gradient;
     float drown = 1.0f - 0.75f * sheet;
-    float rock_height = rock_amplitude * rock;
+    float rock_height = rock_amplitude * shape;
     float sheet_amplitude = strength * kReliefSheet;
     r.height = keep * (rock_height * drown + sheet_amplitude * sheet);
     r.gradient = r.gradient * drown - 0.75f * rock_height * sheet_gradient +
                  sheet_amplitude * sheet_gradient;
     r.cavity = mix(r.cavity, 0.85f, sheet);
+    r.rock *= drown;
     crevice *= drown;  // a sheet fills the crevices it covers
     broad = mix(broad, 1.0f, sheet);
     r.spike = 0.45f * sheet;  // calcite (room.frag): tan, short of the cream of a growing tip
@@ -636,6 +679,30 @@ struct ReliefFine {
 // `footprint` metres: all of it from 4 pixels a cell, none at 2 or fewer.
 RELIEF_FN float relief_fine_fade(float cell, float footprint) {
   return smoothstep(2.0f, 4.0f, cell / max(footprint, 1e-6f));
+}
+
+// The rock's octaves that a mesh sampled every `spacing` metres could not carry
+// (relief_octave_kept), as the gradient room.frag tilts the normal by: the same noises at the
+// warped point p + warp (Relief::warp), times the rock's amplitude (Relief::rock), each faded
+// by the pixel's footprint like the fine detail. Zero where the mesh carries them all.
+RELIEF_FN vec3 relief_rock_detail(vec3 p, vec3 warp, float rock, float spacing, float footprint) {
+  float w1 = (1.0f - relief_octave_kept(kReliefRidgeSize, spacing)) *
+             relief_fine_fade(kReliefRidgeSize, footprint);
+  float w2 = (1.0f - relief_octave_kept(kReliefOctave2Size, spacing)) *
+             relief_fine_fade(kReliefOctave2Size, footprint);
+  float w3 = (1.0f - relief_octave_kept(kReliefOctave3Size, spacing)) *
+             relief_fine_fade(kReliefOctave3Size, footprint);
+  vec3 g = vec3(0.0f);
+  if (!(rock > 0.0f)) return g;
+  vec3 q = p + warp;
+  if (w1 > 0.0f) {
+    vec4 o1 = relief_ridge_noise(q);
+    float soft = sqrt(o1.x * o1.x + 0.05f);
+    g += (w1 * 0.28f * 4.0f * 1.55f) * (1.0f - soft) * -(o1.x / soft) * relief_gradient(o1);
+  }
+  if (w2 > 0.0f) g += (w2 * 0.16f * 3.2f) * relief_gradient(relief_octave2_noise(q));
+  if (w3 > 0.0f) g += (w3 * 0.08f * 6.7f) * relief_gradient(relief_octave3_noise(q));
+  return rock * g;
 }
 
 // The fine detail at world point p for a pixel covering `footprint` metres of the surface.

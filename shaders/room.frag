@@ -21,6 +21,9 @@ in float t_mineral;
 in float t_cavity;
 in float t_spike;
 in float t_occlusion;
+in vec3 t_warp;
+in float t_rock;
+in float t_spacing;
 
 layout(location = 0) out vec4 frag_color;
 
@@ -76,7 +79,9 @@ void main() {
   ReliefFine fine = relief_fine(world, footprint, u_fine_detail * mix(1.0, 0.5, calcite),
                                 u_fine_detail * bare * smoothstep(-0.2, 0.3, m1.x),
                                 u_fine_detail * bare);
-  vec3 s = relief_normal(n, fine.gradient);
+  // The rock's octaves the tessellated mesh was too coarse to carry, as shading (room.tese).
+  vec3 rock = relief_rock_detail(world, t_warp, t_rock, t_spacing, footprint);
+  vec3 s = relief_normal(n, fine.gradient + rock);
   float mottle = 0.5 + 0.3 * m1.x + 0.2 * m2.x;
   float strata = relief_noise(vec3(world.x * 0.07, world.y * 2.6, world.z * 0.07) +
                               0.35 * vec3(m1.x, m1.x, m1.x)).x;

@@ -25,6 +25,9 @@ out float t_mineral;
 out float t_cavity;   // relief.glsl's Relief::cavity (0.5 without relief)
 out float t_spike;    // relief.glsl's Relief::spike
 out float t_occlusion;  // relief.glsl's Relief::occlusion (1 without relief)
+out vec3 t_warp;        // Relief::warp, Relief::rock and the step the relief was sampled at:
+out float t_rock;       // room.frag adds the rock's octaves the mesh could not carry
+out float t_spacing;    // (relief_rock_detail)
 
 uniform mat4 u_view_proj;      // anchor-relative world to clip space
 uniform vec3 u_anchor;         // the anchor in world space (noise is world-space)
@@ -168,8 +171,9 @@ void main() {
     s = interior(w);
 
   precise vec3 world = s.position + u_anchor;
+  float spacing = sample_spacing(s.position);
   Relief r = relief_at_sampled(world, s.normal, s.roughness, s.rim, u_room_radius, u_displacement,
-                               sample_spacing(s.position));
+                               spacing);
   // Rock and flowstone along the normal, speleothems plumb (relief_displace).
   precise vec3 displaced = s.position + s.normal * r.height + vec3(0.0, r.hang, 0.0);
   t_position = displaced;
@@ -178,5 +182,8 @@ void main() {
   t_cavity = r.cavity;
   t_spike = r.spike;
   t_occlusion = r.occlusion;
+  t_warp = r.warp;
+  t_rock = r.rock;
+  t_spacing = spacing;
   gl_Position = u_view_proj * vec4(displaced, 1.0);
 }

@@ -262,6 +262,43 @@ TEST(Relief, sampled_coarsely_a_spike_is_drawn_two_steps_across_and_keeps_its_vo
   EXPECT_GE(checked, 15) << roots.size() << " isolated stalactites";
 }
 
+// The rock's octaves that a coarse mesh cannot carry leave its shape for the shading: under a
+// ceiling (no flowstone there) the sampled gradient and room.frag's relief_rock_detail add up to
+// the exact gradient, nothing lost and nothing counted twice; sampled exactly, the detail is
+// zero; sampled every 0.4 m the shape keeps none of the two finest octaves.
+TEST(Relief, octaves_too_fine_for_the_mesh_move_from_its_shape_to_the_shading) {
+  const glm::vec3 down{0.0f, -1.0f, 0.0f};
+  Rng rng(30);
+  double finest = 0;  // the largest gradient the detail carries
+  for (int i = 0; i < 500; ++i) {
+    const glm::vec3 p(static_cast<float>(rng.uniform(-50, 50)), 10.0f,
+                      static_cast<float>(rng.uniform(-50, 50)));
+    const float roughness = static_cast<float>(rng.uniform());
+    const rl::Relief exact = rl::relief_at(p, down, roughness, 0.0f, kHall, 1.0f);
+    EXPECT_EQ(rl::relief_rock_detail(p, exact.warp, exact.rock, 0.0f, 1e-4f), glm::vec3(0.0f));
+    for (float spacing : {0.06f, 0.12f, 0.4f}) {
+      const rl::Relief drawn =
+          rl::relief_at_sampled(p, down, roughness, 0.0f, kHall, 1.0f, spacing);
+      const glm::vec3 detail = rl::relief_rock_detail(p, drawn.warp, drawn.rock, spacing, 1e-4f);
+      const glm::vec3 sum = drawn.gradient + detail;
+      EXPECT_NEAR(sum.x, exact.gradient.x, 1e-4f) << "spacing " << spacing;
+      EXPECT_NEAR(sum.y, exact.gradient.y, 1e-4f) << "spacing " << spacing;
+      EXPECT_NEAR(sum.z, exact.gradient.z, 1e-4f) << "spacing " << spacing;
+      finest = std::max(finest, static_cast<double>(glm::length(detail)));
+    }
+    // Sampled every 0.4 m, octaves 2 and 3 (0.31 and 0.15 m) are not in the shape at all: the
+    // height is what the two broad octaves alone give.
+    const rl::Relief coarse = rl::relief_at_sampled(p, down, roughness, 0.0f, kHall, 1.0f, 0.4f);
+    const glm::vec3 q = p + coarse.warp;
+    const glm::vec4 o0 = rl::relief_noise(q * 0.7f), o1 = rl::relief_ridge_noise(q);
+    const float soft = std::sqrt(o1.x * o1.x + 0.05f);
+    const float kept1 = rl::relief_octave_kept(rl::kReliefRidgeSize, 0.4f);
+    const float broad = 0.45f * o0.x + kept1 * 0.28f * (2.0f * (1 - soft) * (1 - soft) - 1.0f);
+    EXPECT_NEAR(coarse.height, coarse.rock * broad, 1e-5f);
+  }
+  EXPECT_GT(finest, 0.05) << "the detail never tilted the normal";
+}
+
 // The relief is part of the world: relief_at's values at 4,000 fixed points (every normal, slope,
 // roughness, rim weight and room size), rounded to 0.1 mm (a thousandth for the unitless parts)
 // and hashed, are pinned to the relief version the world digest folds (proto::kReliefVersion).
