@@ -25,7 +25,7 @@ uint64_t fold_digest(uint64_t digest, std::span<const uint8_t> bytes);
 // depend on it, yet it is part of the world. A test pins relief_at's values at sample points to
 // this version (tests/client/play/relief_test.cpp): a change of the relief fails it until the
 // version moves on, while a change of how it is drawn (relief_at_sampled's filtering) does not.
-inline constexpr std::string_view kReliefVersion = "grotto.relief.v1";
+inline constexpr std::string_view kReliefVersion = "grotto.relief.v2";
 
 // The digest a server announces in welcome.params: the layout's, folded with every mesh setting
 // that also shapes the rooms (lods, octaves, rim, big-room and channel settings), doubles as IEEE

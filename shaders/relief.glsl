@@ -22,8 +22,9 @@
 //                seeps along joints, so dripstone grows in rows with bare rock between) and kept
 //                only near one. Lengths are heavy-tailed, from 5 cm soda straws to several metres
 //                in big rooms (the cube of a uniform hash: most are short, a few long); a
-//                stalagmite stands under each, half as tall, twice as wide and rounded on top
-//                (thesis §5.5: underside bias from the world-space normal).
+//                stalagmite stands under each, rounded on top, in forms from a bell-shaped cone
+//                half as tall and twice as wide to a steep-sided candle 0.65 as tall and 1.55
+//                times as wide (thesis §5.5: underside bias from the world-space normal).
 //   columns:     a few speleothem cells (kReliefColumnShare) reach down, and up, to a meeting
 //                level of their own (one level every kReliefColumnSpan metres of height, offset
 //                per cell): the stalactite to the nearest level below its ceiling, the stalagmite
@@ -176,10 +177,12 @@ RELIEF_FN float relief_octave_kept(float size, float spacing) {
 // One speleothem candidate of the turned lattice: where it stands and how long it is.
 struct Speleothem {
   vec2 centre;   // metres, in the turned lattice's frame (relief_turn)
-  float len;     // metres: the stalactite's length (0: none); its stalagmite is half as tall
+  float len;     // metres: the stalactite's length (0: none); its stalagmite is 0.5-0.65 as tall
   float radius;  // metres: the stalactite's radius at its root (its stalagmite's is twice that)
   float level;   // metres in [0, kReliefColumnSpan): a column cell's meeting levels are
                  // level + k * kReliefColumnSpan; negative: not a column cell
+  float form;    // 0-1: its stalagmite's form, from a bell-shaped cone (0) to a candle (1):
+                 // steep-sided with a rounded top, narrower and taller (a slower drip)
 };
 
 // World x, z into the speleothem lattice's frame.
@@ -198,6 +201,7 @@ RELIEF_FN Speleothem relief_speleothem(ivec2 c, float longest) {
   s.len = 0.0f;
   s.radius = 0.0f;
   s.level = -1.0f;
+  s.form = 0.0f;
   float jx = relief_hash(ivec3(c.x, 104729, c.y));
   float jz = relief_hash(ivec3(c.x, 1299709, c.y));
   vec2 lo = vec2(c) * kReliefCell;
@@ -216,6 +220,7 @@ RELIEF_FN Speleothem relief_speleothem(ivec2 c, float longest) {
   s.centre = centre;
   s.len = max(kReliefStraw, longest * size * size * size);
   s.radius = min(0.03f + 0.11f * s.len, 0.45f);
+  s.form = relief_hash(ivec3(c.x, 2750159, c.y));
   if (relief_hash(ivec3(c.x, 611953, c.y)) < kReliefColumnShare) {
     s.level = kReliefColumnSpan * relief_hash(ivec3(c.x, 86028121, c.y));
     s.radius = 0.45f;  // columns are the thickest
@@ -458,8 +463,8 @@ RELIEF_FN Relief relief_at_sampled(vec3 p, vec3 n, float roughness, float rim, f
         // Columns, the thickest, keep theirs, so floor and ceiling still meet.
         float radius = sp.radius;
         float len = sp.len;
-        float rf = 2.0f * sp.radius;
-        float len_g = 0.5f * sp.len;
+        float rf = mix(2.0f, 1.55f, sp.form) * sp.radius;
+        float len_g = mix(0.5f, 0.65f, sp.form) * sp.len;
         // The share of its length each keeps: its calcite's cream fades with it (a blunted
         // spike is not a cream disc; from afar the rock round it shows as much).
         float kept = 1.0f;
@@ -502,8 +507,10 @@ RELIEF_FN Relief relief_at_sampled(vec3 p, vec3 n, float roughness, float rim, f
             best_vertical = -(under * shape * cw * keep) * y_gradient;
           }
         }
-        // Stalagmite beneath it: half as tall, twice as wide, rounded on top; stands up. A
-        // column's rises to its meeting level.
+        // Stalagmite beneath it: half (a candle 0.65) as tall, 2 (a candle 1.55) times as wide,
+        // rounded on top; stands up.
+        // Its profile across is (1 - s^e)^2, e from 2 (a bell-shaped cone) to 6 (a candle:
+        // steep sides, a broad rounded top). A column's rises to its meeting level, a bell.
         float s = min(dist / rf, 1.0f);
         if (ground > 0.0f && dist < kReliefCell) {
           float reach = len_g;
@@ -518,14 +525,18 @@ RELIEF_FN Relief relief_at_sampled(vec3 p, vec3 n, float roughness, float rim, f
             reach = mix(len_g, (gap + kReliefColumnBase + kReliefColumnOverlap) * keep, cw);
           }
           float lf = reach * ground;
-          float shape = (1.0f - s * s) * (1.0f - s * s);
+          float e = mix(mix(2.0f, 6.0f, sp.form), 2.0f, cw);
+          float se2 = e > 2.0f ? pow(s, e - 2.0f) : 1.0f;  // s^(e - 2)
+          float across = 1.0f - s * s * se2;
+          float shape = across * across;
           float h = lf * shape;
-          // The floor round its foot: a pillar as wide as the stalagmite at half its height.
-          feet += relief_pillar_occlusion(dist, 0.54f * rf, lf - h);
+          // The floor round its foot: a pillar as wide as the stalagmite at half its height
+          // (where (1 - s^e)^2 = 1/2).
+          feet += relief_pillar_occlusion(dist, pow(0.29289f, 1.0f / e) * rf, lf - h);
           if (h > best) {
             best = h;
             best_length = lf / kept_g;
-            best_gradient = (-4.0f * lf * (1.0f - s * s) / (rf * rf)) * d;
+            best_gradient = (-2.0f * e * lf * across * se2 / (rf * rf)) * d;
             best_vertical = -(ground * shape * cw * keep) * y_gradient;
           }
         }
