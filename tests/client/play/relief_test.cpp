@@ -191,6 +191,63 @@ TEST(Relief, speleothems_grow_in_rows_along_cracks_with_bare_rock_between) {
   EXPECT_GT(close, static_cast<int>(0.8 * static_cast<double>(all.size())));
 }
 
+// Stalagmites come in forms: bell-shaped cones that keep under 60 % of their height at 0.6 of
+// their radius (41 % for the bell (1 - s^2)^2), and candles, steep-sided with a rounded top, that
+// keep over 80 % there. Stalagmites on a level floor, not columns, measured where no other
+// reaches.
+TEST(Relief, stalagmites_range_from_cones_to_candles) {
+  const glm::vec3 up{0.0f, 1.0f, 0.0f};
+  // World x, z of a point of the turned lattice's frame (relief_turn's inverse).
+  const auto world = [](glm::vec2 t) {
+    return glm::vec3(rl::kReliefTurnCos * t.x + rl::kReliefTurnSin * t.y, 0.0f,
+                     -rl::kReliefTurnSin * t.x + rl::kReliefTurnCos * t.y);
+  };
+  // Each stalagmite of 60 x 60 cells as relief_at makes it: the room's longest, shorter in bare
+  // zones (the variety field), and its footprint's radius.
+  struct Mite {
+    glm::vec2 centre;
+    float rf;
+  };
+  std::vector<Mite> mites;
+  for (int z = -30; z < 30; ++z)
+    for (int x = -30; x < 30; ++x) {
+      const rl::Speleothem probe = rl::relief_speleothem(glm::ivec2(x, z), 1.0f);
+      if (!(probe.len > 0) || probe.level >= 0) continue;
+      const float longest =
+          rl::relief_spike_length(kHall) *
+          glm::mix(0.45f, 1.0f,
+                   glm::smoothstep(0.3f, 0.75f, rl::relief_variety(world(probe.centre))));
+      const rl::Speleothem sp = rl::relief_speleothem(glm::ivec2(x, z), longest);
+      mites.push_back({sp.centre, glm::mix(2.0f, 1.55f, sp.form) * sp.radius});
+    }
+  // The share of its height a stalagmite keeps at 0.6 of its radius, out where no other reaches.
+  int cones = 0, candles = 0, measured = 0;
+  for (const Mite& m : mites) {
+    const auto clear = [&](glm::vec2 p) {
+      for (const Mite& o : mites)
+        if (&o != &m && glm::length(p - o.centre) < o.rf + 0.02f) return false;
+      return true;
+    };
+    if (!clear(m.centre)) continue;
+    for (int k = 0; k < 8; ++k) {
+      const float a = 0.785398f * static_cast<float>(k);
+      const glm::vec2 flank = m.centre + 0.6f * m.rf * glm::vec2(std::cos(a), std::sin(a));
+      if (!clear(flank)) continue;
+      const float top = rl::relief_at(world(m.centre), up, 0.0f, 0.0f, kHall, 1.0f).hang;
+      const float side = rl::relief_at(world(flank), up, 0.0f, 0.0f, kHall, 1.0f).hang;
+      ASSERT_GT(top, 0.0f);
+      cones += side / top < 0.6f;
+      candles += side / top > 0.8f;
+      ++measured;
+      break;
+    }
+  }
+  std::printf("stalagmites measured %d: cones %d, candles %d\n", measured, cones, candles);
+  ASSERT_GE(measured, 50);
+  EXPECT_GE(cones, measured / 6);
+  EXPECT_GE(candles, measured / 5);
+}
+
 // A stalactite drawn from a mesh sampled every `spacing` metres (room.tese passes the
 // tessellation's step) is widened to two steps across and shortened so that its volume stays: at
 // level 8 a far patch steps 0.3-0.7 m, and a spike drawn as it was became one vertex pulled down,
