@@ -373,7 +373,7 @@ RELIEF_FN Relief relief_at_sampled(vec3 p, vec3 n, float roughness, float rim, f
     kept2 = relief_octave_kept(kReliefOctave2Size, spacing);
     kept3 = relief_octave_kept(kReliefOctave3Size, spacing);
   }
-  float shape = spacing > 0.0f ? 0.45f * o0.x + kept1 * 0.28f * (2.0f * ridge * ridge - 1.0f) +
+  float drawn = spacing > 0.0f ? 0.45f * o0.x + kept1 * 0.28f * (2.0f * ridge * ridge - 1.0f) +
                                      kept2 * 0.16f * o2.x + kept3 * 0.08f * o3.x
                                : rock;
   vec3 rock_gradient = (0.45f * 0.7f) * relief_gradient(o0) +
@@ -384,7 +384,7 @@ RELIEF_FN Relief relief_at_sampled(vec3 p, vec3 n, float roughness, float rim, f
   float rock_amplitude = strength * kReliefRock * mix(0.35f, 1.0f, clamp(roughness, 0.0f, 1.0f)) *
                          mix(0.5f, 1.35f, variety) * mix(1.0f, 0.45f, ground) *
                          mix(1.0f, 1.2f, under);
-  r.height = keep * rock_amplitude * shape;
+  r.height = keep * rock_amplitude * drawn;
   r.gradient = rock_amplitude * rock_gradient;
   r.rock = rock_amplitude;
   r.cavity = clamp(0.5f + 0.6f * rock, 0.0f, 1.0f);
@@ -413,7 +413,7 @@ RELIEF_FN Relief relief_at_sampled(vec3 p, vec3 n, float roughness, float rim, f
     float sheet = flow_zone * cover * cover * (3.0f - 2.0f * cover);
     vec3 sheet_gradient = flow_zone * 6.0f * cover * (1.0f - cover) * cover_gradient;
     float drown = 1.0f - 0.75f * sheet;
-    float rock_height = rock_amplitude * shape;
+    float rock_height = rock_amplitude * drawn;
     float sheet_amplitude = strength * kReliefSheet;
     r.height = keep * (rock_height * drown + sheet_amplitude * sheet);
     r.gradient = r.gradient * drown - 0.75f * rock_height * sheet_gradient +
