@@ -697,14 +697,14 @@ RELIEF_FN float relief_fine_fade(float cell, float footprint) {
 // warped point p + warp (Relief::warp), times the rock's amplitude (Relief::rock), each faded
 // by the pixel's footprint like the fine detail. Zero where the mesh carries them all.
 RELIEF_FN vec3 relief_rock_detail(vec3 p, vec3 warp, float rock, float spacing, float footprint) {
+  vec3 g = vec3(0.0f);
+  if (!(rock > 0.0f)) return g;  // no relief (off, or the flat meshes)
   float w1 = (1.0f - relief_octave_kept(kReliefRidgeSize, spacing)) *
              relief_fine_fade(kReliefRidgeSize, footprint);
   float w2 = (1.0f - relief_octave_kept(kReliefOctave2Size, spacing)) *
              relief_fine_fade(kReliefOctave2Size, footprint);
   float w3 = (1.0f - relief_octave_kept(kReliefOctave3Size, spacing)) *
              relief_fine_fade(kReliefOctave3Size, footprint);
-  vec3 g = vec3(0.0f);
-  if (!(rock > 0.0f)) return g;
   vec3 q = p + warp;
   if (w1 > 0.0f) {
     vec4 o1 = relief_ridge_noise(q);

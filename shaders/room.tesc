@@ -32,11 +32,6 @@ out float c_mineral[];
 out float c_rim[];
 
 uniform vec3 u_camera;           // anchor-relative
-uniform float u_max_tess;        // MaxTess; 1 disables tessellation
-uniform float u_max_dist;        // MaxDist, metres
-uniform int u_lod;               // 0 distance, 1 screen space, 2 silhouette
-uniform float u_pixel_scale;     // pixels spanned by 1 m seen face-on at 1 m distance
-uniform float u_target_pixels;   // screen space: pixels per tessellated segment
 uniform bool u_patch_culling;    // discard patches that are provably invisible
 uniform vec4 u_frustum[6];       // unit-normal planes (anchor-relative), inside positive
 uniform int u_surface;           // 0 flat, 1 PN triangles, 2 Phong tessellation (room.tese)
@@ -45,6 +40,7 @@ uniform float u_displacement;    // room.tese's relief strength and room radius
 uniform float u_room_radius;
 
 #pragma grotto_include "relief.glsl"
+#pragma grotto_include "lod.glsl"
 
 float distance_level(vec3 a, vec3 b) {
   // a + b is commutative bit for bit; `precise` keeps the compiler from contracting or
@@ -52,8 +48,7 @@ float distance_level(vec3 a, vec3 b) {
   precise vec3 mid = (a + b) * 0.5;
   precise vec3 d = mid - u_camera;
   precise float dist = sqrt(dot(d, d));
-  float x = clamp(dist / u_max_dist, 0.0, 1.0);
-  return max(1.0, u_max_tess * cos(x * 1.5707963267948966));
+  return tess_distance_level(dist);
 }
 
 float screen_space_level(vec3 a, vec3 b) {
@@ -61,8 +56,8 @@ float screen_space_level(vec3 a, vec3 b) {
   precise vec3 d = mid - u_camera;
   precise vec3 e = a - b;  // b - a is its exact negation: the same length
   precise float dist = max(sqrt(dot(d, d)), 1e-3);
-  precise float pixels = sqrt(dot(e, e)) * u_pixel_scale / dist;
-  return clamp(pixels / u_target_pixels, 1.0, u_max_tess);
+  precise float len = sqrt(dot(e, e));
+  return tess_screen_level(len, dist);
 }
 
 float silhouette_level(vec3 a, vec3 na, vec3 b, vec3 nb) {

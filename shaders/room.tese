@@ -35,16 +35,12 @@ uniform int u_surface;         // 0 flat, 1 PN triangles, 2 Phong tessellation
 uniform float u_phong_alpha;   // Phong tessellation shape factor (0.75 in the paper)
 uniform float u_displacement;  // relief strength: 1 the designed relief, 0 none
 uniform float u_room_radius;   // the room's sphere radius: speleothems grow with it
-// What room.tesc's level heuristic needs, to know the step the relief is sampled at:
+// With lod.glsl's uniforms, what it takes to know the step the relief is sampled at:
 uniform float u_patch_edge;    // the room's median patch edge, metres (0: sample exactly)
 uniform vec3 u_camera;         // anchor-relative
-uniform float u_max_tess;      // MaxTess
-uniform float u_max_dist;      // MaxDist, metres
-uniform int u_lod;             // 0 distance, 1 screen space, 2 silhouette
-uniform float u_pixel_scale;   // pixels spanned by 1 m seen face-on at 1 m distance
-uniform float u_target_pixels; // screen space: pixels per tessellated segment
 
 #pragma grotto_include "relief.glsl"
+#pragma grotto_include "lod.glsl"
 
 // ---- surfaces ----
 
@@ -147,13 +143,8 @@ float sample_spacing(vec3 p) {
   if (!(u_patch_edge > 0.0)) return 0.0;
   precise vec3 d = p - u_camera;
   precise float dist = sqrt(dot(d, d));
-  float level;
-  if (u_lod == 1) {
-    level = clamp(u_patch_edge * u_pixel_scale / (max(dist, 1e-3) * u_target_pixels), 1.0,
-                  u_max_tess);
-  } else {
-    level = max(1.0, u_max_tess * cos(clamp(dist / u_max_dist, 0.0, 1.0) * 1.5707963267948966));
-  }
+  float level = u_lod == 1 ? tess_screen_level(u_patch_edge, max(dist, 1e-3))
+                           : tess_distance_level(dist);
   return u_patch_edge / level;
 }
 

@@ -5,6 +5,7 @@
 #include "embedded_cl/cap_frag.hpp"
 #include "embedded_cl/cap_vert.hpp"
 #include "embedded_cl/lights_glsl.hpp"
+#include "embedded_cl/lod_glsl.hpp"
 #include "embedded_cl/post_bloom_frag.hpp"
 #include "embedded_cl/post_composite_frag.hpp"
 #include "embedded_cl/post_vert.hpp"
@@ -21,13 +22,16 @@ namespace {
 
 // GLSL has no #include: the line `#pragma grotto_include "relief.glsl"` is replaced by that file,
 // so the relief is written once for every stage that needs it (and for the CPU, relief.hpp);
-// likewise "lights.glsl" (the world's lights and flares, room.frag only).
+// likewise "lights.glsl" (the world's lights and flares, room.frag only) and "lod.glsl" (the
+// tessellation levels: room.tesc sets them, room.tese derives the relief's sampling step).
 std::string with_relief(std::string_view source) {
   std::string out(source);
   for (auto [line, text] : {std::pair{std::string_view("#pragma grotto_include \"relief.glsl\""),
                                       kernels::source_relief_glsl()},
                             std::pair{std::string_view("#pragma grotto_include \"lights.glsl\""),
-                                      kernels::source_lights_glsl()}}) {
+                                      kernels::source_lights_glsl()},
+                            std::pair{std::string_view("#pragma grotto_include \"lod.glsl\""),
+                                      kernels::source_lod_glsl()}}) {
     const size_t at = out.find(line);
     if (at != std::string::npos) out.replace(at, line.size(), text);
   }

@@ -93,6 +93,12 @@ TEST(Relief, a_stalactite_on_a_45_degree_ceiling_hangs_within_3_degrees_of_verti
   EXPECT_GT(axis_tilt_deg(root, hang, along_normal), 30.0);
 }
 
+// A point of the speleothem lattice's turned frame (relief_turn) in world space, at height y.
+glm::vec3 lattice_to_world(glm::vec2 t, float y) {
+  return {rl::kReliefTurnCos * t.x + rl::kReliefTurnSin * t.y, y,
+          -rl::kReliefTurnSin * t.x + rl::kReliefTurnCos * t.y};
+}
+
 // The lattice's speleothems over 60 x 60 cells (one per 1 m cell at most) in the longest room.
 std::map<std::pair<int, int>, rl::Speleothem> speleothems(float longest) {
   std::map<std::pair<int, int>, rl::Speleothem> out;
@@ -133,9 +139,7 @@ TEST(Relief, lengths_run_from_soda_straws_to_metres_with_max_over_median_at_leas
   const rl::Speleothem* big = nullptr;
   for (const auto& [cell, s] : all)
     if (!near_a_column(cell) && (!big || s.len > big->len)) big = &s;
-  const float u = big->centre.x, v = big->centre.y;
-  const glm::vec3 at{rl::kReliefTurnCos * u + rl::kReliefTurnSin * v, 0.0f,
-                     -rl::kReliefTurnSin * u + rl::kReliefTurnCos * v};
+  const glm::vec3 at = lattice_to_world(big->centre, 0.0f);
   auto hang = [&](float dx, bool ceiling) {
     return ceiling ? -relief(at + glm::vec3(dx, 8, 0), glm::vec3(0, -1, 0)).hang
                    : relief(at + glm::vec3(dx, 0, 0), glm::vec3(0, 1, 0)).hang;
@@ -197,11 +201,6 @@ TEST(Relief, speleothems_grow_in_rows_along_cracks_with_bare_rock_between) {
 // reaches.
 TEST(Relief, stalagmites_range_from_cones_to_candles) {
   const glm::vec3 up{0.0f, 1.0f, 0.0f};
-  // World x, z of a point of the turned lattice's frame (relief_turn's inverse).
-  const auto world = [](glm::vec2 t) {
-    return glm::vec3(rl::kReliefTurnCos * t.x + rl::kReliefTurnSin * t.y, 0.0f,
-                     -rl::kReliefTurnSin * t.x + rl::kReliefTurnCos * t.y);
-  };
   // Each stalagmite of 60 x 60 cells as relief_at makes it: the room's longest, shorter in bare
   // zones (the variety field), and its footprint's radius.
   struct Mite {
@@ -216,7 +215,8 @@ TEST(Relief, stalagmites_range_from_cones_to_candles) {
       const float longest =
           rl::relief_spike_length(kHall) *
           glm::mix(0.45f, 1.0f,
-                   glm::smoothstep(0.3f, 0.75f, rl::relief_variety(world(probe.centre))));
+                   glm::smoothstep(0.3f, 0.75f,
+                                   rl::relief_variety(lattice_to_world(probe.centre, 0.0f))));
       const rl::Speleothem sp = rl::relief_speleothem(glm::ivec2(x, z), longest);
       mites.push_back({sp.centre, glm::mix(2.0f, 1.55f, sp.form) * sp.radius});
     }
@@ -233,8 +233,10 @@ TEST(Relief, stalagmites_range_from_cones_to_candles) {
       const float a = 0.785398f * static_cast<float>(k);
       const glm::vec2 flank = m.centre + 0.6f * m.rf * glm::vec2(std::cos(a), std::sin(a));
       if (!clear(flank)) continue;
-      const float top = rl::relief_at(world(m.centre), up, 0.0f, 0.0f, kHall, 1.0f).hang;
-      const float side = rl::relief_at(world(flank), up, 0.0f, 0.0f, kHall, 1.0f).hang;
+      const float top =
+          rl::relief_at(lattice_to_world(m.centre, 0.0f), up, 0.0f, 0.0f, kHall, 1.0f).hang;
+      const float side =
+          rl::relief_at(lattice_to_world(flank, 0.0f), up, 0.0f, 0.0f, kHall, 1.0f).hang;
       ASSERT_GT(top, 0.0f);
       cones += side / top < 0.6f;
       candles += side / top > 0.8f;
@@ -264,10 +266,7 @@ TEST(Relief, sampled_coarsely_a_spike_is_drawn_two_steps_across_and_keeps_its_vo
     for (const auto& [other, t] : all)
       if (other != cell) nearest = std::min(nearest, glm::length(s.centre - t.centre));
     if (nearest < 0.95f) continue;
-    // The lattice's turned frame (relief_turn) back to world x, z.
-    const float u = s.centre.x, v = s.centre.y;
-    roots.emplace_back(rl::kReliefTurnCos * u + rl::kReliefTurnSin * v, 10.0f,
-                       -rl::kReliefTurnSin * u + rl::kReliefTurnCos * v);
+    roots.push_back(lattice_to_world(s.centre, 10.0f));
   }
   struct Drawn {
     double volume = 0;  // cubic metres below the ceiling
@@ -520,9 +519,7 @@ std::vector<glm::vec3> column_centres() {
     for (int x = -20; x < 20; ++x) {
       const rl::Speleothem s = rl::relief_speleothem(glm::ivec2(x, z), longest);
       if (s.len > 0 && s.level >= 0) {
-        const float u = s.centre.x, v = s.centre.y;
-        out.push_back({rl::kReliefTurnCos * u + rl::kReliefTurnSin * v, 0.0f,
-                       -rl::kReliefTurnSin * u + rl::kReliefTurnCos * v});
+        out.push_back(lattice_to_world(s.centre, 0.0f));
       }
     }
   return out;
