@@ -14,16 +14,20 @@
 # and prints one Markdown table with the machine (CPU model and flags, cores, load average, GPUs
 # that nvidia-smi lists). The JSON reports stay in --out.
 #
-#   bash bench/gpu.sh [--build-dir DIR] [--no-build] [--out DIR] [--quick]
+#   bash bench/gpu.sh [--build-dir DIR] [--no-build] [--out DIR] [--quick] [--devices LIST]
+#                     [--step-timeout S]
 #
 # --quick: 3 repetitions, 500 rooms, 4 s of frames (a smoke run); otherwise 5, 2,000 and 10 s.
+# --devices: the OpenCL keywords tried, comma-separated (default gpu,accelerator,cpu; a machine
+# whose own PoCL is known to abort can leave cpu out). --step-timeout: seconds each run may take
+# before it is stopped and reported as failed (default 900).
 # A device whose run fails or crashes is reported as such and the others go on (a machine's own
 # PoCL has crashed a server before: each device runs in its own process). Exit: 0 when the table
 # was printed, 1 when the build failed or nothing could run, 2 on a bad flag.
 set -u
 cd "$(dirname "$0")/.."
 
-build_dir=build-gpu build=1 out="" quick=0
+build_dir=build-gpu build=1 out="" quick=0 devices=gpu,accelerator,cpu step_timeout=900
 usage() { sed -n '2,/^set -u/p' "$0" | sed '$d' | sed 's/^# \{0,1\}//'; }
 while (($#)); do
   case "$1" in
@@ -31,12 +35,17 @@ while (($#)); do
     --no-build) build=0 ;;
     --out) out=${2:-} && shift ;;
     --quick) quick=1 ;;
+    --devices) devices=${2:-} && shift ;;
+    --step-timeout) step_timeout=${2:-} && shift ;;
     -h | --help) usage && exit 0 ;;
     *) echo "gpu.sh: unknown flag '$1' (--help lists them)" >&2 && exit 2 ;;
   esac
   shift
 done
 [[ -n "$build_dir" ]] || { echo "gpu.sh: --build-dir needs a directory" >&2; exit 2; }
+[[ "$step_timeout" =~ ^[1-9][0-9]*$ ]] || { echo "gpu.sh: --step-timeout must be whole seconds >= 1" >&2; exit 2; }
+[[ "$devices" =~ ^(gpu|accelerator|cpu)(,(gpu|accelerator|cpu))*$ ]] ||
+  { echo "gpu.sh: --devices takes gpu, accelerator and cpu, comma-separated" >&2; exit 2; }
 out=${out:-$build_dir/gpu-report}
 mkdir -p "$out" || { echo "gpu.sh: cannot create $out" >&2; exit 1; }
 if ((quick)); then reps=3 rooms=500 seconds=4; else reps=5 rooms=2000 seconds=10; fi
@@ -64,9 +73,9 @@ done
 
 # mesh_bench on each device keyword; the first keyword that reaches a device names it.
 found=()
-for d in gpu accelerator cpu; do
+for d in ${devices//,/ }; do
   echo "gpu.sh: mesh_bench --device $d" >&2
-  timeout 900 "$bin/mesh_bench" --device "$d" --repetitions "$reps" --json "$out/mesh-$d.json" \
+  timeout "$step_timeout" "$bin/mesh_bench" --device "$d" --repetitions "$reps" --json "$out/mesh-$d.json" \
     >"$out/mesh-$d.log" 2>&1
   rc=$?
   echo "$rc" >"$out/mesh-$d.rc"
@@ -77,7 +86,7 @@ EOF
 done
 
 echo "gpu.sh: server_bench --devices none ${found[*]}" >&2
-timeout 1800 "$bin/server_bench" --rooms "$rooms" --repetitions "$reps" --devices none "${found[@]}" \
+timeout "$step_timeout" "$bin/server_bench" --rooms "$rooms" --repetitions "$reps" --devices none "${found[@]}" \
   --json "$out/server.json" >"$out/server.log" 2>&1
 echo $? >"$out/server.rc"
 
@@ -91,7 +100,7 @@ for gl in "${renderers[@]}"; do
       flat) flags=(--no-tess) ;;
     esac
     echo "gpu.sh: grotto-client --bench $seconds --gl $gl ${flags[*]}" >&2
-    timeout 600 "$bin/grotto-client" --gl "$gl" --device none --width 1920 --height 1080 \
+    timeout "$step_timeout" "$bin/grotto-client" --gl "$gl" --device none --width 1920 --height 1080 \
       --bench "$seconds" "${flags[@]}" --json "$out/client-$gl-$setting.json" \
       >"$out/client-$gl-$setting.log" 2>&1
     echo $? >"$out/client-$gl-$setting.rc"
@@ -122,6 +131,8 @@ print("| --- | --- | --- |")
 seen, ran = set(), 0
 cpu_rows = None
 for d in ("gpu", "accelerator", "cpu"):
+    if not os.path.exists(os.path.join(out, f"mesh-{d}.rc")):
+        continue
     report = load(os.path.join(out, f"mesh-{d}.json"))
     if report is None:
         print(f"| mesh_bench --device {d} | - | failed (exit {rc(os.path.join(out, f'mesh-{d}.rc'))}) |")
