@@ -6,10 +6,12 @@
 # prints one Markdown table: the median of the runs and their spread (min-max) for stalls,
 # request->room p99 (all rooms, and the rooms requested due within a second: the next room a
 # player walks into), time to first room p99, rooms/s and, for a separate server, its CPU time
-# per room served; with the machine's 1-minute load average before each run and the CPU that
-# other processes took during it (the machine's busy time from /proc/stat less what
-# grotto-server and grotto-load used). A row with a run where others took more than --busy cores
-# (0.25 by default) is marked "busy": its figures are not the machine's.
+# per room served, and the cores grotto-server and grotto-load kept busy (on a machine that runs
+# both, a server that stops growing may be sharing its cores with its players); with the
+# machine's 1-minute load average before each run and the CPU that other processes took during
+# it (the machine's busy time from /proc/stat less what grotto-server and grotto-load used). A
+# row with a run where others took more than --busy cores (0.25 by default) is marked "busy":
+# its figures are not the machine's.
 #
 #   bash bench/capacity.sh [--runs N] [--duration S] [--rows LIST] [--build-dir DIR]
 #                          [--out DIR] [--busy CORES] [--no-build] [--load-flags "FLAGS"]
@@ -178,7 +180,11 @@ for row in "${selected[@]}"; do
       failed=1
       continue
     fi
-    echo "$load $others ${server_cpu:--}" >"$json.load"
+    # The cores grotto-server and grotto-load kept busy on average: on a machine that runs both,
+    # a server that cannot grow past N cores may only be sharing them with its players.
+    cores=$(awk -v c0="$c0" -v c1="$c1" -v s="${server_cpu:-0}" -v t0="$t0" -v t1="$t1" \
+      'BEGIN { d = t1 - t0; printf "%.2f %.2f", s / d, (c1 - c0 - s) / d }')
+    echo "$load $others ${server_cpu:--} $cores" >"$json.load"
   done
 done
 
@@ -194,8 +200,8 @@ def fmt(vals, digits=0):
     return f(med) if len(vals) == 1 else f"{f(med)} ({f(min(vals))}-{f(max(vals))})"
 print("| row | players | joined over | m/s | horizon | runs | stalls | request->room p99 ms "
       "| due within 1 s: p99 ms | first room p99 ms | rooms/s | server CPU ms/room "
-      "| load before / others' cores |")
-print("| --- | ---: | --- | ---: | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | --- |")
+      "| cores busy: server / grotto-load | load before / others' cores |")
+print("| --- | ---: | --- | ---: | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | --- |")
 for row in rows:
     name, where, players, ramp, speed, extra, *server_flags = row.split("|")
     runs = sorted(glob.glob(os.path.join(out, name + ".*.json")))
@@ -213,9 +219,12 @@ for row in rows:
     horizon = "fixed 4 s" if "--min-horizon 0" in extra else "adaptive (default)"
     joined = "at once" if ramp == "0" else f"{ramp} s"
     mark = " **busy**" if any(o > busy for o in others) else ""
+    server_cores = [float(l[3]) for l in loads if len(l) > 4 and l[2] != "-"]
+    load_cores = [float(l[4]) for l in loads if len(l) > 4]
+    busy_cores = (f"{fmt(server_cores, 1)} / " if server_cores else "- / ") + fmt(load_cores, 1)
     print(f"| {name} ({where}) | {int(players):,} | {joined} | {speed} | {horizon} | {len(res)} "
           f"| {fmt(stalls)} | {fmt(p99)} | {fmt(urgent)} | {fmt(first)} | {fmt(rate)} "
-          f"| {fmt(cpu_ms, 2)} "
+          f"| {fmt(cpu_ms, 2)} | {busy_cores} "
           f"| {', '.join(f'{l[0]} / {l[1]}' for l in loads)}{mark} |")
 PY
 exit $failed
