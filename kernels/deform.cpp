@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cstring>
 
 #include "embedded_cl/deform.hpp"
 #include "embedded_cl/deform_core.hpp"
@@ -170,29 +171,27 @@ Result<cl::Buffer*> DeformKernel::scratch(Scratch& s, cl_mem_flags flags, size_t
 Status DeformKernel::launch(std::span<const mesh::DeformInput> rooms,
                             std::span<DeformOutput> outputs, LaunchStats* stats) {
   const Clock::time_point t_prepare = Clock::now();
-  // The batch as groups of `lanes_` vertices of one room, each group carrying its room's index
-  // (thesis §4.2.1's obstacle: "each room must reference different portal data") and its place
-  // among the resident donor directions. A room's last group is padded (the donor's groups are).
+  // The batch as groups of `lanes_` vertices of one room (a room's last group padded, as the
+  // donor's groups are). The rooms' tables are all that goes up: a work item finds its room by its
+  // first vertex (thesis §4.2.1's obstacle: "each room must reference different portal data") and
+  // its directions from the room's place among the resident donor directions.
   const size_t lanes = static_cast<size_t>(lanes_);
   std::vector<uint32_t> first_dirs;  // per room: its donor's first group on the device
   if (Status s = upload_donors(rooms, first_dirs, stats); !s) return s;
-  std::vector<GrottoRoom> records;
-  std::vector<GrottoPortal> portals;
-  std::vector<uint32_t> group_room, group_dir;
+  std::vector<GrottoRoom>& records = host_rooms_;
+  std::vector<GrottoPortal>& portals = host_portals_;
+  records.clear();
+  portals.clear();
+  size_t groups = 0;
   for (size_t r = 0; r < rooms.size(); ++r) {
-    const auto& dirs = rooms[r].donor->directions;
     GrottoRoom rec = rooms[r].record;
     rec.first_portal = static_cast<uint32_t>(portals.size());
-    rec.first_vertex = static_cast<uint32_t>(group_room.size() * lanes);
+    rec.first_vertex = static_cast<uint32_t>(groups * lanes);
+    rec.first_direction = first_dirs[r];
     records.push_back(rec);
     portals.insert(portals.end(), rooms[r].portals.begin(), rooms[r].portals.end());
-    const size_t count = (dirs.size() + lanes - 1) / lanes;
-    for (size_t k = 0; k < count; ++k) {
-      group_room.push_back(static_cast<uint32_t>(r));
-      group_dir.push_back(first_dirs[r] + static_cast<uint32_t>(k));
-    }
+    groups += (rooms[r].donor->directions.size() + lanes - 1) / lanes;
   }
-  const size_t groups = group_room.size();
   if (groups == 0) return {};
   const size_t slots = groups * lanes;
   if (portals.empty()) portals.push_back({});  // no zero-size buffers; never read
@@ -202,16 +201,14 @@ Status DeformKernel::launch(std::span<const mesh::DeformInput> rooms,
   const Clock::time_point t_allocate = Clock::now();
   auto room_buf = scratch(rooms_, CL_MEM_READ_ONLY, records.size() * sizeof(GrottoRoom));
   auto portal_buf = scratch(portals_, CL_MEM_READ_ONLY, portals.size() * sizeof(GrottoPortal));
-  auto index_buf = scratch(group_rooms_, CL_MEM_READ_ONLY, groups * sizeof(uint32_t));
-  auto dir_index_buf = scratch(group_dirs_, CL_MEM_READ_ONLY, groups * sizeof(uint32_t));
   auto pos_buf = scratch(positions_, CL_MEM_WRITE_ONLY, 3 * slots * sizeof(float));
   auto clear_buf = scratch(clearance_, CL_MEM_WRITE_ONLY, slots * sizeof(float));
-  for (auto* b : {&room_buf, &portal_buf, &index_buf, &dir_index_buf, &pos_buf, &clear_buf}) {
+  for (auto* b : {&room_buf, &portal_buf, &pos_buf, &clear_buf}) {
     if (!*b) return b->error();
   }
-  if (Status s =
-          set_kernel_args(kernel_, shapes_, **room_buf, **portal_buf, **index_buf, **dir_index_buf,
-                          *donor_buffer_, **pos_buf, **clear_buf, static_cast<cl_uint>(groups));
+  if (Status s = set_kernel_args(kernel_, shapes_, **room_buf, static_cast<cl_uint>(records.size()),
+                                 **portal_buf, *donor_buffer_, **pos_buf, **clear_buf,
+                                 static_cast<cl_uint>(groups));
       !s) {
     return s;
   }
@@ -228,20 +225,13 @@ Status DeformKernel::launch(std::span<const mesh::DeformInput> rooms,
   // the padding): on PoCL's CPU device the driver's own choice was slower than fixed groups
   // (docs/BENCHMARKS.md).
   const size_t global = (groups + local_size_ - 1) / local_size_ * local_size_;
-  cl::Event writes[4], run, reads[2];
+  cl::Event writes[2], run, reads[2];
   auto enqueue = [&]() -> Status {
     if (Status s = enqueue_write(*ctx_, **room_buf, records.data(), records.size(), &writes[0]);
         !s) {
       return s;
     }
     if (Status s = enqueue_write(*ctx_, **portal_buf, portals.data(), portals.size(), &writes[1]);
-        !s) {
-      return s;
-    }
-    if (Status s = enqueue_write(*ctx_, **index_buf, group_room.data(), groups, &writes[2]); !s) {
-      return s;
-    }
-    if (Status s = enqueue_write(*ctx_, **dir_index_buf, group_dir.data(), groups, &writes[3]);
         !s) {
       return s;
     }
@@ -267,6 +257,11 @@ Status DeformKernel::launch(std::span<const mesh::DeformInput> rooms,
     out.positions.resize(count);
     out.clearance.assign(clearance.begin() + first, clearance.begin() + first + count);
     const float* group = &positions[3 * first];
+    if (lanes == 1) {  // x y z x y z ...: the vertices as they are
+      static_assert(sizeof(mesh::core::float3) == 3 * sizeof(float));
+      std::memcpy(out.positions.data(), group, count * sizeof(mesh::core::float3));
+      continue;
+    }
     for (size_t v = 0; v < count; v += lanes, group += 3 * lanes) {
       const size_t n = std::min(lanes, count - v);
       for (size_t l = 0; l < n; ++l)
@@ -284,8 +279,8 @@ Status DeformKernel::launch(std::span<const mesh::DeformInput> rooms,
     for (const cl::Event& e : reads)
       stats->download_ms += event_ms(e);
     stats->device_span_ms += event_span_ms(writes[0], reads[1]);
-    stats->upload_bytes += records.size() * sizeof(GrottoRoom) +
-                           portals.size() * sizeof(GrottoPortal) + 2 * groups * sizeof(uint32_t);
+    stats->upload_bytes +=
+        records.size() * sizeof(GrottoRoom) + portals.size() * sizeof(GrottoPortal);
     stats->download_bytes += 4 * slots * sizeof(float);
     stats->global_size = global;
     stats->local_size = local_size_;

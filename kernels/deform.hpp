@@ -118,7 +118,9 @@ class DeformKernel {
     size_t bytes = 0;
   };
   Result<cl::Buffer*> scratch(Scratch& s, cl_mem_flags flags, size_t bytes);
-  Scratch rooms_, portals_, group_rooms_, group_dirs_, positions_, clearance_;
+  Scratch rooms_, portals_, positions_, clearance_;
+  std::vector<mesh::core::GrottoRoom> host_rooms_;
+  std::vector<mesh::core::GrottoPortal> host_portals_;
   std::vector<float> host_positions_, host_clearance_;
   size_t local_size_ = 1;
   cl::Buffer shapes_;

@@ -58,7 +58,9 @@ typedef struct {
   /* A room's ceiling (cave::room_ceiling; ceiling_squash 0: none): above ceiling_y (room frame)
    * the wall is lowered by ceiling_squash x a ramp that eases in over ceiling_bend metres. */
   float ceiling_y, ceiling_bend, ceiling_squash;
-  float pad;
+  /* OpenCL only: the room's donor's first group of directions in the device's resident copy
+   * (kernels/deform.cl); the CPU paths read their donor directly. */
+  uint first_direction;
 } GrottoRoom;
 
 /* Noise and shape parameters of one level of detail. 32 floats/uints. */
