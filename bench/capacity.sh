@@ -180,11 +180,11 @@ for row in "${selected[@]}"; do
       failed=1
       continue
     fi
-    # The cores grotto-server and grotto-load kept busy on average: on a machine that runs both,
-    # a server that cannot grow past N cores may only be sharing them with its players.
-    cores=$(awk -v c0="$c0" -v c1="$c1" -v s="${server_cpu:-0}" -v t0="$t0" -v t1="$t1" \
-      'BEGIN { d = t1 - t0; printf "%.2f %.2f", s / d, (c1 - c0 - s) / d }')
-    echo "$load $others ${server_cpu:--} $cores" >"$json.load"
+    # grotto-load's CPU seconds (the children's less the server's): with the server's, the cores
+    # each kept busy over the load's run (the table divides by its elapsed_s). On a machine that
+    # runs both, a server that stops growing may be sharing its cores with its players.
+    load_cpu=$(awk -v c0="$c0" -v c1="$c1" -v s="${server_cpu:-0}" 'BEGIN { printf "%.3f", c1 - c0 - s }')
+    echo "$load $others ${server_cpu:--} $load_cpu" >"$json.load"
   done
 done
 
@@ -219,8 +219,10 @@ for row in rows:
     horizon = "fixed 4 s" if "--min-horizon 0" in extra else "adaptive (default)"
     joined = "at once" if ramp == "0" else f"{ramp} s"
     mark = " **busy**" if any(o > busy for o in others) else ""
-    server_cores = [float(l[3]) for l in loads if len(l) > 4 and l[2] != "-"]
-    load_cores = [float(l[4]) for l in loads if len(l) > 4]
+    server_cores = [float(l[2]) / r["elapsed_s"] for l, r in zip(loads, res)
+                    if len(l) > 3 and l[2] != "-" and r["elapsed_s"] > 0]
+    load_cores = [float(l[3]) / r["elapsed_s"] for l, r in zip(loads, res)
+                  if len(l) > 3 and r["elapsed_s"] > 0]
     busy_cores = (f"{fmt(server_cores, 1)} / " if server_cores else "- / ") + fmt(load_cores, 1)
     print(f"| {name} ({where}) | {int(players):,} | {joined} | {speed} | {horizon} | {len(res)} "
           f"| {fmt(stalls)} | {fmt(p99)} | {fmt(urgent)} | {fmt(first)} | {fmt(rate)} "
