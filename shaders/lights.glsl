@@ -4,10 +4,11 @@
 // view ray. The renderer fills the arrays from render::frame_lights (the same list
 // grotto-client --screenshot --json reports), the nearest GROTTO_MAX_LIGHTS at most.
 //
-// Falloff (cave/lights.hpp's convention): colour x intensity / (1 + d^2), windowed to zero at the
-// light's range by (1 - (d / range)^4)^2 (Karis 2013, "Real Shading in Unreal Engine 4"); the
-// 1 in 1 + d^2 keeps a source's own rock from going infinite. A glow-worm colony is an area of
-// pinpricks `size` metres across: size^2 + d^2, no hot centre.
+// Falloff (cave/lights.hpp's convention): colour x intensity / (r^2 + d^2), windowed to zero at
+// the light's range by (1 - (d / range)^4)^2 (Karis 2013, "Real Shading in Unreal Engine 4"),
+// where r is the source's radius (cave::light_source_radius, passed in u_light_glow.w): 1 m for a
+// flare; a glow-worm colony's patch; for a seam or crystals that light a hall, metres, so that the
+// rock beside them shows its grain instead of burning white.
 // Rock casts no shadows here, so a light stays in its room: it lights only what lies within its
 // bound (its room's sphere, a little grown for the relief), not the next room through the rock.
 // Haze: single scattering in a thin medium round each source, the in-scattered light along the
@@ -26,12 +27,13 @@ uniform int u_light_index[GROTTO_MAX_LIGHTS];      // which of the arrays' light
 uniform vec4 u_light_position[GROTTO_MAX_LIGHTS];  // xyz anchor-relative; w: range (m)
 uniform vec4 u_light_color[GROTTO_MAX_LIGHTS];     // rgb: linear colour x intensity at 1 m
 uniform vec4 u_light_glow[GROTTO_MAX_LIGHTS];      // x: glowing patch radius (m); y: GLOW_*;
-                                                   // z: the light's own number in [0, 1)
+                                                   // z: the light's own number in [0, 1);
+                                                   // w: the source's radius (m)
 uniform vec4 u_light_bound[GROTTO_MAX_LIGHTS];     // xyz anchor-relative centre; w: radius, 0: none
 uniform float u_headlamp;                          // 1: the headlamp is on; 0: off
 uniform float u_haze;                              // scattering per metre of the lit haze
 
-// soft: 1 for a point source; a glow-worm colony's size (an area of pinpricks, no hot centre).
+// soft: the source's radius (metres).
 float light_falloff(float d, float range, float soft) {
   float x = d / range;
   float window = clamp(1.0 - x * x * x * x, 0.0, 1.0);
@@ -117,7 +119,7 @@ vec3 lights_shade(vec3 p, vec3 world, vec3 s, vec3 v, vec3 albedo, float wrap, f
     if (inside <= 0.0) continue;
     vec3 l = to_light / max(d, 1e-4);
     int kind = int(u_light_glow[i].y + 0.5);
-    float soft = kind == GLOW_WORMS ? max(u_light_glow[i].x, 1.0) : 1.0;
+    float soft = u_light_glow[i].w;
     // A colony's larvae shine down and out, not along their own rock: its patch is unlit by it.
     float self_lit = kind == GLOW_WORMS ? smoothstep(0.5, 1.5, d / soft) : 1.0;
     vec3 radiance = u_light_color[i].rgb * (light_falloff(d, range, soft) * inside * self_lit);
@@ -184,8 +186,9 @@ vec3 lights_haze(vec3 c, vec3 p) {
     }
     vec3 to_light = u_light_position[i].xyz - c;
     float t0 = dot(to_light, v);
-    // A colony lights the haze from its whole patch: a wide, faint glow, no hot centre.
-    float soft = int(u_light_glow[i].y + 0.5) == GLOW_WORMS ? max(u_light_glow[i].x, 1.0) : 1.0;
+    // A colony lights the haze from its whole patch: a wide, faint glow, no hot centre. A seam's
+    // or crystals' halo stays a point's, a few metres round the source.
+    float soft = int(u_light_glow[i].y + 0.5) == GLOW_WORMS ? u_light_glow[i].w : 1.0;
     float a2 = soft * soft + max(dot(to_light, to_light) - t0 * t0, 0.0);
     float a = sqrt(a2);
     // The integral of 1 / (a^2 + u^2)^2 du: u / (2 a^2 (a^2 + u^2)) + atan(u / a) / (2 a^3).

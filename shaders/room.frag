@@ -151,7 +151,10 @@ void main() {
   float source_glow;
   color += lights_shade(t_position, world, s, v, albedo * occlusion, wrap, footprint, source_glow);
   glow = max(glow, source_glow);
-  vec3 haze = pow(aces(lights_haze(u_camera, t_position) * u_exposure), vec3(1.0 / 2.2));
+  // The haze's light, tone-mapped but not gamma-encoded before it is screened over the picture:
+  // encoded, a faint veil (0.05 linear) read as a quarter of the way to white, and within a few
+  // metres of a light the whole view went milky.
+  vec3 haze = aces(lights_haze(u_camera, t_position) * u_exposure);
 
   vec3 display = pow(aces(color * u_exposure), vec3(1.0 / 2.2));
   float fog = smoothstep(u_fog_start, u_fog_end, dist);

@@ -214,6 +214,7 @@ Result<std::vector<uint8_t>> region_glb(const GlbSource& source, std::span<const
                               {{"kind", kind},
                                {"facing", vec3(l.facing)},
                                {"size", l.size},
+                               {"source_radius", cave::light_source_radius(l)},
                                {"room", r.room->id.to_string()}}}});
       light_defs.push_back({{"name", kind},
                             {"type", "point"},

@@ -56,6 +56,7 @@ render::Light to_light(const cave::WorldLight& w, const cave::Room& room) {
              static_cast<float>(w.intensity);
   l.range = static_cast<float>(w.range);
   l.size = static_cast<float>(w.size);
+  l.source_radius = static_cast<float>(cave::light_source_radius(w));
   l.glow = static_cast<int>(w.kind);  // shaders/lights.glsl's GLOW_* follow cave::LightKind
   l.bound_centre = room.sphere.centre;
   l.bound_radius = static_cast<float>(kLightBoundScale * room.sphere.radius + kLightBoundMargin);
@@ -314,6 +315,15 @@ double lit_fraction(const std::vector<unsigned char>& rgb) {
   return rgb.empty() ? 0 : static_cast<double>(lit) / static_cast<double>(rgb.size() / 3);
 }
 
+// The share of pixels with a channel at 250 of 255 or more: light burnt to white (or to a pure
+// hue), the rock's grain lost under it.
+double clipped_fraction(const std::vector<unsigned char>& rgb) {
+  size_t clipped = 0;
+  for (size_t i = 0; i + 2 < rgb.size(); i += 3)
+    if (std::max({rgb[i], rgb[i + 1], rgb[i + 2]}) >= 250) ++clipped;
+  return rgb.empty() ? 0 : static_cast<double>(clipped) / static_cast<double>(rgb.size() / 3);
+}
+
 std::string position_text(Vec3 p) {
   char text[96];
   std::snprintf(text, sizeof text, "(%.2f, %.2f, %.2f)", p.x, p.y, p.z);
@@ -439,6 +449,7 @@ int screenshot(Session& s, render::Framebuffer& fb, Clock::time_point deadline) 
     report.mode = play::mode_name(s.player.mode());
     report.depth = depth;
     report.lit_depth = lit_depth;
+    report.clipped = clipped_fraction(rgb);
     report.lights = render::frame_lights(s.camera, s.render_options, scene_lights(s));
     report.rooms_loaded = s.cache.size();
     report.rooms_drawn = stats.rooms_drawn;

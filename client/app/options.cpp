@@ -173,7 +173,9 @@ std::optional<int> parse_options(int argc, char** argv, Options& o) {
                  "write what the picture shows beside it: depth_m (p10, median, p90 of the view "
                  "depth in metres along the view axis, over the pixels that show rock: the far "
                  "plane, the background, fog caps over portals and rock wholly in fog do not "
-                 "count), covered (the share of pixels that show rock), lights (each light "
+                 "count), covered (the share of pixels that show rock), lit_depth_m (the same "
+                 "over the rock that is lit), clipped (the share of pixels with a channel at "
+                 "250 of 255 or more: light burnt white), lights (each light "
                  "source lighting the frame: kind (headlamp, glow_worms, mineral_seam, crystals, "
                  "flare) and position), the pose, "
                  "seed, mode and size");

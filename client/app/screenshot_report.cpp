@@ -64,6 +64,7 @@ std::string screenshot_json(const ScreenshotReport& r) {
         {"median", number_or_null(r.lit_depth.counted > 0, r.lit_depth.median)},
         {"p90", number_or_null(r.lit_depth.counted > 0, r.lit_depth.p90)},
         {"covered", r.lit_depth.covered}}},
+      {"clipped", r.clipped},
       {"lights", lights},
       {"light_count", r.lights.size()},
       {"rooms_loaded", r.rooms_loaded},

@@ -40,6 +40,8 @@ struct ScreenshotReport {
   // The same over the pixels that show rock and are lit (any channel above 12 of 255, the
   // picture's own test for "lit"): how far the light reaches into the view.
   DepthSummary lit_depth;
+  // The share of pixels with a channel at 250 of 255 or more (light burnt white).
+  double clipped = 0;
   std::vector<render::Light> lights;
   size_t rooms_loaded = 0;
   int rooms_drawn = 0;

@@ -405,7 +405,8 @@ FrameStats Renderer::draw(const GpuRoomCache& cache, const Camera& camera, int w
       const Light& l = lights[i];
       position[n] = glm::vec4(to_vec3(l.position - anchor), std::max(l.range, 1e-3f));
       color[n] = glm::vec4(l.colour, 0.0f);
-      glow[n] = glm::vec4(l.size, static_cast<float>(l.glow), light_seed(l.position), 0.0f);
+      glow[n] = glm::vec4(l.size, static_cast<float>(l.glow), light_seed(l.position),
+                          std::max(l.source_radius, 0.05f));
       bound[n] = glm::vec4(to_vec3(l.bound_centre - anchor), std::max(l.bound_radius, 0.0f));
       points.push_back(&l);
     }

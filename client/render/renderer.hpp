@@ -110,10 +110,11 @@ struct FrameStats {
 struct Light {
   std::string kind;
   Vec3 position;
-  glm::vec3 colour{0.0f};  // linear RGB x intensity at 1 m
-  float range = 0;         // metres where its light reaches zero
-  float size = 0;          // metres: the glowing patch of rock round the source
-  int glow = 0;            // the patch's pattern: shaders/lights.glsl's GLOW_* (3: a flare)
+  glm::vec3 colour{0.0f};   // linear RGB x intensity at 1 m
+  float range = 0;          // metres where its light reaches zero
+  float size = 0;           // metres: the glowing patch of rock round the source
+  float source_radius = 1;  // metres: the r of its falloff 1 / (r^2 + d^2) (cave/lights.hpp)
+  int glow = 0;             // the patch's pattern: shaders/lights.glsl's GLOW_* (3: a flare)
   // It lights only rock within this sphere (its room's, grown for the relief: the rock between
   // rooms casts no shadow in the shader); radius 0: everywhere in range.
   Vec3 bound_centre{};

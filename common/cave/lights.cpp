@@ -112,6 +112,19 @@ const char* light_kind_name(LightKind kind) {
   return "unknown";
 }
 
+double light_source_radius(const WorldLight& light) {
+  if (light.kind == LightKind::kGlowWorms) return std::max(light.size, 1.0);
+  return std::max(kSourceRadiusPerRange * light.range, 1.0);
+}
+
+double light_falloff(const WorldLight& light, double d) {
+  if (light.range <= 0 || d >= light.range) return 0;
+  const double x = d / light.range;
+  const double window = std::clamp(1 - x * x * x * x, 0.0, 1.0);
+  const double r = light_source_radius(light);
+  return window * window / (r * r + d * d);
+}
+
 std::vector<WorldLight> room_lights(uint64_t seed, const LayoutParams& layout, const Room& room,
                                     const LightParams& p) {
   Rng rng(hash_words(seed, kLightStream, room.id.packed()));

@@ -32,10 +32,10 @@ inline constexpr int kLightKindCount = 3;
 // "glow_worms", "mineral_seam", "crystals": the names reports and glTF extras use.
 const char* light_kind_name(LightKind kind);
 
-// A point light. Shading convention (shaders/lights.glsl and what an engine should match): the
-// radiance reaching a point at distance d is colour * intensity / (1 + d^2), windowed to zero at
-// `range` by (1 - (d / range)^4)^2 (Karis, "Real Shading in Unreal Engine 4", 2013); a glow-worm
-// colony, an area of pinpricks, takes max(size, 1)^2 + d^2 instead of 1 + d^2.
+// A light. Shading convention (shaders/lights.glsl and what an engine should match): the
+// radiance reaching a point at distance d is colour * intensity * light_falloff(light, d):
+// 1 / (r^2 + d^2) for a source of radius r = light_source_radius(light), windowed to zero at
+// `range` by (1 - (d / range)^4)^2 (Karis, "Real Shading in Unreal Engine 4", 2013).
 struct WorldLight {
   LightKind kind = LightKind::kGlowWorms;
   Vec3 position;  // world metres: inside the room's space, above its floor
@@ -68,6 +68,18 @@ struct LightParams {
   // any room size.
   double intensity_per_range2 = 0.06;
 };
+
+// How wide a light's source is, in metres (the r of 1 / (r^2 + d^2)). A glow-worm colony is an
+// area of pinpricks: max(size, 1). A seam or a crystal cluster bright enough to light a hall to
+// its far wall is a source metres across: kSourceRadiusPerRange x range, at least 1 m, so the rock
+// beside it is lit as a wall a few metres from a point would be, not burnt white, while the far
+// wall keeps its light (at 20 m in a hall lit to 40 m: 92 % of what a point source gives).
+inline constexpr double kSourceRadiusPerRange = 0.15;
+double light_source_radius(const WorldLight& light);
+
+// The share of colour * intensity that reaches distance d (metres) from the light: the shading
+// convention above, in one function (collision-free gameplay light levels, engines, tests).
+double light_falloff(const WorldLight& light, double d);
 
 // The room's lights, in the order they were drawn (deterministic). Any room of the world with
 // its portals (cave::room); `layout` gives its floor (floor_height). Lights keep clear of every

@@ -150,5 +150,44 @@ TEST(WorldLights, glow_worms_hang_on_ceilings_and_crystals_lie_low) {
     EXPECT_GT(kinds[k], 0) << light_kind_name(static_cast<LightKind>(k));
 }
 
+// The falloff an engine matches (cave/lights.hpp): a hall's seams and crystals are sources metres
+// across, so the rock beside one is lit as a wall a few metres from a point would be, not burnt
+// white, while the hall's far wall keeps nearly all its light; glow-worm colonies keep their
+// patch's width; a light reaches nothing at its range.
+TEST(WorldLights,
+     a_halls_lights_are_wide_sources_that_light_its_far_wall_and_spare_their_own_rock) {
+  int hall_lights = 0;
+  for (uint64_t seed : {3ull, 7ull, 95ull}) {
+    const LayoutParams layout;
+    for (const Room& room : sample(seed).rooms) {
+      if (!floor_height(layout, room.sphere)) continue;
+      for (const WorldLight& l : room_lights(seed, layout, room)) {
+        ASSERT_GT(l.range, 0.0);
+        EXPECT_EQ(light_falloff(l, l.range), 0.0);
+        EXPECT_EQ(light_falloff(l, 2 * l.range), 0.0);
+        for (double d = 0; d < l.range; d += 0.5)
+          EXPECT_GE(light_falloff(l, d), light_falloff(l, d + 0.5));
+        const double r = light_source_radius(l);
+        if (l.kind == LightKind::kGlowWorms) {
+          EXPECT_EQ(r, std::max(l.size, 1.0));
+          continue;
+        }
+        ++hall_lights;
+        // The light a point source would give at d, windowed alike.
+        auto point = [&](double d) { return light_falloff(l, d) * (r * r + d * d) / (1 + d * d); };
+        // Beside it (0.5 m), at most a tenth of what a point would burn into the rock...
+        EXPECT_LT(light_falloff(l, 0.5), 0.1 * point(0.5)) << "range " << l.range;
+        // ...at most 20 times what reaches across the hall, half its range off (a point: 100s of
+        // times)...
+        const double across = 0.5 * l.range;
+        EXPECT_LT(light_falloff(l, 0.5), 20 * light_falloff(l, across)) << "range " << l.range;
+        // ...and there the far wall keeps 90 % of a point's light.
+        EXPECT_GT(light_falloff(l, across), 0.9 * point(across)) << "range " << l.range;
+      }
+    }
+  }
+  EXPECT_GE(hall_lights, 5);
+}
+
 }  // namespace
 }  // namespace grotto::cave

@@ -510,6 +510,8 @@ TEST_F(GlbExport, the_worlds_lights_are_child_nodes_with_punctual_point_lights) 
       ++lights;
       const json& child = nodes[node["children"][k].get<size_t>()];
       EXPECT_EQ(child["extras"]["kind"], cave::light_kind_name(want[k].kind));
+      EXPECT_DOUBLE_EQ(child["extras"]["source_radius"].get<double>(),
+                       cave::light_source_radius(want[k]));
       const Vec3 at = parent + Vec3{child["translation"][0].get<double>(),
                                     child["translation"][1].get<double>(),
                                     child["translation"][2].get<double>()};
