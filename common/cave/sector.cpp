@@ -2,6 +2,7 @@
 #include <algorithm>
 #include <cassert>
 #include <cmath>
+#include <cstdlib>
 #include <optional>
 
 #include "cave/layout.hpp"
@@ -148,7 +149,9 @@ class SectorBuilder {
     // Any two spheres that can interact are within one cell of each other.
     cell_ = 2.0 * max_room_radius(params) + std::max(params.wall_clearance, params.portal_gap);
     dim_ = static_cast<int>(std::ceil(params.sector_size / cell_)) + 2;
-    grid_.resize(static_cast<size_t>(dim_) * dim_ * dim_);
+    fine_cell_ = std::max(kFineCell, params.sector_size / kMaxFineCells);
+    fine_dim_ = static_cast<int>(std::ceil(params.sector_size / fine_cell_)) + 2;
+    fine_.resize(static_cast<size_t>(fine_dim_) * fine_dim_ * fine_dim_);
     for (const Room& g : gates)
       add(g.sphere, g.id, {});
     gate_count_ = static_cast<int>(nodes_.size());
@@ -506,7 +509,18 @@ class SectorBuilder {
       nodes_[e.b].edges.push_back(index);
       unite(n, e.b);
     }
-    grid_[cell_index(s.centre)].push_back({s, n});
+    cells_.push_back({cell_index(s.centre), cell_coord(s.centre.x, 0), cell_coord(s.centre.y, 1),
+                      cell_coord(s.centre.z, 2)});
+    // Into every fine cell its bounding box touches.
+    int from[3], to[3];
+    for (int a = 0; a < 3; ++a) {
+      from[a] = fine_coord(s.centre[a] - s.radius, a);
+      to[a] = fine_coord(s.centre[a] + s.radius, a);
+    }
+    for (int x = from[0]; x <= to[0]; ++x)
+      for (int y = from[1]; y <= to[1]; ++y)
+        for (int z = from[2]; z <= to[2]; ++z)
+          fine_[(static_cast<size_t>(x) * fine_dim_ + y) * fine_dim_ + z].push_back({s, n});
     return n;
   }
 
@@ -514,30 +528,56 @@ class SectorBuilder {
     int c = static_cast<int>(std::floor((v - lo_[axis]) / cell_)) + 1;
     return std::clamp(c, 0, dim_ - 1);
   }
-  size_t cell_index(Vec3 p) const {
-    return (static_cast<size_t>(cell_coord(p.x, 0)) * dim_ + cell_coord(p.y, 1)) * dim_ +
-           cell_coord(p.z, 2);
+  int cell_index(Vec3 p) const {
+    return (cell_coord(p.x, 0) * dim_ + cell_coord(p.y, 1)) * dim_ + cell_coord(p.z, 2);
+  }
+  int fine_coord(double v, int axis) const {
+    int c = static_cast<int>(std::floor((v - lo_[axis]) / fine_cell_)) + 1;
+    return std::clamp(c, 0, fine_dim_ - 1);
   }
 
-  // Spatial index (thesis §3.1.2): the spheres whose gap to s is below `margin`, found in the 27
-  // cells around s's centre (complete for margins up to the one the cell size was chosen for).
-  // The order is the grid's, which depends only on what was added: deterministic. Into `out`
-  // (cleared first): each caller keeps its own buffer (near_*_ below), so the layout's ~13,000
-  // queries a sector allocate nothing.
+  // Spatial index (thesis §3.1.2): the spheres whose gap to s is below `margin` and whose centre
+  // lies in the 27 coarse cells around s's (complete for margins up to the one the coarse cell
+  // size was chosen for: twice the largest hall). The order is the coarse grid's (cell by cell,
+  // then as added), which depends only on what was added: deterministic, and the layout's
+  // definition. The candidates come from the fine grid (spheres listed in every fine cell their
+  // box touches), so a query reads the few spheres near s rather than, with halls making the
+  // coarse cells 70 m wide, most of the sector. Into `out` (cleared first): each caller keeps its
+  // own buffer (near_*_ below).
   void nearby(const Sphere& s, double margin, std::vector<int>& out) const {
     out.clear();
-    int cx = cell_coord(s.centre.x, 0), cy = cell_coord(s.centre.y, 1),
-        cz = cell_coord(s.centre.z, 2);
-    for (int x = std::max(cx - 1, 0); x <= std::min(cx + 1, dim_ - 1); ++x) {
-      for (int y = std::max(cy - 1, 0); y <= std::min(cy + 1, dim_ - 1); ++y) {
-        for (int z = std::max(cz - 1, 0); z <= std::min(cz + 1, dim_ - 1); ++z) {
-          for (const Cell& c : grid_[(static_cast<size_t>(x) * dim_ + y) * dim_ + z]) {
-            double reach = s.radius + c.sphere.radius + margin;
-            if (length_squared(c.sphere.centre - s.centre) < reach * reach) out.push_back(c.node);
+    const int cx = cell_coord(s.centre.x, 0), cy = cell_coord(s.centre.y, 1),
+              cz = cell_coord(s.centre.z, 2);
+    int from[3], to[3];
+    for (int a = 0; a < 3; ++a) {
+      from[a] = fine_coord(s.centre[a] - s.radius - margin, a);
+      to[a] = fine_coord(s.centre[a] + s.radius + margin, a);
+    }
+    if (++seen_stamp_ == 0) {  // wrapped: forget every stamp
+      std::fill(seen_.begin(), seen_.end(), 0);
+      seen_stamp_ = 1;
+    }
+    seen_.resize(nodes_.size(), 0);
+    auto consider = [&](const Cell& c) {
+      const Coarse& o = cells_[c.node];
+      if (std::abs(o.x - cx) > 1 || std::abs(o.y - cy) > 1 || std::abs(o.z - cz) > 1) return;
+      double reach = s.radius + c.sphere.radius + margin;
+      if (length_squared(c.sphere.centre - s.centre) < reach * reach) out.push_back(c.node);
+    };
+    for (int x = from[0]; x <= to[0]; ++x) {
+      for (int y = from[1]; y <= to[1]; ++y) {
+        for (int z = from[2]; z <= to[2]; ++z) {
+          for (const Cell& c : fine_[(static_cast<size_t>(x) * fine_dim_ + y) * fine_dim_ + z]) {
+            if (seen_[c.node] == seen_stamp_) continue;
+            seen_[c.node] = seen_stamp_;
+            consider(c);
           }
         }
       }
     }
+    std::sort(out.begin(), out.end(), [this](int a, int b) {
+      return cells_[a].index != cells_[b].index ? cells_[a].index < cells_[b].index : a < b;
+    });
   }
 
   int find(int i) {
@@ -573,13 +613,24 @@ class SectorBuilder {
   std::vector<Node> nodes_;
   std::vector<Edge> edges_;
   std::vector<int> parent_;
-  // Each cell holds its spheres by value beside their node index: a query reads them in one
-  // contiguous run instead of one node (and cache line) each, in the same order.
+  // The coarse cell of each node's centre (nearby()'s neighbourhood and order), and the fine
+  // grid: each fine cell holds the spheres whose box touches it, by value beside their node index
+  // (a query reads them in contiguous runs).
+  struct Coarse {
+    int index, x, y, z;
+  };
+  std::vector<Coarse> cells_;
   struct Cell {
     Sphere sphere;
     int node;
   };
-  std::vector<std::vector<Cell>> grid_;
+  static constexpr double kFineCell = 12.0;    // metres
+  static constexpr double kMaxFineCells = 16;  // a side, whatever the sector size
+  double fine_cell_ = 1;
+  int fine_dim_ = 1;
+  std::vector<std::vector<Cell>> fine_;
+  mutable std::vector<uint32_t> seen_;  // nearby()'s stamps, one a node
+  mutable uint32_t seen_stamp_ = 0;
   std::vector<uint32_t> visited_;  // scratch for hops_apart
   // nearby()'s answers, one buffer per caller so that no answer is overwritten while in use.
   mutable std::vector<int> near_shrink_, near_hub_, near_loops_, near_place_;
