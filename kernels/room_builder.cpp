@@ -5,35 +5,11 @@
 #include <atomic>
 #include <cassert>
 #include <cstring>
-#include <functional>
 #include <thread>
 
+#include "core/parallel.hpp"
+
 namespace grotto::kernels {
-namespace {
-
-// f(0) ... f(count - 1) on `threads` threads (the caller's one of them), each index once.
-void for_each_index(size_t count, int threads, const std::function<void(size_t)>& f) {
-  size_t extra = std::min(static_cast<size_t>(std::max(threads, 1)), count) - (count > 0);
-  if (extra == 0) {
-    for (size_t i = 0; i < count; ++i)
-      f(i);
-    return;
-  }
-  std::atomic<size_t> next{0};
-  auto work = [&] {
-    for (size_t i = next++; i < count; i = next++)
-      f(i);
-  };
-  std::vector<std::thread> pool;
-  pool.reserve(extra);
-  for (size_t t = 0; t < extra; ++t)
-    pool.emplace_back(work);
-  work();
-  for (std::thread& t : pool)
-    t.join();
-}
-
-}  // namespace
 
 RoomBuilder::RoomBuilder(const mesh::MeshContext& mesh_ctx) : mesh_ctx_(&mesh_ctx) {}
 RoomBuilder::RoomBuilder(RoomBuilder&&) noexcept = default;

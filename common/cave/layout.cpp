@@ -6,6 +6,7 @@
 #include <map>
 
 #include "core/bytes.hpp"
+#include "core/parallel.hpp"
 #include "core/random.hpp"
 
 namespace grotto::cave {
@@ -202,33 +203,24 @@ const Room* Region::find(RoomId id) const {
   return find_room(rooms, id);
 }
 
-Region generate_region(const World& world, SectorCoord lo, SectorCoord hi) {
+Region generate_region(const World& world, SectorCoord lo, SectorCoord hi, int threads) {
   Region region{lo, hi, {}, {}};
-  std::map<SectorCoord, SectorLayout> outside;
   auto in_block = [&](SectorCoord s) {
     for (int a = 0; a < 3; ++a) {
       if (s[a] < lo[a] || s[a] > hi[a]) return false;
     }
     return true;
   };
+  std::vector<SectorCoord> block;
   for (int x = lo.x; x <= hi.x; ++x) {
     for (int y = lo.y; y <= hi.y; ++y) {
-      for (int z = lo.z; z <= hi.z; ++z) {
-        region.sectors.push_back(generate_sector(world, {x, y, z}));
-      }
+      for (int z = lo.z; z <= hi.z; ++z)
+        block.push_back({x, y, z});
     }
   }
-  auto layout_of = [&](SectorCoord s) -> const SectorLayout& {
-    if (in_block(s)) {
-      size_t i = ((static_cast<size_t>(s.x - lo.x) * (hi.y - lo.y + 1)) + (s.y - lo.y)) *
-                     (hi.z - lo.z + 1) +
-                 (s.z - lo.z);
-      return region.sectors[i];
-    }
-    auto it = outside.find(s);
-    if (it == outside.end()) it = outside.emplace(s, generate_sector(world, s)).first;
-    return it->second;
-  };
+  region.sectors.resize(block.size());
+  for_each_index(block.size(), threads,
+                 [&](size_t i) { region.sectors[i] = generate_sector(world, block[i]); });
   std::vector<RoomId> gate_ids;
   for (const SectorLayout& layout : region.sectors) {
     region.rooms.insert(region.rooms.end(), layout.rooms.begin(), layout.rooms.end());
@@ -237,11 +229,31 @@ Region generate_region(const World& world, SectorCoord lo, SectorCoord hi) {
   }
   std::sort(gate_ids.begin(), gate_ids.end());
   gate_ids.erase(std::unique(gate_ids.begin(), gate_ids.end()), gate_ids.end());
+  // A gate of the block's boundary also needs the sector beyond it.
+  std::map<SectorCoord, SectorLayout> outside;
+  for (RoomId id : gate_ids) {
+    for (SectorCoord s : {id.sector(), neighbour(id.sector(), id.gate_axis(), 1)}) {
+      if (!in_block(s)) outside.emplace(s, SectorLayout{});
+    }
+  }
+  std::vector<std::map<SectorCoord, SectorLayout>::iterator> pending;
+  for (auto it = outside.begin(); it != outside.end(); ++it)
+    pending.push_back(it);
+  for_each_index(pending.size(), threads,
+                 [&](size_t i) { pending[i]->second = generate_sector(world, pending[i]->first); });
+  auto layout_of = [&](SectorCoord s) -> const SectorLayout& {
+    if (in_block(s)) {
+      size_t i = ((static_cast<size_t>(s.x - lo.x) * (hi.y - lo.y + 1)) + (s.y - lo.y)) *
+                     (hi.z - lo.z + 1) +
+                 (s.z - lo.z);
+      return region.sectors[i];
+    }
+    return outside.at(s);
+  };
   for (RoomId id : gate_ids) {
     SectorCoord lower = id.sector();
     SectorCoord upper = neighbour(lower, id.gate_axis(), 1);
-    const SectorLayout& a = layout_of(lower);
-    region.rooms.push_back(merge_gate(a, layout_of(upper), id));
+    region.rooms.push_back(merge_gate(layout_of(lower), layout_of(upper), id));
   }
   std::sort(region.rooms.begin(), region.rooms.end(),
             [](const Room& a, const Room& b) { return a.id < b.id; });

@@ -159,7 +159,10 @@ struct Region {
   std::vector<SectorLayout> sectors;  // the block's sectors in x-major order
   const Room* find(RoomId id) const;  // nullptr when the room is not in the region
 };
-Region generate_region(const World& world, SectorCoord lo, SectorCoord hi);
+// Its sectors (and the sectors beyond its faces whose gates it needs) are laid out on `threads`
+// threads, the caller's one of them: each sector is a pure function of the world and its
+// coordinates, so the region is the same bytes whatever the count.
+Region generate_region(const World& world, SectorCoord lo, SectorCoord hi, int threads = 1);
 
 // Canonical little-endian bytes of a room (ids packed, doubles as IEEE bits): the basis of
 // determinism tests and digests.

@@ -116,5 +116,19 @@ TEST(LayoutDeterminism, golden_digest_for_seed_42) {
   EXPECT_EQ(spawn_room(world).to_string(), "0.0.0.r25");
 }
 
+// Laid out on several threads, a region is the same bytes as on one: its sectors and the sectors
+// beyond its faces, in any order.
+TEST(LayoutDeterminism, a_region_laid_out_on_threads_is_the_same) {
+  World world = test_world(42);
+  const Region one = generate_region(world, {0, 0, 0}, {1, 1, 1});
+  for (int threads : {2, 5}) {
+    const Region many = generate_region(world, {0, 0, 0}, {1, 1, 1}, threads);
+    EXPECT_EQ(digest(many.rooms), digest(one.rooms)) << threads << " threads";
+    ASSERT_EQ(many.sectors.size(), one.sectors.size());
+    for (size_t i = 0; i < one.sectors.size(); ++i)
+      EXPECT_EQ(digest(many.sectors[i].rooms), digest(one.sectors[i].rooms));
+  }
+}
+
 }  // namespace
 }  // namespace grotto::cave
