@@ -307,21 +307,24 @@ std::string stream_refusal(const Session& s) {
   return "the server refused the stream: " + s.stream.stats().last_error;
 }
 
+// The share of pixels whose brightest channel passes `test`.
+template <class Test>
+double pixel_share(const std::vector<unsigned char>& rgb, Test test) {
+  size_t n = 0;
+  for (size_t i = 0; i + 2 < rgb.size(); i += 3)
+    if (test(std::max({rgb[i], rgb[i + 1], rgb[i + 2]}))) ++n;
+  return rgb.empty() ? 0 : static_cast<double>(n) / static_cast<double>(rgb.size() / 3);
+}
+
 // The share of pixels brighter than the dark beyond the lamp: a picture of the cave has many.
 double lit_fraction(const std::vector<unsigned char>& rgb) {
-  size_t lit = 0;
-  for (size_t i = 0; i + 2 < rgb.size(); i += 3)
-    if (std::max({rgb[i], rgb[i + 1], rgb[i + 2]}) > 12) ++lit;
-  return rgb.empty() ? 0 : static_cast<double>(lit) / static_cast<double>(rgb.size() / 3);
+  return pixel_share(rgb, [](unsigned char c) { return c > 12; });
 }
 
 // The share of pixels with a channel at 250 of 255 or more: light burnt to white (or to a pure
 // hue), the rock's grain lost under it.
 double clipped_fraction(const std::vector<unsigned char>& rgb) {
-  size_t clipped = 0;
-  for (size_t i = 0; i + 2 < rgb.size(); i += 3)
-    if (std::max({rgb[i], rgb[i + 1], rgb[i + 2]}) >= 250) ++clipped;
-  return rgb.empty() ? 0 : static_cast<double>(clipped) / static_cast<double>(rgb.size() / 3);
+  return pixel_share(rgb, [](unsigned char c) { return c >= 250; });
 }
 
 std::string position_text(Vec3 p) {

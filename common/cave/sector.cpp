@@ -511,6 +511,7 @@ class SectorBuilder {
     }
     cells_.push_back({cell_index(s.centre), cell_coord(s.centre.x, 0), cell_coord(s.centre.y, 1),
                       cell_coord(s.centre.z, 2)});
+    seen_.push_back(0);
     // Into every fine cell its bounding box touches.
     int from[3], to[3];
     for (int a = 0; a < 3; ++a) {
@@ -557,7 +558,6 @@ class SectorBuilder {
       std::fill(seen_.begin(), seen_.end(), 0);
       seen_stamp_ = 1;
     }
-    seen_.resize(nodes_.size(), 0);
     auto consider = [&](const Cell& c) {
       const Coarse& o = cells_[c.node];
       if (std::abs(o.x - cx) > 1 || std::abs(o.y - cy) > 1 || std::abs(o.z - cz) > 1) return;
@@ -629,7 +629,7 @@ class SectorBuilder {
   double fine_cell_ = 1;
   int fine_dim_ = 1;
   std::vector<std::vector<Cell>> fine_;
-  mutable std::vector<uint32_t> seen_;  // nearby()'s stamps, one a node
+  mutable std::vector<uint32_t> seen_;  // nearby()'s stamps, one a node (grown by add)
   mutable uint32_t seen_stamp_ = 0;
   std::vector<uint32_t> visited_;  // scratch for hops_apart
   // nearby()'s answers, one buffer per caller so that no answer is overwritten while in use.
