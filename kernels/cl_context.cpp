@@ -5,6 +5,7 @@
 #include <cctype>
 #include <cstdlib>
 #include <exception>
+#include <utility>
 #include <vector>
 
 #include "kernels/binary_cache.hpp"
@@ -284,6 +285,57 @@ Status enqueue_1d(const ComputeContext& ctx, const cl::Kernel& kernel, size_t gl
   GROTTO_CL_TRY(ctx.queue().enqueueNDRangeKernel(kernel, cl::NullRange, cl::NDRange(global_size),
                                                  cl::NullRange));
   return {};
+}
+
+Result<PinnedHost> PinnedHost::create(const ComputeContext& ctx, size_t bytes) {
+  if (bytes == 0) return invalid_argument("PinnedHost: zero bytes (no zero-size CL buffers)");
+  cl_int code = CL_SUCCESS;
+  cl::Buffer buffer(ctx.context(), CL_MEM_ALLOC_HOST_PTR | CL_MEM_READ_WRITE, bytes, nullptr,
+                    &code);
+  if (code != CL_SUCCESS)
+    return cl_error(code, "clCreateBuffer(ALLOC_HOST_PTR)", __FILE__, __LINE__);
+  void* data = ctx.queue().enqueueMapBuffer(buffer, CL_TRUE, CL_MAP_READ | CL_MAP_WRITE, 0, bytes,
+                                            nullptr, nullptr, &code);
+  if (code != CL_SUCCESS) return cl_error(code, "clEnqueueMapBuffer", __FILE__, __LINE__);
+  PinnedHost host;
+  host.queue_ = ctx.queue();
+  host.buffer_ = std::move(buffer);
+  host.data_ = data;
+  host.bytes_ = bytes;
+  return host;
+}
+
+PinnedHost::PinnedHost(PinnedHost&& other) noexcept
+    : queue_(std::move(other.queue_)),
+      buffer_(std::move(other.buffer_)),
+      data_(std::exchange(other.data_, nullptr)),
+      bytes_(std::exchange(other.bytes_, 0)) {}
+
+PinnedHost& PinnedHost::operator=(PinnedHost&& other) noexcept {
+  if (this != &other) {
+    release();
+    queue_ = std::move(other.queue_);
+    buffer_ = std::move(other.buffer_);
+    data_ = std::exchange(other.data_, nullptr);
+    bytes_ = std::exchange(other.bytes_, 0);
+  }
+  return *this;
+}
+
+PinnedHost::~PinnedHost() {
+  release();
+}
+
+void PinnedHost::release() {
+  if (data_ == nullptr) return;
+  // Nothing to report from a destructor: a failed unmap leaves the driver to free the buffer with
+  // its context.
+  cl::Event unmapped;
+  if (queue_.enqueueUnmapMemObject(buffer_, data_, nullptr, &unmapped) == CL_SUCCESS) {
+    unmapped.wait();
+  }
+  data_ = nullptr;
+  bytes_ = 0;
 }
 
 double event_ms(const cl::Event& event) {

@@ -247,6 +247,34 @@ Status read_buffer(const ComputeContext& ctx, const cl::Buffer& buffer, T* out, 
   return {};
 }
 
+// Host memory that the device reads into (and writes from) at the bus's full speed where the
+// driver pins it (CL_MEM_ALLOC_HOST_PTR, mapped once and kept mapped: NVIDIA's page-locked
+// memory; on PoCL's CPU device plain host memory), for the destination of read_buffer on other
+// buffers. Move-only; its destructor unmaps and releases it. Empty (bytes() 0) until created.
+class PinnedHost {
+ public:
+  // `bytes` > 0.
+  static Result<PinnedHost> create(const ComputeContext& ctx, size_t bytes);
+
+  PinnedHost() = default;
+  PinnedHost(PinnedHost&& other) noexcept;
+  PinnedHost& operator=(PinnedHost&& other) noexcept;
+  PinnedHost(const PinnedHost&) = delete;
+  PinnedHost& operator=(const PinnedHost&) = delete;
+  ~PinnedHost();
+
+  void* data() const { return data_; }
+  size_t bytes() const { return bytes_; }
+
+ private:
+  void release();
+
+  cl::CommandQueue queue_;
+  cl::Buffer buffer_;
+  void* data_ = nullptr;
+  size_t bytes_ = 0;
+};
+
 // Milliseconds between a completed command's CL_PROFILING_COMMAND_START and _END: how long the
 // device ran it, without the host's enqueue or wait. 0 when the queue does not profile.
 double event_ms(const cl::Event& event);

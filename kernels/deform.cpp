@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <chrono>
-#include <cstring>
 
 #include "embedded_cl/deform.hpp"
 #include "embedded_cl/deform_core.hpp"
@@ -82,8 +81,19 @@ DeformKernel::DeformKernel(ComputeContext& ctx, cl::Kernel kernel, cl::Buffer sh
 Status DeformKernel::run(std::span<const mesh::DeformInput> batch,
                          std::vector<DeformOutput>& outputs, LaunchStats* stats) {
   outputs.assign(batch.size(), {});
+  // The whole run's host memory first: every launch's views stay valid to the end of the run.
+  const Clock::time_point t_allocate = Clock::now();
+  const size_t lanes = static_cast<size_t>(lanes_);
+  size_t slots = 0, vertices = 0;
+  for (const mesh::DeformInput& room : batch) {
+    const size_t n = room.donor->directions.size();
+    slots += (n + lanes - 1) / lanes * lanes;
+    vertices += n;
+  }
+  if (Status s = reserve_host(slots, vertices); !s) return s;
+  if (stats) stats->allocate_ms += ms_between(t_allocate, Clock::now());
   // Split where the room or portal table would outgrow the device's constant memory.
-  size_t begin = 0;
+  size_t begin = 0, slot_base = 0, vertex_base = 0;
   while (begin < batch.size()) {
     size_t end = begin, portals = 0;
     while (end < batch.size()) {
@@ -96,10 +106,16 @@ Status DeformKernel::run(std::span<const mesh::DeformInput> batch,
       portals = next_portals;
       ++end;
     }
-    if (Status s = launch(batch.subspan(begin, end - begin),
-                          std::span(outputs).subspan(begin, end - begin), stats);
+    if (Status s =
+            launch(batch.subspan(begin, end - begin),
+                   std::span(outputs).subspan(begin, end - begin), slot_base, vertex_base, stats);
         !s) {
       return s;
+    }
+    for (size_t i = begin; i < end; ++i) {
+      const size_t n = batch[i].donor->directions.size();
+      slot_base += (n + lanes - 1) / lanes * lanes;
+      vertex_base += n;
     }
     if (stats) {
       ++stats->launches;
@@ -108,6 +124,23 @@ Status DeformKernel::run(std::span<const mesh::DeformInput> batch,
         stats->vertices += outputs[i].positions.size();
     }
     begin = end;
+  }
+  return {};
+}
+
+Status DeformKernel::reserve_host(size_t slots, size_t vertices) {
+  auto grow = [&](PinnedHost& host, size_t bytes) -> Status {
+    if (host.bytes() >= bytes) return {};
+    auto grown = PinnedHost::create(*ctx_, std::max(bytes, host.bytes() + host.bytes() / 2));
+    if (!grown) return grown.error();
+    host = std::move(grown).value();
+    return {};
+  };
+  const size_t padded = std::max<size_t>(slots, 1);  // no zero-size buffers
+  if (Status s = grow(host_positions_, 3 * padded * sizeof(float)); !s) return s;
+  if (Status s = grow(host_clearance_, padded * sizeof(float)); !s) return s;
+  if (lanes_ > 1 && unpacked_.size() < vertices) {
+    unpacked_.resize(std::max(vertices, unpacked_.size() + unpacked_.size() / 2));
   }
   return {};
 }
@@ -169,7 +202,8 @@ Result<cl::Buffer*> DeformKernel::scratch(Scratch& s, cl_mem_flags flags, size_t
 }
 
 Status DeformKernel::launch(std::span<const mesh::DeformInput> rooms,
-                            std::span<DeformOutput> outputs, LaunchStats* stats) {
+                            std::span<DeformOutput> outputs, size_t slot_base, size_t vertex_base,
+                            LaunchStats* stats) {
   const Clock::time_point t_prepare = Clock::now();
   // The batch as groups of `lanes_` vertices of one room (a room's last group padded, as the
   // donor's groups are). The rooms' tables are all that goes up: a work item finds its room by its
@@ -212,15 +246,11 @@ Status DeformKernel::launch(std::span<const mesh::DeformInput> rooms,
       !s) {
     return s;
   }
-  // Grown, never shrunk: no zero-filling megabytes each launch. The read fills [0, slots).
-  if (host_clearance_.size() < slots) {
-    host_positions_.resize(3 * slots);
-    host_clearance_.resize(slots);
-  }
-  std::vector<float>& positions = host_positions_;
-  std::vector<float>& clearance = host_clearance_;
+  // This launch's place in the run's host memory (reserve_host sized it for the whole run).
+  float* const positions = static_cast<float*>(host_positions_.data()) + 3 * slot_base;
+  float* const clearance = static_cast<float*>(host_clearance_.data()) + slot_base;
   const Clock::time_point t_queue = Clock::now();
-  // Non-blocking writes and first read: the vectors outlive the blocking last read, which the
+  // Non-blocking writes and first read: the memory outlives the blocking last read, which the
   // in-order queue completes after everything before it. Explicit work-groups (the kernel ignores
   // the padding): on PoCL's CPU device the driver's own choice was slower than fixed groups
   // (docs/BENCHMARKS.md).
@@ -237,11 +267,10 @@ Status DeformKernel::launch(std::span<const mesh::DeformInput> rooms,
     }
     GROTTO_CL_TRY(ctx_->queue().enqueueNDRangeKernel(kernel_, cl::NullRange, cl::NDRange(global),
                                                      cl::NDRange(local_size_), nullptr, &run));
-    if (Status s = read_buffer(*ctx_, **pos_buf, positions.data(), 3 * slots, false, &reads[0]);
-        !s) {
+    if (Status s = read_buffer(*ctx_, **pos_buf, positions, 3 * slots, false, &reads[0]); !s) {
       return s;
     }
-    return read_buffer(*ctx_, **clear_buf, clearance.data(), slots, true, &reads[1]);
+    return read_buffer(*ctx_, **clear_buf, clearance, slots, true, &reads[1]);
   };
   if (Status s = enqueue(); !s) {
     // Commands already queued may still read or write the vectors above: let them end first.
@@ -249,23 +278,23 @@ Status DeformKernel::launch(std::span<const mesh::DeformInput> rooms,
     return s;
   }
   const Clock::time_point t_unpack = Clock::now();
+  mesh::core::float3* vertex = unpacked_.data() + vertex_base;
   for (size_t r = 0; r < rooms.size(); ++r) {
-    // A room's vertices start a group (first_vertex is a multiple of lanes): group by group, each
-    // x[lanes] y[lanes] z[lanes] into the room's vertices.
     const size_t first = records[r].first_vertex, count = rooms[r].donor->directions.size();
-    DeformOutput& out = outputs[r];
-    out.positions.resize(count);
-    out.clearance.assign(clearance.begin() + first, clearance.begin() + first + count);
-    const float* group = &positions[3 * first];
-    if (lanes == 1) {  // x y z x y z ...: the vertices as they are
+    outputs[r].clearance = std::span<const float>(clearance + first, count);
+    const float* group = positions + 3 * first;
+    if (lanes == 1) {  // x y z x y z ...: the vertices as they are, read where they landed
       static_assert(sizeof(mesh::core::float3) == 3 * sizeof(float));
-      std::memcpy(out.positions.data(), group, count * sizeof(mesh::core::float3));
+      outputs[r].positions = std::span(reinterpret_cast<const mesh::core::float3*>(group), count);
       continue;
     }
+    // A room's vertices start a group (first_vertex is a multiple of lanes): group by group, each
+    // x[lanes] y[lanes] z[lanes] into vertices.
+    outputs[r].positions = std::span<const mesh::core::float3>(vertex, count);
     for (size_t v = 0; v < count; v += lanes, group += 3 * lanes) {
       const size_t n = std::min(lanes, count - v);
       for (size_t l = 0; l < n; ++l)
-        out.positions[v + l] = {group[l], group[lanes + l], group[2 * lanes + l]};
+        *vertex++ = {group[l], group[lanes + l], group[2 * lanes + l]};
     }
   }
   if (stats) {

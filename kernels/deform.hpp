@@ -14,10 +14,12 @@
 
 namespace grotto::kernels {
 
-// One room's deformation output: a position and a clearance per donor vertex.
+// One room's deformation output, a position and a clearance per donor vertex: views of the
+// kernel's host memory, where the device's results land (nothing is copied per room on a GPU),
+// valid until the kernel's next run() or its end. Copy what must outlive that.
 struct DeformOutput {
-  std::vector<mesh::core::float3> positions;
-  std::vector<float> clearance;
+  std::span<const mesh::core::float3> positions;
+  std::span<const float> clearance;
 };
 
 // What run() did, for benchmarks and metrics; every field adds up over the runs given the same
@@ -33,8 +35,8 @@ struct LaunchStats {
   // Host: flattening the batch into the kernel's layout (room and portal tables, each group's
   // room and donor group; a donor's directions de-interleaved into lanes the first time it comes).
   double prepare_ms = 0;
-  // Host: growing the launch's buffers and the host vectors the outputs are read into, where this
-  // batch needs more than an earlier one (they are kept from launch to launch).
+  // Host: growing the launch's buffers and the (pinned) host memory the outputs are read into,
+  // where this batch needs more than an earlier one (they are kept from launch to launch).
   double allocate_ms = 0;
   // Device: the input writes (four, and a new donor's directions), the kernel, the two output
   // reads (sums of their durations).
@@ -47,7 +49,8 @@ struct LaunchStats {
   // Host: from enqueueing the first write to the last read's return; minus device_span_ms, the
   // driver's cost of enqueueing, staging host memory and signalling completion.
   double queue_wall_ms = 0;
-  // Host: the outputs copied out of lanes into each room's vectors.
+  // Host: the positions copied out of lanes into vertices (lanes of 8, the CPU device's layout)
+  // and each room's views set; with one lane the views point at the downloaded memory as it is.
   double unpack_ms = 0;
   size_t upload_bytes = 0;
   size_t download_bytes = 0;
@@ -81,8 +84,9 @@ class DeformKernel {
   static Result<DeformKernel> create(ComputeContext& ctx, const mesh::MeshContext& mesh_ctx,
                                      int lanes = 0);
 
-  // Deforms every room of `batch`; outputs[i] receives room i's result. Rooms go to the device in
-  // as few launches as its constant memory allows (usually one), whatever their worlds.
+  // Deforms every room of `batch`; outputs[i] receives room i's result (views, valid until the
+  // next run). Rooms go to the device in as few launches as its constant memory allows (usually
+  // one), whatever their worlds.
   Status run(std::span<const mesh::DeformInput> batch, std::vector<DeformOutput>& outputs,
              LaunchStats* stats = nullptr);
 
@@ -93,8 +97,12 @@ class DeformKernel {
  private:
   DeformKernel(ComputeContext& ctx, cl::Kernel kernel, cl::Buffer shapes, size_t max_constant_bytes,
                BuildOrigin origin, int lanes);
+  // Deforms `rooms` into the host memory from slot `slot_base` (and, with lanes of 8, the
+  // unpacked vertices from `vertex_base`) on: the run's earlier launches keep theirs.
   Status launch(std::span<const mesh::DeformInput> rooms, std::span<DeformOutput> outputs,
-                LaunchStats* stats);
+                size_t slot_base, size_t vertex_base, LaunchStats* stats);
+  // Grows the host memory to hold `slots` padded vertices (and `vertices` unpacked ones).
+  Status reserve_host(size_t slots, size_t vertices);
 
   static constexpr size_t kPreferredGroupSize = 128;
 
@@ -121,7 +129,11 @@ class DeformKernel {
   Scratch rooms_, portals_, positions_, clearance_;
   std::vector<mesh::core::GrottoRoom> host_rooms_;
   std::vector<mesh::core::GrottoPortal> host_portals_;
-  std::vector<float> host_positions_, host_clearance_;
+  // What the device's results are read into (positions x y z per slot, a clearance per slot),
+  // grown by half again when a run needs more, never shrunk; with lanes of 8 the positions are
+  // then unpacked into unpacked_. The rooms' views point into these.
+  PinnedHost host_positions_, host_clearance_;
+  std::vector<mesh::core::float3> unpacked_;
   size_t local_size_ = 1;
   cl::Buffer shapes_;
   size_t max_constant_bytes_;

@@ -2,9 +2,11 @@
 
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cassert>
 #include <cstring>
+#include <numeric>
 #include <thread>
 
 #include "core/parallel.hpp"
@@ -89,15 +91,27 @@ std::vector<Result<mesh::RoomMesh>> RoomBuilder::build(
       spdlog::warn("event=deform_fallback rooms={} error=\"{}\"", inputs.size(), s.error().message);
     }
   }
-  if (!on_device) outputs.assign(inputs.size(), {});
-  // Rooms are independent: each index writes its own output and mesh slot.
-  for_each_index(inputs.size(), threads_, [&](size_t k) {
+  // On the CPU, each room's deformation in its own vectors (the device's are views of its memory).
+  std::vector<std::vector<mesh::core::float3>> cpu_positions(on_device ? 0 : inputs.size());
+  std::vector<std::vector<float>> cpu_clearance(on_device ? 0 : inputs.size());
+  // Rooms are independent: each index writes its own output and mesh slot. Largest first: with
+  // whole rooms as the unit of work, a hall taken last would finish alone while the other
+  // threads wait (issue 30: the whole cave on every core).
+  std::vector<size_t> order(inputs.size());
+  std::iota(order.begin(), order.end(), size_t{0});
+  std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) {
+    return inputs[a].donor->directions.size() > inputs[b].donor->directions.size();
+  });
+  for_each_index(inputs.size(), threads_, [&](size_t i) {
+    const size_t k = order[i];
     const mesh::MeshContext& world = *worlds[slots[k]];
     if (!on_device) {
       size_t n = inputs[k].donor->directions.size();
-      outputs[k].positions.resize(n);
-      outputs[k].clearance.resize(n);
-      mesh::deform_cpu(world, inputs[k], outputs[k].positions, outputs[k].clearance);
+      cpu_positions[k].resize(n);
+      cpu_clearance[k].resize(n);
+      mesh::deform_cpu(world, inputs[k], cpu_positions[k], cpu_clearance[k]);
+      meshes[slots[k]] = mesh::assemble_room(world, inputs[k], cpu_positions[k], cpu_clearance[k]);
+      return;
     }
     meshes[slots[k]] =
         mesh::assemble_room(world, inputs[k], outputs[k].positions, outputs[k].clearance);

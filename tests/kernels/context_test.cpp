@@ -5,6 +5,7 @@
 
 #include <cctype>
 #include <cstdio>
+#include <vector>
 
 #include "kernels/cl_context.hpp"
 #include "test_support.hpp"
@@ -120,6 +121,30 @@ TEST(ComputeContext, no_opencl_platform_fails_soft_in_a_child_process) {
   EXPECT_EQ(child.exit_code, 0) << output;
   EXPECT_TRUE(contains(output, "create_outcome=error code=unavailable")) << output;
   EXPECT_TRUE(contains(output, "no OpenCL platform")) << output;
+}
+
+// The memory a deformation's results land in: a device buffer's read arrives in it, and it moves
+// (the deform kernel grows it by replacing it) with its contents; empty ones are refused.
+TEST(PinnedHost, receives_a_read_and_keeps_it_through_a_move) {
+  auto ctx = ComputeContext::create(DeviceConfig{.device = "cpu"});
+  ASSERT_TRUE(ctx.ok()) << ctx.error().message;
+  const std::vector<float> values = {1.5f, -2.0f, 3.25f, 1e-7f};
+  auto device = make_buffer(*ctx, CL_MEM_READ_WRITE, values.data(), values.size());
+  ASSERT_TRUE(device.ok()) << device.error().message;
+  auto pinned = PinnedHost::create(*ctx, values.size() * sizeof(float));
+  ASSERT_TRUE(pinned.ok()) << pinned.error().message;
+  EXPECT_EQ(pinned->bytes(), values.size() * sizeof(float));
+  auto* out = static_cast<float*>(pinned->data());
+  ASSERT_TRUE(read_buffer(*ctx, *device, out, values.size()).ok());
+  PinnedHost moved = std::move(pinned).value();
+  ASSERT_EQ(moved.data(), out);
+  EXPECT_EQ(std::vector<float>(out, out + values.size()), values);
+  PinnedHost replaced;
+  replaced = std::move(moved);
+  EXPECT_EQ(replaced.data(), out);
+  EXPECT_EQ(moved.data(), nullptr);
+  EXPECT_EQ(moved.bytes(), 0u);
+  EXPECT_FALSE(PinnedHost::create(*ctx, 0).ok());
 }
 
 }  // namespace

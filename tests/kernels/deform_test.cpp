@@ -53,6 +53,19 @@ bool same_bits(float a, float b) {
   return std::memcmp(&a, &b, sizeof a) == 0;
 }
 
+// A run's outputs copied out of the kernel's memory, whose views the next run overwrites.
+struct OwnedOutput {
+  std::vector<mesh::core::float3> positions;
+  std::vector<float> clearance;
+};
+std::vector<OwnedOutput> owned(const std::vector<DeformOutput>& views) {
+  std::vector<OwnedOutput> out;
+  for (const DeformOutput& v : views)
+    out.push_back(
+        {{v.positions.begin(), v.positions.end()}, {v.clearance.begin(), v.clearance.end()}});
+  return out;
+}
+
 // Both kernel shapes on this device: one vertex per work item (as on GPUs) and eight per work item
 // in float8 lanes (the CPU-device default), each lane bit-identical to the scalar reference.
 TEST_F(DeformKernelTest, kernel_matches_the_cpu_reference_bit_for_bit) {
@@ -124,18 +137,19 @@ TEST_F(DeformKernelTest, batched_and_single_room_launches_agree) {
   ASSERT_TRUE(created.ok()) << created.error().message;
   DeformKernel kernel = std::move(created).value();
   std::vector<mesh::DeformInput> batch = inputs(mesh::Lod::kPatch, 5);
-  std::vector<DeformOutput> together;
+  std::vector<DeformOutput> views;
   LaunchStats stats;
-  ASSERT_TRUE(kernel.run(batch, together, &stats).ok());
+  ASSERT_TRUE(kernel.run(batch, views, &stats).ok());
   EXPECT_EQ(stats.launches, 1u);
+  const std::vector<OwnedOutput> together = owned(views);
   // Alone, and in another batch mix (reversed), every room gives the same bits.
   std::vector<mesh::DeformInput> reversed(batch.rbegin(), batch.rend());
-  std::vector<DeformOutput> mixed;
-  ASSERT_TRUE(kernel.run(reversed, mixed).ok());
+  ASSERT_TRUE(kernel.run(reversed, views).ok());
+  const std::vector<OwnedOutput> mixed = owned(views);
   for (size_t r = 0; r < batch.size(); ++r) {
     std::vector<DeformOutput> alone;
     ASSERT_TRUE(kernel.run(std::span(batch).subspan(r, 1), alone).ok());
-    const DeformOutput& m = mixed[batch.size() - 1 - r];
+    const OwnedOutput& m = mixed[batch.size() - 1 - r];
     ASSERT_EQ(alone[0].positions.size(), together[r].positions.size());
     for (size_t v = 0; v < alone[0].positions.size(); ++v) {
       ASSERT_TRUE(same_bits(alone[0].positions[v].y, together[r].positions[v].y));
@@ -154,18 +168,21 @@ TEST_F(DeformKernelTest, a_profiled_queue_splits_the_launch_into_upload_kernel_a
   ASSERT_TRUE(plain_ctx.ok()) << plain_ctx.error().message;
   EXPECT_FALSE(plain_ctx->profiling());
   std::vector<mesh::DeformInput> batch = inputs(mesh::Lod::kPatch, 3);
-  std::vector<DeformOutput> outs[2], again;
+  std::vector<OwnedOutput> outs[2], again;
   LaunchStats stats[2], second;
   ComputeContext* contexts[2] = {device_, &plain_ctx.value()};
   for (int k = 0; k < 2; ++k) {
     auto created = DeformKernel::create(*contexts[k], *mesh_);
     ASSERT_TRUE(created.ok()) << created.error().message;
     DeformKernel kernel = std::move(created).value();
-    ASSERT_TRUE(kernel.run(batch, outs[k], &stats[k]).ok());
+    std::vector<DeformOutput> views;
+    ASSERT_TRUE(kernel.run(batch, views, &stats[k]).ok());
+    outs[k] = owned(views);
     // The donors' directions stay on the device: the same batch again uploads its tables
     // alone, and gives the same bits.
     if (k == 0) {
-      ASSERT_TRUE(kernel.run(batch, again, &second).ok());
+      ASSERT_TRUE(kernel.run(batch, views, &second).ok());
+      again = owned(views);
     }
   }
   const LaunchStats& s = stats[0];
