@@ -87,7 +87,17 @@ int main(int argc, char** argv) {
   app.add_flag("--no-profiling", no_profiling,
                "Open OpenCL queues without CL_QUEUE_PROFILING_ENABLE (the device split reads 0): "
                "to check that profiling costs nothing");
+  std::string channels_choice = "auto";
+  app.add_option("--channels", channels_choice,
+                 "Where the whole cave's detail channels run with a device: auto (on the device "
+                 "unless it is a CPU), device or host")
+      ->check(CLI::IsMember(std::vector<std::string>{"auto", "device", "host"}))
+      ->capture_default_str();
   CLI11_PARSE(app, argc, argv);
+  using Channels = kernels::RoomBuilder::Options::Channels;
+  const Channels channels = channels_choice == "device" ? Channels::kDevice
+                            : channels_choice == "host" ? Channels::kHost
+                                                        : Channels::kAuto;
 
   cave::World world = cave::World::create(seed, cave::LayoutParams{}).value();
   mesh::MeshContext ctx = mesh::MeshContext::create(world, mesh::MeshParams{}).value();
@@ -189,13 +199,24 @@ int main(int argc, char** argv) {
   for (std::string device : {device_choice, std::string("none")}) {
     for (int threads : thread_counts) {
       auto builder = kernels::RoomBuilder::create(
-          ctx, {kernels::DeviceConfig{.device = device, .profiling = !no_profiling}, threads});
+          ctx,
+          {kernels::DeviceConfig{.device = device, .profiling = !no_profiling}, threads, channels});
       (void)builder.build(rooms, lod);  // warm-up (PoCL compiles for the work-group size)
       double cpu_ms = 0;
       double ms = median_ms(
           reps, [&] { (void)builder.build(rooms, lod); }, &cpu_ms);
+      // The detail channels' launches (on GPUs: RoomBuilder's kAuto), each part per launch.
+      nlohmann::json channels = "cpu";
+      if (const kernels::LaunchStats& c = builder.channel_stats(); c.launches > 0) {
+        const double n = static_cast<double>(c.launches);
+        channels = {{"prepare_ms", c.prepare_ms / n},       {"upload_ms", c.upload_ms / n},
+                    {"kernel_ms", c.kernel_ms / n},         {"download_ms", c.download_ms / n},
+                    {"queue_wall_ms", c.queue_wall_ms / n}, {"unpack_ms", c.unpack_ms / n},
+                    {"vertices", c.vertices / c.launches}};
+      }
       whole.push_back({{"device", device.empty() ? std::string("auto") : device},
                        {"path", builder.path()},
+                       {"channels", channels},
                        {"threads", threads},
                        {"build_ms", ms},
                        {"build_cpu_time_ms", cpu_ms},
@@ -396,6 +417,14 @@ int main(int argc, char** argv) {
         w["device"].get<std::string>().c_str(), w["threads"].get<int>(),
         w["whole_cave_ms"].get<double>(), w["layout_ms"].get<double>(), w["build_ms"].get<double>(),
         w["build_cpu_time_ms"].get<double>(), w["path"].get<std::string>().c_str());
+    if (const auto& c = w["channels"]; c.is_object()) {
+      std::printf(
+          "         channels on the device, per launch: prepare %.2f upload %.2f kernel %.2f "
+          "download %.2f unpack %.2f ms (queue wall %.2f)\n",
+          c["prepare_ms"].get<double>(), c["upload_ms"].get<double>(), c["kernel_ms"].get<double>(),
+          c["download_ms"].get<double>(), c["unpack_ms"].get<double>(),
+          c["queue_wall_ms"].get<double>());
+    }
   }
   if (report["opencl"]["available"]) {
     auto& cl = report["opencl"];

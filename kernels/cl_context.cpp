@@ -305,6 +305,25 @@ Result<PinnedHost> PinnedHost::create(const ComputeContext& ctx, size_t bytes) {
   return host;
 }
 
+Status PinnedHost::reserve(const ComputeContext& ctx, size_t bytes) {
+  if (bytes_ >= bytes) return {};
+  auto grown = create(ctx, std::max(bytes, bytes_ + bytes_ / 2));
+  if (!grown) return grown.error();
+  *this = std::move(grown).value();
+  return {};
+}
+
+Result<cl::Buffer*> GrowingBuffer::reserve(const ComputeContext& ctx, size_t bytes) {
+  if (!buffer_ || bytes_ < bytes) {
+    const size_t grown = std::max(bytes, bytes_ + bytes_ / 2);
+    auto buffer = make_buffer<uint8_t>(ctx, flags_, grown);
+    if (!buffer) return buffer.error();
+    buffer_ = std::move(buffer).value();
+    bytes_ = grown;
+  }
+  return &*buffer_;
+}
+
 PinnedHost::PinnedHost(PinnedHost&& other) noexcept
     : queue_(std::move(other.queue_)),
       buffer_(std::move(other.buffer_)),

@@ -19,6 +19,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <memory>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <type_traits>
@@ -265,6 +266,9 @@ class PinnedHost {
 
   void* data() const { return data_; }
   size_t bytes() const { return bytes_; }
+  // At least `bytes`, grown by half again where it needs more (so repeated launches settle on one
+  // size), never shrunk; growing replaces the memory and its contents.
+  Status reserve(const ComputeContext& ctx, size_t bytes);
 
  private:
   void release();
@@ -272,6 +276,20 @@ class PinnedHost {
   cl::CommandQueue queue_;
   cl::Buffer buffer_;
   void* data_ = nullptr;
+  size_t bytes_ = 0;
+};
+
+// A device buffer kept from launch to launch, grown by half again when a launch needs more (so a
+// server's batches settle on one size), never shrunk: no allocation per launch.
+class GrowingBuffer {
+ public:
+  explicit GrowingBuffer(cl_mem_flags flags) : flags_(flags) {}
+  // The buffer, at least `bytes` (> 0) long; growing replaces it and its contents.
+  Result<cl::Buffer*> reserve(const ComputeContext& ctx, size_t bytes);
+
+ private:
+  cl_mem_flags flags_;
+  std::optional<cl::Buffer> buffer_;
   size_t bytes_ = 0;
 };
 

@@ -90,7 +90,12 @@ Status DeformKernel::run(std::span<const mesh::DeformInput> batch,
     slots += (n + lanes - 1) / lanes * lanes;
     vertices += n;
   }
-  if (Status s = reserve_host(slots, vertices); !s) return s;
+  const size_t padded = std::max<size_t>(slots, 1);  // no zero-size buffers
+  if (Status s = host_positions_.reserve(*ctx_, 3 * padded * sizeof(float)); !s) return s;
+  if (Status s = host_clearance_.reserve(*ctx_, padded * sizeof(float)); !s) return s;
+  if (lanes > 1 && unpacked_.size() < vertices) {
+    unpacked_.resize(std::max(vertices, unpacked_.size() + unpacked_.size() / 2));
+  }
   if (stats) stats->allocate_ms += ms_between(t_allocate, Clock::now());
   // Split where the room or portal table would outgrow the device's constant memory.
   size_t begin = 0, slot_base = 0, vertex_base = 0;
@@ -124,23 +129,6 @@ Status DeformKernel::run(std::span<const mesh::DeformInput> batch,
         stats->vertices += outputs[i].positions.size();
     }
     begin = end;
-  }
-  return {};
-}
-
-Status DeformKernel::reserve_host(size_t slots, size_t vertices) {
-  auto grow = [&](PinnedHost& host, size_t bytes) -> Status {
-    if (host.bytes() >= bytes) return {};
-    auto grown = PinnedHost::create(*ctx_, std::max(bytes, host.bytes() + host.bytes() / 2));
-    if (!grown) return grown.error();
-    host = std::move(grown).value();
-    return {};
-  };
-  const size_t padded = std::max<size_t>(slots, 1);  // no zero-size buffers
-  if (Status s = grow(host_positions_, 3 * padded * sizeof(float)); !s) return s;
-  if (Status s = grow(host_clearance_, padded * sizeof(float)); !s) return s;
-  if (lanes_ > 1 && unpacked_.size() < vertices) {
-    unpacked_.resize(std::max(vertices, unpacked_.size() + unpacked_.size() / 2));
   }
   return {};
 }
@@ -190,17 +178,6 @@ Status DeformKernel::upload_donors(std::span<const mesh::DeformInput> rooms,
   return {};
 }
 
-Result<cl::Buffer*> DeformKernel::scratch(Scratch& s, cl_mem_flags flags, size_t bytes) {
-  if (!s.buffer || s.bytes < bytes) {
-    const size_t grown = std::max(bytes, s.bytes + s.bytes / 2);
-    auto buffer = make_buffer<uint8_t>(*ctx_, flags, grown);
-    if (!buffer) return buffer.error();
-    s.buffer = std::move(buffer).value();
-    s.bytes = grown;
-  }
-  return &*s.buffer;
-}
-
 Status DeformKernel::launch(std::span<const mesh::DeformInput> rooms,
                             std::span<DeformOutput> outputs, size_t slot_base, size_t vertex_base,
                             LaunchStats* stats) {
@@ -233,10 +210,10 @@ Status DeformKernel::launch(std::span<const mesh::DeformInput> rooms,
   // The inputs go up by explicit writes rather than CL_MEM_COPY_HOST_PTR, so the queue's events
   // time the copies apart from the kernel (issue 30: where a launch's time goes).
   const Clock::time_point t_allocate = Clock::now();
-  auto room_buf = scratch(rooms_, CL_MEM_READ_ONLY, records.size() * sizeof(GrottoRoom));
-  auto portal_buf = scratch(portals_, CL_MEM_READ_ONLY, portals.size() * sizeof(GrottoPortal));
-  auto pos_buf = scratch(positions_, CL_MEM_WRITE_ONLY, 3 * slots * sizeof(float));
-  auto clear_buf = scratch(clearance_, CL_MEM_WRITE_ONLY, slots * sizeof(float));
+  auto room_buf = rooms_.reserve(*ctx_, records.size() * sizeof(GrottoRoom));
+  auto portal_buf = portals_.reserve(*ctx_, portals.size() * sizeof(GrottoPortal));
+  auto pos_buf = positions_.reserve(*ctx_, 3 * slots * sizeof(float));
+  auto clear_buf = clearance_.reserve(*ctx_, slots * sizeof(float));
   for (auto* b : {&room_buf, &portal_buf, &pos_buf, &clear_buf}) {
     if (!*b) return b->error();
   }
@@ -246,7 +223,7 @@ Status DeformKernel::launch(std::span<const mesh::DeformInput> rooms,
       !s) {
     return s;
   }
-  // This launch's place in the run's host memory (reserve_host sized it for the whole run).
+  // This launch's place in the run's host memory (run() sized it for the whole run).
   float* const positions = static_cast<float*>(host_positions_.data()) + 3 * slot_base;
   float* const clearance = static_cast<float*>(host_clearance_.data()) + slot_base;
   const Clock::time_point t_queue = Clock::now();

@@ -101,8 +101,6 @@ class DeformKernel {
   // unpacked vertices from `vertex_base`) on: the run's earlier launches keep theirs.
   Status launch(std::span<const mesh::DeformInput> rooms, std::span<DeformOutput> outputs,
                 size_t slot_base, size_t vertex_base, LaunchStats* stats);
-  // Grows the host memory to hold `slots` padded vertices (and `vertices` unpacked ones).
-  Status reserve_host(size_t slots, size_t vertices);
 
   static constexpr size_t kPreferredGroupSize = 128;
 
@@ -119,19 +117,14 @@ class DeformKernel {
   std::map<std::pair<int, size_t>, uint32_t> donor_first_group_;
   std::vector<float> donor_directions_;
   std::optional<cl::Buffer> donor_buffer_;
-  // A launch's buffers and result vectors, kept for the next one and grown when a batch needs
-  // more (by half again, so a server's batches settle on one size).
-  struct Scratch {
-    std::optional<cl::Buffer> buffer;
-    size_t bytes = 0;
-  };
-  Result<cl::Buffer*> scratch(Scratch& s, cl_mem_flags flags, size_t bytes);
-  Scratch rooms_, portals_, positions_, clearance_;
+  // A launch's buffers, kept for the next one.
+  GrowingBuffer rooms_{CL_MEM_READ_ONLY}, portals_{CL_MEM_READ_ONLY};
+  GrowingBuffer positions_{CL_MEM_WRITE_ONLY}, clearance_{CL_MEM_WRITE_ONLY};
   std::vector<mesh::core::GrottoRoom> host_rooms_;
   std::vector<mesh::core::GrottoPortal> host_portals_;
-  // What the device's results are read into (positions x y z per slot, a clearance per slot),
-  // grown by half again when a run needs more, never shrunk; with lanes of 8 the positions are
-  // then unpacked into unpacked_. The rooms' views point into these.
+  // What the device's results are read into (positions x y z per slot, a clearance per slot);
+  // with lanes of 8 the positions are then unpacked into unpacked_. The rooms' views point into
+  // these.
   PinnedHost host_positions_, host_clearance_;
   std::vector<mesh::core::float3> unpacked_;
   size_t local_size_ = 1;

@@ -42,9 +42,20 @@ RoomBuilder RoomBuilder::create(const mesh::MeshContext& mesh_ctx, const Options
     return b;
   }
   b.kernel_.emplace(std::move(kernel).value());
+  using Channels = Options::Channels;
+  if (options.channels == Channels::kDevice ||
+      (options.channels == Channels::kAuto && b.device_->info().device_type != "cpu")) {
+    auto channels = ChannelsKernel::create(*b.device_);
+    if (channels) {
+      b.channels_kernel_.emplace(std::move(channels).value());
+    } else {
+      spdlog::warn("event=channels_path path=cpu device=\"{}\" error=\"{}\"",
+                   b.device_->info().device_name, channels.error().message);
+    }
+  }
   b.path_ = "opencl: " + b.device_->describe();
-  spdlog::info("event=compute_path path=opencl {} program={}", b.device_->describe(),
-               build_origin_name(b.kernel_->build_origin()));
+  spdlog::info("event=compute_path path=opencl {} program={} channels={}", b.device_->describe(),
+               build_origin_name(b.kernel_->build_origin()), b.channels_kernel_ ? "device" : "cpu");
   return b;
 }
 
@@ -91,6 +102,10 @@ std::vector<Result<mesh::RoomMesh>> RoomBuilder::build(
       spdlog::warn("event=deform_fallback rooms={} error=\"{}\"", inputs.size(), s.error().message);
     }
   }
+  // The detail channels of the whole batch in one launch after assembly, where the device runs
+  // them.
+  const mesh::ChannelsBy channels =
+      on_device && channels_kernel_ ? mesh::ChannelsBy::kCaller : mesh::ChannelsBy::kAssemble;
   // On the CPU, each room's deformation in its own vectors (the device's are views of its memory).
   std::vector<std::vector<mesh::core::float3>> cpu_positions(on_device ? 0 : inputs.size());
   std::vector<std::vector<float>> cpu_clearance(on_device ? 0 : inputs.size());
@@ -113,10 +128,35 @@ std::vector<Result<mesh::RoomMesh>> RoomBuilder::build(
       meshes[slots[k]] = mesh::assemble_room(world, inputs[k], cpu_positions[k], cpu_clearance[k]);
       return;
     }
-    meshes[slots[k]] =
-        mesh::assemble_room(world, inputs[k], outputs[k].positions, outputs[k].clearance);
+    meshes[slots[k]] = mesh::assemble_room(world, inputs[k], outputs[k].positions,
+                                           outputs[k].clearance, nullptr, channels);
   });
+  if (channels == mesh::ChannelsBy::kCaller) fill_channels(worlds, slots, meshes);
   return meshes;
+}
+
+void RoomBuilder::fill_channels(std::span<const mesh::MeshContext* const> worlds,
+                                std::span<const size_t> slots,
+                                std::vector<Result<mesh::RoomMesh>>& meshes) {
+  std::vector<mesh::RoomMesh*> built;
+  std::vector<const mesh::MeshContext*> built_worlds;
+  std::vector<uint32_t> seeds;
+  for (size_t slot : slots) {
+    if (!meshes[slot].ok()) continue;
+    built.push_back(&meshes[slot].value());
+    built_worlds.push_back(worlds[slot]);
+    seeds.push_back(worlds[slot]->noise_seed());
+  }
+  Status s = channels_kernel_->run(built, seeds, mesh_ctx_->params(), &channel_launches_);
+  if (s) return;
+  ++fallbacks_;
+  spdlog::warn("event=channels_fallback rooms={} error=\"{}\"", built.size(), s.error().message);
+  for_each_index(built.size(), threads_, [&](size_t i) {
+    mesh::RoomMesh& m = *built[i];
+    m.roughness.resize(m.positions.size());
+    m.mineral.resize(m.positions.size());
+    mesh::detail_channels(*built_worlds[i], m.origin, m.positions, m.roughness, m.mineral);
+  });
 }
 
 }  // namespace grotto::kernels

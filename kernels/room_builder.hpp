@@ -1,7 +1,7 @@
-// Builds room meshes with the deformation batched on an OpenCL device when one is usable, and on
-// the CPU reference otherwise. Fail soft, never silently (DESIGN decision 6): no platform, no
-// device, a failed build or a failed launch is a logged warning and the CPU path, and path()
-// says which path is in use.
+// Builds room meshes with the deformation (and, on a GPU, the detail channels) batched on an
+// OpenCL device when one is usable, and on the CPU reference otherwise. Fail soft, never silently
+// (DESIGN decision 6): no platform, no device, a failed build or a failed launch is a logged
+// warning and the CPU path, and path() says which path is in use.
 #pragma once
 
 #include <memory>
@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "kernels/channels.hpp"
 #include "kernels/deform.hpp"
 
 namespace grotto::kernels {
@@ -23,6 +24,11 @@ class RoomBuilder {
     // one build per worker thread, must not oversubscribe its cores); a whole cave built at once
     // sets more; 0 means one per hardware thread. Meshes do not depend on it.
     int threads = 1;
+    // Where the detail channels run when the deformation runs on a device. kAuto: on the device
+    // when it is not a CPU (one launch for the batch's finished meshes), else on the CPU's SIMD
+    // lanes, which PoCL's one-vertex-per-item kernel does not beat. Meshes do not depend on it.
+    enum class Channels { kAuto, kDevice, kHost };
+    Channels channels = Channels::kAuto;
   };
 
   // Never fails: without a usable device the builder runs on the CPU.
@@ -48,17 +54,26 @@ class RoomBuilder {
   // Launches that failed and were redone on the CPU (each also logged).
   size_t fallbacks() const { return fallbacks_; }
   const LaunchStats& launch_stats() const { return launches_; }
+  // Whether the detail channels run on the device, and its launches for them.
+  bool channels_on_device() const { return channels_kernel_.has_value(); }
+  const LaunchStats& channel_stats() const { return channel_launches_; }
 
  private:
   explicit RoomBuilder(const mesh::MeshContext& mesh_ctx);
+  // The detail channels of meshes[slots[k]] (those built) on the device, in one launch; on the
+  // CPU when that fails (counted in fallbacks(), logged).
+  void fill_channels(std::span<const mesh::MeshContext* const> worlds,
+                     std::span<const size_t> slots, std::vector<Result<mesh::RoomMesh>>& meshes);
 
   const mesh::MeshContext* mesh_ctx_;
   std::unique_ptr<ComputeContext> device_;
   std::optional<DeformKernel> kernel_;
+  std::optional<ChannelsKernel> channels_kernel_;
   std::string path_;
   int threads_ = 1;
   size_t fallbacks_ = 0;
   LaunchStats launches_;
+  LaunchStats channel_launches_;
 };
 
 }  // namespace grotto::kernels

@@ -422,7 +422,7 @@ void detail_channels_reference(const MeshContext& ctx, Vec3 origin,
 
 Result<RoomMesh> assemble_room(const MeshContext& ctx, const DeformInput& input,
                                std::span<const float3> positions, std::span<const float> clearance,
-                               AssembleStats* stats_out) {
+                               AssembleStats* stats_out, ChannelsBy channels) {
   AssembleStats stats;
   using clock = std::chrono::steady_clock;
   auto lap = [last = clock::now()](double& into) mutable {
@@ -639,6 +639,10 @@ Result<RoomMesh> assemble_room(const MeshContext& ctx, const DeformInput& input,
   lap(stats.normals_seconds);
 
   // Detail channels from world-space fields, so rim vertices agree across rooms.
+  if (channels == ChannelsBy::kCaller) {
+    if (stats_out) *stats_out = stats;
+    return mesh;
+  }
   mesh.roughness.resize(mesh.positions.size());
   mesh.mineral.resize(mesh.positions.size());
   detail_channels(ctx, mesh.origin, mesh.positions, mesh.roughness, mesh.mineral);

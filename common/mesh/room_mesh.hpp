@@ -82,9 +82,15 @@ struct AssembleStats {
   double channels_seconds = 0;  // roughness and mineral fields
 };
 
+// Where assemble_room's last stage, the detail channels, runs: here, or by the caller, who gets
+// the mesh with roughness and mineral empty and fills them (kernels::RoomBuilder, on a device, for
+// a whole batch at once; the same bits).
+enum class ChannelsBy { kAssemble, kCaller };
+
 Result<RoomMesh> assemble_room(const MeshContext& ctx, const DeformInput& input,
                                std::span<const core::float3> positions,
-                               std::span<const float> clearance, AssembleStats* stats = nullptr);
+                               std::span<const float> clearance, AssembleStats* stats = nullptr,
+                               ChannelsBy channels = ChannelsBy::kAssemble);
 
 // prepare + deform_cpu + assemble.
 Result<RoomMesh> build_room_mesh(const MeshContext& ctx, const cave::Room& room, Lod lod);

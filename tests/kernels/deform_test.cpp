@@ -9,6 +9,7 @@
 #include <cstring>
 #include <set>
 
+#include "kernels/channels.hpp"
 #include "kernels/room_builder.hpp"
 #include "test_support.hpp"
 
@@ -276,23 +277,80 @@ TEST_F(DeformKernelTest, a_batch_mixing_two_worlds_matches_each_worlds_cpu_refer
   EXPECT_GT(differing, out[0].positions.size() / 2);
 }
 
-TEST_F(DeformKernelTest, room_builder_on_the_device_gives_the_cpu_meshes) {
-  RoomBuilder builder = RoomBuilder::create(*mesh_, {DeviceConfig{.device = "auto"}});
-  ASSERT_TRUE(builder.uses_opencl()) << builder.path();
-  EXPECT_EQ(builder.path().rfind("opencl: ", 0), 0u) << builder.path();
-  std::vector<cave::Room> rooms(region_->rooms.begin(), region_->rooms.begin() + 20);
-  auto meshes = builder.build(rooms, mesh::Lod::kPatch);
-  ASSERT_EQ(meshes.size(), rooms.size());
-  for (size_t i = 0; i < rooms.size(); ++i) {
-    ASSERT_TRUE(meshes[i].ok()) << meshes[i].error().message;
-    mesh::RoomMesh cpu = mesh::build_room_mesh(*mesh_, rooms[i], mesh::Lod::kPatch).value();
-    EXPECT_EQ(meshes[i]->indices, cpu.indices) << rooms[i].id.to_string();
-    ASSERT_EQ(meshes[i]->vertex_count(), cpu.vertex_count());
-    for (size_t v = 0; v < cpu.vertex_count(); ++v) {
-      ASSERT_TRUE(same_bits(meshes[i]->positions[v].z, cpu.positions[v].z));
-    }
+// Whether two meshes' vertices (positions and the detail channels) are the same bits.
+bool same_vertices(const mesh::RoomMesh& a, const mesh::RoomMesh& b) {
+  if (a.vertex_count() != b.vertex_count() || a.roughness.size() != a.vertex_count() ||
+      b.roughness.size() != b.vertex_count() || a.mineral.size() != b.mineral.size()) {
+    return false;
   }
-  EXPECT_EQ(builder.fallbacks(), 0u);
+  return std::memcmp(a.positions.data(), b.positions.data(),
+                     a.vertex_count() * sizeof(mesh::core::float3)) == 0 &&
+         std::memcmp(a.roughness.data(), b.roughness.data(), a.vertex_count() * sizeof(float)) ==
+             0 &&
+         std::memcmp(a.mineral.data(), b.mineral.data(), a.vertex_count() * sizeof(float)) == 0;
+}
+
+// With the detail channels where the CPU device puts them (its SIMD lanes) and forced onto the
+// device (as on a GPU: one launch for the batch after assembly), the meshes are the CPU's bits.
+TEST_F(DeformKernelTest, room_builder_on_the_device_gives_the_cpu_meshes) {
+  using Channels = RoomBuilder::Options::Channels;
+  for (Channels channels : {Channels::kAuto, Channels::kDevice}) {
+    SCOPED_TRACE(channels == Channels::kAuto ? "channels auto" : "channels on the device");
+    RoomBuilder builder =
+        RoomBuilder::create(*mesh_, {DeviceConfig{.device = "auto"}, /*threads=*/2, channels});
+    ASSERT_TRUE(builder.uses_opencl()) << builder.path();
+    EXPECT_EQ(builder.path().rfind("opencl: ", 0), 0u) << builder.path();
+    // PoCL is a CPU device: auto keeps the channels on the lanes.
+    EXPECT_EQ(builder.channels_on_device(), channels == Channels::kDevice);
+    std::vector<cave::Room> rooms(region_->rooms.begin(), region_->rooms.begin() + 20);
+    auto meshes = builder.build(rooms, mesh::Lod::kPatch);
+    ASSERT_EQ(meshes.size(), rooms.size());
+    for (size_t i = 0; i < rooms.size(); ++i) {
+      ASSERT_TRUE(meshes[i].ok()) << meshes[i].error().message;
+      mesh::RoomMesh cpu = mesh::build_room_mesh(*mesh_, rooms[i], mesh::Lod::kPatch).value();
+      EXPECT_EQ(meshes[i]->indices, cpu.indices) << rooms[i].id.to_string();
+      EXPECT_TRUE(same_vertices(*meshes[i], cpu)) << rooms[i].id.to_string();
+    }
+    EXPECT_EQ(builder.fallbacks(), 0u);
+    EXPECT_EQ(builder.channel_stats().launches, channels == Channels::kDevice ? 1u : 0u);
+  }
+}
+
+// The channels kernel alone: the finished meshes of rooms of two worlds (two noise seeds, origins
+// far from 0 and on both sides of it) in one launch give mesh::detail_channels' bits; a mesh
+// without vertices is passed over.
+TEST_F(DeformKernelTest, channels_kernel_matches_the_cpu_for_rooms_of_two_worlds) {
+  auto created = ChannelsKernel::create(*device_);
+  ASSERT_TRUE(created.ok()) << created.error().message;
+  ChannelsKernel kernel = std::move(created).value();
+  cave::World other_world = cave::World::create(43, cave::LayoutParams{}).value();
+  auto other = mesh::MeshContext::create(other_world, mesh::MeshParams{}).value();
+  cave::Region far_region = cave::generate_region(other_world, {-40, 3, 977}, {-40, 3, 977});
+  std::vector<mesh::RoomMesh> cpu;
+  std::vector<uint32_t> seeds;
+  for (size_t i = 0; i < 6; ++i) {
+    cpu.push_back(mesh::build_room_mesh(*mesh_, region_->rooms[i], mesh::Lod::kPatch).value());
+    seeds.push_back(mesh_->noise_seed());
+    cpu.push_back(mesh::build_room_mesh(other, far_region.rooms[i], mesh::Lod::kDetail).value());
+    seeds.push_back(other.noise_seed());
+  }
+  cpu.emplace_back();  // no vertices
+  seeds.push_back(7);
+  std::vector<mesh::RoomMesh> device = cpu;
+  std::vector<mesh::RoomMesh*> pointers;
+  for (mesh::RoomMesh& m : device) {
+    m.roughness.clear();
+    m.mineral.clear();
+    pointers.push_back(&m);
+  }
+  LaunchStats stats;
+  ASSERT_TRUE(kernel.run(pointers, seeds, mesh_->params(), &stats).ok());
+  EXPECT_EQ(stats.launches, 1u);
+  EXPECT_EQ(stats.rooms, cpu.size() - 1);
+  for (size_t i = 0; i < cpu.size(); ++i)
+    EXPECT_TRUE(same_vertices(device[i], cpu[i])) << "mesh " << i;
+  EXPECT_TRUE(device.back().roughness.empty());
+  EXPECT_FALSE(kernel.run(pointers, std::span(seeds).first(2), mesh_->params()).ok());
 }
 
 // A builder made for world 42 builds world 43's rooms as world 43's own CPU reference does (one
