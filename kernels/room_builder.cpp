@@ -42,6 +42,7 @@ RoomBuilder RoomBuilder::create(const mesh::MeshContext& mesh_ctx, const Options
     return b;
   }
   b.kernel_.emplace(std::move(kernel).value());
+  b.channels_min_vertices_ = options.channels_min_vertices;
   using Channels = Options::Channels;
   if (options.channels == Channels::kDevice ||
       (options.channels == Channels::kAuto && b.device_->info().device_type != "cpu")) {
@@ -104,8 +105,13 @@ std::vector<Result<mesh::RoomMesh>> RoomBuilder::build(
   }
   // The detail channels of the whole batch in one launch after assembly, where the device runs
   // them.
+  size_t vertices = 0;
+  for (const mesh::DeformInput& in : inputs)
+    vertices += in.donor->directions.size();
   const mesh::ChannelsBy channels =
-      on_device && channels_kernel_ ? mesh::ChannelsBy::kCaller : mesh::ChannelsBy::kAssemble;
+      on_device && channels_kernel_ && vertices >= channels_min_vertices_
+          ? mesh::ChannelsBy::kCaller
+          : mesh::ChannelsBy::kAssemble;
   // On the CPU, each room's deformation in its own vectors (the device's are views of its memory).
   std::vector<std::vector<mesh::core::float3>> cpu_positions(on_device ? 0 : inputs.size());
   std::vector<std::vector<float>> cpu_clearance(on_device ? 0 : inputs.size());

@@ -24,11 +24,17 @@ class RoomBuilder {
     // one build per worker thread, must not oversubscribe its cores); a whole cave built at once
     // sets more; 0 means one per hardware thread. Meshes do not depend on it.
     int threads = 1;
-    // Where the detail channels run when the deformation runs on a device. kAuto: on the device
-    // when it is not a CPU (one launch for the batch's finished meshes), else on the CPU's SIMD
-    // lanes, which PoCL's one-vertex-per-item kernel does not beat. Meshes do not depend on it.
+    // Where the detail channels run when the deformation runs on a device: on the device (one
+    // launch for the batch's finished meshes) for batches of at least channels_min_vertices
+    // donor vertices, else on the CPU's SIMD lanes. kAuto: the device when it is not a CPU
+    // (PoCL's one-vertex-per-item kernel does not beat the lanes); kDevice: whatever the device.
+    // Meshes do not depend on it.
     enum class Channels { kAuto, kDevice, kHost };
     Channels channels = Channels::kAuto;
+    // A launch's round trip is a fixed cost: on an H100 a server's batches of up to 32 patch
+    // rooms built slower with a second launch for their channels (server_bench: 0.46 against
+    // 0.26 ms a room), the whole detail cave (317,000 vertices) faster (docs/BENCHMARKS.md).
+    size_t channels_min_vertices = 65'536;
   };
 
   // Never fails: without a usable device the builder runs on the CPU.
@@ -54,7 +60,8 @@ class RoomBuilder {
   // Launches that failed and were redone on the CPU (each also logged).
   size_t fallbacks() const { return fallbacks_; }
   const LaunchStats& launch_stats() const { return launches_; }
-  // Whether the detail channels run on the device, and its launches for them.
+  // Whether the detail channels can run on the device (a big enough batch's do, where
+  // Options::channels allows), and its launches for them.
   bool channels_on_device() const { return channels_kernel_.has_value(); }
   const LaunchStats& channel_stats() const { return channel_launches_; }
 
@@ -71,6 +78,7 @@ class RoomBuilder {
   std::optional<ChannelsKernel> channels_kernel_;
   std::string path_;
   int threads_ = 1;
+  size_t channels_min_vertices_ = 0;
   size_t fallbacks_ = 0;
   LaunchStats launches_;
   LaunchStats channel_launches_;

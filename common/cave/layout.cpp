@@ -218,9 +218,32 @@ Region generate_region(const World& world, SectorCoord lo, SectorCoord hi, int t
         block.push_back({x, y, z});
     }
   }
+  // The sectors beyond the block's faces whose gates it needs, known from the faces' gates alone
+  // (face_gates: a few draws, no layout), so that every sector is laid out at once: each is a
+  // pure function of the world and its coordinates.
+  std::map<SectorCoord, SectorLayout> outside;
+  for (SectorCoord b : block) {
+    for (int axis = 0; axis < 3; ++axis) {
+      for (int step : {-1, 1}) {
+        const SectorCoord beyond = neighbour(b, axis, step);
+        if (in_block(beyond)) continue;
+        if (!face_gates(world, step > 0 ? b : beyond, axis).empty()) {
+          outside.emplace(beyond, SectorLayout{});
+        }
+      }
+    }
+  }
+  std::vector<SectorLayout*> pending;
   region.sectors.resize(block.size());
-  for_each_index(block.size(), threads,
-                 [&](size_t i) { region.sectors[i] = generate_sector(world, block[i]); });
+  for (SectorLayout& layout : region.sectors)
+    pending.push_back(&layout);
+  std::vector<SectorCoord> coords = block;
+  for (auto& [coord, layout] : outside) {
+    coords.push_back(coord);
+    pending.push_back(&layout);
+  }
+  for_each_index(pending.size(), threads,
+                 [&](size_t i) { *pending[i] = generate_sector(world, coords[i]); });
   std::vector<RoomId> gate_ids;
   for (const SectorLayout& layout : region.sectors) {
     region.rooms.insert(region.rooms.end(), layout.rooms.begin(), layout.rooms.end());
@@ -229,18 +252,6 @@ Region generate_region(const World& world, SectorCoord lo, SectorCoord hi, int t
   }
   std::sort(gate_ids.begin(), gate_ids.end());
   gate_ids.erase(std::unique(gate_ids.begin(), gate_ids.end()), gate_ids.end());
-  // A gate of the block's boundary also needs the sector beyond it.
-  std::map<SectorCoord, SectorLayout> outside;
-  for (RoomId id : gate_ids) {
-    for (SectorCoord s : {id.sector(), neighbour(id.sector(), id.gate_axis(), 1)}) {
-      if (!in_block(s)) outside.emplace(s, SectorLayout{});
-    }
-  }
-  std::vector<std::map<SectorCoord, SectorLayout>::iterator> pending;
-  for (auto it = outside.begin(); it != outside.end(); ++it)
-    pending.push_back(it);
-  for_each_index(pending.size(), threads,
-                 [&](size_t i) { pending[i]->second = generate_sector(world, pending[i]->first); });
   auto layout_of = [&](SectorCoord s) -> const SectorLayout& {
     if (in_block(s)) {
       size_t i = ((static_cast<size_t>(s.x - lo.x) * (hi.y - lo.y + 1)) + (s.y - lo.y)) *

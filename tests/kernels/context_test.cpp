@@ -126,7 +126,7 @@ TEST(ComputeContext, no_opencl_platform_fails_soft_in_a_child_process) {
 // The memory a deformation's results land in: a device buffer's read arrives in it, and it moves
 // (the deform kernel grows it by replacing it) with its contents; empty ones are refused.
 TEST(PinnedHost, receives_a_read_and_keeps_it_through_a_move) {
-  auto ctx = ComputeContext::create(DeviceConfig{.device = "cpu"});
+  auto ctx = ComputeContext::create(DeviceConfig{.device = "auto"});
   ASSERT_TRUE(ctx.ok()) << ctx.error().message;
   const std::vector<float> values = {1.5f, -2.0f, 3.25f, 1e-7f};
   auto device = make_buffer(*ctx, CL_MEM_READ_WRITE, values.data(), values.size());

@@ -290,18 +290,28 @@ bool same_vertices(const mesh::RoomMesh& a, const mesh::RoomMesh& b) {
          std::memcmp(a.mineral.data(), b.mineral.data(), a.vertex_count() * sizeof(float)) == 0;
 }
 
-// With the detail channels where the CPU device puts them (its SIMD lanes) and forced onto the
-// device (as on a GPU: one launch for the batch after assembly), the meshes are the CPU's bits.
+// With the detail channels where the CPU device puts them (its SIMD lanes), forced onto the
+// device (as on a GPU: one launch for the batch after assembly), and on the device for big batches
+// only (this one too small), the meshes are the CPU's bits.
 TEST_F(DeformKernelTest, room_builder_on_the_device_gives_the_cpu_meshes) {
   using Channels = RoomBuilder::Options::Channels;
-  for (Channels channels : {Channels::kAuto, Channels::kDevice}) {
-    SCOPED_TRACE(channels == Channels::kAuto ? "channels auto" : "channels on the device");
-    RoomBuilder builder =
-        RoomBuilder::create(*mesh_, {DeviceConfig{.device = "auto"}, /*threads=*/2, channels});
+  struct Case {
+    Channels channels;
+    size_t min_vertices;
+    const char* name;
+  };
+  for (Case c : {Case{Channels::kAuto, 0, "channels auto"},
+                 Case{Channels::kDevice, 0, "channels on the device"},
+                 Case{Channels::kDevice, size_t{1} << 30, "channels on the device, big batches"}}) {
+    SCOPED_TRACE(c.name);
+    const Channels channels = c.channels;
+    RoomBuilder builder = RoomBuilder::create(
+        *mesh_, {DeviceConfig{.device = "auto"}, /*threads=*/2, channels, c.min_vertices});
     ASSERT_TRUE(builder.uses_opencl()) << builder.path();
     EXPECT_EQ(builder.path().rfind("opencl: ", 0), 0u) << builder.path();
-    // PoCL is a CPU device: auto keeps the channels on the lanes.
-    EXPECT_EQ(builder.channels_on_device(), channels == Channels::kDevice);
+    // Auto keeps the channels on a CPU device's lanes (PoCL) and puts them on any other device.
+    const bool on_device = channels == Channels::kDevice || device_->info().device_type != "cpu";
+    EXPECT_EQ(builder.channels_on_device(), on_device);
     std::vector<cave::Room> rooms(region_->rooms.begin(), region_->rooms.begin() + 20);
     auto meshes = builder.build(rooms, mesh::Lod::kPatch);
     ASSERT_EQ(meshes.size(), rooms.size());
@@ -312,7 +322,7 @@ TEST_F(DeformKernelTest, room_builder_on_the_device_gives_the_cpu_meshes) {
       EXPECT_TRUE(same_vertices(*meshes[i], cpu)) << rooms[i].id.to_string();
     }
     EXPECT_EQ(builder.fallbacks(), 0u);
-    EXPECT_EQ(builder.channel_stats().launches, channels == Channels::kDevice ? 1u : 0u);
+    EXPECT_EQ(builder.channel_stats().launches, on_device && c.min_vertices == 0 ? 1u : 0u);
   }
 }
 
