@@ -206,17 +206,17 @@ int main(int argc, char** argv) {
       double ms = median_ms(
           reps, [&] { (void)builder.build(rooms, lod); }, &cpu_ms);
       // The detail channels' launches (on GPUs: RoomBuilder's kAuto), each part per launch.
-      nlohmann::json channels = "cpu";
+      nlohmann::json channel_split = "cpu";
       if (const kernels::LaunchStats& c = builder.channel_stats(); c.launches > 0) {
         const double n = static_cast<double>(c.launches);
-        channels = {{"prepare_ms", c.prepare_ms / n},       {"upload_ms", c.upload_ms / n},
-                    {"kernel_ms", c.kernel_ms / n},         {"download_ms", c.download_ms / n},
-                    {"queue_wall_ms", c.queue_wall_ms / n}, {"unpack_ms", c.unpack_ms / n},
-                    {"vertices", c.vertices / c.launches}};
+        channel_split = {{"prepare_ms", c.prepare_ms / n},       {"upload_ms", c.upload_ms / n},
+                         {"kernel_ms", c.kernel_ms / n},         {"download_ms", c.download_ms / n},
+                         {"queue_wall_ms", c.queue_wall_ms / n}, {"unpack_ms", c.unpack_ms / n},
+                         {"vertices", c.vertices / c.launches}};
       }
       whole.push_back({{"device", device.empty() ? std::string("auto") : device},
                        {"path", builder.path()},
-                       {"channels", channels},
+                       {"channels", channel_split},
                        {"threads", threads},
                        {"build_ms", ms},
                        {"build_cpu_time_ms", cpu_ms},
