@@ -31,7 +31,7 @@ std::string deform_source() {
 }
 
 Result<DeformKernel> DeformKernel::create(ComputeContext& ctx, const mesh::MeshContext& mesh_ctx,
-                                          int lanes) {
+                                          int lanes, size_t max_constant_bytes) {
   if (lanes == 0) lanes = ctx.info().device_type == "cpu" ? 8 : 1;
   if (lanes != 1 && lanes != 8) {
     return invalid_argument("deformation lanes must be 0 (auto), 1 or 8, not " +
@@ -49,6 +49,7 @@ Result<DeformKernel> DeformKernel::create(ComputeContext& ctx, const mesh::MeshC
   if (!shape_buffer) return shape_buffer.error();
   cl_ulong max_constant = 0;
   GROTTO_CL_TRY(ctx.device().getInfo(CL_DEVICE_MAX_CONSTANT_BUFFER_SIZE, &max_constant));
+  if (max_constant_bytes > 0) max_constant = std::min<cl_ulong>(max_constant, max_constant_bytes);
   size_t max_group = 0;
   GROTTO_CL_TRY(kernel->getWorkGroupInfo(ctx.device(), CL_KERNEL_WORK_GROUP_SIZE, &max_group));
   DeformKernel k(ctx, std::move(kernel).value(), std::move(shape_buffer).value(),

@@ -81,8 +81,11 @@ class DeformKernel {
   // Builds (or loads from the caches) the program. Errors carry the build log. `lanes` is how many
   // vertices one work item deforms, 1 or 8; 0 picks by device: 8 on CPU devices (PoCL does not
   // vectorize the kernel across work items, so it runs in float8 registers), 1 elsewhere.
+  // `max_constant_bytes` caps the constant memory a launch's tables may use (0: the device's
+  // limit); a smaller cap splits batches into more launches (tests: every launch's results in
+  // their own part of the host memory).
   static Result<DeformKernel> create(ComputeContext& ctx, const mesh::MeshContext& mesh_ctx,
-                                     int lanes = 0);
+                                     int lanes = 0, size_t max_constant_bytes = 0);
 
   // Deforms every room of `batch`; outputs[i] receives room i's result (views, valid until the
   // next run). Rooms go to the device in as few launches as its constant memory allows (usually

@@ -160,6 +160,40 @@ TEST_F(DeformKernelTest, batched_and_single_room_launches_agree) {
   }
 }
 
+// A batch split into several launches (as a GPU's 64 KiB of constant memory splits a few hundred
+// rooms) gives every room the bits of one launch: each launch reads into its own part of the
+// run's host memory, and the first launch's views survive the later ones.
+TEST_F(DeformKernelTest, a_batch_split_into_many_launches_gives_the_one_launch_bits) {
+  for (int lanes : {1, 8}) {
+    SCOPED_TRACE("lanes=" + std::to_string(lanes));
+    auto whole_created = DeformKernel::create(*device_, *mesh_, lanes);
+    auto split_created = DeformKernel::create(*device_, *mesh_, lanes, 4096);
+    ASSERT_TRUE(whole_created.ok() && split_created.ok());
+    DeformKernel whole = std::move(whole_created).value();
+    DeformKernel split = std::move(split_created).value();
+    std::vector<mesh::DeformInput> batch = inputs(mesh::Lod::kPatch);
+    std::vector<DeformOutput> one_views, many;
+    LaunchStats one_stats, many_stats;
+    ASSERT_TRUE(whole.run(batch, one_views, &one_stats).ok());
+    ASSERT_TRUE(split.run(batch, many, &many_stats).ok());
+    EXPECT_EQ(one_stats.launches, 1u);
+    EXPECT_GE(many_stats.launches, 4u);
+    ASSERT_EQ(many.size(), batch.size());
+    const std::vector<OwnedOutput> one = owned(one_views);
+    for (size_t r = 0; r < batch.size(); ++r) {
+      ASSERT_EQ(many[r].positions.size(), one[r].positions.size());
+      EXPECT_EQ(std::memcmp(many[r].positions.data(), one[r].positions.data(),
+                            one[r].positions.size() * sizeof(mesh::core::float3)),
+                0)
+          << "room " << r;
+      EXPECT_EQ(std::memcmp(many[r].clearance.data(), one[r].clearance.data(),
+                            one[r].clearance.size() * sizeof(float)),
+                0)
+          << "room " << r;
+    }
+  }
+}
+
 // Issue 30: a launch's time split by the queue's events. With profiling (the default) the device's
 // upload, kernel and download are timed and fit in the device's span; without it they read 0, and
 // either way the results are the same bits.
