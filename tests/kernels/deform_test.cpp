@@ -6,6 +6,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <cstdlib>
 #include <cstring>
 #include <set>
 
@@ -357,6 +358,41 @@ TEST_F(DeformKernelTest, room_builder_on_the_device_gives_the_cpu_meshes) {
     }
     EXPECT_EQ(builder.fallbacks(), 0u);
     EXPECT_EQ(builder.channel_stats().launches, on_device && c.min_vertices == 0 ? 1u : 0u);
+  }
+}
+
+// Run by the kernels.launch_fault.* tests (tests/kernels/CMakeLists.txt), under an interposer that
+// fails every launch of the kernel GROTTO_TEST_FAIL_KERNEL names: the machine's OpenCL failing
+// after a good start. The builder logs and counts each failed launch and builds that stage on the
+// CPU, with the same bits, and tries the device again at the next batch.
+class LaunchFault : public DeformKernelTest {};
+
+TEST_F(LaunchFault, a_failed_launch_is_built_on_the_cpu_with_the_same_bits) {
+  const char* failing = std::getenv("GROTTO_TEST_FAIL_KERNEL");
+  if (failing == nullptr) GTEST_SKIP() << "run by kernels.launch_fault.* under the interposer";
+  const std::string kernel = failing;
+  ASSERT_TRUE(kernel == "grotto_deform_rooms" || kernel == "grotto_detail_channels") << kernel;
+  using Channels = RoomBuilder::Options::Channels;
+  RoomBuilder builder =
+      RoomBuilder::create(*mesh_, {DeviceConfig{.device = "auto"}, /*threads=*/2, Channels::kDevice,
+                                   /*channels_min_vertices=*/0});
+  ASSERT_TRUE(builder.uses_opencl()) << builder.path();
+  ASSERT_TRUE(builder.channels_on_device());
+  std::vector<cave::Room> rooms(region_->rooms.begin(), region_->rooms.begin() + 12);
+  for (size_t round = 1; round <= 2; ++round) {
+    auto meshes = builder.build(rooms, mesh::Lod::kPatch);
+    ASSERT_EQ(meshes.size(), rooms.size());
+    for (size_t i = 0; i < rooms.size(); ++i) {
+      ASSERT_TRUE(meshes[i].ok()) << meshes[i].error().message;
+      mesh::RoomMesh cpu = mesh::build_room_mesh(*mesh_, rooms[i], mesh::Lod::kPatch).value();
+      EXPECT_EQ(meshes[i]->indices, cpu.indices) << rooms[i].id.to_string();
+      EXPECT_TRUE(same_vertices(*meshes[i], cpu)) << rooms[i].id.to_string();
+    }
+    EXPECT_EQ(builder.fallbacks(), round) << "one failed launch a batch, counted";
+    // A failed deformation leaves the whole batch to the CPU; a failed channels launch only its
+    // channels, after the device deformed the rooms.
+    EXPECT_EQ(builder.launch_stats().launches, kernel == "grotto_deform_rooms" ? 0u : round);
+    EXPECT_EQ(builder.channel_stats().launches, 0u);
   }
 }
 
