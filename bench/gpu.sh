@@ -8,6 +8,8 @@
 #     cave through RoomBuilder on 1, 2 and every hardware thread;
 #   - server_bench (fresh patch rooms, built and encoded, sector cache on) on the CPU reference
 #     and on each device found;
+#   - kernels_tests, where it is built or carried: the kernels against the CPU reference, bit for
+#     bit, on the device "auto" picks (a GPU when there is one);
 #   - grotto-client --bench (the scripted path, 1920x1080) with MaxTess 8, MaxTess 64 and
 #     tessellation off, through EGL and, where DISPLAY is set, GLFW: one row per distinct
 #     renderer;
@@ -71,6 +73,16 @@ done
   command -v nvidia-smi >/dev/null && echo "gpus=$(nvidia-smi -L 2>/dev/null | tr '\n' ';')"
 } >"$out/machine.txt"
 
+# The bits before the figures: where kernels_tests is built or carried (bench/gpu_carry.sh packs
+# it), the kernels against the CPU reference, bit for bit, on the device "auto" picks (a GPU when
+# there is one).
+if [[ -x "$bin/kernels_tests" ]]; then
+  echo "gpu.sh: kernels_tests (the kernels against the CPU reference)" >&2
+  timeout "$step_timeout" "$bin/kernels_tests" --gtest_filter='DeformKernelTest.*:PinnedHost.*' \
+    >"$out/bits.log" 2>&1
+  echo $? >"$out/bits.rc"
+fi
+
 # mesh_bench on each device keyword; the first keyword that reaches a device names it.
 found=()
 for d in ${devices//,/ }; do
@@ -132,6 +144,20 @@ def whole(w):
     parts = f"layout {w['layout_ms']:.1f}, build {w['build_ms']:.1f}" if "layout_ms" in w else f"build {w['build_ms']:.1f}"
     return f"{w['whole_cave_ms']:.1f} ms ({parts})"
 seen, ran = set(), 0
+bits = os.path.join(out, "bits.log")
+if os.path.exists(bits):
+    log = open(bits, errors="replace").read()
+    device = log.split('device="')[1].split('"')[0] if 'device="' in log else "?"
+    passed = [l for l in log.splitlines() if l.startswith("[  PASSED  ]")]
+    failed = sorted({l.split()[3] for l in log.splitlines()
+                     if l.startswith("[  FAILED  ]") and len(l.split()) > 3 and "." in l.split()[3]})
+    if rc(os.path.join(out, "bits.rc")) == "0" and passed:
+        result = "passed: " + passed[-1][len("[  PASSED  ] "):].rstrip(".")
+    else:
+        result = f"FAILED (exit {rc(os.path.join(out, 'bits.rc'))}): " + (", ".join(failed) or "see bits.log")
+    print(f"| kernels_tests: deformation and channels kernels against the CPU, bit for bit | {device} | {result} |")
+else:
+    print("| kernels_tests | - | not built (a test build, or bench/gpu_carry.sh's pack, has it) |")
 cpu_rows = None
 for d in ("gpu", "accelerator", "cpu"):
     if not os.path.exists(os.path.join(out, f"mesh-{d}.rc")):
