@@ -161,12 +161,7 @@ Status ChannelsKernel::run(std::span<mesh::RoomMesh* const> meshes, std::span<co
     stats->allocate_ms += ms_between(t_allocate, t_gather);
     stats->queue_wall_ms += ms_between(t_queue, t_unpack);
     stats->unpack_ms += ms_between(t_unpack, Clock::now());
-    for (const cl::Event& e : writes)
-      stats->upload_ms += event_ms(e);
-    stats->kernel_ms += event_ms(run);
-    for (const cl::Event& e : reads)
-      stats->download_ms += event_ms(e);
-    stats->device_span_ms += event_span_ms(writes[0], reads[1]);
+    add_device_times(*stats, writes, run, reads);
     stats->upload_bytes += host_origins_.size() * sizeof(double) + 2 * rooms * sizeof(uint32_t) +
                            3 * vertices * sizeof(float);
     stats->download_bytes += 2 * vertices * sizeof(float);

@@ -23,6 +23,16 @@ double ms_between(Clock::time_point a, Clock::time_point b) {
 
 }  // namespace
 
+void add_device_times(LaunchStats& stats, std::span<const cl::Event> writes,
+                      const cl::Event& kernel, std::span<const cl::Event> reads) {
+  for (const cl::Event& e : writes)
+    stats.upload_ms += event_ms(e);
+  stats.kernel_ms += event_ms(kernel);
+  for (const cl::Event& e : reads)
+    stats.download_ms += event_ms(e);
+  stats.device_span_ms += event_span_ms(writes.front(), reads.back());
+}
+
 std::string deform_source() {
   std::string s(source_deform_prelude());
   s += source_deform_core();
@@ -280,12 +290,7 @@ Status DeformKernel::launch(std::span<const mesh::DeformInput> rooms,
     stats->allocate_ms += ms_between(t_allocate, t_queue);
     stats->queue_wall_ms += ms_between(t_queue, t_unpack);
     stats->unpack_ms += ms_between(t_unpack, Clock::now());
-    for (const cl::Event& e : writes)
-      stats->upload_ms += event_ms(e);
-    stats->kernel_ms += event_ms(run);
-    for (const cl::Event& e : reads)
-      stats->download_ms += event_ms(e);
-    stats->device_span_ms += event_span_ms(writes[0], reads[1]);
+    add_device_times(*stats, writes, run, reads);
     stats->upload_bytes +=
         records.size() * sizeof(GrottoRoom) + portals.size() * sizeof(GrottoPortal);
     stats->download_bytes += 4 * slots * sizeof(float);

@@ -60,6 +60,12 @@ struct LaunchStats {
   size_t local_size = 0;
 };
 
+// Adds one launch's device times to `stats` (0 without profiling): its input writes' and output
+// reads' durations, the kernel's, and the span from the first write to the last read. The host's
+// parts and the byte counts stay the caller's.
+void add_device_times(LaunchStats& stats, std::span<const cl::Event> writes,
+                      const cl::Event& kernel, std::span<const cl::Event> reads);
+
 // What the driver says about the built kernel on its device (clGetKernelWorkGroupInfo), for
 // reasoning about occupancy: the largest work-group it can run (on GPUs lower than the device's
 // limit when each work item needs many registers), the work-group multiple it prefers (the SIMD

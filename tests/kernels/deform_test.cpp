@@ -325,6 +325,18 @@ bool same_vertices(const mesh::RoomMesh& a, const mesh::RoomMesh& b) {
          std::memcmp(a.mineral.data(), b.mineral.data(), a.vertex_count() * sizeof(float)) == 0;
 }
 
+// Each of `meshes` built, with the indices and vertex bits of rooms[i]'s CPU reference (patch).
+void expect_cpu_meshes(const std::vector<Result<mesh::RoomMesh>>& meshes,
+                       const std::vector<cave::Room>& rooms, const mesh::MeshContext& world) {
+  ASSERT_EQ(meshes.size(), rooms.size());
+  for (size_t i = 0; i < rooms.size(); ++i) {
+    ASSERT_TRUE(meshes[i].ok()) << meshes[i].error().message;
+    mesh::RoomMesh cpu = mesh::build_room_mesh(world, rooms[i], mesh::Lod::kPatch).value();
+    EXPECT_EQ(meshes[i]->indices, cpu.indices) << rooms[i].id.to_string();
+    EXPECT_TRUE(same_vertices(*meshes[i], cpu)) << rooms[i].id.to_string();
+  }
+}
+
 // With the detail channels where the CPU device puts them (its SIMD lanes), forced onto the
 // device (as on a GPU: one launch for the batch after assembly), and on the device for big batches
 // only (this one too small), the meshes are the CPU's bits.
@@ -350,12 +362,7 @@ TEST_F(DeformKernelTest, room_builder_on_the_device_gives_the_cpu_meshes) {
     std::vector<cave::Room> rooms(region_->rooms.begin(), region_->rooms.begin() + 20);
     auto meshes = builder.build(rooms, mesh::Lod::kPatch);
     ASSERT_EQ(meshes.size(), rooms.size());
-    for (size_t i = 0; i < rooms.size(); ++i) {
-      ASSERT_TRUE(meshes[i].ok()) << meshes[i].error().message;
-      mesh::RoomMesh cpu = mesh::build_room_mesh(*mesh_, rooms[i], mesh::Lod::kPatch).value();
-      EXPECT_EQ(meshes[i]->indices, cpu.indices) << rooms[i].id.to_string();
-      EXPECT_TRUE(same_vertices(*meshes[i], cpu)) << rooms[i].id.to_string();
-    }
+    expect_cpu_meshes(meshes, rooms, *mesh_);
     EXPECT_EQ(builder.fallbacks(), 0u);
     EXPECT_EQ(builder.channel_stats().launches, on_device && c.min_vertices == 0 ? 1u : 0u);
   }
@@ -382,12 +389,7 @@ TEST_F(LaunchFault, a_failed_launch_is_built_on_the_cpu_with_the_same_bits) {
   for (size_t round = 1; round <= 2; ++round) {
     auto meshes = builder.build(rooms, mesh::Lod::kPatch);
     ASSERT_EQ(meshes.size(), rooms.size());
-    for (size_t i = 0; i < rooms.size(); ++i) {
-      ASSERT_TRUE(meshes[i].ok()) << meshes[i].error().message;
-      mesh::RoomMesh cpu = mesh::build_room_mesh(*mesh_, rooms[i], mesh::Lod::kPatch).value();
-      EXPECT_EQ(meshes[i]->indices, cpu.indices) << rooms[i].id.to_string();
-      EXPECT_TRUE(same_vertices(*meshes[i], cpu)) << rooms[i].id.to_string();
-    }
+    expect_cpu_meshes(meshes, rooms, *mesh_);
     EXPECT_EQ(builder.fallbacks(), round) << "one failed launch a batch, counted";
     // A failed deformation leaves the whole batch to the CPU; a failed channels launch only its
     // channels, after the device deformed the rooms.
