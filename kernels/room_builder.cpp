@@ -3,7 +3,6 @@
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
-#include <atomic>
 #include <cassert>
 #include <cstring>
 #include <numeric>
@@ -112,9 +111,6 @@ std::vector<Result<mesh::RoomMesh>> RoomBuilder::build(
       on_device && channels_kernel_ && vertices >= channels_min_vertices_
           ? mesh::ChannelsBy::kCaller
           : mesh::ChannelsBy::kAssemble;
-  // On the CPU, each room's deformation in its own vectors (the device's are views of its memory).
-  std::vector<std::vector<mesh::core::float3>> cpu_positions(on_device ? 0 : inputs.size());
-  std::vector<std::vector<float>> cpu_clearance(on_device ? 0 : inputs.size());
   // Rooms are independent: each index writes its own output and mesh slot. Largest first: with
   // whole rooms as the unit of work, a hall taken last would finish alone while the other
   // threads wait (issue 30: the whole cave on every core).
@@ -126,12 +122,12 @@ std::vector<Result<mesh::RoomMesh>> RoomBuilder::build(
   for_each_index(inputs.size(), threads_, [&](size_t i) {
     const size_t k = order[i];
     const mesh::MeshContext& world = *worlds[slots[k]];
-    if (!on_device) {
-      size_t n = inputs[k].donor->directions.size();
-      cpu_positions[k].resize(n);
-      cpu_clearance[k].resize(n);
-      mesh::deform_cpu(world, inputs[k], cpu_positions[k], cpu_clearance[k]);
-      meshes[slots[k]] = mesh::assemble_room(world, inputs[k], cpu_positions[k], cpu_clearance[k]);
+    if (!on_device) {  // the room's deformation on this thread, for its assembly alone
+      const size_t n = inputs[k].donor->directions.size();
+      std::vector<mesh::core::float3> positions(n);
+      std::vector<float> clearance(n);
+      mesh::deform_cpu(world, inputs[k], positions, clearance);
+      meshes[slots[k]] = mesh::assemble_room(world, inputs[k], positions, clearance);
       return;
     }
     meshes[slots[k]] = mesh::assemble_room(world, inputs[k], outputs[k].positions,
