@@ -139,6 +139,7 @@ struct Generator::State {
   std::vector<std::optional<kernels::RoomBuilder>> builders;
   int builders_ready = 0;
   int workers_exited = 0;
+  size_t idle_workers = 0;  // waiting on work_cv for queued work
   int fetches = 0;                     // asked of config.owners, not yet answered
   std::condition_variable fetched_cv;  // a fetch was answered
 
@@ -290,6 +291,16 @@ struct Generator::State {
       if (batch.size() > before) urgent = true;
     }
     if (!urgent) take_any(batch, limit);
+  }
+
+  // How many queued jobs a worker about to take a batch takes: all it may (max_batch) while the
+  // queue keeps every worker busy, else an even share with the workers waiting for work, so
+  // that a few wants (one player's first rooms) are built and encoded on every core instead of
+  // one worker's while the others wait. A batch's rooms are built on its worker's thread alone
+  // (RoomBuilder::Options::threads is 1 in the server), so one batch is one core.
+  size_t batch_share(size_t max_batch) const {
+    const size_t share = (queued_jobs + idle_workers) / (idle_workers + 1);
+    return std::clamp<size_t>(share, 1, max_batch);
   }
 
   // A client's most urgent queued want that fits the batch (of its lod, once it has a job).
@@ -590,7 +601,9 @@ struct Generator::State {
     std::vector<Outgoing> out;
     size_t max_batch = config.max_batch_rooms;
     while (true) {
+      ++idle_workers;
       work_cv.wait(lock, [&] { return stopping || queued_jobs > 0; });
+      --idle_workers;
       if (stopping) break;
       expire(Clock::now(), out);
       if (!out.empty()) {
@@ -600,20 +613,21 @@ struct Generator::State {
       }
       std::vector<JobPtr> batch;
       bool urgent = false;
-      take(batch, max_batch, urgent);
-      // Work this batch cannot take (another lod): another worker's, now.
+      const size_t limit = batch_share(max_batch);
+      take(batch, limit, urgent);
+      // Work this batch cannot take (another lod, or the idle workers' shares): theirs, now.
       if (queued_jobs > 0) work_cv.notify_one();
       // A fuller batch amortizes the launch: wait a little for more wants of this lod, but not
       // with urgent rooms, which go now (waiting 2 ms for every few urgent rooms halved the
       // rooms built a second while a crowd arrived).
-      if (!urgent && batch.size() < max_batch && !batch.empty() &&
+      if (!urgent && batch.size() < limit && !batch.empty() &&
           config.max_batch_wait.count() > 0) {
         auto until = Clock::now() + config.max_batch_wait;
-        while (batch.size() < max_batch && !stopping &&
+        while (batch.size() < limit && !stopping &&
                work_cv.wait_until(lock, until) == std::cv_status::no_timeout) {
-          take(batch, max_batch, urgent);
+          take(batch, limit, urgent);
         }
-        take(batch, max_batch, urgent);
+        take(batch, limit, urgent);
       }
       if (queued_jobs > 0) work_cv.notify_one();  // work left: wake another worker
       // Jobs cancelled by everyone while the batch filled are not built.

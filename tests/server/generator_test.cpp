@@ -505,6 +505,32 @@ TEST(GeneratorTest, an_urgent_room_does_not_wait_for_a_batch_of_prefetch) {
   }
 }
 
+// A few wants asked while every worker waits are shared among them, each worker a batch of its
+// own (on its own core), instead of one batch on one worker while the others stay idle: 8 urgent
+// rooms and two idle workers make at least two batches (the first worker takes 4; the second
+// takes the rest unless the first comes back for some first). One worker takes them all at once.
+TEST(GeneratorTest, a_few_wants_are_shared_among_idle_workers) {
+  for (int workers : {2, 1}) {
+    SCOPED_TRACE(std::to_string(workers) + " workers");
+    GeneratorConfig config = cpu_config(workers);
+    config.max_batch_rooms = 32;
+    Metrics metrics;
+    auto gen = make_generator(config, metrics);
+    ASSERT_TRUE(gen);
+    Inbox inbox;
+    ClientId c = gen->add_client(inbox.fn());
+    std::vector<Want> wants = wants_of(existing_rooms(8));
+    gen->request(c, wants);
+    ASSERT_TRUE(inbox.wait_for(8));
+    if (workers == 2) {
+      EXPECT_GE(metrics.batches.value(), 2u);
+    } else {
+      EXPECT_EQ(metrics.batches.value(), 1u);
+    }
+    gen->remove_client(c);
+  }
+}
+
 TEST(GeneratorTest, priorities_are_honoured_within_a_client) {
   GeneratorConfig config = cpu_config();
   config.max_batch_rooms = 1;
