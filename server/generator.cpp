@@ -19,6 +19,7 @@
 #include <thread>
 
 #include "codec/room_codec.hpp"
+#include "core/thread_name.hpp"
 #include "mesh/context.hpp"
 #include "proto/lod.hpp"
 #include "proto/room_frame.hpp"
@@ -139,7 +140,7 @@ struct Generator::State {
   std::vector<std::optional<kernels::RoomBuilder>> builders;
   int builders_ready = 0;
   int workers_exited = 0;
-  size_t idle_workers = 0;  // waiting on work_cv for queued work
+  size_t idle_workers = 0;             // waiting on work_cv for queued work
   int fetches = 0;                     // asked of config.owners, not yet answered
   std::condition_variable fetched_cv;  // a fetch was answered
 
@@ -620,8 +621,7 @@ struct Generator::State {
       // A fuller batch amortizes the launch: wait a little for more wants of this lod, but not
       // with urgent rooms, which go now (waiting 2 ms for every few urgent rooms halved the
       // rooms built a second while a crowd arrived).
-      if (!urgent && batch.size() < limit && !batch.empty() &&
-          config.max_batch_wait.count() > 0) {
+      if (!urgent && batch.size() < limit && !batch.empty() && config.max_batch_wait.count() > 0) {
         auto until = Clock::now() + config.max_batch_wait;
         while (batch.size() < limit && !stopping &&
                work_cv.wait_until(lock, until) == std::cv_status::no_timeout) {
@@ -710,7 +710,10 @@ Result<std::unique_ptr<Generator>> Generator::create(const cave::World& world,
   // Each worker opens its own builder (and OpenCL context) on its thread: builders are not
   // thread-safe. They open one after another (see worker_main).
   for (size_t i = 0; i < workers; ++i) {
-    s->threads.emplace_back([s, i] { s->worker_main(i); });
+    s->threads.emplace_back([s, i] {
+      name_this_thread("grotto-build");
+      s->worker_main(i);
+    });
   }
   {
     std::unique_lock lock(s->mutex);

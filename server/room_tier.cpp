@@ -15,6 +15,8 @@
 #include <set>
 #include <thread>
 
+#include "core/thread_name.hpp"
+
 namespace grotto::server {
 
 namespace beast = boost::beast;
@@ -234,7 +236,10 @@ Result<std::unique_ptr<RoomTier>> RoomTier::create(RoomTierConfig config) {
   }
   auto impl = std::make_unique<Impl>(std::move(config), hp->first, hp->second);
   Impl* i = impl.get();
-  i->thread = std::thread([i] { i->io.run(); });
+  i->thread = std::thread([i] {
+    name_this_thread("grotto-tier");
+    i->io.run();
+  });
   return std::unique_ptr<RoomTier>(new RoomTier(std::move(impl)));
 }
 

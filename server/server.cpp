@@ -34,6 +34,7 @@
 
 #include "cave/layout.hpp"
 #include "core/random.hpp"
+#include "core/thread_name.hpp"
 #include "proto/room_path.hpp"
 #include "proto/token.hpp"
 #include "proto/world_digest.hpp"
@@ -1167,7 +1168,10 @@ Result<std::unique_ptr<Server>> Server::start(const ServerConfig& config) {
   impl->refill_reserve();  // before any thread runs: the accept strand is not yet in use
   net::dispatch(*impl->accept_strand, [p = impl.get()] { p->do_accept(); });
   for (int i = 0; i < threads; ++i) {
-    impl->threads.emplace_back([p = impl.get()] { p->ioc.run(); });
+    impl->threads.emplace_back([p = impl.get()] {
+      name_this_thread("grotto-io");
+      p->ioc.run();
+    });
   }
   spdlog::info(
       "event=listening address={}:{} io_threads={} compute=\"{}\" seed={} max_connections={} "

@@ -3,6 +3,7 @@
 #include <spdlog/spdlog.h>
 
 #include "client/stream/verify.hpp"
+#include "core/thread_name.hpp"
 
 namespace grotto::client::load {
 namespace {
@@ -47,7 +48,10 @@ void PlayerVerifier::check(
 Verifier::Verifier(int players, RoomLookup lookup)
     : lookup_(std::move(lookup)), players_(static_cast<size_t>(players)) {
   report_.enabled = true;
-  thread_ = std::thread([this] { run(); });
+  thread_ = std::thread([this] {
+    name_this_thread("load-verify");
+    run();
+  });
 }
 
 Verifier::~Verifier() {

@@ -33,6 +33,7 @@
 #include "client/stream/conversation.hpp"
 #include "client/stream/decode_queue.hpp"
 #include "codec/room_codec.hpp"
+#include "core/thread_name.hpp"
 
 namespace grotto::client {
 
@@ -57,7 +58,10 @@ struct Runtime::Impl {
                                         ? worker_threads
                                         : std::max(1u, std::thread::hardware_concurrency()))) {
     for (int i = 0; i < std::max(1, io_threads); ++i)
-      io.emplace_back([this] { ioc.run(); });
+      io.emplace_back([this] {
+        name_this_thread("stream-io");
+        ioc.run();
+      });
   }
   ~Impl() {
     workers.join();
@@ -146,6 +150,9 @@ struct Stream::Impl : std::enable_shared_from_this<Stream::Impl> {
       });
     });
     net::post(rt.workers, [&decodes = rt.decodes] {
+      thread_local bool named = false;  // the pool's threads are Asio's: named at their first job
+      if (!named) name_this_thread("stream-decode");
+      named = true;
       if (auto next = decodes.pop()) next();
     });
   }

@@ -12,6 +12,8 @@
 #include <atomic>
 #include <chrono>
 #include <condition_variable>
+#include <filesystem>
+#include <fstream>
 #include <functional>
 #include <map>
 #include <mutex>
@@ -529,6 +531,21 @@ TEST(GeneratorTest, a_few_wants_are_shared_among_idle_workers) {
     }
     gen->remove_client(c);
   }
+}
+
+// The workers carry a name the operating system shows (top -H, ps -L, perf).
+TEST(GeneratorTest, workers_are_named_for_the_operating_system) {
+  Metrics metrics;
+  auto gen = make_generator(cpu_config(2), metrics);
+  ASSERT_TRUE(gen);
+  int named = 0;
+  for (const auto& task : std::filesystem::directory_iterator("/proc/self/task")) {
+    std::ifstream comm(task.path() / "comm");
+    std::string name;
+    std::getline(comm, name);
+    named += name == "grotto-build";
+  }
+  EXPECT_GE(named, 2);
 }
 
 TEST(GeneratorTest, priorities_are_honoured_within_a_client) {
