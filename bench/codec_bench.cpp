@@ -117,7 +117,7 @@ int main(int argc, char** argv) {
       "settings, against the raw float32 detail room and meshoptimizer, with a JSON report"};
   std::string json_path = "codec_bench.json";
   int reps = 5, room_count = 100;
-  uint64_t seed = 42;
+  uint64_t seed = 7;  // every binary's default world
   int profile_loops = 0;
   int grid_step_log2 = grid::kStepLog2;
   app.add_option("--json", json_path, "Write the report here")->capture_default_str();

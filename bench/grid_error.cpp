@@ -125,7 +125,7 @@ int main(int argc, char** argv) {
       "normals against the server's, displacement, degenerate and flipped triangles, rims), with "
       "a JSON report"};
   std::string json_path = "grid_error.json";
-  uint64_t seed = 42;
+  uint64_t seed = 7;  // every binary's default world
   int room_count = 100;
   std::vector<int> grids = {grid::kStepLog2, grid::kStepLog2 - 1};
   app.add_option("--json", json_path, "Write the report here")->capture_default_str();

@@ -59,7 +59,7 @@ int main(int argc, char** argv) {
       "on one thread vs OpenCL), with a JSON report"};
   std::string json_path = "mesh_bench.json";
   int reps = 5, room_count = 100;
-  uint64_t seed = 42;
+  uint64_t seed = 7;  // every binary's default world
   int lanes = 0;
   std::string lod_name = "detail";
   app.add_option("--json", json_path, "Write the report here")->capture_default_str();
@@ -227,6 +227,7 @@ int main(int argc, char** argv) {
   spdlog::set_level(spdlog::level::info);
 
   nlohmann::json report;
+  report["seed"] = seed;
   report["rooms"] = rooms.size();
   report["lod"] = lod_name;
   char digest_hex[17];
