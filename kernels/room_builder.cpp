@@ -153,12 +153,8 @@ void RoomBuilder::fill_channels(std::span<const mesh::MeshContext* const> worlds
   if (s) return;
   ++fallbacks_;
   spdlog::warn("event=channels_fallback rooms={} error=\"{}\"", built.size(), s.error().message);
-  for_each_index(built.size(), threads_, [&](size_t i) {
-    mesh::RoomMesh& m = *built[i];
-    m.roughness.resize(m.positions.size());
-    m.mineral.resize(m.positions.size());
-    mesh::detail_channels(*built_worlds[i], m.origin, m.positions, m.roughness, m.mineral);
-  });
+  for_each_index(built.size(), threads_,
+                 [&](size_t i) { mesh::fill_detail_channels(*built_worlds[i], *built[i]); });
 }
 
 }  // namespace grotto::kernels

@@ -420,6 +420,12 @@ void detail_channels_reference(const MeshContext& ctx, Vec3 origin,
   }
 }
 
+void fill_detail_channels(const MeshContext& ctx, RoomMesh& mesh) {
+  mesh.roughness.resize(mesh.positions.size());
+  mesh.mineral.resize(mesh.positions.size());
+  detail_channels(ctx, mesh.origin, mesh.positions, mesh.roughness, mesh.mineral);
+}
+
 Result<RoomMesh> assemble_room(const MeshContext& ctx, const DeformInput& input,
                                std::span<const float3> positions, std::span<const float> clearance,
                                AssembleStats* stats_out, ChannelsBy channels) {
@@ -643,9 +649,7 @@ Result<RoomMesh> assemble_room(const MeshContext& ctx, const DeformInput& input,
     if (stats_out) *stats_out = stats;
     return mesh;
   }
-  mesh.roughness.resize(mesh.positions.size());
-  mesh.mineral.resize(mesh.positions.size());
-  detail_channels(ctx, mesh.origin, mesh.positions, mesh.roughness, mesh.mineral);
+  fill_detail_channels(ctx, mesh);
   lap(stats.channels_seconds);
   if (stats_out) *stats_out = stats;
   return mesh;

@@ -65,6 +65,9 @@ void deform_reference(const MeshContext& ctx, const DeformInput& input,
 // to detail_channels_reference.
 void detail_channels(const MeshContext& ctx, Vec3 origin, std::span<const core::float3> positions,
                      std::span<float> roughness, std::span<float> mineral);
+// A finished mesh's roughness and mineral, sized to its vertices (assemble_room's last stage, and
+// what a caller that took ChannelsBy::kCaller runs when its device cannot).
+void fill_detail_channels(const MeshContext& ctx, RoomMesh& mesh);
 void detail_channels_reference(const MeshContext& ctx, Vec3 origin,
                                std::span<const core::float3> positions, std::span<float> roughness,
                                std::span<float> mineral);
