@@ -3,7 +3,7 @@
 // connectivity, edgebreaker coder, prediction schemes, quantization, separate encoding and
 // decoding speeds), timed encode and draco::Decoder decode, so that every lever and the settings
 // before issue 18 are compared within one run. Measuring only: the codec is common/codec, and
-// nothing here is validated as encode_room validates. Usage: codec_levers [repetitions].
+// nothing here is validated as encode_room validates. Usage: codec_levers --help.
 // Results: docs/BENCHMARKS.md ("Room codec").
 #include <draco/compression/decode.h>
 #include <draco/compression/expert_encode.h>
@@ -14,6 +14,7 @@
 #include <string>
 
 #include "codec/room_codec.hpp"
+#include "flags.hpp"
 #include "mesh/room_mesh.hpp"
 #include "timing.hpp"
 
@@ -173,8 +174,16 @@ std::vector<char> encode(const mesh::RoomMesh& m, const Config& c) {
 }
 
 int main(int argc, char** argv) {
-  int reps = argc > 1 ? std::atoi(argv[1]) : 3;
-  cave::World world = cave::World::create(42, cave::LayoutParams{}).value();
+  CLI::App app{
+      "codec_levers: each Draco lever of the room codec alone, on the first 100 patch rooms "
+      "of a world's sector 0,0,0 (a table on stdout; docs/BENCHMARKS.md, \"Room codec\")"};
+  int reps = 3;
+  std::uint64_t seed = 7;
+  app.add_option("--repetitions", reps, "Timed runs of each lever (the median is reported)")
+      ->check(CLI::Range(1, 1000));
+  app.add_option("--seed", seed, "World seed (BENCHMARKS' figures: 42)");
+  if (auto rc = bench::parse_flags(app, argc, argv)) return *rc;
+  cave::World world = cave::World::create(seed, cave::LayoutParams{}).value();
   mesh::MeshContext ctx = mesh::MeshContext::create(world, mesh::MeshParams{}).value();
   cave::Region region = cave::generate_region(world, {0, 0, 0}, {0, 0, 0});
   std::vector<mesh::RoomMesh> patch;

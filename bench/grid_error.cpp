@@ -31,6 +31,7 @@
 #include "coarser_grid.hpp"
 #include "codec/room_codec.hpp"
 #include "core/grid.hpp"
+#include "flags.hpp"
 #include "mesh/room_mesh.hpp"
 
 namespace {
@@ -137,7 +138,7 @@ int main(int argc, char** argv) {
       ->delimiter(',')
       ->check(CLI::Range(0, grid::kStepLog2))
       ->capture_default_str();
-  CLI11_PARSE(app, argc, argv);
+  if (auto rc = bench::parse_flags(app, argc, argv)) return *rc;
 
   cave::World world = cave::World::create(seed, cave::LayoutParams{}).value();
   mesh::MeshContext ctx = mesh::MeshContext::create(world, mesh::MeshParams{}).value();

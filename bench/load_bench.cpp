@@ -28,6 +28,7 @@
 #include "client/load/load.hpp"
 #include "client/stream/portal_graph.hpp"
 #include "codec/room_codec.hpp"
+#include "flags.hpp"
 #include "proto/room_frame.hpp"
 
 namespace {
@@ -241,7 +242,7 @@ int main(int argc, char** argv) {
   app.add_option("--horizons", horizons, "Prefetch horizons (s) of the stall runs (empty: skip)")
       ->capture_default_str();
   app.add_option("--json", json_path, "Write the report here");
-  CLI11_PARSE(app, argc, argv);
+  if (auto rc = grotto::bench::parse_flags(app, argc, argv)) return *rc;
   spdlog::set_level(spdlog::level::warn);
 
   ServerConfig config;

@@ -15,6 +15,7 @@
 #include <thread>
 #include <vector>
 
+#include "flags.hpp"
 #include "kernels/deform.hpp"
 #include "kernels/room_builder.hpp"
 #include "mesh/room_mesh.hpp"
@@ -93,7 +94,7 @@ int main(int argc, char** argv) {
                  "unless it is a CPU), device or host")
       ->check(CLI::IsMember(std::vector<std::string>{"auto", "device", "host"}))
       ->capture_default_str();
-  CLI11_PARSE(app, argc, argv);
+  if (auto rc = bench::parse_flags(app, argc, argv)) return *rc;
   using Channels = kernels::RoomBuilder::Options::Channels;
   const Channels channels = channels_choice == "device" ? Channels::kDevice
                             : channels_choice == "host" ? Channels::kHost

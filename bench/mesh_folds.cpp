@@ -29,6 +29,7 @@
 #include <thread>
 #include <unordered_map>
 
+#include "flags.hpp"
 #include "mesh/room_mesh.hpp"
 #include "sector_sample.hpp"
 
@@ -212,7 +213,7 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(1, 64))
       ->capture_default_str();
   app.add_option("--json", json_path, "Write the report here")->capture_default_str();
-  CLI11_PARSE(app, argc, argv);
+  if (auto rc = bench::parse_flags(app, argc, argv)) return *rc;
 
   nlohmann::json report;
   report["fold_degrees"] = fold_degrees;

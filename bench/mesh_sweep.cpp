@@ -14,6 +14,7 @@
 #include <nlohmann/json.hpp>
 #include <thread>
 
+#include "flags.hpp"
 #include "mesh/room_mesh.hpp"
 #include "sector_sample.hpp"
 #include "timing.hpp"
@@ -89,7 +90,7 @@ int main(int argc, char** argv) {
   app.add_option("--json", json_path, "Write the report here")->capture_default_str();
   app.add_option("--hashes", hashes_path,
                  "Write one line per room and lod: id, lod, FNV-1a of the mesh or the error");
-  CLI11_PARSE(app, argc, argv);
+  if (auto rc = bench::parse_flags(app, argc, argv)) return *rc;
 
   std::vector<cave::SectorCoord> extra;
   for (const std::string& text : named) {

@@ -29,6 +29,7 @@
 #include "client/render/renderer.hpp"
 #include "client/render/room_cache.hpp"
 #include "codec/room_codec.hpp"
+#include "flags.hpp"
 #include "mesh/room_mesh.hpp"
 #include "timing.hpp"
 
@@ -224,7 +225,7 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(1.0f, 64.0f))
       ->capture_default_str();
   app.add_option("--seed", seed, "World seed")->capture_default_str();
-  CLI11_PARSE(app, argc, argv);
+  if (auto rc = bench::parse_flags(app, argc, argv)) return *rc;
 
   const char* display = std::getenv("DISPLAY");
   if (display == nullptr || *display == '\0') {

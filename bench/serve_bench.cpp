@@ -21,6 +21,7 @@
 
 #include "bench/inprocess.hpp"
 #include "cave/layout.hpp"
+#include "flags.hpp"
 #include "proto/messages.hpp"
 #include "server/server.hpp"
 
@@ -156,7 +157,7 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(1, 100));
   app.add_option("--opencl-device", device, "auto, gpu, cpu, none or a name substring");
   app.add_option("--json", json_path, "Write the report here");
-  CLI11_PARSE(app, argc, argv);
+  if (auto rc = grotto::bench::parse_flags(app, argc, argv)) return *rc;
   spdlog::set_level(spdlog::level::warn);
 
   ServerConfig config;

@@ -14,6 +14,7 @@
 #include <thread>
 
 #include "cave/layout.hpp"
+#include "flags.hpp"
 #include "proto/messages.hpp"
 #include "server/generator.hpp"
 #include "server/metrics.hpp"
@@ -133,7 +134,7 @@ int main(int argc, char** argv) {
                  "Protocol version the rooms are framed for (1: payloads with normals, 2: without)")
       ->check(CLI::Range(1, 2))
       ->capture_default_str();
-  CLI11_PARSE(app, argc, argv);
+  if (auto rc = bench::parse_flags(app, argc, argv)) return *rc;
   spdlog::set_level(spdlog::level::warn);
 
   cave::World world = cave::World::create(7, cave::LayoutParams{}).value();

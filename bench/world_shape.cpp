@@ -20,6 +20,7 @@
 #include <nlohmann/json.hpp>
 
 #include "codec/room_codec.hpp"
+#include "flags.hpp"
 #include "mesh/room_mesh.hpp"
 
 namespace {
@@ -104,7 +105,7 @@ int main(int argc, char** argv) {
       ->check(CLI::PositiveNumber)
       ->capture_default_str();
   app.add_option("--json", json_path, "Write the report here")->capture_default_str();
-  CLI11_PARSE(app, argc, argv);
+  if (auto rc = bench::parse_flags(app, argc, argv)) return *rc;
 
   cave::SectorCoord lo{from[0], from[1], from[2]}, hi{to[0], to[1], to[2]};
   if (!cave::in_range(lo) || !cave::in_range(hi) || lo[0] > hi[0] || lo[1] > hi[1] ||
