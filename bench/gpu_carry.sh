@@ -16,6 +16,9 @@ set -u
 cd "$(dirname "$0")/.."
 [[ "${1:-}" == -h || "${1:-}" == --help ]] && { sed -n '2,/^set -u/p' "$0" | sed '$d' | sed 's/^# \{0,1\}//'; exit 0; }
 (($# <= 2)) || { echo "gpu_carry.sh: at most two arguments (--help)" >&2; exit 2; }
+for a in "$@"; do
+  [[ "$a" != -* ]] || { echo "gpu_carry.sh: unknown flag '$a' (--help)" >&2; exit 2; }
+done
 build=${1:-build} dest=${2:-.gpu}
 bins=(mesh_bench server_bench grotto-client grotto-server grotto-load kernels_tests)
 for b in "${bins[@]}"; do

@@ -9,7 +9,13 @@
 # the balancer's overhead and what splitting the work costs, not scaling.
 #
 #   bench/replicas_bench.sh GROTTO_SERVER GROTTO_LOAD [OUT.json] [ROUNDS] [PLAYERS] [RADIUS_M]
+# Exit: 0 with the report written, 1 when a measurement failed, 2 on a bad argument.
 set -u
+[[ "${1:-}" == -h || "${1:-}" == --help ]] && { sed -n '2,/^set -u/p' "$0" | sed '$d' | sed 's/^# \{0,1\}//'; exit 0; }
+for a in "$@"; do
+  [[ "$a" != -* ]] || { echo "replicas_bench: unknown flag '$a' (--help)" >&2; exit 2; }
+done
+(($# >= 2)) || { echo "replicas_bench: GROTTO_SERVER and GROTTO_LOAD are required (--help)" >&2; exit 2; }
 GROTTO_SERVER=${1:?usage: replicas_bench.sh GROTTO_SERVER GROTTO_LOAD [OUT.json] [ROUNDS] [PLAYERS] [RADIUS_M]}
 GROTTO_LOAD=${2:?usage: replicas_bench.sh GROTTO_SERVER GROTTO_LOAD [OUT.json] [ROUNDS] [PLAYERS] [RADIUS_M]}
 out=${3:-replicas_bench.json} rounds=${4:-3} players=${5:-16} radius=${6:-100}

@@ -3,6 +3,7 @@
 # Idempotent and quiet when nothing is missing; works as root or through sudo.
 #   deploy/setup.sh           the build, run and test dependencies
 #   deploy/setup.sh --list    print the package list and exit
+#   deploy/setup.sh --help    this text
 # Besides packages it keeps Debian's source package of Draco (the version libdraco-dev has) in
 # /var/cache/grotto/src (GROTTO_DRACO_SOURCE_DIR): tests/fuzz builds it with sanitizers, and
 # downloading it here means the fuzz test needs no network. For that it adds a deb-src entry
@@ -29,10 +30,12 @@ packages=(
 # kubectl is already installed (another package owning /usr/bin/kubectl would clash with it).
 command -v kubectl >/dev/null 2>&1 || packages+=(kubernetes-client)
 
-if [[ "${1:-}" == "--list" ]]; then
-  printf '%s\n' "${packages[@]}"
-  exit 0
-fi
+case "${1:-}" in
+  "") ;;
+  --list) printf '%s\n' "${packages[@]}"; exit 0 ;;
+  -h | --help) sed -n '2,/^set -euo/p' "$0" | sed '$d' | sed 's/^# \{0,1\}//'; exit 0 ;;
+  *) echo "setup: unknown argument '$1' (--help)" >&2; exit 2 ;;
+esac
 
 if ! command -v dpkg-query >/dev/null 2>&1 || ! command -v apt-get >/dev/null 2>&1; then
   echo "setup: this script needs Debian's dpkg and apt-get (Debian 12 'bookworm')." >&2
