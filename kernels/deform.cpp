@@ -23,6 +23,26 @@ double ms_between(Clock::time_point a, Clock::time_point b) {
 
 }  // namespace
 
+void accumulate(LaunchStats& stats, const LaunchStats& more) {
+  stats.launches += more.launches;
+  stats.rooms += more.rooms;
+  stats.vertices += more.vertices;
+  stats.prepare_ms += more.prepare_ms;
+  stats.allocate_ms += more.allocate_ms;
+  stats.upload_ms += more.upload_ms;
+  stats.kernel_ms += more.kernel_ms;
+  stats.download_ms += more.download_ms;
+  stats.device_span_ms += more.device_span_ms;
+  stats.queue_wall_ms += more.queue_wall_ms;
+  stats.unpack_ms += more.unpack_ms;
+  stats.upload_bytes += more.upload_bytes;
+  stats.download_bytes += more.download_bytes;
+  if (more.launches > 0) {
+    stats.global_size = more.global_size;
+    stats.local_size = more.local_size;
+  }
+}
+
 void add_device_times(LaunchStats& stats, std::span<const cl::Event> writes,
                       const cl::Event& kernel, std::span<const cl::Event> reads) {
   for (const cl::Event& e : writes)
@@ -91,13 +111,21 @@ DeformKernel::DeformKernel(ComputeContext& ctx, cl::Kernel kernel, cl::Buffer sh
 
 Status DeformKernel::run(std::span<const mesh::DeformInput> batch,
                          std::vector<DeformOutput>& outputs, LaunchStats* stats) {
+  std::vector<const mesh::DeformInput*> rooms(batch.size());
+  for (size_t i = 0; i < batch.size(); ++i)
+    rooms[i] = &batch[i];
+  return run(std::span<const mesh::DeformInput* const>(rooms), outputs, stats);
+}
+
+Status DeformKernel::run(std::span<const mesh::DeformInput* const> batch,
+                         std::vector<DeformOutput>& outputs, LaunchStats* stats) {
   outputs.assign(batch.size(), {});
   // The whole run's host memory first: every launch's views stay valid to the end of the run.
   const Clock::time_point t_allocate = Clock::now();
   const size_t lanes = static_cast<size_t>(lanes_);
   size_t slots = 0, vertices = 0;
-  for (const mesh::DeformInput& room : batch) {
-    const size_t n = room.donor->directions.size();
+  for (const mesh::DeformInput* room : batch) {
+    const size_t n = room->donor->directions.size();
     slots += (n + lanes - 1) / lanes * lanes;
     vertices += n;
   }
@@ -113,7 +141,7 @@ Status DeformKernel::run(std::span<const mesh::DeformInput> batch,
   while (begin < batch.size()) {
     size_t end = begin, portals = 0;
     while (end < batch.size()) {
-      size_t next_portals = portals + batch[end].portals.size();
+      size_t next_portals = portals + batch[end]->portals.size();
       size_t rooms_bytes = (end - begin + 1) * sizeof(GrottoRoom);
       if (end > begin && (rooms_bytes > max_constant_bytes_ / 2 ||
                           next_portals * sizeof(GrottoPortal) > max_constant_bytes_ / 2)) {
@@ -129,7 +157,7 @@ Status DeformKernel::run(std::span<const mesh::DeformInput> batch,
       return s;
     }
     for (size_t i = begin; i < end; ++i) {
-      const size_t n = batch[i].donor->directions.size();
+      const size_t n = batch[i]->donor->directions.size();
       slot_base += (n + lanes - 1) / lanes * lanes;
       vertex_base += n;
     }
@@ -144,16 +172,16 @@ Status DeformKernel::run(std::span<const mesh::DeformInput> batch,
   return {};
 }
 
-Status DeformKernel::upload_donors(std::span<const mesh::DeformInput> rooms,
+Status DeformKernel::upload_donors(std::span<const mesh::DeformInput* const> rooms,
                                    std::vector<uint32_t>& first_groups, LaunchStats* stats) {
   const size_t lanes = static_cast<size_t>(lanes_);
   bool grown = false;
   first_groups.clear();
-  for (const mesh::DeformInput& room : rooms) {
-    const auto& dirs = room.donor->directions;
+  for (const mesh::DeformInput* room : rooms) {
+    const auto& dirs = room->donor->directions;
     const uint32_t next = static_cast<uint32_t>(donor_directions_.size() / (3 * lanes));
     const auto [it, fresh] =
-        donor_first_group_.try_emplace({room.donor->frequency, dirs.size()}, next);
+        donor_first_group_.try_emplace({room->donor->frequency, dirs.size()}, next);
     first_groups.push_back(it->second);
     if (!fresh) continue;
     grown = true;
@@ -189,7 +217,7 @@ Status DeformKernel::upload_donors(std::span<const mesh::DeformInput> rooms,
   return {};
 }
 
-Status DeformKernel::launch(std::span<const mesh::DeformInput> rooms,
+Status DeformKernel::launch(std::span<const mesh::DeformInput* const> rooms,
                             std::span<DeformOutput> outputs, size_t slot_base, size_t vertex_base,
                             LaunchStats* stats) {
   const Clock::time_point t_prepare = Clock::now();
@@ -206,13 +234,13 @@ Status DeformKernel::launch(std::span<const mesh::DeformInput> rooms,
   portals.clear();
   size_t groups = 0;
   for (size_t r = 0; r < rooms.size(); ++r) {
-    GrottoRoom rec = rooms[r].record;
+    GrottoRoom rec = rooms[r]->record;
     rec.first_portal = static_cast<uint32_t>(portals.size());
     rec.first_vertex = static_cast<uint32_t>(groups * lanes);
     rec.first_direction = first_dirs[r];
     records.push_back(rec);
-    portals.insert(portals.end(), rooms[r].portals.begin(), rooms[r].portals.end());
-    groups += (rooms[r].donor->directions.size() + lanes - 1) / lanes;
+    portals.insert(portals.end(), rooms[r]->portals.begin(), rooms[r]->portals.end());
+    groups += (rooms[r]->donor->directions.size() + lanes - 1) / lanes;
   }
   if (groups == 0) return {};
   const size_t slots = groups * lanes;
@@ -268,7 +296,7 @@ Status DeformKernel::launch(std::span<const mesh::DeformInput> rooms,
   const Clock::time_point t_unpack = Clock::now();
   mesh::core::float3* vertex = unpacked_.data() + vertex_base;
   for (size_t r = 0; r < rooms.size(); ++r) {
-    const size_t first = records[r].first_vertex, count = rooms[r].donor->directions.size();
+    const size_t first = records[r].first_vertex, count = rooms[r]->donor->directions.size();
     outputs[r].clearance = std::span<const float>(clearance + first, count);
     const float* group = positions + 3 * first;
     if (lanes == 1) {  // x y z x y z ...: the vertices as they are, read where they landed

@@ -60,6 +60,9 @@ struct LaunchStats {
   size_t local_size = 0;
 };
 
+// Adds `more` to `stats` field by field (the NDRange shape: `more`'s, the later launch's).
+void accumulate(LaunchStats& stats, const LaunchStats& more);
+
 // Adds one launch's device times to `stats` (0 without profiling): its input writes' and output
 // reads' durations, the kernel's, and the span from the first write to the last read. The host's
 // parts and the byte counts stay the caller's.
@@ -98,6 +101,9 @@ class DeformKernel {
   // one), whatever their worlds.
   Status run(std::span<const mesh::DeformInput> batch, std::vector<DeformOutput>& outputs,
              LaunchStats* stats = nullptr);
+  // The same for rooms gathered from several batches (SharedDeform's launches).
+  Status run(std::span<const mesh::DeformInput* const> batch, std::vector<DeformOutput>& outputs,
+             LaunchStats* stats = nullptr);
 
   BuildOrigin build_origin() const { return origin_; }
   int lanes() const { return lanes_; }
@@ -108,7 +114,7 @@ class DeformKernel {
                BuildOrigin origin, int lanes);
   // Deforms `rooms` into the host memory from slot `slot_base` (and, with lanes of 8, the
   // unpacked vertices from `vertex_base`) on: the run's earlier launches keep theirs.
-  Status launch(std::span<const mesh::DeformInput> rooms, std::span<DeformOutput> outputs,
+  Status launch(std::span<const mesh::DeformInput* const> rooms, std::span<DeformOutput> outputs,
                 size_t slot_base, size_t vertex_base, LaunchStats* stats);
 
   static constexpr size_t kPreferredGroupSize = 128;
@@ -118,7 +124,7 @@ class DeformKernel {
   // of lanes_ directions in donor_directions_ (the host's copy) and donor_buffer_ (the device's,
   // rewritten whole when a new donor joins: a few times in a process's life). first_groups[i]
   // receives rooms[i]'s donor's first group there.
-  Status upload_donors(std::span<const mesh::DeformInput> rooms,
+  Status upload_donors(std::span<const mesh::DeformInput* const> rooms,
                        std::vector<uint32_t>& first_groups, LaunchStats* stats);
 
   ComputeContext* ctx_;

@@ -4,7 +4,6 @@
 
 #include <algorithm>
 #include <cassert>
-#include <cstring>
 #include <numeric>
 #include <thread>
 
@@ -22,6 +21,16 @@ RoomBuilder RoomBuilder::create(const mesh::MeshContext& mesh_ctx, const Options
   b.threads_ = options.threads > 0
                    ? options.threads
                    : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  if (options.shared_device) {
+    if (!options.shared_device->serves(mesh_ctx)) {
+      b.path_ = "cpu: the shared device's kernel has other mesh parameters";
+      spdlog::warn("event=compute_path path=cpu reason=\"{}\"", b.path_.substr(5));
+      return b;
+    }
+    b.shared_ = options.shared_device;
+    b.path_ = "opencl: " + b.shared_->device().describe() + " shared=true";
+    return b;
+  }
   auto ctx = ComputeContext::create(options.device);
   if (!ctx) {
     b.path_ = "cpu: " + ctx.error().message;
@@ -67,13 +76,7 @@ std::vector<Result<mesh::RoomMesh>> RoomBuilder::build(std::span<const cave::Roo
 
 bool RoomBuilder::serves(const mesh::MeshContext& world) const {
   // The kernel holds the shapes of the builder's parameters (DeformKernel::create).
-  for (int l = 0; l < mesh::kLodCount; ++l) {
-    auto lod = static_cast<mesh::Lod>(l);
-    if (std::memcmp(&world.shape(lod), &mesh_ctx_->shape(lod), sizeof(world.shape(lod))) != 0) {
-      return false;
-    }
-  }
-  return true;
+  return same_mesh_shapes(world, *mesh_ctx_);
 }
 
 std::vector<Result<mesh::RoomMesh>> RoomBuilder::build(
@@ -94,8 +97,10 @@ std::vector<Result<mesh::RoomMesh>> RoomBuilder::build(
 
   std::vector<DeformOutput> outputs;
   bool on_device = false;
-  if (kernel_) {
-    Status s = kernel_->run(inputs, outputs, &launches_);
+  if (kernel_ || shared_) {
+    Status s =
+        shared_ ? shared_->run(inputs, shared_results_) : kernel_->run(inputs, outputs, &launches_);
+    if (shared_ && s) outputs = shared_results_.outputs;
     on_device = s.ok();
     if (!s) {
       ++fallbacks_;

@@ -12,6 +12,7 @@
 
 #include "kernels/channels.hpp"
 #include "kernels/deform.hpp"
+#include "kernels/shared_deform.hpp"
 
 namespace grotto::kernels {
 
@@ -35,6 +36,11 @@ class RoomBuilder {
     // rooms built slower with a second launch for their channels (server_bench: 0.46 against
     // 0.26 ms a room), the whole detail cave (317,000 vertices) faster (docs/BENCHMARKS.md).
     size_t channels_min_vertices = 65'536;
+    // A device shared with other builders (SharedDeform: one context and queue, every builder's
+    // batches merged into its launches; the server's workers). When set, `device` is not opened:
+    // this builder deforms there, and its detail channels run on the CPU's lanes. A device
+    // whose mesh parameters are not the builder's is not used (the CPU path, with a warning).
+    std::shared_ptr<SharedDeform> shared_device{};
   };
 
   // Never fails: without a usable device the builder runs on the CPU.
@@ -54,11 +60,12 @@ class RoomBuilder {
   // Whether `world`'s mesh parameters are the builder's (its kernel holds their shapes).
   bool serves(const mesh::MeshContext& world) const;
 
-  bool uses_opencl() const { return kernel_.has_value(); }
+  bool uses_opencl() const { return kernel_.has_value() || shared_ != nullptr; }
   // "opencl: <device description>" or "cpu: <why not OpenCL>".
   const std::string& path() const { return path_; }
   // Launches that failed and were redone on the CPU (each also logged).
   size_t fallbacks() const { return fallbacks_; }
+  // This builder's own launches (a shared device's are SharedDeform::stats()).
   const LaunchStats& launch_stats() const { return launches_; }
   // Whether the detail channels can run on the device (a big enough batch's do, where
   // Options::channels allows), and its launches for them.
@@ -75,6 +82,8 @@ class RoomBuilder {
   const mesh::MeshContext* mesh_ctx_;
   std::unique_ptr<ComputeContext> device_;
   std::optional<DeformKernel> kernel_;
+  std::shared_ptr<SharedDeform> shared_;  // instead of device_ and kernel_
+  SharedDeform::Results shared_results_;
   std::optional<ChannelsKernel> channels_kernel_;
   std::string path_;
   int threads_ = 1;

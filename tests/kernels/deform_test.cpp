@@ -8,10 +8,13 @@
 
 #include <cstdlib>
 #include <cstring>
+#include <latch>
 #include <set>
+#include <thread>
 
 #include "kernels/channels.hpp"
 #include "kernels/room_builder.hpp"
+#include "kernels/shared_deform.hpp"
 #include "test_support.hpp"
 
 namespace grotto::kernels {
@@ -368,6 +371,77 @@ TEST_F(DeformKernelTest, room_builder_on_the_device_gives_the_cpu_meshes) {
   }
 }
 
+// Builders sharing one device (the server's workers): four threads' batches, released at once
+// and merged into fewer launches than batches, give every room its CPU reference's bits, each
+// thread its own rooms in its own order; the device's stats count every room once.
+TEST_F(DeformKernelTest, builders_sharing_a_device_get_their_own_rooms_with_the_cpu_bits) {
+  auto opened = SharedDeform::open(DeviceConfig{.device = "auto"}, *mesh_);
+  ASSERT_TRUE(opened.ok()) << opened.error().message;
+  std::shared_ptr<SharedDeform> shared = std::move(opened).value();
+  constexpr size_t kThreads = 4, kRounds = 6, kRooms = 5;
+  std::vector<std::vector<cave::Room>> rooms(kThreads);
+  for (size_t t = 0; t < kThreads; ++t) {
+    for (size_t i = 0; i < kRooms; ++i)
+      rooms[t].push_back(region_->rooms[(t * kRooms + i) % region_->rooms.size()]);
+  }
+  std::vector<std::vector<Result<mesh::RoomMesh>>> built(kThreads * kRounds);
+  std::vector<std::string> paths(kThreads);
+  std::vector<size_t> fallbacks(kThreads);
+  std::latch go(1);
+  std::vector<std::thread> threads;
+  for (size_t t = 0; t < kThreads; ++t) {
+    threads.emplace_back([&, t] {
+      RoomBuilder::Options options;
+      options.device.device = "none";  // not opened: the shared device is used
+      options.shared_device = shared;
+      RoomBuilder builder = RoomBuilder::create(*mesh_, options);
+      paths[t] = builder.path();
+      go.wait();
+      for (size_t r = 0; r < kRounds; ++r)
+        built[t * kRounds + r] = builder.build(rooms[t], mesh::Lod::kPatch);
+      fallbacks[t] = builder.fallbacks();
+    });
+  }
+  go.count_down();
+  for (std::thread& t : threads)
+    t.join();
+  for (size_t t = 0; t < kThreads; ++t) {
+    SCOPED_TRACE("thread " + std::to_string(t));
+    EXPECT_EQ(paths[t].rfind("opencl: ", 0), 0u) << paths[t];
+    EXPECT_NE(paths[t].find("shared=true"), std::string::npos) << paths[t];
+    EXPECT_EQ(fallbacks[t], 0u);
+    for (size_t r = 0; r < kRounds; ++r)
+      expect_cpu_meshes(built[t * kRounds + r], rooms[t], *mesh_);
+  }
+  const LaunchStats stats = shared->stats();
+  EXPECT_EQ(shared->batches(), kThreads * kRounds);
+  EXPECT_EQ(stats.rooms, kThreads * kRounds * kRooms);
+  EXPECT_LT(stats.launches, shared->batches()) << "batches that waited went up together";
+  EXPECT_GE(stats.launches, 1u);
+}
+
+// A shared device built for other mesh parameters is not used: the builder says so and builds on
+// the CPU.
+TEST_F(DeformKernelTest, a_shared_device_of_other_mesh_parameters_is_not_used) {
+  auto opened = SharedDeform::open(DeviceConfig{.device = "auto"}, *mesh_);
+  ASSERT_TRUE(opened.ok()) << opened.error().message;
+  mesh::MeshParams rougher;
+  rougher.octave_amplitude[0] = 0.5;
+  auto differs = mesh::MeshContext::create(*world_, rougher).value();
+  RoomBuilder::Options options;
+  options.shared_device = std::move(opened).value();
+  RoomBuilder builder = RoomBuilder::create(differs, options);
+  EXPECT_FALSE(builder.uses_opencl());
+  EXPECT_NE(builder.path().find("other mesh parameters"), std::string::npos) << builder.path();
+  std::vector<cave::Room> rooms(region_->rooms.begin(), region_->rooms.begin() + 3);
+  auto meshes = builder.build(std::vector(rooms.size(), &differs), rooms, mesh::Lod::kPatch);
+  for (size_t i = 0; i < rooms.size(); ++i) {
+    ASSERT_TRUE(meshes[i].ok()) << meshes[i].error().message;
+    EXPECT_TRUE(same_vertices(*meshes[i],
+                              mesh::build_room_mesh(differs, rooms[i], mesh::Lod::kPatch).value()));
+  }
+}
+
 // Run by the kernels.launch_fault.* tests (tests/kernels/CMakeLists.txt), under an interposer that
 // fails every launch of the kernel GROTTO_TEST_FAIL_KERNEL names: the machine's OpenCL failing
 // after a good start. The builder logs and counts each failed launch and builds that stage on the
@@ -395,6 +469,42 @@ TEST_F(LaunchFault, a_failed_launch_is_built_on_the_cpu_with_the_same_bits) {
     // channels, after the device deformed the rooms.
     EXPECT_EQ(builder.launch_stats().launches, kernel == "grotto_deform_rooms" ? 0u : round);
     EXPECT_EQ(builder.channel_stats().launches, 0u);
+  }
+}
+
+// The same fault with the device shared by two builders: a failed deformation fails every batch
+// of the launch, and each builder builds its own on the CPU with the same bits (the channels of a
+// shared device's builders are the CPU's, so a failing channels kernel changes nothing).
+TEST_F(LaunchFault, a_failed_shared_launch_is_built_on_the_cpu_by_every_builder) {
+  const char* failing = std::getenv("GROTTO_TEST_FAIL_KERNEL");
+  if (failing == nullptr) GTEST_SKIP() << "run by kernels.launch_fault.* under the interposer";
+  const bool deform_fails = std::string(failing) == "grotto_deform_rooms";
+  auto opened = SharedDeform::open(DeviceConfig{.device = "auto"}, *mesh_);
+  ASSERT_TRUE(opened.ok()) << opened.error().message;
+  RoomBuilder::Options options;
+  options.shared_device = std::move(opened).value();
+  std::vector<cave::Room> rooms(region_->rooms.begin(), region_->rooms.begin() + 6);
+  std::vector<size_t> fallbacks(2);
+  std::vector<std::vector<Result<mesh::RoomMesh>>> built(2);
+  std::vector<std::thread> threads;
+  for (size_t t = 0; t < 2; ++t) {
+    threads.emplace_back([&, t] {
+      RoomBuilder builder = RoomBuilder::create(*mesh_, options);
+      built[t] = builder.build(rooms, mesh::Lod::kPatch);
+      fallbacks[t] = builder.fallbacks();
+    });
+  }
+  for (std::thread& t : threads)
+    t.join();
+  for (size_t t = 0; t < 2; ++t) {
+    expect_cpu_meshes(built[t], rooms, *mesh_);
+    EXPECT_EQ(fallbacks[t], deform_fails ? 1u : 0u) << "builder " << t;
+  }
+  const size_t launches = options.shared_device->stats().launches;
+  if (deform_fails) {
+    EXPECT_EQ(launches, 0u) << "a failed launch is not counted";
+  } else {
+    EXPECT_TRUE(launches == 1 || launches == 2) << launches << " launches for two batches";
   }
 }
 
