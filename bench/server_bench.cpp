@@ -50,6 +50,8 @@ struct PipelineRun {
   double build_ms_per_room = 0;
   double encode_ms_per_room = 0;
   double frame_bytes_mean = 0;
+  size_t device_launches = 0;  // the shared device's, and the batches they carried
+  size_t device_batches = 0;
 };
 
 // One client wants every room at once (cache off, so each is built), lod 0 (patch).
@@ -94,6 +96,8 @@ PipelineRun run_pipeline(const cave::World& world, const std::vector<cave::RoomI
   run.rooms = ids.size();
   run.failed = failed;
   run.batches = metrics.batches.value();
+  run.device_launches = (*gen)->device_launches().launches;
+  run.device_batches = (*gen)->device_launches().batches;
   size_t built = metrics.build_seconds.count();
   run.build_ms_per_room = built ? 1000.0 * metrics.build_seconds.sum() / built : 0;
   run.encode_ms_per_room =
@@ -114,6 +118,7 @@ int main(int argc, char** argv) {
   size_t batch = 32;
   int repetitions = 3;
   std::vector<std::string> devices = {"", "none"};
+  std::vector<std::string> queues = {"shared"};
   uint32_t version = proto::kProtocolVersion;
   app.add_option("--json", json_path, "Write the report here")->capture_default_str();
   app.add_option("--rooms", rooms, "Rooms per run")
@@ -130,6 +135,12 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--devices", devices,
                  "OpenCL device choices to run (\"\": $GROTTO_OPENCL_DEVICE or auto; none: CPU)");
+  app.add_option("--queues", queues,
+                 "How the workers use an OpenCL device: shared (one context and queue, batches "
+                 "merged into launches: the server's default), per-worker (a context each); each "
+                 "one named is run")
+      ->check(CLI::IsMember({"shared", "per-worker"}))
+      ->capture_default_str();
   app.add_option("--protocol", version,
                  "Protocol version the rooms are framed for (1: payloads with normals, 2: without)")
       ->check(CLI::Range(1, 2))
@@ -175,39 +186,48 @@ int main(int argc, char** argv) {
 
   nlohmann::json runs = nlohmann::json::array();
   for (const std::string& device : devices) {
-    for (size_t sector_cache : {size_t{4096}, size_t{0}}) {
-      server::GeneratorConfig config;
-      config.workers = workers;
-      config.max_batch_rooms = batch;
-      config.sector_cache_entries = sector_cache;
-      config.builder.device.device = device;
-      spdlog::set_level(spdlog::level::warn);
-      // The run with the median time (the machine may be shared; medians resist that).
-      std::vector<PipelineRun> reps;
-      for (int i = 0; i < repetitions; ++i)
-        reps.push_back(run_pipeline(world, ids, config, version));
-      std::sort(reps.begin(), reps.end(),
-                [](const PipelineRun& a, const PipelineRun& b) { return a.seconds < b.seconds; });
-      PipelineRun r = reps[reps.size() / 2];
-      spdlog::set_level(spdlog::level::info);
-      double rate = static_cast<double>(r.rooms) / r.seconds;
-      spdlog::info(
-          "pipeline: device=\"{}\" sector_cache={} {:.1f} rooms/s ({} rooms, {:.2f} s, {} batches, "
-          "build {:.2f} ms/room, encode {:.2f} ms/room, {:.0f} B/frame, {} failed) path=\"{}\"",
-          device, sector_cache, rate, r.rooms, r.seconds, r.batches, r.build_ms_per_room,
-          r.encode_ms_per_room, r.frame_bytes_mean, r.failed, r.path);
-      runs.push_back({{"device", device},
-                      {"path", r.path},
-                      {"workers", workers},
-                      {"sector_cache_entries", sector_cache},
-                      {"max_batch_rooms", batch},
-                      {"seconds", r.seconds},
-                      {"rooms_per_second", rate},
-                      {"batches", r.batches},
-                      {"build_ms_per_room", r.build_ms_per_room},
-                      {"encode_ms_per_room", r.encode_ms_per_room},
-                      {"frame_bytes_mean", r.frame_bytes_mean},
-                      {"failed", r.failed}});
+    for (const std::string& queue : queues) {
+      for (size_t sector_cache : {size_t{4096}, size_t{0}}) {
+        // The CPU reference has no device to share: one run.
+        if (device == "none" && queue != queues.front()) continue;
+        server::GeneratorConfig config;
+        config.share_device = queue == "shared";
+        config.workers = workers;
+        config.max_batch_rooms = batch;
+        config.sector_cache_entries = sector_cache;
+        config.builder.device.device = device;
+        spdlog::set_level(spdlog::level::warn);
+        // The run with the median time (the machine may be shared; medians resist that).
+        std::vector<PipelineRun> reps;
+        for (int i = 0; i < repetitions; ++i)
+          reps.push_back(run_pipeline(world, ids, config, version));
+        std::sort(reps.begin(), reps.end(),
+                  [](const PipelineRun& a, const PipelineRun& b) { return a.seconds < b.seconds; });
+        PipelineRun r = reps[reps.size() / 2];
+        spdlog::set_level(spdlog::level::info);
+        double rate = static_cast<double>(r.rooms) / r.seconds;
+        spdlog::info(
+            "pipeline: device=\"{}\" queue={} sector_cache={} {:.1f} rooms/s ({} rooms, {:.2f} s, "
+            "{} batches in {} device launches, build {:.2f} ms/room, encode {:.2f} ms/room, {:.0f} "
+            "B/frame, {} failed) path=\"{}\"",
+            device, queue, sector_cache, rate, r.rooms, r.seconds, r.batches, r.device_launches,
+            r.build_ms_per_room, r.encode_ms_per_room, r.frame_bytes_mean, r.failed, r.path);
+        runs.push_back({{"device", device},
+                        {"queue", queue},
+                        {"device_launches", r.device_launches},
+                        {"device_batches", r.device_batches},
+                        {"path", r.path},
+                        {"workers", workers},
+                        {"sector_cache_entries", sector_cache},
+                        {"max_batch_rooms", batch},
+                        {"seconds", r.seconds},
+                        {"rooms_per_second", rate},
+                        {"batches", r.batches},
+                        {"build_ms_per_room", r.build_ms_per_room},
+                        {"encode_ms_per_room", r.encode_ms_per_room},
+                        {"frame_bytes_mean", r.frame_bytes_mean},
+                        {"failed", r.failed}});
+      }
     }
   }
   report["pipeline"] = runs;

@@ -225,6 +225,25 @@ const std::vector<Setting>& settings() {
         "OpenCL device: auto, gpu, accelerator, cpu, none (CPU reference) or a name substring; "
         "empty: $GROTTO_OPENCL_DEVICE, else auto",
         {}, [](ServerConfig & c) -> auto& { return c.generator.builder.device.device; }));
+    {
+      Setting queue{"opencl-queue",
+                    "How the workers use the OpenCL device: shared (one context and queue; "
+                    "batches that wait for the device go up together in one launch) or "
+                    "per-worker (a context and queue each)",
+                    Setting::Type::kString,
+                    0,
+                    0,
+                    {"shared", "per-worker"},
+                    {},
+                    {}};
+      queue.get = [](const ServerConfig& c) {
+        return Value{std::string(c.generator.share_device ? "shared" : "per-worker")};
+      };
+      queue.set = [](ServerConfig& c, const Value& v) {
+        c.generator.share_device = std::get<std::string>(v) == "shared";
+      };
+      t.push_back(std::move(queue));
+    }
     t.push_back(string_setting(
         "log-level", "trace, debug, info, warn, error or off",
         {"trace", "debug", "info", "warn", "error", "off"},

@@ -103,6 +103,13 @@ Delivery error_delivery(RoomKey key, Error error) {
   return d;
 }
 
+// One OpenCL device opens at a time, process-wide: PoCL's device discovery run from several
+// threads at once made some of them report "no OpenCL device" (seen in server_bench).
+std::mutex& device_open_mutex() {
+  static std::mutex m;
+  return m;
+}
+
 }  // namespace
 
 struct Generator::State {
@@ -138,6 +145,7 @@ struct Generator::State {
   RoomCache cache;
   std::vector<std::thread> threads;
   std::vector<std::optional<kernels::RoomBuilder>> builders;
+  kernels::RoomBuilder::Options builder_options;  // config.builder, with the shared device if any
   int builders_ready = 0;
   int workers_exited = 0;
   size_t idle_workers = 0;             // waiting on work_cv for queued work
@@ -589,11 +597,8 @@ struct Generator::State {
 
   void worker_main(size_t index) {
     {
-      // One builder opens at a time, process-wide: PoCL's device discovery run from several
-      // threads at once made some of them report "no OpenCL device" (seen in server_bench).
-      static std::mutex open_mutex;
-      std::lock_guard open_lock(open_mutex);
-      builders[index].emplace(kernels::RoomBuilder::create(home->mesh_ctx, config.builder));
+      std::lock_guard open_lock(device_open_mutex());
+      builders[index].emplace(kernels::RoomBuilder::create(home->mesh_ctx, builder_options));
     }
     kernels::RoomBuilder& builder = *builders[index];
     std::unique_lock lock(mutex);
@@ -706,6 +711,13 @@ Result<std::unique_ptr<Generator>> Generator::create(const cave::World& world,
   auto state = std::make_unique<State>(std::move(home), mesh_params, config, metrics);
   const size_t workers = resolved_workers(config);
   State* s = state.get();
+  s->builder_options = config.builder;
+  if (config.share_device && !config.builder.shared_device) {
+    std::lock_guard open_lock(device_open_mutex());
+    // Without a device, each builder says why when it opens (the CPU path, logged once each).
+    auto shared = kernels::SharedDeform::open(config.builder.device, s->home->mesh_ctx);
+    if (shared) s->builder_options.shared_device = std::move(shared).value();
+  }
   s->builders.resize(workers);
   // Each worker opens its own builder (and OpenCL context) on its thread: builders are not
   // thread-safe. They open one after another (see worker_main).
@@ -941,6 +953,12 @@ size_t Generator::worlds_open() const {
 
 std::string Generator::compute_path() const {
   return state_->compute_path;
+}
+
+Generator::DeviceLaunches Generator::device_launches() const {
+  const auto& shared = state_->builder_options.shared_device;
+  if (!shared) return {};
+  return {shared->stats().launches, shared->batches()};
 }
 
 size_t Generator::queue_depth() const {

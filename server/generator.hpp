@@ -49,6 +49,10 @@ struct GeneratorConfig {
   // its turn among the urgent. 0: one class (plain round-robin).
   std::chrono::milliseconds urgent_within{1'000};
   kernels::RoomBuilder::Options builder{};  // OpenCL device choice (each worker has a builder)
+  // True: the workers' builders share one OpenCL context, queue and kernel (kernels::SharedDeform:
+  // batches that wait for the device go up together in one launch). False: each worker opens
+  // its own (a GPU time-sliced among as many contexts as workers).
+  bool share_device = true;
   // In a cluster (issue 29): where a room nobody here is building yet is asked for first (the
   // room tier: its owner replica through nginx), for clients that may have it from there
   // (Build::kAnywhere), unless it is due now (priority 0: the player waits; built here). A fetch
@@ -121,6 +125,13 @@ class Generator {
   // "opencl: <device>" or "cpu: <why>", as kernels::RoomBuilder::path() reports it.
   std::string compute_path() const;
   size_t queue_depth() const;  // jobs queued, not yet building
+  // The shared device's launches and the workers' batches they carried (share_device with a
+  // usable device; zeros otherwise).
+  struct DeviceLaunches {
+    size_t launches = 0;
+    size_t batches = 0;
+  };
+  DeviceLaunches device_launches() const;
 
  private:
   struct State;

@@ -154,9 +154,11 @@ void empty_dir(const std::filesystem::path& dir) {
     std::filesystem::remove_all(e.path(), ec);
 }
 
-// The life cycle the child drives. The server's generator opens one RoomBuilder (an OpenCL
-// context, a queue, the deformation program) per worker, each on its own thread and one at a
-// time, then the workers build batches side by side, and at stop every builder is released.
+// The life cycle the child drives. The server's generator opens one RoomBuilder per worker, each
+// on its own thread and one at a time, every builder on the one shared device (an OpenCL context,
+// a queue, the deformation program) the generator opened first, or (--opencl-queue per-worker)
+// each on a context, queue and program of its own; then the workers build batches side by side,
+// and at stop every builder is released, then the shared device.
 // PoCL 5.0 (Ubuntu 24.04's) passed a probe that only built the program, then aborted the server
 // as soon as its 14 workers ran the kernel at once (pocl_release_dlhandle_cache: Assertion
 // 'found->ref_count > 0' failed; issue 28); a child with two builders still passed there, and
@@ -277,7 +279,24 @@ int probe_child(const ServerConfig& config) {
       std::min({rooms.size(), config.generator.max_batch_rooms, std::end(kProbeBatchRooms)[-1]}));
   size_t batches = 0;
   size_t built = 0;
+  const bool shared = config.generator.share_device;
   for (int cycle = 1; cycle <= kProbeCycles; ++cycle) {
+    kernels::RoomBuilder::Options options = config.generator.builder;
+    if (shared) {
+      report("step", cycle_text(cycle) + ", shared device, open");
+      auto device = kernels::SharedDeform::open(options.device, *ctx);
+      if (!device) {
+        // From the first cycle on: nothing to protect (the server says why), as a first builder
+        // without a device of its own; after a good first cycle, the device failed.
+        if (cycle == 1) {
+          report("no_device", "cpu: " + device.error().message);
+          return 3;
+        }
+        report("error", cycle_text(cycle) + ", shared device, open: " + device.error().message);
+        return 4;
+      }
+      options.shared_device = std::move(device).value();
+    }
     std::vector<BuilderRun> runs(builders);
     std::mutex open_mutex;  // builders open one at a time, as in the generator
     std::latch opened(builders);
@@ -291,7 +310,7 @@ int probe_child(const ServerConfig& config) {
           std::lock_guard lock(open_mutex);
           report("step", step_text(cycle, b + 1, builders, "open"));
           inject_fault(*fault, cycle, b + 1, builders, "open");
-          r.builder.emplace(kernels::RoomBuilder::create(*ctx, config.generator.builder));
+          r.builder.emplace(kernels::RoomBuilder::create(*ctx, options));
           if (!r.builder->uses_opencl()) r.error = r.builder->path();
         }
         opened.count_down();
@@ -332,10 +351,14 @@ int probe_child(const ServerConfig& config) {
       inject_fault(*fault, cycle, b + 1, builders, "release");
       runs[b].builder.reset();
     }
+    if (shared) {
+      report("step", cycle_text(cycle) + ", shared device, release");
+      options.shared_device.reset();
+    }
   }
   report("passed", "cycles=" + std::to_string(kProbeCycles) +
                        " builders=" + std::to_string(builders) +
-                       " contexts=" + std::to_string(kProbeCycles * builders) +
+                       " contexts=" + std::to_string(kProbeCycles * (shared ? 1 : builders)) +
                        " batches=" + std::to_string(batches) + " rooms=" + std::to_string(built) +
                        " released=" + std::to_string(kProbeCycles * builders));
   return 0;

@@ -469,12 +469,15 @@ double cpu_seconds(pid_t pid) {
 }
 
 std::tuple<Process, uint16_t, std::string> start_with_cache(const std::string& cache,
-                                                            const std::string& pocl_cache) {
+                                                            const std::string& pocl_cache,
+                                                            const std::vector<std::string>& flags) {
   std::string pocl = getenv("POCL_CACHE_DIR") ? getenv("POCL_CACHE_DIR") : "";
   setenv("GROTTO_CACHE_DIR", cache.c_str(), 1);
   unsetenv("POCL_CACHE_DIR");
   if (!pocl_cache.empty()) setenv("POCL_CACHE_DIR", pocl_cache.c_str(), 1);
-  auto p = spawn({"--port", "0", "--workers", "1", "--io-threads", "1"});
+  std::vector<std::string> args = {"--port", "0", "--workers", "1", "--io-threads", "1"};
+  args.insert(args.end(), flags.begin(), flags.end());
+  auto p = spawn(args);
   unsetenv("GROTTO_CACHE_DIR");
   unsetenv("POCL_CACHE_DIR");
   if (!pocl.empty()) setenv("POCL_CACHE_DIR", pocl.c_str(), 1);

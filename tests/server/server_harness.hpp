@@ -164,8 +164,9 @@ uint16_t listening_port(const std::string& text);
 double cpu_seconds(pid_t pid);
 // Starts grotto-server (OpenCL auto) with `cache` as GROTTO_CACHE_DIR and PoCL's cache left to
 // it; returns the process and its port (0 if it never listened), and what it printed.
-// `pocl_cache` sets POCL_CACHE_DIR as a deployment does.
-std::tuple<Process, uint16_t, std::string> start_with_cache(const std::string& cache,
-                                                            const std::string& pocl_cache = {});
+// `pocl_cache` sets POCL_CACHE_DIR as a deployment does; `flags` go after the harness's own.
+std::tuple<Process, uint16_t, std::string> start_with_cache(
+    const std::string& cache, const std::string& pocl_cache = {},
+    const std::vector<std::string>& flags = {});
 
 }  // namespace grotto::server_test

@@ -952,6 +952,7 @@ TEST(ServerProgram, help_lists_every_option_and_exits_0) {
                            "--urgent-ms", "--opencl-device", "--drain-timeout-ms", "--log-level"}) {
     EXPECT_NE(text.find(flag), std::string::npos) << flag;
   }
+  EXPECT_NE(text.find("--opencl-queue"), std::string::npos);
 }
 
 TEST(ServerProgram, starts_serves_healthz_and_exits_0_on_sigterm) {
