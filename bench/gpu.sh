@@ -7,8 +7,9 @@
 #     reference: the deform launch with its device split (upload, kernel, download), the whole
 #     cave through RoomBuilder on 1, 2 and every hardware thread;
 #   - server_bench (fresh patch rooms, built and encoded, sector cache on) on the CPU reference
-#     and on each device found; where a GPU is found, again on it with 16, 8 and 4 workers (each
-#     an OpenCL context) and batches of 128 and 256 rooms, against the CPU reference;
+#     and on each device found, its workers sharing the device (the server's default) and each
+#     with a context of its own; where a GPU is found, again on it with 16, 8 and 4 workers and
+#     batches of 128 and 256 rooms, both ways, against the CPU reference;
 #   - kernels_tests, where it is built or carried: the kernels against the CPU reference, bit for
 #     bit, on the device "auto" picks (a GPU when there is one);
 #   - grotto-client --bench (the scripted path, 1920x1080) with MaxTess 8, MaxTess 64 and
@@ -101,19 +102,20 @@ done
 
 echo "gpu.sh: server_bench --devices none ${found[*]}" >&2
 timeout "$step_timeout" "$bin/server_bench" --rooms "$rooms" --repetitions "$reps" --devices none "${found[@]}" \
-  --json "$out/server.json" >"$out/server.log" 2>&1
+  --queues shared per-worker --json "$out/server.json" >"$out/server.log" 2>&1
 echo $? >"$out/server.rc"
 
 # Where a GPU was found, the server's share of it against the CPU (issue 30's 1.4x) with fewer
-# workers, each an OpenCL context of its own, and bigger batches: whether the contexts' time
-# slicing or the launches' size holds the GPU back, before a shared device queue is built.
+# workers and bigger batches, the device shared (batches merged into launches) and a context a
+# worker: whether the contexts' time slicing or the launches' size holds the GPU back.
 sweep=()
 if [[ " ${found[*]} " == *" gpu "* ]]; then
   for wb in 16:128 8:128 8:256 4:256; do
     w=${wb%:*} b=${wb#*:}
     echo "gpu.sh: server_bench --devices gpu --workers $w --batch $b" >&2
     timeout "$step_timeout" "$bin/server_bench" --rooms "$rooms" --repetitions "$reps" --devices gpu \
-      --workers "$w" --batch "$b" --json "$out/server-gpu-w$w-b$b.json" >"$out/server-gpu-w$w-b$b.log" 2>&1
+      --workers "$w" --batch "$b" --queues shared per-worker --json "$out/server-gpu-w$w-b$b.json" \
+      >"$out/server-gpu-w$w-b$b.log" 2>&1
     echo $? >"$out/server-gpu-w$w-b$b.rc"
     sweep+=("w$w-b$b")
   done
@@ -206,6 +208,12 @@ for d in ("gpu", "accelerator", "cpu"):
             print(f"| whole cave, {w['threads']} thread(s) | {name} | {whole(w)} |")
 for w in cpu_rows or []:
     print(f"| whole cave, {w['threads']} thread(s) | CPU reference | {whole(w)} |")
+def queue(p):  # how the workers used the device (the CPU reference has none)
+    return f", {p['queue']}" if p.get("queue") and p["device"] != "none" else ""
+def launches(p):  # a shared device's launches and the workers' batches they carried
+    if not p.get("device_launches"):
+        return ""
+    return f"; {p['device_batches']:,} batches in {p['device_launches']:,} launches"
 server = load(os.path.join(out, "server.json"))
 if server is None:
     print(f"| server_bench | - | failed (exit {rc(os.path.join(out, 'server.rc'))}) |")
@@ -215,9 +223,9 @@ else:
         if p.get("sector_cache_entries", 0) == 0:
             continue
         path = p["path"].split('device="')[-1].split('"')[0] if p["path"].startswith("opencl") else "CPU reference"
-        print(f"| server_bench, fresh patch rooms, cache on (--devices {p['device'] or 'auto'}) | {path} | "
+        print(f"| server_bench, fresh patch rooms, cache on (--devices {p['device'] or 'auto'}{queue(p)}) | {path} | "
               f"{p['rooms_per_second']:,.0f} rooms/s (build {p['build_ms_per_room']:.3f}, "
-              f"encode {p['encode_ms_per_room']:.3f} ms a room) |")
+              f"encode {p['encode_ms_per_room']:.3f} ms a room{launches(p)}) |")
 cpu_rate = None
 for p in (server or {}).get("pipeline", []):
     if p.get("sector_cache_entries", 0) and p["device"] == "none":
@@ -236,9 +244,9 @@ for stem in (l.strip() for l in (open(sweep_file) if os.path.exists(sweep_file) 
             continue
         path = p["path"].split('device="')[-1].split('"')[0] if p["path"].startswith("opencl") else "CPU reference"
         ratio = f"; {p['rooms_per_second'] / cpu_rate:.2f}x the CPU reference's default workers" if cpu_rate else ""
-        print(f"| server_bench, cache on, --workers {w} --batch {b} | {path} | "
+        print(f"| server_bench, cache on, --workers {w} --batch {b}{queue(p)} | {path} | "
               f"{p['rooms_per_second']:,.0f} rooms/s (build {p['build_ms_per_room']:.3f}, encode "
-              f"{p['encode_ms_per_room']:.3f} ms a room{ratio}) |")
+              f"{p['encode_ms_per_room']:.3f} ms a room{launches(p)}{ratio}) |")
 renderers = {}
 clients = [os.path.join(out, f"client-{gl}-{setting}.json") for gl in ("egl", "glfw")
            for setting in ("tess8", "tess64", "flat")]
