@@ -19,7 +19,8 @@ SharedDeform::SharedDeform(std::unique_ptr<ComputeContext> device,
     : device_(std::move(device)), mesh_ctx_(&mesh_ctx) {}
 
 Result<std::shared_ptr<SharedDeform>> SharedDeform::open(const DeviceConfig& config,
-                                                         const mesh::MeshContext& mesh_ctx) {
+                                                         const mesh::MeshContext& mesh_ctx,
+                                                         LaunchObserver observe) {
   auto ctx = ComputeContext::create(config);
   if (!ctx) return ctx.error();
   std::shared_ptr<SharedDeform> shared(
@@ -30,6 +31,7 @@ Result<std::shared_ptr<SharedDeform>> SharedDeform::open(const DeviceConfig& con
                  "deformation kernel failed to build: " + kernel.error().message};
   }
   shared->kernel_.emplace(std::move(kernel).value());
+  shared->observe_ = std::move(observe);
   return shared;
 }
 
@@ -51,7 +53,11 @@ Status SharedDeform::run(std::span<const mesh::DeformInput> batch, Results& resu
     std::vector<Request*> taken;
     taken.swap(pending_);
     lock.unlock();
-    launch(taken);
+    const auto t0 = std::chrono::steady_clock::now();
+    if (launch(taken) && observe_) {
+      observe_(taken.size(),
+               std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+    }
     lock.lock();
     launching_ = false;
     batches_ += taken.size();
@@ -62,7 +68,7 @@ Status SharedDeform::run(std::span<const mesh::DeformInput> batch, Results& resu
   return request.status;
 }
 
-void SharedDeform::launch(std::span<Request* const> requests) {
+bool SharedDeform::launch(std::span<Request* const> requests) {
   rooms_.clear();
   for (const Request* r : requests) {
     for (const mesh::DeformInput& room : r->batch)
@@ -99,6 +105,7 @@ void SharedDeform::launch(std::span<Request* const> requests) {
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t_copy).count();
   std::lock_guard lock(mutex_);
   accumulate(stats_, stats);
+  return s.ok();
 }
 
 LaunchStats SharedDeform::stats() const {

@@ -11,6 +11,7 @@
 #pragma once
 
 #include <condition_variable>
+#include <functional>
 #include <memory>
 #include <mutex>
 #include <optional>
@@ -33,8 +34,13 @@ class SharedDeform {
   // Opens the device `config` names and builds the kernel for `mesh_ctx`'s mesh parameters (every
   // world whose parameters are the same is served: the world comes with each room). Errors as
   // ComputeContext::create's and DeformKernel::create's.
+  // `observe`, if set, is called after each launch that succeeded, on the launching thread and
+  // outside the device's lock: how many batches it carried and its wall time in seconds (the
+  // host's flattening, the device's round trip and the copies out), for metrics.
+  using LaunchObserver = std::function<void(size_t batches, double seconds)>;
   static Result<std::shared_ptr<SharedDeform>> open(const DeviceConfig& config,
-                                                    const mesh::MeshContext& mesh_ctx);
+                                                    const mesh::MeshContext& mesh_ctx,
+                                                    LaunchObserver observe = {});
 
   SharedDeform(const SharedDeform&) = delete;
   SharedDeform& operator=(const SharedDeform&) = delete;
@@ -63,12 +69,14 @@ class SharedDeform {
     bool done = false;
   };
   // Runs the requests' rooms in one launch (or as few as the device's constant memory allows)
-  // and copies each request's results out. Only one thread at a time (launching_).
-  void launch(std::span<Request* const> requests);
+  // and copies each request's results out. Only one thread at a time (launching_). Whether it
+  // succeeded.
+  bool launch(std::span<Request* const> requests);
 
   std::unique_ptr<ComputeContext> device_;
   std::optional<DeformKernel> kernel_;
   const mesh::MeshContext* mesh_ctx_;
+  LaunchObserver observe_;
   mutable std::mutex mutex_;
   std::condition_variable done_cv_;
   std::vector<Request*> pending_;  // guarded by mutex_

@@ -715,7 +715,11 @@ Result<std::unique_ptr<Generator>> Generator::create(const cave::World& world,
   if (config.share_device && !config.builder.shared_device) {
     std::lock_guard open_lock(device_open_mutex());
     // Without a device, each builder says why when it opens (the CPU path, logged once each).
-    auto shared = kernels::SharedDeform::open(config.builder.device, s->home->mesh_ctx);
+    auto shared = kernels::SharedDeform::open(config.builder.device, s->home->mesh_ctx,
+                                              [&metrics](size_t, double seconds) {
+                                                metrics.device_launches.add();
+                                                metrics.device_launch_seconds.observe(seconds);
+                                              });
     if (shared) s->builder_options.shared_device = std::move(shared).value();
   }
   s->builders.resize(workers);

@@ -215,8 +215,17 @@ std::string Metrics::render() const {
   counter(out, "grotto_owner_failures_total",
           "Rooms asked of their owner that failed, came late or were wrong, and were built here.",
           owner_failures.value());
-  counter(out, "grotto_batches_total", "Room build calls (one kernel launch each on OpenCL).",
+  counter(out, "grotto_batches_total",
+          "Room build calls (each a batch of up to batch-rooms rooms of one lod).",
           batches.value());
+  counter(out, "grotto_device_launches_total",
+          "Launches of the OpenCL device the workers share (each carries every batch that "
+          "waited for it); 0 on the CPU reference or with opencl-queue per-worker.",
+          device_launches.value());
+  histogram(out, "grotto_device_launch_seconds",
+            "Seconds of each launch of the shared OpenCL device, its transfers and copies "
+            "included.",
+            device_launch_seconds);
   gauge(out, "grotto_queue_depth", "Room jobs queued, not yet building.", queue_depth.value());
   gauge(out, "grotto_rooms_in_flight", "Room wants not yet answered, all clients.",
         rooms_in_flight.value());

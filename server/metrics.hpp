@@ -85,28 +85,30 @@ class Metrics {
   // histogram (want received by request() -> delivery callback; cache hits observe 0) and the
   // compute path; the network layer updates the rest, errors included (errors are counted
   // where they are sent, so the generator never calls count_error).
-  Counter rooms_built;             // grotto_rooms_built_total (each build counts once)
-  Counter rooms_served;            // grotto_rooms_served_total (room frames sent)
-  Counter rooms_from_cache;        // grotto_rooms_cache_hits_total
-  Counter rooms_cancelled;         // grotto_rooms_cancelled_total (wants cancelled before sent)
-  Counter rooms_deduplicated;      // grotto_rooms_deduplicated_total (joined a job in flight)
-  Counter rooms_failed;            // grotto_rooms_failed_total
-  Counter rooms_fetched;           // grotto_rooms_fetched_total (from their owner, issue 29)
-  Counter owner_failures;          // grotto_owner_failures_total (fetches built here instead)
-  Counter batches;                 // grotto_batches_total (build calls / kernel launches)
-  Gauge queue_depth;               // grotto_queue_depth (jobs queued, not building)
-  Gauge rooms_in_flight;           // grotto_rooms_in_flight (wants not yet answered, all clients)
-  Gauge cache_bytes;               // grotto_cache_bytes
-  Gauge cache_entries;             // grotto_cache_entries
-  Gauge worlds_open;               // grotto_worlds_open (the server's own included)
-  Counter worlds_opened;           // grotto_worlds_opened_total (for clients that named them)
-  Counter worlds_refused;          // grotto_worlds_refused_total (max_worlds open, each in use)
-  Histogram build_seconds;         // grotto_build_seconds (per room)
-  Histogram encode_seconds;        // grotto_encode_seconds (per room)
-  Histogram room_latency_seconds;  // grotto_room_latency_seconds (want received -> frame queued)
-  Counter bytes_sent;              // grotto_bytes_sent_total (all frames)
-  Counter slow_clients_dropped;    // grotto_slow_clients_dropped_total (send queue over limit)
-  Counter bandwidth_waits;         // grotto_bandwidth_waits_total (ready rooms held: max_kbps)
+  Counter rooms_built;              // grotto_rooms_built_total (each build counts once)
+  Counter rooms_served;             // grotto_rooms_served_total (room frames sent)
+  Counter rooms_from_cache;         // grotto_rooms_cache_hits_total
+  Counter rooms_cancelled;          // grotto_rooms_cancelled_total (wants cancelled before sent)
+  Counter rooms_deduplicated;       // grotto_rooms_deduplicated_total (joined a job in flight)
+  Counter rooms_failed;             // grotto_rooms_failed_total
+  Counter rooms_fetched;            // grotto_rooms_fetched_total (from their owner, issue 29)
+  Counter owner_failures;           // grotto_owner_failures_total (fetches built here instead)
+  Counter batches;                  // grotto_batches_total (build calls)
+  Counter device_launches;          // grotto_device_launches_total (the shared device's)
+  Histogram device_launch_seconds;  // grotto_device_launch_seconds (each shared launch)
+  Gauge queue_depth;                // grotto_queue_depth (jobs queued, not building)
+  Gauge rooms_in_flight;            // grotto_rooms_in_flight (wants not yet answered, all clients)
+  Gauge cache_bytes;                // grotto_cache_bytes
+  Gauge cache_entries;              // grotto_cache_entries
+  Gauge worlds_open;                // grotto_worlds_open (the server's own included)
+  Counter worlds_opened;            // grotto_worlds_opened_total (for clients that named them)
+  Counter worlds_refused;           // grotto_worlds_refused_total (max_worlds open, each in use)
+  Histogram build_seconds;          // grotto_build_seconds (per room)
+  Histogram encode_seconds;         // grotto_encode_seconds (per room)
+  Histogram room_latency_seconds;   // grotto_room_latency_seconds (want received -> frame queued)
+  Counter bytes_sent;               // grotto_bytes_sent_total (all frames)
+  Counter slow_clients_dropped;     // grotto_slow_clients_dropped_total (send queue over limit)
+  Counter bandwidth_waits;          // grotto_bandwidth_waits_total (ready rooms held: max_kbps)
 
   // Errors sent to clients, by wire code: grotto_errors_total{code="..."}.
   void count_error(ErrorCode code);

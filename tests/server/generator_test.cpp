@@ -157,7 +157,10 @@ class GeneratorPathTest : public ::testing::TestWithParam<std::string> {};
 TEST_P(GeneratorPathTest, delivered_frame_decodes_to_the_mesh_built_in_process) {
   GeneratorConfig config;
   config.workers = 1;
-  config.builder.device.device = GetParam();
+  // "per-worker": the default device, with a context of the worker's own.
+  const bool per_worker = GetParam() == "per-worker";
+  config.builder.device.device = per_worker ? "" : GetParam();
+  config.share_device = !per_worker;
   Metrics metrics;
   auto gen = make_generator(config, metrics);
   ASSERT_TRUE(gen);
@@ -224,15 +227,23 @@ TEST_P(GeneratorPathTest, delivered_frame_decodes_to_the_mesh_built_in_process) 
   }
   EXPECT_EQ(metrics.rooms_built.value(), 2u);
   EXPECT_EQ(metrics.batches.value(), 2u);
+  // A shared device launches each batch (one worker: nothing to merge), and says so.
+  const bool shared = gen->compute_path().rfind("opencl:", 0) == 0 && !per_worker;
+  EXPECT_EQ(gen->compute_path().find("shared=true") != std::string::npos, shared)
+      << gen->compute_path();
+  EXPECT_EQ(metrics.device_launches.value(), shared ? 2u : 0u);
+  EXPECT_EQ(metrics.device_launch_seconds.count(), shared ? 2u : 0u);
+  EXPECT_EQ(gen->device_launches().batches, shared ? 2u : 0u);
   EXPECT_EQ(metrics.build_seconds.count(), 2u);
   EXPECT_EQ(metrics.encode_seconds.count(), 2u);
   EXPECT_EQ(metrics.rooms_in_flight.value(), 0);
 }
 
-INSTANTIATE_TEST_SUITE_P(Paths, GeneratorPathTest, ::testing::Values("", "none"),
+INSTANTIATE_TEST_SUITE_P(Paths, GeneratorPathTest, ::testing::Values("", "per-worker", "none"),
                          [](const ::testing::TestParamInfo<std::string>& param_info) {
                            return param_info.param.empty() ? std::string("opencl_or_default")
-                                                           : std::string("cpu");
+                                  : param_info.param == "per-worker" ? std::string("per_worker")
+                                                                     : std::string("cpu");
                          });
 
 TEST(GeneratorTest, frames_are_identical_across_generators_and_batch_mixes) {

@@ -164,6 +164,8 @@ TEST(MetricsTest, render_parses_and_every_series_has_help_and_type) {
                            "grotto_rooms_deduplicated_total",
                            "grotto_rooms_failed_total",
                            "grotto_batches_total",
+                           "grotto_device_launches_total",
+                           "grotto_device_launch_seconds",
                            "grotto_queue_depth",
                            "grotto_rooms_in_flight",
                            "grotto_cache_bytes",
