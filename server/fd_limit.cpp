@@ -26,7 +26,7 @@ std::string fds_text(uint64_t v) {
 
 uint64_t fds_needed(const FdDemand& demand) {
   return demand.max_connections + demand.max_handshakes + kSpareSockets + kFdReserve + kProcessFds +
-         kFdsPerWorker * demand.workers;
+         kFdsPerContext * demand.contexts;
 }
 
 uint64_t soft_limit_target(uint64_t soft, uint64_t hard, uint64_t need) {
@@ -49,7 +49,7 @@ FdDemand fd_demand(const ServerConfig& config) {
   FdDemand d;
   d.max_connections = static_cast<uint64_t>(std::max(config.max_connections, 0));
   d.max_handshakes = static_cast<uint64_t>(std::max(config.max_handshakes, 0));
-  d.workers = resolved_workers(config.generator);
+  d.contexts = config.generator.share_device ? 1 : resolved_workers(config.generator);
   return d;
 }
 
@@ -81,16 +81,16 @@ FdLimitReport raise_fd_limit(const ServerConfig& config) {
   if (v.enough) {
     spdlog::info(
         "event=fd_limit soft={} soft_before={} hard={} need={} max_connections={} "
-        "max_handshakes={} workers={}{}",
+        "max_handshakes={} contexts={}{}",
         fds_text(r.soft), fds_text(r.soft_before), fds_text(r.hard), v.need, demand.max_connections,
-        demand.max_handshakes, demand.workers, error);
+        demand.max_handshakes, demand.contexts, error);
   } else {
     // One line an operator can act on: the numbers, and how many players fit meanwhile.
     spdlog::warn(
         "event=fd_limit_low soft={} soft_before={} hard={} need={} max_connections={} "
-        "max_handshakes={} workers={} connections_that_fit={}{}",
+        "max_handshakes={} contexts={} connections_that_fit={}{}",
         fds_text(r.soft), fds_text(r.soft_before), fds_text(r.hard), v.need, demand.max_connections,
-        demand.max_handshakes, demand.workers, v.connections_that_fit, error);
+        demand.max_handshakes, demand.contexts, v.connections_that_fit, error);
   }
   return r;
 }

@@ -26,21 +26,22 @@ inline constexpr uint64_t kFdReserve = 4;
 // loaded, dlopen and /proc reads: 3 + 1 + 3 + a margin. Measured idle: 13 descriptors in all with
 // PoCL 3.1 on the CPU (the reserve included), 20 besides the workers' with NVIDIA's driver.
 inline constexpr uint64_t kProcessFds = 32;
-// Each generation worker opens its own OpenCL context (server/generator.cpp). PoCL 3.1 on the CPU
-// keeps no descriptor open per context; NVIDIA's OpenCL (driver 580.159.04, H200) keeps 18 per
-// context (16 on /dev/nvidia*, 2 eventfds): 38 descriptors with one worker, 272 with 14.
-inline constexpr uint64_t kFdsPerWorker = 24;
+// Per OpenCL context the server opens: one, the device its workers share (--opencl-queue shared,
+// the default), or one a worker (per-worker; server/generator.cpp). PoCL 3.1 on the CPU keeps no
+// descriptor open per context; NVIDIA's OpenCL (driver 580.159.04, H200) keeps 18 per context (16
+// on /dev/nvidia*, 2 eventfds): 38 descriptors with one context, 272 with 14.
+inline constexpr uint64_t kFdsPerContext = 24;
 
 // What the settings need and what the process has; all plain numbers.
 struct FdDemand {
   uint64_t max_connections = 0;
   uint64_t max_handshakes = 0;
-  uint64_t workers = 0;  // resolved: never 0 (0 in the settings means one per hardware thread)
+  uint64_t contexts = 0;  // OpenCL contexts: 1 shared, or the workers (resolved: never 0)
 };
 
 // Descriptors the server may hold at once:
 //   max_connections + max_handshakes + kSpareSockets      (every accepted socket, the shed cap)
-//   + kFdReserve + kProcessFds + kFdsPerWorker * workers   (everything that is not a client)
+//   + kFdReserve + kProcessFds + kFdsPerContext * contexts (everything that is not a client)
 uint64_t fds_needed(const FdDemand& demand);
 
 // The soft limit to set, given the current soft and hard limits: the hard limit (never lower than
@@ -58,8 +59,8 @@ struct FdVerdict {
 };
 FdVerdict judge_fd_limit(uint64_t limit, const FdDemand& demand);
 
-// The demand of `config`: workers resolved as the generator resolves them (0: one per hardware
-// thread).
+// The demand of `config`: one context for the shared device, else the workers resolved as the
+// generator resolves them (0: one per hardware thread).
 FdDemand fd_demand(const ServerConfig& config);
 
 // What raise_fd_limit did, for its log line and the tests.

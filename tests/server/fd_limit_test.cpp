@@ -31,7 +31,7 @@ TEST(FdLimit, need_is_every_socket_the_server_accepts_plus_the_rest_of_the_proce
   };
   for (const Row& r : rows) {
     EXPECT_EQ(fds_needed(r.demand), r.need)
-        << r.demand.max_connections << " " << r.demand.max_handshakes << " " << r.demand.workers;
+        << r.demand.max_connections << " " << r.demand.max_handshakes << " " << r.demand.contexts;
   }
 }
 
@@ -79,8 +79,9 @@ TEST(FdLimit, a_limit_below_the_need_is_short_and_says_how_many_players_fit) {
   }
 }
 
-// Workers set to 0 mean one per hardware thread, as the generator reads them.
-TEST(FdLimit, the_demand_counts_the_workers_the_generator_will_start) {
+// One OpenCL context when the workers share the device (the default); else one a worker, workers
+// set to 0 meaning one per hardware thread, as the generator reads them.
+TEST(FdLimit, the_demand_counts_the_contexts_the_generator_will_open) {
   grotto::server::ServerConfig c;
   c.max_connections = 2000;
   c.max_handshakes = 100;
@@ -88,9 +89,11 @@ TEST(FdLimit, the_demand_counts_the_workers_the_generator_will_start) {
   auto d = grotto::server::fd_demand(c);
   EXPECT_EQ(d.max_connections, 2000u);
   EXPECT_EQ(d.max_handshakes, 100u);
-  EXPECT_EQ(d.workers, 6u);
+  EXPECT_EQ(d.contexts, 1u);
+  c.generator.share_device = false;
+  EXPECT_EQ(grotto::server::fd_demand(c).contexts, 6u);
   c.generator.workers = 0;
-  EXPECT_GE(grotto::server::fd_demand(c).workers, 1u);
+  EXPECT_GE(grotto::server::fd_demand(c).contexts, 1u);
 }
 
 }  // namespace

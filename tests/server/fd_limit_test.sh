@@ -79,9 +79,9 @@ expect_limits() {
 }
 
 # 1. 64 descriptors, hard limit too: nothing to raise, and 1,000 players need 1,636
-#    (1000 + 512 + 64 spare sockets + 4 reserve + 32 process + 24 for the one worker).
+#    (1000 + 512 + 64 spare sockets + 4 reserve + 32 process + 24 for the one OpenCL context).
 if run low 64 64 --max-connections 1000; then
-  expect_line low 'event=fd_limit_low soft=64 soft_before=64 hard=64 need=1636 max_connections=1000 max_handshakes=512 workers=1 connections_that_fit=0'
+  expect_line low 'event=fd_limit_low soft=64 soft_before=64 hard=64 need=1636 max_connections=1000 max_handshakes=512 contexts=1 connections_that_fit=0'
   expect_limits low 64 64
 fi
 
@@ -107,7 +107,7 @@ if ((hard_now < 1024)); then
   echo "SKIP: short: the hard limit here is $hard_now, below 1024"
   skipped=1
 elif run short 64 1024 --max-connections 1000; then
-  expect_line short 'event=fd_limit_low soft=1024 soft_before=64 hard=1024 need=1636 max_connections=1000 max_handshakes=512 workers=1 connections_that_fit=388'
+  expect_line short 'event=fd_limit_low soft=1024 soft_before=64 hard=1024 need=1636 max_connections=1000 max_handshakes=512 contexts=1 connections_that_fit=388'
   expect_limits short 1024 1024
 fi
 
