@@ -5,7 +5,9 @@
 #pragma once
 #include <cstdint>
 #include <optional>
+#include <span>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "client/load/report.hpp"
@@ -73,6 +75,12 @@ double default_duration_s(Mode mode);
 // server that cannot start, a Stream that cannot start. Failures *during* the run (errors from
 // the server, stalls, verification) are in the report, not errors.
 Result<LoadReport> run_load(const LoadOptions& options);
+
+// The players' starts with --spread: player i starts in interior room 0 of sector (3i, 0, 0) of
+// its world, seeds[i], at the room's sphere's centre (three sectors apart, players share no rooms
+// for a while, so the server's cache does not hide generation). Errors: a seed the layout
+// refuses, a sector without an interior room.
+Result<std::vector<std::pair<cave::RoomId, Vec3>>> spread_starts(std::span<const uint64_t> seeds);
 
 // The command line (CLI11): options to run with, or text to print and an exit code (0 after
 // --help, 2 for an invalid flag: the text names it).

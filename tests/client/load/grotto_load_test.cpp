@@ -12,6 +12,7 @@
 #include <string>
 #include <thread>
 
+#include "cave/layout.hpp"
 #include "client/load/load.hpp"
 #include "server/server.hpp"
 
@@ -187,6 +188,24 @@ TEST(GrottoLoad, four_players_walk_the_embedded_server_without_errors_or_stalls)
   EXPECT_EQ(j["player_kbps"]["count"], 4);
   EXPECT_GT(j["rooms_per_room_entered"].get<double>(), 0);
   std::filesystem::remove_all(dir);
+}
+
+// --spread: player i starts in room 0 of sector (3i, 0, 0) of its own world, whatever the other
+// players' worlds (one sector each, not every player's sector in every world).
+TEST(GrottoLoadSpread, each_player_starts_in_its_sector_of_its_world) {
+  const std::vector<uint64_t> seeds = {7, 8, 7, 9, 8};
+  auto starts = grotto::client::load::spread_starts(seeds);
+  ASSERT_TRUE(starts.ok()) << starts.error().message;
+  ASSERT_EQ(starts->size(), seeds.size());
+  for (size_t i = 0; i < seeds.size(); ++i) {
+    auto world = grotto::cave::World::create(seeds[i], {}).value();
+    auto layout = grotto::cave::generate_sector(world, {3 * static_cast<int>(i), 0, 0});
+    ASSERT_FALSE(layout.rooms.empty());
+    EXPECT_EQ((*starts)[i].first, layout.rooms[0].id) << "player " << i;
+    const grotto::Vec3 at = (*starts)[i].second, centre = layout.rooms[0].sphere.centre;
+    EXPECT_TRUE(at.x == centre.x && at.y == centre.y && at.z == centre.z) << "player " << i;
+  }
+  EXPECT_TRUE(grotto::client::load::spread_starts({}).ok());
 }
 
 // --ramp: player i's Stream starts at i x ramp / players; its time to first room and its mean
