@@ -112,10 +112,15 @@ std::vector<Result<mesh::RoomMesh>> RoomBuilder::build(
   size_t vertices = 0;
   for (const mesh::DeformInput& in : inputs)
     vertices += in.donor->directions.size();
-  const mesh::ChannelsBy channels =
-      on_device && channels_kernel_ && vertices >= channels_min_vertices_
-          ? mesh::ChannelsBy::kCaller
-          : mesh::ChannelsBy::kAssemble;
+  const bool channels_on_device =
+      on_device && channels_kernel_ && vertices >= channels_min_vertices_;
+  // On several threads the channels on the CPU run after every room is assembled, in pieces any
+  // thread takes: inside assembly a big room's (a hall's: ~40 % of its assembly) held its thread
+  // long after the others had finished.
+  const bool channels_in_pieces = !channels_on_device && threads_ > 1;
+  const mesh::ChannelsBy channels = channels_on_device || channels_in_pieces
+                                        ? mesh::ChannelsBy::kCaller
+                                        : mesh::ChannelsBy::kAssemble;
   // Rooms are independent: each index writes its own output and mesh slot. Largest first: with
   // whole rooms as the unit of work, a hall taken last would finish alone while the other
   // threads wait (issue 30: the whole cave on every core).
@@ -132,14 +137,47 @@ std::vector<Result<mesh::RoomMesh>> RoomBuilder::build(
       std::vector<mesh::core::float3> positions(n);
       std::vector<float> clearance(n);
       mesh::deform_cpu(world, inputs[k], positions, clearance);
-      meshes[slots[k]] = mesh::assemble_room(world, inputs[k], positions, clearance);
+      meshes[slots[k]] =
+          mesh::assemble_room(world, inputs[k], positions, clearance, nullptr, channels);
       return;
     }
     meshes[slots[k]] = mesh::assemble_room(world, inputs[k], outputs[k].positions,
                                            outputs[k].clearance, nullptr, channels);
   });
-  if (channels == mesh::ChannelsBy::kCaller) fill_channels(worlds, slots, meshes);
+  if (channels_on_device) fill_channels(worlds, slots, meshes);
+  if (channels_in_pieces) fill_channels_on_threads(worlds, slots, meshes);
   return meshes;
+}
+
+void RoomBuilder::fill_channels_on_threads(std::span<const mesh::MeshContext* const> worlds,
+                                           std::span<const size_t> slots,
+                                           std::vector<Result<mesh::RoomMesh>>& meshes) {
+  // Pieces of a few thousand vertices: small beside a hall's 40,000, big beside a thread's start.
+  constexpr size_t kPiece = 4096;
+  struct Piece {
+    const mesh::MeshContext* world;
+    mesh::RoomMesh* mesh;
+    size_t first, count;
+  };
+  std::vector<Piece> pieces;
+  for (size_t slot : slots) {
+    if (!meshes[slot].ok()) continue;
+    mesh::RoomMesh& m = meshes[slot].value();
+    const size_t n = m.positions.size();
+    m.roughness.resize(n);
+    m.mineral.resize(n);
+    for (size_t first = 0; first < n; first += kPiece)
+      pieces.push_back({worlds[slot], &m, first, std::min(kPiece, n - first)});
+  }
+  // Each vertex's channels are its own (lanes give every vertex the scalar reference's bits), so
+  // the pieces give the whole room's.
+  for_each_index(pieces.size(), threads_, [&](size_t i) {
+    const Piece& p = pieces[i];
+    mesh::detail_channels(*p.world, p.mesh->origin,
+                          std::span(p.mesh->positions).subspan(p.first, p.count),
+                          std::span(p.mesh->roughness).subspan(p.first, p.count),
+                          std::span(p.mesh->mineral).subspan(p.first, p.count));
+  });
 }
 
 void RoomBuilder::fill_channels(std::span<const mesh::MeshContext* const> worlds,

@@ -78,6 +78,11 @@ class RoomBuilder {
   // CPU when that fails (counted in fallbacks(), logged).
   void fill_channels(std::span<const mesh::MeshContext* const> worlds,
                      std::span<const size_t> slots, std::vector<Result<mesh::RoomMesh>>& meshes);
+  // The detail channels of meshes[slots[k]] (those built) on the CPU's lanes, in pieces of a few
+  // thousand vertices on threads_ threads.
+  void fill_channels_on_threads(std::span<const mesh::MeshContext* const> worlds,
+                                std::span<const size_t> slots,
+                                std::vector<Result<mesh::RoomMesh>>& meshes);
 
   const mesh::MeshContext* mesh_ctx_;
   std::unique_ptr<ComputeContext> device_;

@@ -593,14 +593,18 @@ TEST_F(DeformKernelTest, room_builder_falls_back_to_the_cpu_when_told_to) {
 }
 
 // Several threads per build (a whole cave at once) give every room the mesh one thread gives, on
-// both paths, and keep the rooms in order.
+// both paths and at both levels (detail rooms' channels come in several pieces), and keep the
+// rooms in order.
 TEST_F(DeformKernelTest, room_builder_threads_give_the_single_thread_meshes) {
   std::vector<cave::Room> rooms(region_->rooms.begin(), region_->rooms.begin() + 24);
-  for (const char* device : {"auto", "none"}) {
+  for (auto [device, lod] : {std::pair{"auto", mesh::Lod::kPatch},
+                             {"none", mesh::Lod::kPatch},
+                             {"auto", mesh::Lod::kDetail},
+                             {"none", mesh::Lod::kDetail}}) {
     RoomBuilder one = RoomBuilder::create(*mesh_, {DeviceConfig{.device = device}, 1});
     RoomBuilder three = RoomBuilder::create(*mesh_, {DeviceConfig{.device = device}, 3});
-    auto a = one.build(rooms, mesh::Lod::kPatch);
-    auto b = three.build(rooms, mesh::Lod::kPatch);
+    auto a = one.build(rooms, lod);
+    auto b = three.build(rooms, lod);
     ASSERT_EQ(a.size(), rooms.size());
     ASSERT_EQ(b.size(), rooms.size());
     for (size_t i = 0; i < rooms.size(); ++i) {
@@ -611,7 +615,8 @@ TEST_F(DeformKernelTest, room_builder_threads_give_the_single_thread_meshes) {
       for (size_t v = 0; v < a[i]->vertex_count(); ++v) {
         ASSERT_TRUE(same_bits(a[i]->positions[v].x, b[i]->positions[v].x) &&
                     same_bits(a[i]->normals[v].y, b[i]->normals[v].y) &&
-                    same_bits(a[i]->roughness[v], b[i]->roughness[v]))
+                    same_bits(a[i]->roughness[v], b[i]->roughness[v]) &&
+                    same_bits(a[i]->mineral[v], b[i]->mineral[v]))
             << device << " " << rooms[i].id.to_string() << " vertex " << v;
       }
     }
