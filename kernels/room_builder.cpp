@@ -184,20 +184,17 @@ void RoomBuilder::fill_channels(std::span<const mesh::MeshContext* const> worlds
                                 std::span<const size_t> slots,
                                 std::vector<Result<mesh::RoomMesh>>& meshes) {
   std::vector<mesh::RoomMesh*> built;
-  std::vector<const mesh::MeshContext*> built_worlds;
   std::vector<uint32_t> seeds;
   for (size_t slot : slots) {
     if (!meshes[slot].ok()) continue;
     built.push_back(&meshes[slot].value());
-    built_worlds.push_back(worlds[slot]);
     seeds.push_back(worlds[slot]->noise_seed());
   }
   Status s = channels_kernel_->run(built, seeds, mesh_ctx_->params(), &channel_launches_);
   if (s) return;
   ++fallbacks_;
   spdlog::warn("event=channels_fallback rooms={} error=\"{}\"", built.size(), s.error().message);
-  for_each_index(built.size(), threads_,
-                 [&](size_t i) { mesh::fill_detail_channels(*built_worlds[i], *built[i]); });
+  fill_channels_on_threads(worlds, slots, meshes);
 }
 
 }  // namespace grotto::kernels

@@ -75,7 +75,7 @@ class RoomBuilder {
  private:
   explicit RoomBuilder(const mesh::MeshContext& mesh_ctx);
   // The detail channels of meshes[slots[k]] (those built) on the device, in one launch; on the
-  // CPU when that fails (counted in fallbacks(), logged).
+  // CPU (fill_channels_on_threads) when that fails (counted in fallbacks(), logged).
   void fill_channels(std::span<const mesh::MeshContext* const> worlds,
                      std::span<const size_t> slots, std::vector<Result<mesh::RoomMesh>>& meshes);
   // The detail channels of meshes[slots[k]] (those built) on the CPU's lanes, in pieces of a few

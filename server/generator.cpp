@@ -723,8 +723,9 @@ Result<std::unique_ptr<Generator>> Generator::create(const cave::World& world,
     if (shared) s->builder_options.shared_device = std::move(shared).value();
   }
   s->builders.resize(workers);
-  // Each worker opens its own builder (and OpenCL context) on its thread: builders are not
-  // thread-safe. They open one after another (see worker_main).
+  // Each worker opens its own builder on its thread (builders are not thread-safe), on the shared
+  // device or, per-worker, on an OpenCL context of its own. They open one after another (see
+  // worker_main).
   for (size_t i = 0; i < workers; ++i) {
     s->threads.emplace_back([s, i] {
       name_this_thread("grotto-build");
