@@ -192,6 +192,24 @@ int main(int argc, char** argv) {
   if (const int hw = static_cast<int>(std::thread::hardware_concurrency()); hw > 2) {
     thread_counts.push_back(hw);
   }
+  // Each sector the region needs, laid out alone on one thread: on many threads the layout takes
+  // its slowest sector's time, and build_region builds the interior rooms once the block's own
+  // sector is laid out.
+  nlohmann::json layout_sectors = nlohmann::json::array();
+  {
+    const cave::RegionPlan plan = cave::plan_region(world, {0, 0, 0}, {0, 0, 0});
+    std::vector<cave::SectorCoord> coords = plan.block;
+    coords.insert(coords.end(), plan.outside.begin(), plan.outside.end());
+    for (size_t i = 0; i < coords.size(); ++i) {
+      int attempts = 0;
+      const double ms =
+          median_ms(reps, [&] { attempts = cave::generate_sector(world, coords[i]).attempts; });
+      layout_sectors.push_back({{"sector", cave::to_string(coords[i])},
+                                {"in_block", i < plan.block.size()},
+                                {"attempts", attempts},
+                                {"ms", ms}});
+    }
+  }
   // The layout on as many threads (the region's sectors, and those beyond its faces, at once).
   std::map<int, double> layout_threads_ms{{1, layout_ms}};
   for (int threads : thread_counts) {
@@ -210,6 +228,18 @@ int main(int argc, char** argv) {
       double ms = median_ms(
           reps, [&] { (void)builder.build(rooms, lod); }, &cpu_ms);
       // The detail channels' launches (on GPUs: RoomBuilder's kAuto), each part per launch.
+      // The region's every room (its gates beyond the 100 too) as a pipeline against laying out
+      // then building: build_region builds the block's interior rooms while the sectors beyond its
+      // faces are laid out.
+      const auto [pipeline_ms, staged_ms] = bench::median_ms_alternating(
+          reps,
+          [&] {
+            (void)builder.build_region({0, 0, 0}, {0, 0, 0}, lod);
+          },
+          [&] {
+            const cave::Region r = cave::generate_region(world, {0, 0, 0}, {0, 0, 0}, threads);
+            (void)builder.build(r.rooms, lod);
+          });
       nlohmann::json channel_split = "cpu";
       if (const kernels::LaunchStats& c = builder.channel_stats(); c.launches > 0) {
         const double n = static_cast<double>(c.launches);
@@ -225,7 +255,11 @@ int main(int argc, char** argv) {
                        {"build_ms", ms},
                        {"build_cpu_time_ms", cpu_ms},
                        {"layout_ms", layout_threads_ms[threads]},
-                       {"whole_cave_ms", layout_threads_ms[threads] + ms}});
+                       {"whole_cave_ms", layout_threads_ms[threads] + ms},
+                       {"region",
+                        {{"rooms", region.rooms.size()},
+                         {"pipeline_ms", pipeline_ms},
+                         {"layout_then_build_ms", staged_ms}}}});
     }
   }
   spdlog::set_level(spdlog::level::info);
@@ -256,6 +290,7 @@ int main(int argc, char** argv) {
                                      {"channels_ms", slowest_room_channels_ms},
                                      {"donor_vertices", slowest_room_vertices}};
   report["whole_cave"] = whole;
+  report["layout_sectors"] = layout_sectors;
   report["deform_cpu_time_ms"] = deform_cpu_time_ms;
 
   auto device = kernels::ComputeContext::create(
@@ -417,6 +452,13 @@ int main(int argc, char** argv) {
       "%-26s %10.1f  (%zu donor vertices; its channels %.1f, which several threads share: the "
       "rest is the floor of a build on many threads)\n",
       "slowest room's assembly", slowest_room_ms, slowest_room_vertices, slowest_room_channels_ms);
+  std::printf("the region's sectors laid out alone, one thread (ms):");
+  for (const auto& l : layout_sectors) {
+    std::printf(" %s%s %.1f (%d attempt%s)", l["sector"].get<std::string>().c_str(),
+                l["in_block"].get<bool>() ? " [block]" : "", l["ms"].get<double>(),
+                l["attempts"].get<int>(), l["attempts"].get<int>() == 1 ? "" : "s");
+  }
+  std::printf("\n");
   std::printf(
       "whole cave through RoomBuilder (layout + build), wall and the process's CPU time:\n");
   for (auto& w : whole) {
@@ -425,6 +467,11 @@ int main(int argc, char** argv) {
         w["device"].get<std::string>().c_str(), w["threads"].get<int>(),
         w["whole_cave_ms"].get<double>(), w["layout_ms"].get<double>(), w["build_ms"].get<double>(),
         w["build_cpu_time_ms"].get<double>(), w["path"].get<std::string>().c_str());
+    std::printf(
+        "         the region's %zu rooms: %.1f ms as a pipeline (build_region), %.1f ms laid out "
+        "then built\n",
+        w["region"]["rooms"].get<size_t>(), w["region"]["pipeline_ms"].get<double>(),
+        w["region"]["layout_then_build_ms"].get<double>());
     if (const auto& c = w["channels"]; c.is_object()) {
       std::printf(
           "         channels on the device, per launch: prepare %.2f upload %.2f kernel %.2f "

@@ -6,6 +6,7 @@
 #include <chrono>
 #include <ctime>
 #include <functional>
+#include <utility>
 #include <vector>
 
 namespace grotto::bench {
@@ -37,6 +38,18 @@ inline double median_ms(int reps, const std::function<void()>& f, double* cpu_ms
   }
   if (cpu_ms) *cpu_ms = median(cpu);
   return median(wall);
+}
+
+// Two ways of doing one job timed in turn, f then g, `reps` times each, so the machine's load
+// weighs on both alike: the median wall times of each, ms.
+inline std::pair<double, double> median_ms_alternating(int reps, const std::function<void()>& f,
+                                                       const std::function<void()>& g) {
+  std::vector<double> a, b;
+  for (int i = 0; i < reps; ++i) {
+    a.push_back(median_ms(1, f));
+    b.push_back(median_ms(1, g));
+  }
+  return {median(a), median(b)};
 }
 
 }  // namespace grotto::bench

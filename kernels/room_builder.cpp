@@ -3,7 +3,10 @@
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cassert>
+#include <condition_variable>
+#include <mutex>
 #include <numeric>
 #include <thread>
 
@@ -72,6 +75,64 @@ std::vector<Result<mesh::RoomMesh>> RoomBuilder::build(std::span<const cave::Roo
                                                        mesh::Lod lod) {
   std::vector<const mesh::MeshContext*> worlds(rooms.size(), mesh_ctx_);
   return build(worlds, rooms, lod);
+}
+
+RoomBuilder::BuiltRegion RoomBuilder::build_region(cave::SectorCoord lo, cave::SectorCoord hi,
+                                                   mesh::Lod lod) {
+  const cave::World& world = mesh_ctx_->world();
+  const cave::RegionPlan plan = cave::plan_region(world, lo, hi);
+  std::vector<cave::SectorCoord> coords = plan.block;
+  coords.insert(coords.end(), plan.outside.begin(), plan.outside.end());
+  std::vector<cave::SectorLayout> layouts(coords.size());
+  // Layout threads take the sectors in order, the block's first; the caller waits for the
+  // block's, then builds its interior rooms while they lay out the rest.
+  std::atomic<size_t> next{0};
+  std::mutex mutex;
+  std::condition_variable block_done;
+  size_t block_left = plan.block.size();
+  auto lay_out = [&] {
+    for (size_t i = next++; i < coords.size(); i = next++) {
+      layouts[i] = cave::generate_sector(world, coords[i]);
+      if (i >= plan.block.size()) continue;
+      std::lock_guard lock(mutex);
+      if (--block_left == 0) block_done.notify_one();
+    }
+  };
+  std::vector<std::jthread> pool;  // joined when cleared, or on the way out
+  if (threads_ > 1) {
+    for (size_t t = 0; t < std::min(static_cast<size_t>(threads_), coords.size()); ++t)
+      pool.emplace_back(lay_out);
+    std::unique_lock lock(mutex);
+    block_done.wait(lock, [&] { return block_left == 0; });
+  } else {
+    lay_out();
+  }
+  std::vector<cave::Room> interior;
+  for (size_t i = 0; i < plan.block.size(); ++i)
+    interior.insert(interior.end(), layouts[i].rooms.begin(), layouts[i].rooms.end());
+  std::vector<Result<mesh::RoomMesh>> interior_meshes = build(interior, lod);
+  pool.clear();
+
+  BuiltRegion out{cave::assemble_region(plan, std::move(layouts)), {}};
+  std::vector<cave::Room> gates;
+  for (const cave::Room& r : out.region.rooms) {
+    if (r.id.is_gate()) gates.push_back(r);
+  }
+  std::vector<Result<mesh::RoomMesh>> gate_meshes = build(gates, lod);
+  // The region's rooms are sorted by id, which orders by sector first: its interior rooms come
+  // in `interior`'s order (the block's sectors x-major, each's rooms by index), its gates in the
+  // order taken above.
+  out.meshes.reserve(out.region.rooms.size());
+  size_t next_gate = 0, next_interior = 0;
+  for (const cave::Room& r : out.region.rooms) {
+    if (r.id.is_gate()) {
+      out.meshes.push_back(std::move(gate_meshes[next_gate++]));
+    } else {
+      assert(interior[next_interior].id == r.id);
+      out.meshes.push_back(std::move(interior_meshes[next_interior++]));
+    }
+  }
+  return out;
 }
 
 bool RoomBuilder::serves(const mesh::MeshContext& world) const {

@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "cave/layout.hpp"
 #include "kernels/channels.hpp"
 #include "kernels/deform.hpp"
 #include "kernels/shared_deform.hpp"
@@ -57,6 +58,16 @@ class RoomBuilder {
   // has other mesh parameters fails; the others are built.
   std::vector<Result<mesh::RoomMesh>> build(std::span<const mesh::MeshContext* const> worlds,
                                             std::span<const cave::Room> rooms, mesh::Lod lod);
+  // A block of sectors [lo, hi] of the builder's world and every room's mesh: the region is
+  // cave::generate_region's, meshes[i] is region.rooms[i]'s as build() gives it. A pipeline on
+  // the builder's threads: the block's own sectors are laid out first, and its interior rooms
+  // built while the sectors beyond its faces (which only its gate rooms need) are laid out; then
+  // the gates (issue 30: the whole cave on every core).
+  struct BuiltRegion {
+    cave::Region region;
+    std::vector<Result<mesh::RoomMesh>> meshes;
+  };
+  BuiltRegion build_region(cave::SectorCoord lo, cave::SectorCoord hi, mesh::Lod lod);
   // Whether `world`'s mesh parameters are the builder's (its kernel holds their shapes).
   bool serves(const mesh::MeshContext& world) const;
 

@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <cassert>
 #include <cmath>
-#include <map>
 
 #include "core/bytes.hpp"
 #include "core/parallel.hpp"
@@ -203,47 +202,42 @@ const Room* Region::find(RoomId id) const {
   return find_room(rooms, id);
 }
 
-Region generate_region(const World& world, SectorCoord lo, SectorCoord hi, int threads) {
-  Region region{lo, hi, {}, {}};
+RegionPlan plan_region(const World& world, SectorCoord lo, SectorCoord hi) {
+  RegionPlan plan{lo, hi, {}, {}};
+  for (int x = lo.x; x <= hi.x; ++x) {
+    for (int y = lo.y; y <= hi.y; ++y) {
+      for (int z = lo.z; z <= hi.z; ++z)
+        plan.block.push_back({x, y, z});
+    }
+  }
   auto in_block = [&](SectorCoord s) {
     for (int a = 0; a < 3; ++a) {
       if (s[a] < lo[a] || s[a] > hi[a]) return false;
     }
     return true;
   };
-  std::vector<SectorCoord> block;
-  for (int x = lo.x; x <= hi.x; ++x) {
-    for (int y = lo.y; y <= hi.y; ++y) {
-      for (int z = lo.z; z <= hi.z; ++z)
-        block.push_back({x, y, z});
-    }
-  }
-  // The sectors beyond the block's faces whose gates it needs, known from the faces' gates alone
-  // (face_gates: a few draws, no layout), so that every sector is laid out at once: each is a
-  // pure function of the world and its coordinates.
-  std::map<SectorCoord, SectorLayout> outside;
-  for (SectorCoord b : block) {
+  for (SectorCoord b : plan.block) {
     for (int axis = 0; axis < 3; ++axis) {
       for (int step : {-1, 1}) {
         const SectorCoord beyond = neighbour(b, axis, step);
         if (in_block(beyond)) continue;
         if (!face_gates(world, step > 0 ? b : beyond, axis).empty()) {
-          outside.emplace(beyond, SectorLayout{});
+          plan.outside.push_back(beyond);
         }
       }
     }
   }
-  std::vector<SectorLayout*> pending;
-  region.sectors.resize(block.size());
-  for (SectorLayout& layout : region.sectors)
-    pending.push_back(&layout);
-  std::vector<SectorCoord> coords = block;
-  for (auto& [coord, layout] : outside) {
-    coords.push_back(coord);
-    pending.push_back(&layout);
-  }
-  for_each_index(pending.size(), threads,
-                 [&](size_t i) { *pending[i] = generate_sector(world, coords[i]); });
+  std::sort(plan.outside.begin(), plan.outside.end());
+  plan.outside.erase(std::unique(plan.outside.begin(), plan.outside.end()), plan.outside.end());
+  return plan;
+}
+
+Region assemble_region(const RegionPlan& plan, std::vector<SectorLayout> layouts) {
+  const SectorCoord lo = plan.lo, hi = plan.hi;
+  Region region{lo, hi, {}, {}};
+  const auto first_outside = layouts.begin() + static_cast<ptrdiff_t>(plan.block.size());
+  region.sectors.assign(std::make_move_iterator(layouts.begin()),
+                        std::make_move_iterator(first_outside));
   std::vector<RoomId> gate_ids;
   for (const SectorLayout& layout : region.sectors) {
     region.rooms.insert(region.rooms.end(), layout.rooms.begin(), layout.rooms.end());
@@ -253,13 +247,17 @@ Region generate_region(const World& world, SectorCoord lo, SectorCoord hi, int t
   std::sort(gate_ids.begin(), gate_ids.end());
   gate_ids.erase(std::unique(gate_ids.begin(), gate_ids.end()), gate_ids.end());
   auto layout_of = [&](SectorCoord s) -> const SectorLayout& {
-    if (in_block(s)) {
+    bool in_block = true;
+    for (int a = 0; a < 3; ++a)
+      in_block = in_block && s[a] >= lo[a] && s[a] <= hi[a];
+    if (in_block) {
       size_t i = ((static_cast<size_t>(s.x - lo.x) * (hi.y - lo.y + 1)) + (s.y - lo.y)) *
                      (hi.z - lo.z + 1) +
                  (s.z - lo.z);
       return region.sectors[i];
     }
-    return outside.at(s);
+    const auto at = std::lower_bound(plan.outside.begin(), plan.outside.end(), s);
+    return *(first_outside + (at - plan.outside.begin()));
   };
   for (RoomId id : gate_ids) {
     SectorCoord lower = id.sector();
@@ -269,6 +267,17 @@ Region generate_region(const World& world, SectorCoord lo, SectorCoord hi, int t
   std::sort(region.rooms.begin(), region.rooms.end(),
             [](const Room& a, const Room& b) { return a.id < b.id; });
   return region;
+}
+
+Region generate_region(const World& world, SectorCoord lo, SectorCoord hi, int threads) {
+  // Every sector at once: each is a pure function of the world and its coordinates.
+  const RegionPlan plan = plan_region(world, lo, hi);
+  std::vector<SectorCoord> coords = plan.block;
+  coords.insert(coords.end(), plan.outside.begin(), plan.outside.end());
+  std::vector<SectorLayout> layouts(coords.size());
+  for_each_index(coords.size(), threads,
+                 [&](size_t i) { layouts[i] = generate_sector(world, coords[i]); });
+  return assemble_region(plan, std::move(layouts));
 }
 
 void append_bytes(const Room& room, std::vector<unsigned char>& out) {

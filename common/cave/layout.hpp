@@ -164,6 +164,18 @@ struct Region {
 // coordinates, so the region is the same bytes whatever the count.
 Region generate_region(const World& world, SectorCoord lo, SectorCoord hi, int threads = 1);
 
+// generate_region in its two stages, for a caller that works on the block's interior rooms (they
+// need only the block's own sectors) while the sectors beyond its faces are still laid out.
+struct RegionPlan {
+  SectorCoord lo, hi;
+  std::vector<SectorCoord> block;    // the block's sectors, x-major
+  std::vector<SectorCoord> outside;  // beyond its faces, with gates it needs; sorted
+};
+// Known from the faces' gates alone (face_gates: a few draws, no layout).
+RegionPlan plan_region(const World& world, SectorCoord lo, SectorCoord hi);
+// The region from generate_sector of plan.block's sectors, then of plan.outside's, in order.
+Region assemble_region(const RegionPlan& plan, std::vector<SectorLayout> layouts);
+
 // Canonical little-endian bytes of a room (ids packed, doubles as IEEE bits): the basis of
 // determinism tests and digests.
 void append_bytes(const Room& room, std::vector<unsigned char>& out);

@@ -592,6 +592,28 @@ TEST_F(DeformKernelTest, room_builder_falls_back_to_the_cpu_when_told_to) {
     EXPECT_TRUE(m.ok());
 }
 
+// Every room's mesh the same bits in `a` and `b` (both built, in the rooms' order).
+void expect_same_meshes(const std::vector<Result<mesh::RoomMesh>>& a,
+                        const std::vector<Result<mesh::RoomMesh>>& b,
+                        std::span<const cave::Room> rooms, const std::string& what) {
+  ASSERT_EQ(a.size(), rooms.size()) << what;
+  ASSERT_EQ(b.size(), rooms.size()) << what;
+  for (size_t i = 0; i < rooms.size(); ++i) {
+    const std::string room = what + " " + rooms[i].id.to_string();
+    ASSERT_TRUE(a[i].ok() && b[i].ok()) << room;
+    EXPECT_EQ(b[i]->id, rooms[i].id) << room;
+    EXPECT_EQ(a[i]->indices, b[i]->indices) << room;
+    ASSERT_EQ(a[i]->vertex_count(), b[i]->vertex_count()) << room;
+    for (size_t v = 0; v < a[i]->vertex_count(); ++v) {
+      ASSERT_TRUE(same_bits(a[i]->positions[v].x, b[i]->positions[v].x) &&
+                  same_bits(a[i]->normals[v].y, b[i]->normals[v].y) &&
+                  same_bits(a[i]->roughness[v], b[i]->roughness[v]) &&
+                  same_bits(a[i]->mineral[v], b[i]->mineral[v]))
+          << room << " vertex " << v;
+    }
+  }
+}
+
 // Several threads per build (a whole cave at once) give every room the mesh one thread gives, on
 // both paths and at both levels (detail rooms' channels come in several pieces), and keep the
 // rooms in order.
@@ -603,22 +625,34 @@ TEST_F(DeformKernelTest, room_builder_threads_give_the_single_thread_meshes) {
                              {"none", mesh::Lod::kDetail}}) {
     RoomBuilder one = RoomBuilder::create(*mesh_, {DeviceConfig{.device = device}, 1});
     RoomBuilder three = RoomBuilder::create(*mesh_, {DeviceConfig{.device = device}, 3});
-    auto a = one.build(rooms, lod);
-    auto b = three.build(rooms, lod);
-    ASSERT_EQ(a.size(), rooms.size());
-    ASSERT_EQ(b.size(), rooms.size());
-    for (size_t i = 0; i < rooms.size(); ++i) {
-      ASSERT_TRUE(a[i].ok() && b[i].ok()) << device << " " << rooms[i].id.to_string();
-      EXPECT_EQ(b[i]->id, rooms[i].id);
-      EXPECT_EQ(a[i]->indices, b[i]->indices) << device << " " << rooms[i].id.to_string();
-      ASSERT_EQ(a[i]->vertex_count(), b[i]->vertex_count());
-      for (size_t v = 0; v < a[i]->vertex_count(); ++v) {
-        ASSERT_TRUE(same_bits(a[i]->positions[v].x, b[i]->positions[v].x) &&
-                    same_bits(a[i]->normals[v].y, b[i]->normals[v].y) &&
-                    same_bits(a[i]->roughness[v], b[i]->roughness[v]) &&
-                    same_bits(a[i]->mineral[v], b[i]->mineral[v]))
-            << device << " " << rooms[i].id.to_string() << " vertex " << v;
-      }
+    expect_same_meshes(one.build(rooms, lod), three.build(rooms, lod), rooms, device);
+  }
+}
+
+// A region built as a pipeline (interior rooms while the sectors beyond the block are laid out,
+// then the gates) is generate_region's region with build()'s meshes, room for room, on one thread
+// and on several, on both paths: a block of two sectors, so gates inside it and on its faces.
+TEST_F(DeformKernelTest, build_region_gives_the_region_and_its_rooms_meshes) {
+  const cave::Region expected = cave::generate_region(*world_, {0, 0, 0}, {1, 0, 0});
+  size_t gates = 0;
+  for (const cave::Room& r : expected.rooms)
+    gates += r.id.is_gate();
+  ASSERT_GT(gates, 0u);
+  ASSERT_LT(gates, expected.rooms.size());
+  for (const char* device : {"auto", "none"}) {
+    RoomBuilder reference = RoomBuilder::create(*mesh_, {DeviceConfig{.device = device}, 1});
+    const auto meshes = reference.build(expected.rooms, mesh::Lod::kPatch);
+    for (int threads : {1, 3}) {
+      RoomBuilder builder = RoomBuilder::create(*mesh_, {DeviceConfig{.device = device}, threads});
+      RoomBuilder::BuiltRegion built =
+          builder.build_region({0, 0, 0}, {1, 0, 0}, mesh::Lod::kPatch);
+      const std::string what = std::string(device) + " " + std::to_string(threads) + " threads";
+      EXPECT_EQ(cave::digest(built.region.rooms), cave::digest(expected.rooms)) << what;
+      ASSERT_EQ(built.region.sectors.size(), 2u) << what;
+      EXPECT_EQ(cave::digest(built.region.sectors[1].rooms),
+                cave::digest(expected.sectors[1].rooms))
+          << what;
+      expect_same_meshes(meshes, built.meshes, expected.rooms, what);
     }
   }
 }
