@@ -162,6 +162,10 @@ print("| measure | device or renderer | result |")
 print("| --- | --- | --- |")
 def whole(w):
     parts = f"layout {w['layout_ms']:.1f}, build {w['build_ms']:.1f}" if "layout_ms" in w else f"build {w['build_ms']:.1f}"
+    region = w.get("region")
+    if region:  # the region's every room, build_region's pipeline against layout then build
+        parts += (f"; region of {region['rooms']} rooms: pipeline {region['pipeline_ms']:.1f}, "
+                  f"laid out then built {region['layout_then_build_ms']:.1f}")
     return f"{w['whole_cave_ms']:.1f} ms ({parts})"
 seen, ran = set(), 0
 bits = os.path.join(out, "bits.log")

@@ -9,9 +9,11 @@
 #include <fstream>
 #include <limits>
 #include <nlohmann/json.hpp>
+#include <thread>
 
 #include "codec/room_codec.hpp"
 #include "core/bytes.hpp"
+#include "core/parallel.hpp"
 #include "proto/layout_json.hpp"
 
 namespace grotto::tools {
@@ -81,10 +83,13 @@ struct Document {
   }
 };
 
-// One room's mesh: the Draco payload the server would stream, and plain accessors from that
-// payload decoded, so both hold the same vertices in the same order. Returns the mesh's JSON.
-Result<json> add_room_mesh(Document& doc, const cave::Room& room, const mesh::RoomMesh& m,
-                           mesh::Lod lod) {
+// One room's mesh as the server would stream it (a Draco payload) and that payload decoded, so
+// the plain accessors hold the same vertices in the same order as the payload.
+struct CodedRoom {
+  std::vector<uint8_t> payload;
+  codec::DecodedRoom decoded;
+};
+Result<CodedRoom> code_room(const cave::Room& room, const mesh::RoomMesh& m, mesh::Lod lod) {
   const std::string id = room.id.to_string();
   Result<std::vector<uint8_t>> payload = codec::encode_room(m);  // the server's options
   if (!payload)
@@ -97,11 +102,18 @@ Result<json> add_room_mesh(Document& doc, const cave::Room& room, const mesh::Ro
     return invalid_argument("room " + id +
                             "'s payload does not decode: " + decoded.error().message);
   }
-  const codec::DecodedRoom& d = *decoded;
+  return CodedRoom{std::move(payload).value(), std::move(decoded).value()};
+}
+
+// A room's coded mesh into the document's buffer: the Draco view and plain accessors. Returns
+// the mesh's JSON.
+json add_room_mesh(Document& doc, const cave::Room& room, const CodedRoom& coded) {
+  const std::string id = room.id.to_string();
+  const codec::DecodedRoom& d = coded.decoded;
   const size_t n = d.vertex_count();
   assert(n > 0);  // decode_room refuses a payload without triangles
 
-  size_t draco_view = doc.add_view(*payload, 0);
+  size_t draco_view = doc.add_view(coded.payload, 0);
 
   std::vector<uint8_t> bytes;
   bytes.reserve(n * 12);
@@ -182,7 +194,22 @@ Result<std::vector<uint8_t>> region_glb(const GlbSource& source, std::span<const
   Document doc;
   json nodes = json::array(), meshes = json::array(), scene_nodes = json::array();
   json light_defs = json::array(), light_nodes = json::array();
-  for (const GlbRoom& r : rooms) {
+  // The meshes encoded and decoded on every hardware thread (each room's alone), a window of
+  // rooms at a time so that only the window's decoded meshes are held, then laid into the buffer
+  // in the rooms' order.
+  constexpr size_t kWindow = 64;
+  const int threads = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  std::vector<Result<CodedRoom>> coded;
+  for (size_t i = 0; i < rooms.size(); ++i) {
+    if (i % kWindow == 0) {
+      coded.assign(std::min(kWindow, rooms.size() - i), invalid_argument("no mesh"));
+      for_each_index(coded.size(), threads, [&](size_t k) {
+        if (const GlbRoom& r = rooms[i + k]; r.mesh != nullptr)
+          coded[k] = code_room(*r.room, *r.mesh, source.lod);
+      });
+    }
+    Result<CodedRoom>& room_coded = coded[i % kWindow];
+    const GlbRoom& r = rooms[i];
     assert(r.room != nullptr);
     // The portals as `grotto-layout --room` prints them: one view of a room (proto/).
     json extras = json::parse(proto::room_json(*r.room), nullptr, false);
@@ -190,13 +217,13 @@ Result<std::vector<uint8_t>> region_glb(const GlbSource& source, std::span<const
     json node = {{"name", r.room->id.to_string()}};
     Vec3 parent = source.anchor;  // where the node's frame is, world metres
     if (r.mesh != nullptr) {
-      Result<json> mesh = add_room_mesh(doc, *r.room, *r.mesh, source.lod);
-      if (!mesh) return mesh.error();
+      if (!room_coded) return room_coded.error();
+      json mesh = add_room_mesh(doc, *r.room, *room_coded);
       Vec3 t = r.mesh->origin - source.anchor;
       node["translation"] = vec3(t);
       parent = r.mesh->origin;
       node["mesh"] = meshes.size();
-      meshes.push_back(std::move(mesh).value());
+      meshes.push_back(std::move(mesh));
     } else {
       extras["mesh_error"] = r.mesh_error;
     }

@@ -69,7 +69,7 @@ struct RegionMeshes {
 };
 
 RegionMeshes build_meshes(const grotto::cave::World& world, const grotto::cave::Region& region,
-                          grotto::mesh::Lod lod) {
+                          grotto::mesh::Lod lod, int threads) {
   RegionMeshes out;
   out.errors.resize(region.rooms.size());
   auto note_failure = [&](size_t i, std::string why) {
@@ -83,7 +83,7 @@ RegionMeshes build_meshes(const grotto::cave::World& world, const grotto::cave::
       note_failure(i, ctx.error().message);
     return out;
   }
-  auto builder = grotto::kernels::RoomBuilder::create(*ctx, {});
+  auto builder = grotto::kernels::RoomBuilder::create(*ctx, {{}, threads});
   auto meshes = builder.build(region.rooms, lod);
   for (size_t i = 0; i < meshes.size(); ++i) {
     if (!meshes[i]) {
@@ -346,7 +346,7 @@ int main(int argc, char** argv) {
   }
   if (!obj_path.empty() || !png_path.empty() || !glb_path.empty()) {
     auto lod = lod_text == "detail" ? grotto::mesh::Lod::kDetail : grotto::mesh::Lod::kPatch;
-    RegionMeshes meshes = build_meshes(*world, region, lod);
+    RegionMeshes meshes = build_meshes(*world, region, lod, threads);
     if (bake) bake_meshes(region, meshes);
     if (!obj_path.empty() && !write_obj(obj_path, *world, region, meshes.built)) return 1;
     if (!glb_path.empty()) {
