@@ -179,7 +179,7 @@ if os.path.exists(bits):
         result = "passed: " + passed[-1][len("[  PASSED  ] "):].rstrip(".")
     else:
         result = f"FAILED (exit {rc(os.path.join(out, 'bits.rc'))}): " + (", ".join(failed) or "see bits.log")
-    print(f"| kernels_tests: deformation and channels kernels against the CPU, bit for bit | {device} | {result} |")
+    print(f"| kernels_tests: the deformation (with the detail channels) against the CPU, bit for bit | {device} | {result} |")
 else:
     print("| kernels_tests | - | not built (a test build, or bench/gpu_carry.sh's pack, has it) |")
 cpu_rows = None

@@ -90,8 +90,8 @@ int main(int argc, char** argv) {
                "to check that profiling costs nothing");
   std::string channels_choice = "auto";
   app.add_option("--channels", channels_choice,
-                 "Where the whole cave's detail channels run with a device: auto (on the device "
-                 "unless it is a CPU), device or host")
+                 "Where the whole cave's detail channels run with a device: auto (with the "
+                 "deformation unless the device is a CPU), device (with the deformation) or host")
       ->check(CLI::IsMember(std::vector<std::string>{"auto", "device", "host"}))
       ->capture_default_str();
   if (auto rc = bench::parse_flags(app, argc, argv)) return *rc;
@@ -240,14 +240,10 @@ int main(int argc, char** argv) {
             const cave::Region r = cave::generate_region(world, {0, 0, 0}, {0, 0, 0}, threads);
             (void)builder.build(r.rooms, lod);
           });
-      nlohmann::json channel_split = "cpu";
-      if (const kernels::LaunchStats& c = builder.channel_stats(); c.launches > 0) {
-        const double n = static_cast<double>(c.launches);
-        channel_split = {{"prepare_ms", c.prepare_ms / n},       {"upload_ms", c.upload_ms / n},
-                         {"kernel_ms", c.kernel_ms / n},         {"download_ms", c.download_ms / n},
-                         {"queue_wall_ms", c.queue_wall_ms / n}, {"unpack_ms", c.unpack_ms / n},
-                         {"vertices", c.vertices / c.launches}};
-      }
+      // The detail channels: computed with the deformation in its launch (the rim vertices' at
+      // assembly), or on the CPU's lanes.
+      const std::string channel_split =
+          builder.channels_on_device() ? "with the deformation" : "cpu";
       whole.push_back({{"device", device.empty() ? std::string("auto") : device},
                        {"path", builder.path()},
                        {"channels", channel_split},
@@ -417,26 +413,56 @@ int main(int argc, char** argv) {
     double tiny_ms = median_ms(std::max(reps, 20), [&] {
       (void)kernel.run(std::span<const mesh::DeformInput>(inputs.data() + smallest, 1), out);
     });
+    // The same launch computing every vertex's detail channels too (one lane; RoomBuilder's on
+    // devices that are not CPUs): what the channels add to the launch, beside what they cost the
+    // CPU (stages_ms.channels).
+    nlohmann::json with_channels = "unavailable";
+    if (auto created = kernels::DeformKernel::create(dev, ctx, 0, 0, true); created) {
+      kernels::DeformKernel fused = std::move(created).value();
+      (void)fused.run(inputs, out);  // warm-up
+      std::vector<kernels::LaunchStats> fused_runs;
+      const double ms = median_ms(reps, [&] {
+        kernels::LaunchStats s;
+        (void)fused.run(inputs, out, &s);
+        fused_runs.push_back(s);
+      });
+      auto fused_median = [&](double kernels::LaunchStats::*field) {
+        std::vector<double> v;
+        for (const kernels::LaunchStats& r : fused_runs)
+          v.push_back(r.*field);
+        return bench::median(v);
+      };
+      using LS = kernels::LaunchStats;
+      with_channels = {{"run_ms", ms},
+                       {"upload_ms", fused_median(&LS::upload_ms)},
+                       {"kernel_ms", fused_median(&LS::kernel_ms)},
+                       {"download_ms", fused_median(&LS::download_ms)},
+                       {"unpack_ms", fused_median(&LS::unpack_ms)},
+                       {"download_bytes", fused_runs.front().download_bytes}};
+    } else {
+      with_channels = created.error().message;
+    }
     double total_cl = layout_ms + prepare_ms + deform_cl_ms + assemble_ms;
-    report["opencl"] = {{"available", true},
-                        {"device", dev.describe()},
-                        {"deform_ms", deform_cl_ms},
-                        {"launches_per_run", stats.launches},
-                        // Per stage on the device, the one batched launch of every room.
-                        {"device_stages", {{"deform", deform_split}}},
-                        {"lanes", kernel.lanes()},
-                        {"deform_speedup_vs_cpu", deform_cpu_ms / deform_cl_ms},
-                        // CPU time of all of PoCL's threads: the work per core, whatever else
-                        // the machine runs (a 2-core device can be at most 2x this ratio's wall).
-                        {"deform_cpu_time_ms", deform_cl_cpu_ms},
-                        {"deform_work_ratio_vs_cpu", deform_cpu_time_ms / deform_cl_cpu_ms},
-                        {"total_ms", total_cl},
-                        {"total_vs_thesis_cpp_9s", 9000.0 / total_cl},
-                        {"buffer_sizes", sizes},
-                        {"one_launch_per_room_ms", single_ms},
-                        {"one_batched_launch_ms", deform_cl_ms},
-                        {"smallest_room_launch_ms", tiny_ms},
-                        {"smallest_room_vertices", inputs[smallest].donor->directions.size()}};
+    report["opencl"] = {
+        {"available", true},
+        {"device", dev.describe()},
+        {"deform_ms", deform_cl_ms},
+        {"launches_per_run", stats.launches},
+        // Per stage on the device, the one batched launch of every room.
+        {"device_stages", {{"deform", deform_split}, {"deform_with_channels", with_channels}}},
+        {"lanes", kernel.lanes()},
+        {"deform_speedup_vs_cpu", deform_cpu_ms / deform_cl_ms},
+        // CPU time of all of PoCL's threads: the work per core, whatever else
+        // the machine runs (a 2-core device can be at most 2x this ratio's wall).
+        {"deform_cpu_time_ms", deform_cl_cpu_ms},
+        {"deform_work_ratio_vs_cpu", deform_cpu_time_ms / deform_cl_cpu_ms},
+        {"total_ms", total_cl},
+        {"total_vs_thesis_cpp_9s", 9000.0 / total_cl},
+        {"buffer_sizes", sizes},
+        {"one_launch_per_room_ms", single_ms},
+        {"one_batched_launch_ms", deform_cl_ms},
+        {"smallest_room_launch_ms", tiny_ms},
+        {"smallest_room_vertices", inputs[smallest].donor->directions.size()}};
   }
 
   std::printf(
@@ -472,14 +498,7 @@ int main(int argc, char** argv) {
         "then built\n",
         w["region"]["rooms"].get<size_t>(), w["region"]["pipeline_ms"].get<double>(),
         w["region"]["layout_then_build_ms"].get<double>());
-    if (const auto& c = w["channels"]; c.is_object()) {
-      std::printf(
-          "         channels on the device, per launch: prepare %.2f upload %.2f kernel %.2f "
-          "download %.2f unpack %.2f ms (queue wall %.2f)\n",
-          c["prepare_ms"].get<double>(), c["upload_ms"].get<double>(), c["kernel_ms"].get<double>(),
-          c["download_ms"].get<double>(), c["unpack_ms"].get<double>(),
-          c["queue_wall_ms"].get<double>());
-    }
+    std::printf("         detail channels: %s\n", w["channels"].get<std::string>().c_str());
   }
   if (report["opencl"]["available"]) {
     auto& cl = report["opencl"];
@@ -500,6 +519,13 @@ int main(int argc, char** argv) {
         split["download_ms"].get<double>(), split["unpack_ms"].get<double>(),
         split["device_span_ms"].get<double>(), split["queue_wall_ms"].get<double>(),
         split["profiled"].get<bool>() ? "" : "  (queue not profiled: device parts 0)");
+    if (const auto& f = cl["device_stages"]["deform_with_channels"]; f.is_object()) {
+      std::printf(
+          "deform with the detail channels, one lane (ms, median): %.2f (upload %.2f  kernel %.2f  "
+          "download %.2f  unpack %.2f)\n",
+          f["run_ms"].get<double>(), f["upload_ms"].get<double>(), f["kernel_ms"].get<double>(),
+          f["download_ms"].get<double>(), f["unpack_ms"].get<double>());
+    }
     std::printf("deform NDRange: %zu work items in groups of %zu, %d vertices each\n",
                 split["global_size"].get<size_t>(), split["work_group_size"].get<size_t>(),
                 split["lanes"].get<int>());

@@ -6,12 +6,26 @@
  * launch (one copy per donor sphere, whatever the rooms using it). Room, portal and shape tables
  * live in __constant memory, as in the thesis. Directions and results are stored per group as
  * x[LANES] y[LANES] z[LANES]. Each room record carries its world's noise seed, so one launch
- * serves rooms of many worlds. Built after deform_prelude.cl and deform_core.h. */
+ * serves rooms of many worlds. Built after deform_prelude.cl and deform_core.h.
+ *
+ * With GROTTO_CHANNELS (one lane; after channels_core.cl) a work item also computes its vertex's
+ * detail channels from the position it deformed, which is the position the finished mesh keeps
+ * (issue 30: the per-vertex stages on the device, no second launch). `room_channels` holds six
+ * doubles a room: the mesh origin and its world's channel frequencies. */
+#if defined(GROTTO_CHANNELS) && GROTTO_LANES != 1
+#error "GROTTO_CHANNELS needs GROTTO_LANES 1"
+#endif
 __kernel void grotto_deform_rooms(__constant const GrottoShape* shapes,
                                   __constant const GrottoRoom* rooms, uint room_count,
                                   __constant const GrottoPortal* portals,
                                   __global const float* directions, __global float* positions,
-                                  __global float* clearance, uint group_count) {
+                                  __global float* clearance, uint group_count
+#ifdef GROTTO_CHANNELS
+                                  ,
+                                  __global const double* room_channels, __global float* roughness,
+                                  __global float* mineral
+#endif
+) {
   uint g = get_global_id(0);
   if (g >= group_count) return;
   /* The last room whose first vertex is at or before this group's. Rooms are in batch order; an
@@ -42,4 +56,8 @@ __kernel void grotto_deform_rooms(__constant const GrottoShape* shapes,
   GROTTO_STORE(p.y, out + GROTTO_LANES);
   GROTTO_STORE(p.z, out + 2 * GROTTO_LANES);
   GROTTO_STORE(least, clearance + GROTTO_LANES * g);
+#ifdef GROTTO_CHANNELS
+  grotto_detail_channels_at(room_channels + 6 * lo, room->noise_seed, p, roughness + g,
+                            mineral + g);
+#endif
 }

@@ -1,11 +1,17 @@
 #include "kernels/deform.hpp"
 
+#include <spdlog/spdlog.h>
+
 #include <algorithm>
 #include <chrono>
+#include <cstdio>
+#include <string>
 
+#include "embedded_cl/channels_core.hpp"
 #include "embedded_cl/deform.hpp"
 #include "embedded_cl/deform_core.hpp"
 #include "embedded_cl/deform_prelude.hpp"
+#include "mesh/context.hpp"
 
 namespace grotto::kernels {
 
@@ -20,6 +26,10 @@ using Clock = std::chrono::steady_clock;
 double ms_between(Clock::time_point a, Clock::time_point b) {
   return std::chrono::duration<double, std::milli>(b - a).count();
 }
+
+// grotto_deform_rooms' arguments after its eight (deform.cl) when it computes the channels: the
+// room table, roughness and mineral.
+constexpr cl_uint kFirstChannelArg = 8;
 
 }  // namespace
 
@@ -53,23 +63,39 @@ void add_device_times(LaunchStats& stats, std::span<const cl::Event> writes,
   stats.device_span_ms += event_span_ms(writes.front(), reads.back());
 }
 
-std::string deform_source() {
+std::string deform_source(bool channels) {
   std::string s(source_deform_prelude());
   s += source_deform_core();
+  if (channels) s += source_channels_core();
   s += source_deform();
   return s;
 }
 
 Result<DeformKernel> DeformKernel::create(ComputeContext& ctx, const mesh::MeshContext& mesh_ctx,
-                                          int lanes, size_t max_constant_bytes) {
-  if (lanes == 0) lanes = ctx.info().device_type == "cpu" ? 8 : 1;
+                                          int lanes, size_t max_constant_bytes, bool channels) {
+  if (lanes == 0) lanes = ctx.info().device_type == "cpu" && !channels ? 8 : 1;
   if (lanes != 1 && lanes != 8) {
     return invalid_argument("deformation lanes must be 0 (auto), 1 or 8, not " +
                             std::to_string(lanes));
   }
-  auto program = build_program(
-      ctx, deform_source(),
-      std::string(kDeterministicOptions) + " -DGROTTO_LANES=" + std::to_string(lanes));
+  std::string options =
+      std::string(kDeterministicOptions) + " -DGROTTO_LANES=" + std::to_string(lanes);
+  if (channels) {
+    if (lanes != 1)
+      return invalid_argument("the detail channels need one lane, not " + std::to_string(lanes));
+    std::string extensions;
+    GROTTO_CL_TRY(ctx.device().getInfo(CL_DEVICE_EXTENSIONS, &extensions));
+    if (extensions.find("cl_khr_fp64") == std::string::npos) {
+      return Error{ErrorCode::kUnavailable,
+                   "the device has no double precision (cl_khr_fp64), which the detail channels' "
+                   "world positions need"};
+    }
+    // The period as the C++ code has it, to the last bit (a power of two: exact in decimal).
+    char period[64];
+    std::snprintf(period, sizeof period, "%.1f", mesh::kNoisePeriod);
+    options += std::string(" -DGROTTO_CHANNELS=1 -DGROTTO_NOISE_PERIOD=") + period;
+  }
+  auto program = build_program(ctx, deform_source(channels), options);
   if (!program) return program.error();
   auto kernel = program->kernel("grotto_deform_rooms");
   if (!kernel) return kernel.error();
@@ -83,7 +109,7 @@ Result<DeformKernel> DeformKernel::create(ComputeContext& ctx, const mesh::MeshC
   size_t max_group = 0;
   GROTTO_CL_TRY(kernel->getWorkGroupInfo(ctx.device(), CL_KERNEL_WORK_GROUP_SIZE, &max_group));
   DeformKernel k(ctx, std::move(kernel).value(), std::move(shape_buffer).value(),
-                 static_cast<size_t>(max_constant), program->origin(), lanes);
+                 static_cast<size_t>(max_constant), program->origin(), lanes, channels);
   k.local_size_ = std::clamp<size_t>(max_group, 1, kPreferredGroupSize);
   // For reports only: a query the driver does not answer leaves its field 0.
   k.info_.max_work_group_size = max_group;
@@ -100,14 +126,27 @@ Result<DeformKernel> DeformKernel::create(ComputeContext& ctx, const mesh::MeshC
   return k;
 }
 
+Result<DeformKernel> DeformKernel::create_for(ComputeContext& ctx,
+                                              const mesh::MeshContext& mesh_ctx, ChannelsOn where) {
+  const bool channels = where == ChannelsOn::kDevice ||
+                        (where == ChannelsOn::kAuto && ctx.info().device_type != "cpu");
+  if (!channels) return create(ctx, mesh_ctx);
+  auto kernel = create(ctx, mesh_ctx, 0, 0, true);
+  if (kernel || kernel.error().code != ErrorCode::kUnavailable) return kernel;
+  spdlog::warn("event=channels_path path=cpu device=\"{}\" error=\"{}\"", ctx.info().device_name,
+               kernel.error().message);
+  return create(ctx, mesh_ctx);
+}
+
 DeformKernel::DeformKernel(ComputeContext& ctx, cl::Kernel kernel, cl::Buffer shapes,
-                           size_t max_constant_bytes, BuildOrigin origin, int lanes)
+                           size_t max_constant_bytes, BuildOrigin origin, int lanes, bool channels)
     : ctx_(&ctx),
       kernel_(std::move(kernel)),
       shapes_(std::move(shapes)),
       max_constant_bytes_(max_constant_bytes),
       origin_(origin),
-      lanes_(lanes) {}
+      lanes_(lanes),
+      channels_(channels) {}
 
 Status DeformKernel::run(std::span<const mesh::DeformInput> batch,
                          std::vector<DeformOutput>& outputs, LaunchStats* stats) {
@@ -132,6 +171,10 @@ Status DeformKernel::run(std::span<const mesh::DeformInput* const> batch,
   const size_t padded = std::max<size_t>(slots, 1);  // no zero-size buffers
   if (Status s = host_positions_.reserve(*ctx_, 3 * padded * sizeof(float)); !s) return s;
   if (Status s = host_clearance_.reserve(*ctx_, padded * sizeof(float)); !s) return s;
+  if (channels_) {
+    if (Status s = host_roughness_.reserve(*ctx_, padded * sizeof(float)); !s) return s;
+    if (Status s = host_mineral_.reserve(*ctx_, padded * sizeof(float)); !s) return s;
+  }
   if (lanes > 1 && unpacked_.size() < vertices) {
     unpacked_.resize(std::max(vertices, unpacked_.size() + unpacked_.size() / 2));
   }
@@ -230,8 +273,10 @@ Status DeformKernel::launch(std::span<const mesh::DeformInput* const> rooms,
   if (Status s = upload_donors(rooms, first_dirs, stats); !s) return s;
   std::vector<GrottoRoom>& records = host_rooms_;
   std::vector<GrottoPortal>& portals = host_portals_;
+  std::vector<double>& room_channels = host_room_channels_;
   records.clear();
   portals.clear();
+  room_channels.clear();
   size_t groups = 0;
   for (size_t r = 0; r < rooms.size(); ++r) {
     GrottoRoom rec = rooms[r]->record;
@@ -241,6 +286,11 @@ Status DeformKernel::launch(std::span<const mesh::DeformInput* const> rooms,
     records.push_back(rec);
     portals.insert(portals.end(), rooms[r]->portals.begin(), rooms[r]->portals.end());
     groups += (rooms[r]->donor->directions.size() + lanes - 1) / lanes;
+    if (channels_) {
+      const Vec3 o = rooms[r]->origin;
+      const auto& f = rooms[r]->channel_frequencies;
+      room_channels.insert(room_channels.end(), {o.x, o.y, o.z, f[0], f[1], f[2]});
+    }
   }
   if (groups == 0) return {};
   const size_t slots = groups * lanes;
@@ -262,16 +312,36 @@ Status DeformKernel::launch(std::span<const mesh::DeformInput* const> rooms,
       !s) {
     return s;
   }
+  const cl::Buffer* channel_bufs[3] = {};  // room table, roughness, mineral
+  if (channels_) {
+    auto table = room_channels_.reserve(*ctx_, room_channels.size() * sizeof(double));
+    auto rough = roughness_.reserve(*ctx_, slots * sizeof(float));
+    auto mineral = mineral_.reserve(*ctx_, slots * sizeof(float));
+    for (auto* b : {&table, &rough, &mineral}) {
+      if (!*b) return b->error();
+    }
+    channel_bufs[0] = *table;
+    channel_bufs[1] = *rough;
+    channel_bufs[2] = *mineral;
+    for (cl_uint i = 0; i < 3; ++i)
+      GROTTO_CL_TRY(kernel_.setArg(kFirstChannelArg + i, *channel_bufs[i]));
+  }
   // This launch's place in the run's host memory (run() sized it for the whole run).
   float* const positions = static_cast<float*>(host_positions_.data()) + 3 * slot_base;
   float* const clearance = static_cast<float*>(host_clearance_.data()) + slot_base;
+  float* const roughness =
+      channels_ ? static_cast<float*>(host_roughness_.data()) + slot_base : nullptr;
+  float* const mineral =
+      channels_ ? static_cast<float*>(host_mineral_.data()) + slot_base : nullptr;
   const Clock::time_point t_queue = Clock::now();
   // Non-blocking writes and first read: the memory outlives the blocking last read, which the
   // in-order queue completes after everything before it. Explicit work-groups (the kernel ignores
   // the padding): on PoCL's CPU device the driver's own choice was slower than fixed groups
   // (docs/BENCHMARKS.md).
   const size_t global = (groups + local_size_ - 1) / local_size_ * local_size_;
-  cl::Event writes[2], run, reads[2];
+  // In queue order (the span's first write and last read).
+  const size_t write_count = channels_ ? 3 : 2, read_count = channels_ ? 4 : 2;
+  cl::Event writes[3], run, reads[4];
   auto enqueue = [&]() -> Status {
     if (Status s = enqueue_write(*ctx_, **room_buf, records.data(), records.size(), &writes[0]);
         !s) {
@@ -281,12 +351,28 @@ Status DeformKernel::launch(std::span<const mesh::DeformInput* const> rooms,
         !s) {
       return s;
     }
+    if (channels_) {
+      if (Status s = enqueue_write(*ctx_, *channel_bufs[0], room_channels.data(),
+                                   room_channels.size(), &writes[2]);
+          !s) {
+        return s;
+      }
+    }
     GROTTO_CL_TRY(ctx_->queue().enqueueNDRangeKernel(kernel_, cl::NullRange, cl::NDRange(global),
                                                      cl::NDRange(local_size_), nullptr, &run));
     if (Status s = read_buffer(*ctx_, **pos_buf, positions, 3 * slots, false, &reads[0]); !s) {
       return s;
     }
-    return read_buffer(*ctx_, **clear_buf, clearance, slots, true, &reads[1]);
+    if (channels_) {
+      if (Status s = read_buffer(*ctx_, *channel_bufs[1], roughness, slots, false, &reads[1]); !s) {
+        return s;
+      }
+      if (Status s = read_buffer(*ctx_, *channel_bufs[2], mineral, slots, false, &reads[2]); !s) {
+        return s;
+      }
+    }
+    // The last read blocks: the in-order queue has completed every command before it.
+    return read_buffer(*ctx_, **clear_buf, clearance, slots, true, &reads[read_count - 1]);
   };
   if (Status s = enqueue(); !s) {
     // Commands already queued may still read or write the vectors above: let them end first.
@@ -298,6 +384,10 @@ Status DeformKernel::launch(std::span<const mesh::DeformInput* const> rooms,
   for (size_t r = 0; r < rooms.size(); ++r) {
     const size_t first = records[r].first_vertex, count = rooms[r]->donor->directions.size();
     outputs[r].clearance = std::span<const float>(clearance + first, count);
+    if (channels_) {
+      outputs[r].roughness = std::span<const float>(roughness + first, count);
+      outputs[r].mineral = std::span<const float>(mineral + first, count);
+    }
     const float* group = positions + 3 * first;
     if (lanes == 1) {  // x y z x y z ...: the vertices as they are, read where they landed
       static_assert(sizeof(mesh::core::float3) == 3 * sizeof(float));
@@ -318,10 +408,11 @@ Status DeformKernel::launch(std::span<const mesh::DeformInput* const> rooms,
     stats->allocate_ms += ms_between(t_allocate, t_queue);
     stats->queue_wall_ms += ms_between(t_queue, t_unpack);
     stats->unpack_ms += ms_between(t_unpack, Clock::now());
-    add_device_times(*stats, writes, run, reads);
-    stats->upload_bytes +=
-        records.size() * sizeof(GrottoRoom) + portals.size() * sizeof(GrottoPortal);
-    stats->download_bytes += 4 * slots * sizeof(float);
+    add_device_times(*stats, std::span(writes, write_count), run, std::span(reads, read_count));
+    stats->upload_bytes += records.size() * sizeof(GrottoRoom) +
+                           portals.size() * sizeof(GrottoPortal) +
+                           room_channels.size() * sizeof(double);
+    stats->download_bytes += (channels_ ? 6 : 4) * slots * sizeof(float);
     stats->global_size = global;
     stats->local_size = local_size_;
   }

@@ -14,12 +14,14 @@
 
 namespace grotto::kernels {
 
-// One room's deformation output, a position and a clearance per donor vertex: views of the
+// One room's deformation output, a position and a clearance per donor vertex, and with a kernel
+// that computes them (DeformKernel::channels()) each donor vertex's detail channels: views of the
 // kernel's host memory, where the device's results land (nothing is copied per room on a GPU),
 // valid until the kernel's next run() or its end. Copy what must outlive that.
 struct DeformOutput {
   std::span<const mesh::core::float3> positions;
   std::span<const float> clearance;
+  std::span<const float> roughness, mineral;  // empty without channels
 };
 
 // What run() did, for benchmarks and metrics; every field adds up over the runs given the same
@@ -38,8 +40,8 @@ struct LaunchStats {
   // Host: growing the launch's buffers and the (pinned) host memory the outputs are read into,
   // where this batch needs more than an earlier one (they are kept from launch to launch).
   double allocate_ms = 0;
-  // Device: the input writes (four, and a new donor's directions), the kernel, the two output
-  // reads (sums of their durations).
+  // Device: the input writes (two, three with channels, and a new donor's directions), the
+  // kernel, the output reads (two, four with channels; sums of their durations).
   double upload_ms = 0;
   double kernel_ms = 0;
   double download_ms = 0;
@@ -81,6 +83,12 @@ struct KernelInfo {
   uint64_t local_mem_bytes = 0;
 };
 
+// Where the detail channels of rooms deformed on a device are computed: with the deformation, in
+// its launch (one vertex a work item), or on the CPU's SIMD lanes after assembly. kAuto: with the
+// deformation on devices that are not CPUs (PoCL runs the deformation in lanes of 8, and its
+// one-vertex-per-item channels were no faster than the CPU's lanes: docs/BENCHMARKS.md).
+enum class ChannelsOn { kAuto, kDevice, kHost };
+
 // The built kernel plus the level-of-detail shapes (mesh parameters) on one device. The world
 // comes with each room (its record's noise_seed), so one kernel, and one launch, serves every
 // world whose mesh parameters it was built with. Not thread-safe: use one per thread (the
@@ -92,9 +100,13 @@ class DeformKernel {
   // vectorize the kernel across work items, so it runs in float8 registers), 1 elsewhere.
   // `max_constant_bytes` caps the constant memory a launch's tables may use (0: the device's
   // limit); a smaller cap splits batches into more launches (tests: every launch's results in
-  // their own part of the host memory).
+  // their own part of the host memory). With `channels` every work item also computes its
+  // vertex's detail channels (issue 30: the per-vertex stages on the device, in the same launch);
+  // that needs one lane (0 picks it) and double precision (cl_khr_fp64: the world position is
+  // wrapped into the noise period in doubles, as on the CPU), else the kernel is not built.
   static Result<DeformKernel> create(ComputeContext& ctx, const mesh::MeshContext& mesh_ctx,
-                                     int lanes = 0, size_t max_constant_bytes = 0);
+                                     int lanes = 0, size_t max_constant_bytes = 0,
+                                     bool channels = false);
 
   // Deforms every room of `batch`; outputs[i] receives room i's result (views, valid until the
   // next run). Rooms go to the device in as few launches as its constant memory allows (usually
@@ -105,13 +117,19 @@ class DeformKernel {
   Status run(std::span<const mesh::DeformInput* const> batch, std::vector<DeformOutput>& outputs,
              LaunchStats* stats = nullptr);
 
+  // create() with the detail channels where `where` puts them on this device. A device that
+  // cannot compute them (no double precision) gets the kernel without them, with a logged warning.
+  static Result<DeformKernel> create_for(ComputeContext& ctx, const mesh::MeshContext& mesh_ctx,
+                                         ChannelsOn where);
+
   BuildOrigin build_origin() const { return origin_; }
   int lanes() const { return lanes_; }
+  bool channels() const { return channels_; }
   const KernelInfo& info() const { return info_; }
 
  private:
   DeformKernel(ComputeContext& ctx, cl::Kernel kernel, cl::Buffer shapes, size_t max_constant_bytes,
-               BuildOrigin origin, int lanes);
+               BuildOrigin origin, int lanes, bool channels);
   // Deforms `rooms` into the host memory from slot `slot_base` (and, with lanes of 8, the
   // unpacked vertices from `vertex_base`) on: the run's earlier launches keep theirs.
   Status launch(std::span<const mesh::DeformInput* const> rooms, std::span<DeformOutput> outputs,
@@ -135,23 +153,29 @@ class DeformKernel {
   // A launch's buffers, kept for the next one.
   GrowingBuffer rooms_{CL_MEM_READ_ONLY}, portals_{CL_MEM_READ_ONLY};
   GrowingBuffer positions_{CL_MEM_WRITE_ONLY}, clearance_{CL_MEM_WRITE_ONLY};
+  // With channels: six doubles a room (mesh origin, channel frequencies) up, two floats a vertex
+  // down.
+  GrowingBuffer room_channels_{CL_MEM_READ_ONLY};
+  GrowingBuffer roughness_{CL_MEM_WRITE_ONLY}, mineral_{CL_MEM_WRITE_ONLY};
   std::vector<mesh::core::GrottoRoom> host_rooms_;
   std::vector<mesh::core::GrottoPortal> host_portals_;
-  // What the device's results are read into (positions x y z per slot, a clearance per slot);
-  // with lanes of 8 the positions are then unpacked into unpacked_. The rooms' views point into
-  // these.
-  PinnedHost host_positions_, host_clearance_;
+  std::vector<double> host_room_channels_;
+  // What the device's results are read into (positions x y z per slot, a clearance per slot, and
+  // the channels); with lanes of 8 the positions are then unpacked into unpacked_. The rooms'
+  // views point into these.
+  PinnedHost host_positions_, host_clearance_, host_roughness_, host_mineral_;
   std::vector<mesh::core::float3> unpacked_;
   size_t local_size_ = 1;
   cl::Buffer shapes_;
   size_t max_constant_bytes_;
   BuildOrigin origin_;
   int lanes_;
+  bool channels_;
   KernelInfo info_;
 };
 
-// The source the kernel is built from: prelude + shared core + kernel (GROTTO_LANES comes with the
-// build options).
-std::string deform_source();
+// The source the kernel is built from: prelude + shared core (+ the channels' core) + kernel
+// (GROTTO_LANES, GROTTO_CHANNELS and GROTTO_NOISE_PERIOD come with the build options).
+std::string deform_source(bool channels = false);
 
 }  // namespace grotto::kernels

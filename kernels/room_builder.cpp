@@ -43,7 +43,7 @@ RoomBuilder RoomBuilder::create(const mesh::MeshContext& mesh_ctx, const Options
     return b;
   }
   b.device_ = std::make_unique<ComputeContext>(std::move(ctx).value());
-  auto kernel = DeformKernel::create(*b.device_, mesh_ctx);
+  auto kernel = DeformKernel::create_for(*b.device_, mesh_ctx, options.channels);
   if (!kernel) {
     b.path_ = "cpu: deformation kernel failed to build: " + kernel.error().message;
     spdlog::warn(
@@ -53,22 +53,15 @@ RoomBuilder RoomBuilder::create(const mesh::MeshContext& mesh_ctx, const Options
     return b;
   }
   b.kernel_.emplace(std::move(kernel).value());
-  b.channels_min_vertices_ = options.channels_min_vertices;
-  using Channels = Options::Channels;
-  if (options.channels == Channels::kDevice ||
-      (options.channels == Channels::kAuto && b.device_->info().device_type != "cpu")) {
-    auto channels = ChannelsKernel::create(*b.device_);
-    if (channels) {
-      b.channels_kernel_.emplace(std::move(channels).value());
-    } else {
-      spdlog::warn("event=channels_path path=cpu device=\"{}\" error=\"{}\"",
-                   b.device_->info().device_name, channels.error().message);
-    }
-  }
   b.path_ = "opencl: " + b.device_->describe();
   spdlog::info("event=compute_path path=opencl {} program={} channels={}", b.device_->describe(),
-               build_origin_name(b.kernel_->build_origin()), b.channels_kernel_ ? "device" : "cpu");
+               build_origin_name(b.kernel_->build_origin()),
+               b.kernel_->channels() ? "device" : "cpu");
   return b;
+}
+
+bool RoomBuilder::channels_on_device() const {
+  return shared_ ? shared_->channels() : kernel_ && kernel_->channels();
 }
 
 std::vector<Result<mesh::RoomMesh>> RoomBuilder::build(std::span<const cave::Room> rooms,
@@ -168,20 +161,14 @@ std::vector<Result<mesh::RoomMesh>> RoomBuilder::build(
       spdlog::warn("event=deform_fallback rooms={} error=\"{}\"", inputs.size(), s.error().message);
     }
   }
-  // The detail channels of the whole batch in one launch after assembly, where the device runs
-  // them.
-  size_t vertices = 0;
-  for (const mesh::DeformInput& in : inputs)
-    vertices += in.donor->directions.size();
-  const bool channels_on_device =
-      on_device && channels_kernel_ && vertices >= channels_min_vertices_;
-  // On several threads the channels on the CPU run after every room is assembled, in pieces any
-  // thread takes: inside assembly a big room's (a hall's: ~40 % of its assembly) held its thread
-  // long after the others had finished.
-  const bool channels_in_pieces = !channels_on_device && threads_ > 1;
-  const mesh::ChannelsBy channels = channels_on_device || channels_in_pieces
-                                        ? mesh::ChannelsBy::kCaller
-                                        : mesh::ChannelsBy::kAssemble;
+  // The donor vertices' detail channels came with the deformation where the device computes
+  // them (assembly adds the rim vertices'). Else, on several threads, the channels on the CPU run
+  // after every room is assembled, in pieces any thread takes: inside assembly a big room's (a
+  // hall's: ~40 % of its assembly) held its thread long after the others had finished.
+  const bool channels_with_deformation = on_device && !outputs.front().roughness.empty();
+  const bool channels_in_pieces = !channels_with_deformation && threads_ > 1;
+  const mesh::ChannelsBy channels =
+      channels_in_pieces ? mesh::ChannelsBy::kCaller : mesh::ChannelsBy::kAssemble;
   // Rooms are independent: each index writes its own output and mesh slot. Largest first: with
   // whole rooms as the unit of work, a hall taken last would finish alone while the other
   // threads wait (issue 30: the whole cave on every core).
@@ -202,10 +189,10 @@ std::vector<Result<mesh::RoomMesh>> RoomBuilder::build(
           mesh::assemble_room(world, inputs[k], positions, clearance, nullptr, channels);
       return;
     }
-    meshes[slots[k]] = mesh::assemble_room(world, inputs[k], outputs[k].positions,
-                                           outputs[k].clearance, nullptr, channels);
+    meshes[slots[k]] =
+        mesh::assemble_room(world, inputs[k], outputs[k].positions, outputs[k].clearance, nullptr,
+                            channels, {outputs[k].roughness, outputs[k].mineral});
   });
-  if (channels_on_device) fill_channels(worlds, slots, meshes);
   if (channels_in_pieces) fill_channels_on_threads(worlds, slots, meshes);
   return meshes;
 }
@@ -239,23 +226,6 @@ void RoomBuilder::fill_channels_on_threads(std::span<const mesh::MeshContext* co
                           std::span(p.mesh->roughness).subspan(p.first, p.count),
                           std::span(p.mesh->mineral).subspan(p.first, p.count));
   });
-}
-
-void RoomBuilder::fill_channels(std::span<const mesh::MeshContext* const> worlds,
-                                std::span<const size_t> slots,
-                                std::vector<Result<mesh::RoomMesh>>& meshes) {
-  std::vector<mesh::RoomMesh*> built;
-  std::vector<uint32_t> seeds;
-  for (size_t slot : slots) {
-    if (!meshes[slot].ok()) continue;
-    built.push_back(&meshes[slot].value());
-    seeds.push_back(worlds[slot]->noise_seed());
-  }
-  Status s = channels_kernel_->run(built, seeds, mesh_ctx_->params(), &channel_launches_);
-  if (s) return;
-  ++fallbacks_;
-  spdlog::warn("event=channels_fallback rooms={} error=\"{}\"", built.size(), s.error().message);
-  fill_channels_on_threads(worlds, slots, meshes);
 }
 
 }  // namespace grotto::kernels

@@ -11,7 +11,6 @@
 #include <vector>
 
 #include "cave/layout.hpp"
-#include "kernels/channels.hpp"
 #include "kernels/deform.hpp"
 #include "kernels/shared_deform.hpp"
 
@@ -26,21 +25,17 @@ class RoomBuilder {
     // one build per worker thread, must not oversubscribe its cores); a whole cave built at once
     // sets more; 0 means one per hardware thread. Meshes do not depend on it.
     int threads = 1;
-    // Where the detail channels run when the deformation runs on a device: on the device (one
-    // launch for the batch's finished meshes) for batches of at least channels_min_vertices
-    // donor vertices, else on the CPU's SIMD lanes. kAuto: the device when it is not a CPU
-    // (PoCL's one-vertex-per-item kernel does not beat the lanes); kDevice: whatever the device.
-    // Meshes do not depend on it.
-    enum class Channels { kAuto, kDevice, kHost };
+    // Where the detail channels run when the deformation runs on a device: in its launch (each
+    // donor vertex's with its deformation; the rim vertices' on the CPU at assembly), or on the
+    // CPU's SIMD lanes. kAuto: in the launch on devices that are not CPUs. Meshes do not depend
+    // on it.
+    using Channels = ChannelsOn;
     Channels channels = Channels::kAuto;
-    // A launch's round trip is a fixed cost: on an H100 a server's batches of up to 32 patch
-    // rooms built slower with a second launch for their channels (server_bench: 0.46 against
-    // 0.26 ms a room), the whole detail cave (317,000 vertices) faster (docs/BENCHMARKS.md).
-    size_t channels_min_vertices = 65'536;
     // A device shared with other builders (SharedDeform: one context and queue, every builder's
-    // batches merged into its launches; the server's workers). When set, `device` is not opened:
-    // this builder deforms there, and its detail channels run on the CPU's lanes. A device
-    // whose mesh parameters are not the builder's is not used (the CPU path, with a warning).
+    // batches merged into its launches; the server's workers). When set, `device` and `channels`
+    // are not used: this builder deforms there, with the channels where the shared kernel puts
+    // them. A device whose mesh parameters are not the builder's is not used (the CPU path, with a
+    // warning).
     std::shared_ptr<SharedDeform> shared_device{};
   };
 
@@ -78,17 +73,11 @@ class RoomBuilder {
   size_t fallbacks() const { return fallbacks_; }
   // This builder's own launches (a shared device's are SharedDeform::stats()).
   const LaunchStats& launch_stats() const { return launches_; }
-  // Whether the detail channels can run on the device (a big enough batch's do, where
-  // Options::channels allows), and its launches for them.
-  bool channels_on_device() const { return channels_kernel_.has_value(); }
-  const LaunchStats& channel_stats() const { return channel_launches_; }
+  // Whether the device computes the donor vertices' detail channels with their deformation.
+  bool channels_on_device() const;
 
  private:
   explicit RoomBuilder(const mesh::MeshContext& mesh_ctx);
-  // The detail channels of meshes[slots[k]] (those built) on the device, in one launch; on the
-  // CPU (fill_channels_on_threads) when that fails (counted in fallbacks(), logged).
-  void fill_channels(std::span<const mesh::MeshContext* const> worlds,
-                     std::span<const size_t> slots, std::vector<Result<mesh::RoomMesh>>& meshes);
   // The detail channels of meshes[slots[k]] (those built) on the CPU's lanes, in pieces of a few
   // thousand vertices on threads_ threads.
   void fill_channels_on_threads(std::span<const mesh::MeshContext* const> worlds,
@@ -100,13 +89,10 @@ class RoomBuilder {
   std::optional<DeformKernel> kernel_;
   std::shared_ptr<SharedDeform> shared_;  // instead of device_ and kernel_
   SharedDeform::Results shared_results_;
-  std::optional<ChannelsKernel> channels_kernel_;
   std::string path_;
   int threads_ = 1;
-  size_t channels_min_vertices_ = 0;
   size_t fallbacks_ = 0;
   LaunchStats launches_;
-  LaunchStats channel_launches_;
 };
 
 }  // namespace grotto::kernels

@@ -20,12 +20,13 @@ SharedDeform::SharedDeform(std::unique_ptr<ComputeContext> device,
 
 Result<std::shared_ptr<SharedDeform>> SharedDeform::open(const DeviceConfig& config,
                                                          const mesh::MeshContext& mesh_ctx,
-                                                         LaunchObserver observe) {
+                                                         LaunchObserver observe,
+                                                         ChannelsOn channels) {
   auto ctx = ComputeContext::create(config);
   if (!ctx) return ctx.error();
   std::shared_ptr<SharedDeform> shared(
       new SharedDeform(std::make_unique<ComputeContext>(std::move(ctx).value()), mesh_ctx));
-  auto kernel = DeformKernel::create(*shared->device_, mesh_ctx);
+  auto kernel = DeformKernel::create_for(*shared->device_, mesh_ctx, channels);
   if (!kernel) {
     return Error{kernel.error().code,
                  "deformation kernel failed to build: " + kernel.error().message};
@@ -87,8 +88,11 @@ bool SharedDeform::launch(std::span<Request* const> requests) {
     size_t vertices = 0;
     for (size_t i = 0; i < r->batch.size(); ++i)
       vertices += outputs_[next + i].positions.size();
+    const bool channels = kernel_->channels();
     out.positions.resize(vertices);
     out.clearance.resize(vertices);
+    out.roughness.resize(channels ? vertices : 0);
+    out.mineral.resize(channels ? vertices : 0);
     out.outputs.resize(r->batch.size());
     size_t at = 0;
     for (size_t i = 0; i < r->batch.size(); ++i, ++next) {
@@ -96,8 +100,17 @@ bool SharedDeform::launch(std::span<Request* const> requests) {
       const size_t n = from.positions.size();
       std::copy(from.positions.begin(), from.positions.end(), out.positions.begin() + at);
       std::copy(from.clearance.begin(), from.clearance.end(), out.clearance.begin() + at);
-      out.outputs[i] = {std::span(out.positions).subspan(at, n),
-                        std::span<const float>(out.clearance).subspan(at, n)};
+      DeformOutput& to = out.outputs[i];
+      to = {std::span(out.positions).subspan(at, n),
+            std::span<const float>(out.clearance).subspan(at, n),
+            {},
+            {}};
+      if (channels) {
+        std::copy(from.roughness.begin(), from.roughness.end(), out.roughness.begin() + at);
+        std::copy(from.mineral.begin(), from.mineral.end(), out.mineral.begin() + at);
+        to.roughness = std::span<const float>(out.roughness).subspan(at, n);
+        to.mineral = std::span<const float>(out.mineral).subspan(at, n);
+      }
       at += n;
     }
   }

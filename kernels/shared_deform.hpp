@@ -28,19 +28,22 @@ class SharedDeform {
   struct Results {
     std::vector<mesh::core::float3> positions;
     std::vector<float> clearance;
-    std::vector<DeformOutput> outputs;  // a room's views of the two vectors above
+    std::vector<float> roughness, mineral;  // empty unless the kernel computes the channels
+    std::vector<DeformOutput> outputs;      // a room's views of the vectors above
   };
 
   // Opens the device `config` names and builds the kernel for `mesh_ctx`'s mesh parameters (every
   // world whose parameters are the same is served: the world comes with each room). Errors as
-  // ComputeContext::create's and DeformKernel::create's.
+  // ComputeContext::create's and DeformKernel::create's. The kernel computes the detail channels
+  // where `channels` puts them (DeformKernel::create_for).
   // `observe`, if set, is called after each launch that succeeded, on the launching thread and
   // outside the device's lock: how many batches it carried and its wall time in seconds (the
   // host's flattening, the device's round trip and the copies out), for metrics.
   using LaunchObserver = std::function<void(size_t batches, double seconds)>;
   static Result<std::shared_ptr<SharedDeform>> open(const DeviceConfig& config,
                                                     const mesh::MeshContext& mesh_ctx,
-                                                    LaunchObserver observe = {});
+                                                    LaunchObserver observe = {},
+                                                    ChannelsOn channels = ChannelsOn::kAuto);
 
   SharedDeform(const SharedDeform&) = delete;
   SharedDeform& operator=(const SharedDeform&) = delete;
@@ -54,6 +57,8 @@ class SharedDeform {
   bool serves(const mesh::MeshContext& world) const;
   const ComputeContext& device() const { return *device_; }
   BuildOrigin build_origin() const { return kernel_->build_origin(); }
+  // Whether each room's results carry its donor vertices' detail channels.
+  bool channels() const { return kernel_->channels(); }
   // Every launch so far (launches, rooms, the device's and the host's times), and the callers'
   // batches they carried: batches() / stats().launches is how many batches a launch merged.
   LaunchStats stats() const;

@@ -307,6 +307,9 @@ DeformInput prepare_room(const MeshContext& ctx, const cave::Room& room, Lod lod
   in.record.vertex_count = static_cast<core::uint>(in.donor->directions.size());
   in.record.lod = static_cast<core::uint>(lod);
   in.record.noise_seed = ctx.noise_seed();
+  in.channel_frequencies = {static_cast<float>(p.roughness_frequency),
+                            static_cast<float>(3 * p.roughness_frequency),
+                            static_cast<float>(p.mineral_frequency)};
   for (const cave::Portal& portal : room.portals) {
     RimLoop basis = rim_frame(room, portal);
     core::GrottoPortal g{};
@@ -428,7 +431,8 @@ void fill_detail_channels(const MeshContext& ctx, RoomMesh& mesh) {
 
 Result<RoomMesh> assemble_room(const MeshContext& ctx, const DeformInput& input,
                                std::span<const float3> positions, std::span<const float> clearance,
-                               AssembleStats* stats_out, ChannelsBy channels) {
+                               AssembleStats* stats_out, ChannelsBy channels,
+                               DonorChannels donor_channels) {
   AssembleStats stats;
   using clock = std::chrono::steady_clock;
   auto lap = [last = clock::now()](double& into) mutable {
@@ -440,6 +444,10 @@ Result<RoomMesh> assemble_room(const MeshContext& ctx, const DeformInput& input,
   const size_t nv = donor.directions.size();
   const size_t np = input.portals.size();
   const double band = ctx.shape(input.lod).remove_band;
+  const bool from_donor = !donor_channels.roughness.empty();
+  assert(!from_donor ||
+         (channels == ChannelsBy::kAssemble && donor_channels.roughness.size() == nv &&
+          donor_channels.mineral.size() == nv));
   auto name = [&] { return input.room.id.to_string(); };  // for errors only
 
   // Thesis §3.1.7: vertices on the wrong side of a portal go, and so does a band before it to
@@ -607,12 +615,20 @@ Result<RoomMesh> assemble_room(const MeshContext& ctx, const DeformInput& input,
   mesh.positions.reserve(used);
   mesh.rim_portal.reserve(used);
   mesh.rim_index.reserve(used);
+  if (from_donor) {
+    mesh.roughness.reserve(used);
+    mesh.mineral.reserve(used);
+  }
   for (size_t v = 0; v < pos.size(); ++v) {
     if (remap[v] == UINT32_MAX) continue;
     remap[v] = static_cast<uint32_t>(mesh.positions.size());
     mesh.positions.push_back(pos[v]);
     mesh.rim_portal.push_back(rim_portal[v]);
     mesh.rim_index.push_back(rim_index[v]);
+    if (from_donor && v < nv) {
+      mesh.roughness.push_back(donor_channels.roughness[v]);
+      mesh.mineral.push_back(donor_channels.mineral[v]);
+    }
   }
   mesh.indices.resize(tris.size());
   for (size_t i = 0; i < tris.size(); ++i)
@@ -649,7 +665,16 @@ Result<RoomMesh> assemble_room(const MeshContext& ctx, const DeformInput& input,
     if (stats_out) *stats_out = stats;
     return mesh;
   }
-  fill_detail_channels(ctx, mesh);
+  if (from_donor) {  // the kept donor vertices' came with the deformation: the rims' (the tail)
+    const size_t donor_kept = mesh.roughness.size(), n = mesh.positions.size();
+    mesh.roughness.resize(n);
+    mesh.mineral.resize(n);
+    detail_channels(ctx, mesh.origin, std::span(mesh.positions).subspan(donor_kept),
+                    std::span(mesh.roughness).subspan(donor_kept),
+                    std::span(mesh.mineral).subspan(donor_kept));
+  } else {
+    fill_detail_channels(ctx, mesh);
+  }
   lap(stats.channels_seconds);
   if (stats_out) *stats_out = stats;
   return mesh;

@@ -8,6 +8,7 @@
 //   assemble_room -> RoomMesh     (cut, stitch, compact, normals, channels)
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <memory>
 #include <span>
@@ -47,6 +48,9 @@ struct DeformInput {
   core::GrottoRoom record{};
   std::vector<core::GrottoPortal> portals;
   std::shared_ptr<const DonorSphere> donor;
+  // The world's detail-channel frequencies as detail_channels uses them (roughness, three times
+  // roughness, mineral), for a device that computes the channels with the deformation.
+  std::array<float, 3> channel_frequencies{};
 };
 
 DeformInput prepare_room(const MeshContext& ctx, const cave::Room& room, Lod lod);
@@ -86,14 +90,22 @@ struct AssembleStats {
 };
 
 // Where assemble_room's last stage, the detail channels, runs: here, or by the caller, who gets
-// the mesh with roughness and mineral empty and fills them (kernels::RoomBuilder, on a device, for
-// a whole batch at once; the same bits).
+// the mesh with roughness and mineral empty and fills them (kernels::RoomBuilder on several
+// threads, in pieces any thread takes; the same bits).
 enum class ChannelsBy { kAssemble, kCaller };
+
+// Every donor vertex's detail channels, computed with its deformation (a device's launch, from
+// the positions it returns: the bits detail_channels gives them). With them assemble_room takes
+// the kept donor vertices' and computes only the rim vertices' own.
+struct DonorChannels {
+  std::span<const float> roughness, mineral;  // one per donor vertex, or both empty
+};
 
 Result<RoomMesh> assemble_room(const MeshContext& ctx, const DeformInput& input,
                                std::span<const core::float3> positions,
                                std::span<const float> clearance, AssembleStats* stats = nullptr,
-                               ChannelsBy channels = ChannelsBy::kAssemble);
+                               ChannelsBy channels = ChannelsBy::kAssemble,
+                               DonorChannels donor_channels = {});
 
 // prepare + deform_cpu + assemble.
 Result<RoomMesh> build_room_mesh(const MeshContext& ctx, const cave::Room& room, Lod lod);

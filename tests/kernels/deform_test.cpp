@@ -12,7 +12,6 @@
 #include <set>
 #include <thread>
 
-#include "kernels/channels.hpp"
 #include "kernels/room_builder.hpp"
 #include "kernels/shared_deform.hpp"
 #include "test_support.hpp"
@@ -44,6 +43,7 @@ class DeformKernelTest : public ::testing::Test {
     return out;
   }
   static void expect_matches_cpu(DeformKernel& kernel);
+  static void expect_builders_sharing_a_device_get_their_own_rooms(ChannelsOn channels);
   static cave::World* world_;
   static mesh::MeshContext* mesh_;
   static cave::Region* region_;
@@ -340,34 +340,30 @@ void expect_cpu_meshes(const std::vector<Result<mesh::RoomMesh>>& meshes,
   }
 }
 
-// With the detail channels where the CPU device puts them (its SIMD lanes), forced onto the
-// device (as on a GPU: one launch for the batch after assembly), and on the device for big batches
-// only (this one too small), the meshes are the CPU's bits.
+// With the detail channels where the CPU device puts them (its SIMD lanes, after assembly) and
+// forced onto the device (as on a GPU: computed with the deformation, in its launch, the rim
+// vertices' at assembly), on one thread and on several, the meshes are the CPU's bits.
 TEST_F(DeformKernelTest, room_builder_on_the_device_gives_the_cpu_meshes) {
   using Channels = RoomBuilder::Options::Channels;
-  struct Case {
-    Channels channels;
-    size_t min_vertices;
-    const char* name;
-  };
-  for (Case c : {Case{Channels::kAuto, 0, "channels auto"},
-                 Case{Channels::kDevice, 0, "channels on the device"},
-                 Case{Channels::kDevice, size_t{1} << 30, "channels on the device, big batches"}}) {
-    SCOPED_TRACE(c.name);
-    const Channels channels = c.channels;
-    RoomBuilder builder = RoomBuilder::create(
-        *mesh_, {DeviceConfig{.device = "auto"}, /*threads=*/2, channels, c.min_vertices});
-    ASSERT_TRUE(builder.uses_opencl()) << builder.path();
-    EXPECT_EQ(builder.path().rfind("opencl: ", 0), 0u) << builder.path();
-    // Auto keeps the channels on a CPU device's lanes (PoCL) and puts them on any other device.
-    const bool on_device = channels == Channels::kDevice || device_->info().device_type != "cpu";
-    EXPECT_EQ(builder.channels_on_device(), on_device);
-    std::vector<cave::Room> rooms(region_->rooms.begin(), region_->rooms.begin() + 20);
-    auto meshes = builder.build(rooms, mesh::Lod::kPatch);
-    ASSERT_EQ(meshes.size(), rooms.size());
-    expect_cpu_meshes(meshes, rooms, *mesh_);
-    EXPECT_EQ(builder.fallbacks(), 0u);
-    EXPECT_EQ(builder.channel_stats().launches, on_device && c.min_vertices == 0 ? 1u : 0u);
+  for (Channels channels : {Channels::kAuto, Channels::kDevice}) {
+    for (int threads : {1, 2}) {
+      SCOPED_TRACE(
+          std::string(channels == Channels::kAuto ? "channels auto" : "channels on the device") +
+          ", " + std::to_string(threads) + " threads");
+      RoomBuilder builder =
+          RoomBuilder::create(*mesh_, {DeviceConfig{.device = "auto"}, threads, channels});
+      ASSERT_TRUE(builder.uses_opencl()) << builder.path();
+      EXPECT_EQ(builder.path().rfind("opencl: ", 0), 0u) << builder.path();
+      // Auto keeps the channels on a CPU device's lanes (PoCL) and puts them on any other device.
+      EXPECT_EQ(builder.channels_on_device(),
+                channels == Channels::kDevice || device_->info().device_type != "cpu");
+      std::vector<cave::Room> rooms(region_->rooms.begin(), region_->rooms.begin() + 20);
+      auto meshes = builder.build(rooms, mesh::Lod::kPatch);
+      ASSERT_EQ(meshes.size(), rooms.size());
+      expect_cpu_meshes(meshes, rooms, *mesh_);
+      EXPECT_EQ(builder.fallbacks(), 0u);
+      EXPECT_EQ(builder.launch_stats().launches, 1u);
+    }
   }
 }
 
@@ -375,9 +371,18 @@ TEST_F(DeformKernelTest, room_builder_on_the_device_gives_the_cpu_meshes) {
 // and merged into fewer launches than batches, give every room its CPU reference's bits, each
 // thread its own rooms in its own order; the device's stats count every room once.
 TEST_F(DeformKernelTest, builders_sharing_a_device_get_their_own_rooms_with_the_cpu_bits) {
-  auto opened = SharedDeform::open(DeviceConfig{.device = "auto"}, *mesh_);
+  for (ChannelsOn channels : {ChannelsOn::kAuto, ChannelsOn::kDevice}) {
+    SCOPED_TRACE(channels == ChannelsOn::kAuto ? "channels auto" : "channels on the device");
+    expect_builders_sharing_a_device_get_their_own_rooms(channels);
+  }
+}
+
+void DeformKernelTest::expect_builders_sharing_a_device_get_their_own_rooms(ChannelsOn channels) {
+  auto opened = SharedDeform::open(DeviceConfig{.device = "auto"}, *mesh_, {}, channels);
   ASSERT_TRUE(opened.ok()) << opened.error().message;
   std::shared_ptr<SharedDeform> shared = std::move(opened).value();
+  EXPECT_EQ(shared->channels(),
+            channels == ChannelsOn::kDevice || device_->info().device_type != "cpu");
   constexpr size_t kThreads = 4, kRounds = 6, kRooms = 5;
   std::vector<std::vector<cave::Room>> rooms(kThreads);
   for (size_t t = 0; t < kThreads; ++t) {
@@ -395,6 +400,7 @@ TEST_F(DeformKernelTest, builders_sharing_a_device_get_their_own_rooms_with_the_
       options.device.device = "none";  // not opened: the shared device is used
       options.shared_device = shared;
       RoomBuilder builder = RoomBuilder::create(*mesh_, options);
+      EXPECT_EQ(builder.channels_on_device(), shared->channels());
       paths[t] = builder.path();
       go.wait();
       for (size_t r = 0; r < kRounds; ++r)
@@ -451,35 +457,29 @@ class LaunchFault : public DeformKernelTest {};
 TEST_F(LaunchFault, a_failed_launch_is_built_on_the_cpu_with_the_same_bits) {
   const char* failing = std::getenv("GROTTO_TEST_FAIL_KERNEL");
   if (failing == nullptr) GTEST_SKIP() << "run by kernels.launch_fault.* under the interposer";
-  const std::string kernel = failing;
-  ASSERT_TRUE(kernel == "grotto_deform_rooms" || kernel == "grotto_detail_channels") << kernel;
+  ASSERT_EQ(std::string(failing), "grotto_deform_rooms");
   using Channels = RoomBuilder::Options::Channels;
-  RoomBuilder builder =
-      RoomBuilder::create(*mesh_, {DeviceConfig{.device = "auto"}, /*threads=*/2, Channels::kDevice,
-                                   /*channels_min_vertices=*/0});
-  ASSERT_TRUE(builder.uses_opencl()) << builder.path();
-  ASSERT_TRUE(builder.channels_on_device());
-  std::vector<cave::Room> rooms(region_->rooms.begin(), region_->rooms.begin() + 12);
-  for (size_t round = 1; round <= 2; ++round) {
-    auto meshes = builder.build(rooms, mesh::Lod::kPatch);
-    ASSERT_EQ(meshes.size(), rooms.size());
-    expect_cpu_meshes(meshes, rooms, *mesh_);
-    EXPECT_EQ(builder.fallbacks(), round) << "one failed launch a batch, counted";
-    // A failed deformation leaves the whole batch to the CPU; a failed channels launch only its
-    // channels, after the device deformed the rooms.
-    EXPECT_EQ(builder.launch_stats().launches, kernel == "grotto_deform_rooms" ? 0u : round);
-    EXPECT_EQ(builder.channel_stats().launches, 0u);
+  for (Channels channels : {Channels::kAuto, Channels::kDevice}) {
+    RoomBuilder builder =
+        RoomBuilder::create(*mesh_, {DeviceConfig{.device = "auto"}, /*threads=*/2, channels});
+    ASSERT_TRUE(builder.uses_opencl()) << builder.path();
+    std::vector<cave::Room> rooms(region_->rooms.begin(), region_->rooms.begin() + 12);
+    for (size_t round = 1; round <= 2; ++round) {
+      auto meshes = builder.build(rooms, mesh::Lod::kPatch);
+      ASSERT_EQ(meshes.size(), rooms.size());
+      expect_cpu_meshes(meshes, rooms, *mesh_);
+      EXPECT_EQ(builder.fallbacks(), round) << "one failed launch a batch, counted";
+      EXPECT_EQ(builder.launch_stats().launches, 0u) << "a failed launch is not counted";
+    }
   }
 }
 
 // The same fault with the device shared by two builders: a failed deformation fails every batch
-// of the launch, and each builder builds its own on the CPU with the same bits (the channels of a
-// shared device's builders are the CPU's, so a failing channels kernel changes nothing).
+// of the launch, and each builder builds its own on the CPU with the same bits.
 TEST_F(LaunchFault, a_failed_shared_launch_is_built_on_the_cpu_by_every_builder) {
   const char* failing = std::getenv("GROTTO_TEST_FAIL_KERNEL");
   if (failing == nullptr) GTEST_SKIP() << "run by kernels.launch_fault.* under the interposer";
-  const bool deform_fails = std::string(failing) == "grotto_deform_rooms";
-  auto opened = SharedDeform::open(DeviceConfig{.device = "auto"}, *mesh_);
+  auto opened = SharedDeform::open(DeviceConfig{.device = "auto"}, *mesh_, {}, ChannelsOn::kDevice);
   ASSERT_TRUE(opened.ok()) << opened.error().message;
   RoomBuilder::Options options;
   options.shared_device = std::move(opened).value();
@@ -498,51 +498,74 @@ TEST_F(LaunchFault, a_failed_shared_launch_is_built_on_the_cpu_by_every_builder)
     t.join();
   for (size_t t = 0; t < 2; ++t) {
     expect_cpu_meshes(built[t], rooms, *mesh_);
-    EXPECT_EQ(fallbacks[t], deform_fails ? 1u : 0u) << "builder " << t;
+    EXPECT_EQ(fallbacks[t], 1u) << "builder " << t;
   }
-  const size_t launches = options.shared_device->stats().launches;
-  if (deform_fails) {
-    EXPECT_EQ(launches, 0u) << "a failed launch is not counted";
-  } else {
-    EXPECT_TRUE(launches == 1 || launches == 2) << launches << " launches for two batches";
-  }
+  EXPECT_EQ(options.shared_device->stats().launches, 0u) << "a failed launch is not counted";
 }
 
-// The channels kernel alone: the finished meshes of rooms of two worlds (two noise seeds, origins
-// far from 0 and on both sides of it) in one launch give mesh::detail_channels' bits; a mesh
-// without vertices is passed over.
-TEST_F(DeformKernelTest, channels_kernel_matches_the_cpu_for_rooms_of_two_worlds) {
-  auto created = ChannelsKernel::create(*device_);
+// The deformation computing the detail channels: every donor vertex of rooms of three worlds in
+// one launch (two noise seeds, one world with other channel frequencies but the same shapes,
+// origins far from 0 and on both sides of it, both levels) gets mesh::detail_channels' bits at the
+// position the launch returns, which is deform_cpu's; the kernel without channels returns none.
+TEST_F(DeformKernelTest, the_deformation_computes_the_channels_of_rooms_of_three_worlds) {
+  auto created = DeformKernel::create(*device_, *mesh_, 0, 0, /*channels=*/true);
   ASSERT_TRUE(created.ok()) << created.error().message;
-  ChannelsKernel kernel = std::move(created).value();
+  DeformKernel kernel = std::move(created).value();
+  EXPECT_TRUE(kernel.channels());
+  EXPECT_EQ(kernel.lanes(), 1);
   cave::World other_world = cave::World::create(43, cave::LayoutParams{}).value();
   auto other = mesh::MeshContext::create(other_world, mesh::MeshParams{}).value();
+  mesh::MeshParams finer;
+  finer.roughness_frequency = 9 / 64.0;
+  finer.mineral_frequency = 3 / 64.0;
+  auto other_channels = mesh::MeshContext::create(*world_, finer).value();
+  ASSERT_TRUE(same_mesh_shapes(other_channels, *mesh_));
   cave::Region far_region = cave::generate_region(other_world, {-40, 3, 977}, {-40, 3, 977});
-  std::vector<mesh::RoomMesh> cpu;
-  std::vector<uint32_t> seeds;
-  for (size_t i = 0; i < 6; ++i) {
-    cpu.push_back(mesh::build_room_mesh(*mesh_, region_->rooms[i], mesh::Lod::kPatch).value());
-    seeds.push_back(mesh_->noise_seed());
-    cpu.push_back(mesh::build_room_mesh(other, far_region.rooms[i], mesh::Lod::kDetail).value());
-    seeds.push_back(other.noise_seed());
+  std::vector<mesh::DeformInput> batch;
+  std::vector<const mesh::MeshContext*> worlds;
+  for (size_t i = 0; i < 5; ++i) {
+    batch.push_back(mesh::prepare_room(*mesh_, region_->rooms[i], mesh::Lod::kPatch));
+    worlds.push_back(mesh_);
+    batch.push_back(mesh::prepare_room(other, far_region.rooms[i], mesh::Lod::kDetail));
+    worlds.push_back(&other);
+    batch.push_back(mesh::prepare_room(other_channels, region_->rooms[i + 5], mesh::Lod::kPatch));
+    worlds.push_back(&other_channels);
   }
-  cpu.emplace_back();  // no vertices
-  seeds.push_back(7);
-  std::vector<mesh::RoomMesh> device = cpu;
-  std::vector<mesh::RoomMesh*> pointers;
-  for (mesh::RoomMesh& m : device) {
-    m.roughness.clear();
-    m.mineral.clear();
-    pointers.push_back(&m);
-  }
+  std::vector<DeformOutput> out;
   LaunchStats stats;
-  ASSERT_TRUE(kernel.run(pointers, seeds, mesh_->params(), &stats).ok());
+  ASSERT_TRUE(kernel.run(batch, out, &stats).ok());
   EXPECT_EQ(stats.launches, 1u);
-  EXPECT_EQ(stats.rooms, cpu.size() - 1);
-  for (size_t i = 0; i < cpu.size(); ++i)
-    EXPECT_TRUE(same_vertices(device[i], cpu[i])) << "mesh " << i;
-  EXPECT_TRUE(device.back().roughness.empty());
-  EXPECT_FALSE(kernel.run(pointers, std::span(seeds).first(2), mesh_->params()).ok());
+  ASSERT_EQ(out.size(), batch.size());
+  for (size_t i = 0; i < batch.size(); ++i) {
+    const size_t n = batch[i].donor->directions.size();
+    std::vector<mesh::core::float3> positions(n);
+    std::vector<float> clearance(n), roughness(n), mineral(n);
+    mesh::deform_cpu(*worlds[i], batch[i], positions, clearance);
+    mesh::detail_channels_reference(*worlds[i], batch[i].origin, positions, roughness, mineral);
+    ASSERT_EQ(out[i].roughness.size(), n) << "room " << i;
+    ASSERT_EQ(out[i].mineral.size(), n) << "room " << i;
+    EXPECT_EQ(std::memcmp(out[i].positions.data(), positions.data(), n * sizeof(positions[0])), 0)
+        << "room " << i;
+    EXPECT_EQ(std::memcmp(out[i].roughness.data(), roughness.data(), n * sizeof(float)), 0)
+        << "room " << i;
+    EXPECT_EQ(std::memcmp(out[i].mineral.data(), mineral.data(), n * sizeof(float)), 0)
+        << "room " << i;
+  }
+  // The third world's own frequencies were used: its mesh differs from world 42's at the same room.
+  EXPECT_NE(
+      std::memcmp(
+          out[2].roughness.data(),
+          mesh::build_room_mesh(*mesh_, region_->rooms[5], mesh::Lod::kPatch)->roughness.data(),
+          4 * sizeof(float)),
+      0);
+  auto plain_created = DeformKernel::create(*device_, *mesh_);
+  ASSERT_TRUE(plain_created.ok()) << plain_created.error().message;
+  DeformKernel plain = std::move(plain_created).value();
+  EXPECT_FALSE(plain.channels());
+  ASSERT_TRUE(plain.run(std::span(batch).first(2), out).ok());
+  EXPECT_TRUE(out[0].roughness.empty() && out[1].mineral.empty());
+  // Eight lanes cannot carry the channels: refused, not built wrong.
+  EXPECT_FALSE(DeformKernel::create(*device_, *mesh_, 8, 0, true).ok());
 }
 
 // A builder made for world 42 builds world 43's rooms as world 43's own CPU reference does (one
