@@ -207,6 +207,11 @@ for d in ("gpu", "accelerator", "cpu"):
     print(f"| deform, {cave}, one batched launch | {name} | {cl['deform_ms']:.2f} ms "
           f"(upload {split['upload_ms']:.2f}, kernel {split['kernel_ms']:.2f}, download "
           f"{split['download_ms']:.2f}; {cl['deform_speedup_vs_cpu']:.1f}x the CPU) |")
+    fused = cl["device_stages"].get("deform_with_channels")
+    if isinstance(fused, dict):  # RoomBuilder's launch on GPUs: the channels computed with it
+        print(f"| deform with the detail channels, {cave}, one launch, one lane | {name} | "
+              f"{fused['run_ms']:.2f} ms (upload {fused['upload_ms']:.2f}, kernel {fused['kernel_ms']:.2f}, "
+              f"download {fused['download_ms']:.2f}) |")
     for w in report["whole_cave"]:
         if w["device"] != "none":
             print(f"| whole cave, {w['threads']} thread(s) | {name} | {whole(w)} |")

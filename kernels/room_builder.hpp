@@ -57,7 +57,8 @@ class RoomBuilder {
   // cave::generate_region's, meshes[i] is region.rooms[i]'s as build() gives it. A pipeline on
   // the builder's threads: the block's own sectors are laid out first, and its interior rooms
   // built while the sectors beyond its faces (which only its gate rooms need) are laid out; then
-  // the gates (issue 30: the whole cave on every core).
+  // the gates (issue 30: the whole cave on every core). With one or two threads, which the layout
+  // keeps busy, the region is laid out, then built.
   struct BuiltRegion {
     cave::Region region;
     std::vector<Result<mesh::RoomMesh>> meshes;

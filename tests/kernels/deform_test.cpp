@@ -653,8 +653,9 @@ TEST_F(DeformKernelTest, room_builder_threads_give_the_single_thread_meshes) {
 }
 
 // A region built as a pipeline (interior rooms while the sectors beyond the block are laid out,
-// then the gates) is generate_region's region with build()'s meshes, room for room, on one thread
-// and on several, on both paths: a block of two sectors, so gates inside it and on its faces.
+// then the gates; from three threads) is generate_region's region with build()'s meshes, room for
+// room, as is one laid out then built (one thread), on both paths: a block of two sectors, so
+// gates inside it and on its faces.
 TEST_F(DeformKernelTest, build_region_gives_the_region_and_its_rooms_meshes) {
   const cave::Region expected = cave::generate_region(*world_, {0, 0, 0}, {1, 0, 0});
   size_t gates = 0;
@@ -665,7 +666,7 @@ TEST_F(DeformKernelTest, build_region_gives_the_region_and_its_rooms_meshes) {
   for (const char* device : {"auto", "none"}) {
     RoomBuilder reference = RoomBuilder::create(*mesh_, {DeviceConfig{.device = device}, 1});
     const auto meshes = reference.build(expected.rooms, mesh::Lod::kPatch);
-    for (int threads : {1, 3}) {
+    for (int threads : {1, 3, 5}) {
       RoomBuilder builder = RoomBuilder::create(*mesh_, {DeviceConfig{.device = device}, threads});
       RoomBuilder::BuiltRegion built =
           builder.build_region({0, 0, 0}, {1, 0, 0}, mesh::Lod::kPatch);
