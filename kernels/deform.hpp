@@ -118,7 +118,8 @@ class DeformKernel {
              LaunchStats* stats = nullptr);
 
   // create() with the detail channels where `where` puts them on this device. A device that
-  // cannot compute them (no double precision) gets the kernel without them, with a logged warning.
+  // cannot compute them (no double precision, or their program fails to build) gets the kernel
+  // without them, with a logged warning (event=channels_path path=cpu).
   static Result<DeformKernel> create_for(ComputeContext& ctx, const mesh::MeshContext& mesh_ctx,
                                          ChannelsOn where);
 

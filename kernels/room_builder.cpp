@@ -31,7 +31,8 @@ RoomBuilder RoomBuilder::create(const mesh::MeshContext& mesh_ctx, const Options
       return b;
     }
     b.shared_ = options.shared_device;
-    b.path_ = "opencl: " + b.shared_->device().describe() + " shared=true";
+    b.path_ = "opencl: " + b.shared_->device().describe() +
+              " shared=true channels=" + (b.shared_->channels() ? "device" : "cpu");
     return b;
   }
   auto ctx = ComputeContext::create(options.device);
@@ -85,7 +86,8 @@ RoomBuilder::BuiltRegion RoomBuilder::build_region(cave::SectorCoord lo, cave::S
   coords.insert(coords.end(), plan.outside.begin(), plan.outside.end());
   std::vector<cave::SectorLayout> layouts(coords.size());
   // Layout threads take the sectors in order, the block's first; the caller waits for the
-  // block's, then builds its interior rooms while they lay out the rest.
+  // block's, then builds its interior rooms while they lay out the rest (the build's threads and
+  // the last layout threads share the cores for those few milliseconds).
   std::atomic<size_t> next{0};
   std::mutex mutex;
   std::condition_variable block_done;
@@ -125,9 +127,11 @@ RoomBuilder::BuiltRegion RoomBuilder::build_region(cave::SectorCoord lo, cave::S
   for (const cave::Room& r : out.region.rooms) {
     if (r.id.is_gate()) {
       out.meshes.push_back(std::move(gate_meshes[next_gate++]));
-    } else {
-      assert(interior[next_interior].id == r.id);
+    } else if (next_interior < interior.size() && interior[next_interior].id == r.id) {
       out.meshes.push_back(std::move(interior_meshes[next_interior++]));
+    } else {  // the order above no longer holds: a defect, said rather than a wrong mesh
+      out.meshes.push_back(Error{ErrorCode::kInternal, "room " + r.id.to_string() +
+                                                           ": not in the block's interior order"});
     }
   }
   return out;
@@ -170,7 +174,7 @@ std::vector<Result<mesh::RoomMesh>> RoomBuilder::build(
   // them (assembly adds the rim vertices'). Else, on several threads, the channels on the CPU run
   // after every room is assembled, in pieces any thread takes: inside assembly a big room's (a
   // hall's: ~40 % of its assembly) held its thread long after the others had finished.
-  const bool channels_with_deformation = on_device && !outputs.front().roughness.empty();
+  const bool channels_with_deformation = on_device && channels_on_device();
   const bool channels_in_pieces = !channels_with_deformation && threads_ > 1;
   const mesh::ChannelsBy channels =
       channels_in_pieces ? mesh::ChannelsBy::kCaller : mesh::ChannelsBy::kAssemble;

@@ -204,13 +204,13 @@ Result<std::vector<uint8_t>> region_glb(const GlbSource& source, std::span<const
     if (i % kWindow == 0) {
       coded.assign(std::min(kWindow, rooms.size() - i), invalid_argument("no mesh"));
       for_each_index(coded.size(), threads, [&](size_t k) {
+        assert(rooms[i + k].room != nullptr);
         if (const GlbRoom& r = rooms[i + k]; r.mesh != nullptr)
           coded[k] = code_room(*r.room, *r.mesh, source.lod);
       });
     }
     Result<CodedRoom>& room_coded = coded[i % kWindow];
     const GlbRoom& r = rooms[i];
-    assert(r.room != nullptr);
     // The portals as `grotto-layout --room` prints them: one view of a room (proto/).
     json extras = json::parse(proto::room_json(*r.room), nullptr, false);
     assert(!extras.is_discarded());
