@@ -432,7 +432,6 @@ int main(int argc, char** argv) {
           v.push_back(r.*field);
         return bench::median(v);
       };
-      using LS = kernels::LaunchStats;
       with_channels = {{"run_ms", ms},
                        {"upload_ms", fused_median(&LS::upload_ms)},
                        {"kernel_ms", fused_median(&LS::kernel_ms)},
