@@ -23,7 +23,6 @@
 #include "codec/room_codec.hpp"
 #include "layout_process.hpp"
 #include "mesh/room_mesh.hpp"
-#include "tools/glb.hpp"
 
 namespace {
 
@@ -624,52 +623,6 @@ TEST(GlbExportFailures, the_sector_whose_room_could_not_be_meshed_exports_whole)
   EXPECT_EQ(g.doc["meshes"].size(),
             std::count_if(g.doc["nodes"].begin(), g.doc["nodes"].end(),
                           [](const json& node) { return !is_light(node); }));
-}
-
-// The rooms are encoded on every thread, a window of them at a time: a mesh the codec refuses
-// fails the file with the first such room in the rooms' order (not the first a thread finished),
-// past the first window too; a room without a mesh is not a failure.
-TEST(GlbExportFailures, a_mesh_the_codec_refuses_names_the_first_such_room) {
-  grotto::cave::World world =
-      grotto::cave::World::create(kSeed, grotto::cave::LayoutParams{}).value();
-  auto ctx = grotto::mesh::MeshContext::create(world, grotto::mesh::MeshParams{}).value();
-  grotto::cave::Region region = grotto::cave::generate_region(world, kSector, kSector);
-  constexpr size_t kRooms = 72;  // more than one window of 64
-  ASSERT_GE(region.rooms.size(), kRooms);
-  std::vector<grotto::mesh::RoomMesh> meshes;
-  for (size_t i = 0; i < kRooms; ++i) {
-    meshes.push_back(
-        grotto::mesh::build_room_mesh(ctx, region.rooms[i], grotto::mesh::Lod::kPatch).value());
-  }
-  grotto::tools::GlbSource source;
-  source.seed = kSeed;
-  source.sector_size = world.params().sector_size;
-  source.lo = source.hi = kSector;
-  auto file_of = [&](std::vector<size_t> broken) {
-    std::vector<grotto::mesh::RoomMesh> copy = meshes;
-    for (size_t i : broken)
-      copy[i].roughness[0] = 2.0f;  // a channel outside [0, 1]
-    std::vector<grotto::tools::GlbRoom> rooms(kRooms);
-    for (size_t i = 0; i < kRooms; ++i) {
-      rooms[i].room = &region.rooms[i];
-      rooms[i].mesh = i == 3 ? nullptr : &copy[i];
-      if (i == 3) rooms[i].mesh_error = "left out by the test";
-    }
-    return grotto::tools::region_glb(source, rooms);
-  };
-  auto whole = file_of({});
-  ASSERT_TRUE(whole.ok()) << whole.error().message;
-  Glb g = parse_glb(*whole);
-  ASSERT_EQ(g.error, "");
-  EXPECT_EQ(g.doc["meshes"].size(), kRooms - 1);
-  for (std::vector<size_t> broken : {std::vector<size_t>{70, 66}, {5, 40, 71}}) {
-    auto refused = file_of(broken);
-    ASSERT_FALSE(refused.ok());
-    const std::string first =
-        region.rooms[*std::min_element(broken.begin(), broken.end())].id.to_string();
-    EXPECT_EQ(refused.error().message.rfind("room " + first + " cannot be encoded: ", 0), 0u)
-        << refused.error().message;
-  }
 }
 
 // A file that cannot be written is one line and exit 1, and leaves nothing behind: no temporary
