@@ -47,6 +47,15 @@ struct Digest {
   }
 };
 
+// One part of a launch's time (a LaunchStats field), the median over several launches' stats.
+double median_of(const std::vector<kernels::LaunchStats>& runs,
+                 double kernels::LaunchStats::*field) {
+  std::vector<double> v;
+  for (const kernels::LaunchStats& r : runs)
+    v.push_back(r.*field);
+  return bench::median(v);
+}
+
 struct Deformed {
   std::vector<std::vector<mesh::core::float3>> positions;
   std::vector<std::vector<float>> clearance;
@@ -316,12 +325,6 @@ int main(int argc, char** argv) {
         &deform_cl_cpu_ms);
     const kernels::LaunchStats& stats = runs.front();
     // Issue 30: where the batched launch's time goes, each part the median over the runs above.
-    auto median_of = [&](double kernels::LaunchStats::*field) {
-      std::vector<double> v;
-      for (const kernels::LaunchStats& r : runs)
-        v.push_back(r.*field);
-      return bench::median(v);
-    };
     // What one work item does per vertex (grotto_deform_vertex in common/mesh/deform_core.h):
     // loops over its room's n portals (rim noise, collars, the noise fade, the clearance), over the
     // n(n-1)/2 portal pairs in small rooms (two Hermite splines each), and 3D noise evaluations:
@@ -351,14 +354,14 @@ int main(int argc, char** argv) {
     nlohmann::json deform_split = {
         {"profiled", dev.profiling()},
         {"run_ms", deform_cl_ms},
-        {"prepare_ms", median_of(&LS::prepare_ms)},
-        {"allocate_ms", median_of(&LS::allocate_ms)},
-        {"upload_ms", median_of(&LS::upload_ms)},
-        {"kernel_ms", median_of(&LS::kernel_ms)},
-        {"download_ms", median_of(&LS::download_ms)},
-        {"device_span_ms", median_of(&LS::device_span_ms)},
-        {"queue_wall_ms", median_of(&LS::queue_wall_ms)},
-        {"unpack_ms", median_of(&LS::unpack_ms)},
+        {"prepare_ms", median_of(runs, &LS::prepare_ms)},
+        {"allocate_ms", median_of(runs, &LS::allocate_ms)},
+        {"upload_ms", median_of(runs, &LS::upload_ms)},
+        {"kernel_ms", median_of(runs, &LS::kernel_ms)},
+        {"download_ms", median_of(runs, &LS::download_ms)},
+        {"device_span_ms", median_of(runs, &LS::device_span_ms)},
+        {"queue_wall_ms", median_of(runs, &LS::queue_wall_ms)},
+        {"unpack_ms", median_of(runs, &LS::unpack_ms)},
         {"upload_bytes", stats.upload_bytes},
         {"download_bytes", stats.download_bytes},
         {"launches", stats.launches},
@@ -426,17 +429,11 @@ int main(int argc, char** argv) {
         (void)fused.run(inputs, out, &s);
         fused_runs.push_back(s);
       });
-      auto fused_median = [&](double kernels::LaunchStats::*field) {
-        std::vector<double> v;
-        for (const kernels::LaunchStats& r : fused_runs)
-          v.push_back(r.*field);
-        return bench::median(v);
-      };
       with_channels = {{"run_ms", ms},
-                       {"upload_ms", fused_median(&LS::upload_ms)},
-                       {"kernel_ms", fused_median(&LS::kernel_ms)},
-                       {"download_ms", fused_median(&LS::download_ms)},
-                       {"unpack_ms", fused_median(&LS::unpack_ms)},
+                       {"upload_ms", median_of(fused_runs, &LS::upload_ms)},
+                       {"kernel_ms", median_of(fused_runs, &LS::kernel_ms)},
+                       {"download_ms", median_of(fused_runs, &LS::download_ms)},
+                       {"unpack_ms", median_of(fused_runs, &LS::unpack_ms)},
                        {"download_bytes", fused_runs.front().download_bytes}};
     } else {
       with_channels = created.error().message;
