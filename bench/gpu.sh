@@ -14,7 +14,9 @@
 #     bit, on the device "auto" picks (a GPU when there is one);
 #   - grotto-client --bench (the scripted path, 1920x1080) with MaxTess 8, MaxTess 64 and
 #     tessellation off, through EGL and, where DISPLAY is set, GLFW: one row per distinct
-#     renderer;
+#     renderer; then the gallery's three halls held still (--hold: seed 95's hall entrance, seed
+#     7's hall across, seed 95's stalactites), each row with its GPU time per pass (passes_ms)
+#     and the formations drawn;
 # and prints one Markdown table with the machine (CPU model and flags, cores, load average, GPUs
 # that nvidia-smi lists). The JSON reports stay in --out.
 #
@@ -139,6 +141,20 @@ for gl in "${renderers[@]}"; do
   done
 done
 
+# The gallery's three halls held still (issue 43): seed 95's hall from its entrance, seed 7's
+# across, seed 95's stalactites overhead; the defaults, EGL.
+halls=("hall-entrance-95 95 163.91,46.33,123.21,-136.6,5.2"
+       "hall-across-7 7 61.20,57.79,40.01,270.0,5.0"
+       "stalactites-95 95 55.96,51.14,44.57,200.0,55.0")
+for h in "${halls[@]}"; do
+  read -r name seed pose <<<"$h"
+  echo "gpu.sh: grotto-client --bench $seconds --hold --pose $pose (seed $seed)" >&2
+  timeout "$step_timeout" "$bin/grotto-client" --gl egl --device none --width 1920 --height 1080 \
+    --seed "$seed" --pose "$pose" --mode fly --hold --bench "$seconds" \
+    --json "$out/hall-$name.json" >"$out/hall-$name.log" 2>&1
+  echo $? >"$out/hall-$name.rc"
+done
+
 python3 - "$out" <<'EOF'
 import json, os, sys
 out = sys.argv[1]
@@ -256,6 +272,12 @@ for stem in (l.strip() for l in (open(sweep_file) if os.path.exists(sweep_file) 
         print(f"| server_bench, cache on, --workers {w} --batch {b}{queue(p)} | {path} | "
               f"{p['rooms_per_second']:,.0f} rooms/s (build {p['build_ms_per_room']:.3f}, encode "
               f"{p['encode_ms_per_room']:.3f} ms a room{launches(p)}{ratio}) |")
+def passes(r):
+    p = r.get("passes_ms") or {}
+    if not p:
+        return ""
+    parts = ", ".join(f"{k} {v:.1f}" for k, v in p.items())
+    return f"; GPU ms per pass: {parts}; {r.get('formations', 0):.0f} formations"
 renderers = {}
 clients = [os.path.join(out, f"client-{gl}-{setting}.json") for gl in ("egl", "glfw")
            for setting in ("tess8", "tess64", "flat")]
@@ -273,7 +295,18 @@ for path in (p for p in clients if os.path.exists(p[:-5] + ".rc")):
     renderers[key] = r
     what = {"tess8": "MaxTess 8", "tess64": "MaxTess 64", "flat": "tessellation off"}[setting]
     print(f"| grotto-client 1920x1080, {what} ({gl}) | {r['gl_renderer']} | median {r['median_ms']:.1f} ms, "
-          f"p99 {r['p99_ms']:.1f} ms, {r['fps']:.1f} fps, {r['frames']} frames |")
+          f"p99 {r['p99_ms']:.1f} ms, {r['fps']:.1f} fps, {r['frames']} frames{passes(r)} |")
+for name in ("hall-entrance-95", "hall-across-7", "stalactites-95"):
+    path = os.path.join(out, f"hall-{name}.json")
+    if not os.path.exists(path[:-5] + ".rc"):
+        continue
+    r = load(path)
+    if r is None:
+        print(f"| grotto-client --bench --hold, {name} | - | failed (exit {rc(path[:-5] + '.rc')}) |")
+        continue
+    ran += 1
+    print(f"| grotto-client 1920x1080, {name} held (egl) | {r['gl_renderer']} | median {r['median_ms']:.1f} ms, "
+          f"p99 {r['p99_ms']:.1f} ms, {r['fps']:.1f} fps, {r['frames']} frames{passes(r)} |")
 print()
 print(f"Reports: {out}")
 sys.exit(0 if ran else 1)

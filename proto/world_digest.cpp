@@ -114,6 +114,7 @@ uint64_t world_params_digest(const cave::LayoutParams& layout, const mesh::MeshP
   // The relief and formations the client draws and engines evaluate (shaders/relief.hpp): part
   // of the world though no room's bytes depend on them.
   c.text(kReliefVersion);
+  c.text(kFormationsVersion);
   return fold_digest(layout_params_digest(layout), c.bytes());
 }
 

@@ -25,11 +25,16 @@ uint64_t fold_digest(uint64_t digest, std::span<const uint8_t> bytes);
 // depend on it, yet it is part of the world. A test pins relief_at's values at sample points to
 // this version (tests/client/play/relief_test.cpp): a change of the relief fails it until the
 // version moves on, while a change of how it is drawn (relief_at_sampled's filtering) does not.
-inline constexpr std::string_view kReliefVersion = "grotto.relief.v2";
+inline constexpr std::string_view kReliefVersion = "grotto.relief.v3";
+// The version of the formations (shaders/formations.hpp: where a room's stalactites, stalagmites,
+// soda straws and columns stand and what shape each has), folded likewise: what the client draws
+// and collides with, and what engines and the glb export place.
+inline constexpr std::string_view kFormationsVersion = "grotto.formations.v1";
 
 // The digest a server announces in welcome.params: the layout's, folded with every mesh setting
 // that also shapes the rooms (lods, octaves, rim, big-room and channel settings), doubles as IEEE
-// bits, little-endian, the world's light placement and the relief's version (kReliefVersion).
+// bits, little-endian, the world's light placement, the relief's version (kReliefVersion) and the
+// formations' (kFormationsVersion).
 uint64_t world_params_digest(const cave::LayoutParams& layout, const mesh::MeshParams& mesh);
 
 }  // namespace grotto::proto

@@ -13,37 +13,15 @@
 //                down the wall (a noise stretched 2.5x vertically), fluted by vertical curtains
 //                (anisotropic ridged noise, 2.6 m tall, 0.4 m wide), the rock's relief drowned
 //                beneath them (a sheet smooths what it covers);
-//   speleothems: stalactites on undersides and stalagmites on the floors beneath them, hanging
-//                plumb: a vertical displacement (Relief::hang, -y under a stalactite, +y on a
-//                stalagmite) apart from the rock's height along the normal, so dripstone on a
-//                sloping ceiling hangs straight down, not out along the slope like a fang. One
-//                candidate per 1 m cell of the horizontal plane (a lattice turned off the world
-//                axes), pulled onto the nearest crack (the zero line of a slow 2-D noise: water
-//                seeps along joints, so dripstone grows in rows with bare rock between) and kept
-//                only near one. Lengths are heavy-tailed, from 5 cm soda straws to several metres
-//                in big rooms (the cube of a uniform hash: most are short, a few long); a
-//                stalagmite stands under each, rounded on top, in forms from a bell-shaped cone
-//                half as tall and twice as wide to a steep-sided candle 0.65 as tall and 1.55
-//                times as wide (thesis §5.5: underside bias from the world-space normal).
-//   columns:     a few speleothem cells (kReliefColumnShare) reach down, and up, to a meeting
-//                level of their own (one level every kReliefColumnSpan metres of height, offset
-//                per cell): the stalactite to the nearest level below its ceiling, the stalagmite
-//                to the nearest above its floor if that is within kReliefColumnRise. Each side
-//                knows only its own height, yet where the gap between them is low (passages,
-//                low rooms: up to ~2.5 m always, ~3.5 m often) both pick the same level, or
-//                overlap, and join into a column; in halls a column cell is a stalactite of up
-//                to 3.25 m over a short stalagmite. (The span keeps the columns' reach within
-//                the longest speleothem's, so culling margins stay as they were.) Only under level ceilings and on level floors
-//                (the tip is plumb there and the level the same across the footprint).
-//   draperies:   thin wavy curtains hanging from sloping ceilings, along the fall line (water
-//                runs down the slope and leaves its calcite in a line): straight runs in world
-//                space in four directions, each where it is near the local fall line, wavy
-//                across, with ragged lower edges; none under level ceilings.
+//   formations:  stalactites, stalagmites, soda straws and columns are no longer relief but
+//                instanced geometry (shaders/formation.glsl, shaders/formations.hpp: issue 43);
+//                their candidates stay here (relief_speleothem: one per 1 m cell of a lattice
+//                turned off the world axes, pulled onto the nearest crack, heavy-tailed lengths
+//                from soda straws to metres in big rooms), so the relief's displacement is the
+//                rock's and the flowstone's alone, under a metre along the normal.
 //   occlusion:   ambient occlusion from the relief itself (Relief::occlusion, per tessellated
 //                vertex: no extra pass): the rock's crevices (its finer octaves below their local
-//                mean, scaled by how rough the rock is there) and the feet of formations (each
-//                speleothem within a cell seen as an upright pillar: the share of the sky it hides,
-//                half of it where the pillar meets the floor or the ceiling).
+//                mean, scaled by how rough the rock is there).
 //   fine detail: relief_fine, shading only (normals and albedo in room.frag, no displacement, so
 //                collision is untouched): calcite and sand grain at 3.5 and 1.6 cm, solution pits
 //                1-3.5 cm across, joints a few millimetres wide; every octave faded by the pixel's
@@ -71,22 +49,11 @@ const float kReliefCrackWidth = 0.45f;  // metres from a crack within which drip
 const float kReliefSheet = 0.22f;         // metres: the thickest flowstone sheet at strength 1
 const float kReliefColumnShare = 0.15f;   // of the speleothem cells: column candidates
 const float kReliefColumnSpan = 2.5f;     // metres between a column cell's meeting levels
-const float kReliefColumnStub = 0.4f;     // metres: a column's stalactite is at least this long
-const float kReliefColumnBase = 0.25f;    // metres: and its stalagmite at least this tall
-const float kReliefColumnRise = 2.0f;     // metres: and at most about this tall
-const float kReliefColumnOverlap = 0.35f; // metres each side reaches past the meeting level
-const float kReliefColumnFade = 0.3f;     // metres of height over which a side's reach fades out
-const float kReliefDraperySpacing = 0.9f; // metres between drapery lines of one direction
-const float kReliefDraperyRun = 2.6f;     // metres: the length of a drapery's run along the slope
-const float kReliefDraperyWidth = 0.07f;  // metres: half the thickness of a drapery
-const float kReliefDraperyAngle = 0.41f;  // radians: the first of the four drapery directions
+
 const float kReliefCrevice = 0.6f;        // occlusion at the bottom of the deepest crevice
-const float kReliefFoot = 1.2f;           // occlusion per unit of sky a formation hides
+
 const float kReliefOcclusionMin = 0.3f;   // the darkest ambient occlusion
-const float kReliefSampling = 1.0f;       // tessellation steps a drawn spike's radius at least is
-// and a drawn curtain's half thickness: a curtain shows its crest along its whole run, and a crest
-// over fewer than four samples across zigzags between the rows of samples (teeth).
-const float kReliefCurtainSampling = 2.0f;
+
 
 // An integer lattice point to [0, 1).
 RELIEF_FN float relief_hash(ivec3 c) {
@@ -133,19 +100,16 @@ RELIEF_FN float relief_variety(vec3 p) {
   return 0.5f + 0.5f * relief_noise(p * (1.0f / 24.0f) + vec3(17.3f, 5.1f, -9.7f)).x;
 }
 
-// The displaced surface point is p + n * height + (0, hang, 0).
+// The displaced surface point is p + n * height.
 struct Relief {
   float height;   // metres along the normal (into the cave when positive): rock and flowstone
   vec3 gradient;  // of height with respect to world position (for the displaced normal); near
                   // rims that of the rock and flowstone before their height fades (see relief_at)
-  float hang;     // metres along world +y: speleothems (negative under a stalactite)
-  vec3 hang_gradient;  // of hang with respect to world position (its y is 0 but on columns,
-                       // whose reach follows the height)
   float cavity;   // 0 in the rock's hollows, 1 on its crests (occlusion, tint)
-  float spike;    // 0-1: calcite: how far up a speleothem or drapery the point is (1 at its
-                  // tip), or under half a flowstone sheet's thickness (room.frag's colour)
+  float spike;    // 0-1: calcite under half a flowstone sheet's thickness (room.frag's colour;
+                  // formation.vert gives a formation's: 1 at its tip)
   float occlusion;  // ambient occlusion, kReliefOcclusionMin-1: 1 on open rock, less in the
-                    // rock's crevices and at the feet of formations (1 without relief)
+                    // rock's crevices (1 without relief)
   vec3 warp;        // the rock's domain warp: its octaves are noise at p + warp
   float rock;       // metres: the rock's amplitude there (under a flowstone sheet, what shows)
 };
@@ -240,92 +204,22 @@ RELIEF_FN float relief_normal_bound(float strength) {
   return strength * (kReliefRock * 1.35f * 1.2f + kReliefFlowstone + kReliefSheet);
 }
 
-// How far a column side can reach (a stub and a span, past the level), only where the surface's
-// normal is within ~32 degrees of vertical (relief_level_possible): set by the rooms' heights,
-// not scaled by the strength (on or off).
-RELIEF_FN float relief_column_bound(float strength) {
-  return strength > 0.0f ? kReliefColumnStub + kReliefColumnSpan + kReliefColumnOverlap : 0.0f;
-}
-
-// How far the relief can move a point vertically (Relief::hang), either way: the longest
-// speleothem of the room (draperies hang at most half of it) or a column's reach.
-RELIEF_FN float relief_hang_bound(float strength, float room_radius) {
-  return max(strength * relief_spike_length(room_radius), relief_column_bound(strength));
-}
-
-// relief_bound on a surface that cannot hold a column's side (relief_level_possible false).
-RELIEF_FN float relief_bound_without_columns(float strength, float room_radius) {
-  return relief_normal_bound(strength) + strength * relief_spike_length(room_radius);
-}
-
-// Whether any point of a patch with these unit vertex normals can hold a column's side (its
-// interpolated, renormalised normal within the columns' 0.85 of vertical): a patch where none can
-// is moved by at most relief_bound_without_columns (room.tesc culls it with that margin).
-// The renormalised blend's |y| is at most the largest vertex |y| over the blend's shortest
-// length, which is at least the square root of the smallest pairwise dot product.
-RELIEF_FN bool relief_level_possible(vec3 n0, vec3 n1, vec3 n2) {
-  float c = min(dot(n0, n1), min(dot(n1, n2), dot(n2, n0)));
-  float top = max(abs(n0.y), max(abs(n1.y), abs(n2.y)));
-  return !(c > 0.0f) || top >= 0.85f * sqrt(c);
-}
-
-// How far the relief can move a point, either way: a bound for culling.
-RELIEF_FN float relief_bound(float strength, float room_radius) {
-  return relief_normal_bound(strength) + relief_hang_bound(strength, room_radius);
-}
-
-// A column side's reach where the gap to its meeting level is `gap` metres past its minimum:
-// 0 to 1, fading out near both ends of the span so the reach never jumps where the level
-// switches to the next one (the height changes across the speleothem's footprint).
-RELIEF_FN float relief_column_weight(float gap) {
-  return smoothstep(0.0f, kReliefColumnFade, gap) *
-         (1.0f - smoothstep(kReliefColumnSpan - kReliefColumnFade, kReliefColumnSpan, gap));
-}
-
-// The share of a point's sky (cosine-weighted, as ambient light arrives) that an upright pillar
-// hides: radius a, its axis d metres away horizontally, rising `tall` metres past the point. It
-// spans 2 asin(a / d) of the azimuth and, over that span, everything below its top's elevation e
-// (sin^2 e of the light from those directions): half the sky where the pillar meets the point
-// (the crease at a stalagmite's foot), little a few radii away. Faded to zero at one lattice
-// cell, the farthest the 3 x 3 cells round a point are sure to hold every pillar, and inside
-// half the radius: a point high on the formation itself is on its convex flank, which hides
-// nothing of its own sky.
-RELIEF_FN float relief_pillar_occlusion(float d, float a, float tall) {
-  if (!(tall > 0.0f) || !(a > 0.0f)) return 0.0f;
-  float dd = max(d, a);
-  float azimuth = asin(min(a / dd, 1.0f)) * (1.0f / 3.14159265f);
-  float run = dd - a + 0.04f;  // the crease is rounded, not a knife edge
-  float sin2 = tall * tall / (tall * tall + run * run);
-  return azimuth * sin2 * smoothstep(0.5f * a, a, d) *
-         (1.0f - smoothstep(0.6f * kReliefCell, kReliefCell, d));
-}
-
-// A formation `half_width` metres wide at its base (a spike's radius, a curtain's half
-// thickness), drawn on a surface sampled every `spacing` metres (the tessellation's step): a spike
-// narrower than a step is one vertex pulled down, a shard as long as the spike; a curtain thinner
-// than a step, a saw blade. So its half-width is at least about `spacing` (.x; at most `widest`,
-// the lattice's bound; callers pass kReliefSampling or kReliefCurtainSampling steps). Its
-// height is scaled by .y (squared for a cone, whose volume then stays; once for a curtain, whose
-// cross-section does): far formations show as the blunter shapes the step can carry, near ones
-// as they are, and none vanishes at once.
-RELIEF_FN vec2 relief_sampled(float half_width, float spacing, float widest) {
-  float wide = sqrt(half_width * half_width + spacing * spacing);
-  return vec2(min(wide, widest), half_width / wide);
+// How far the relief can move a point along its normal, either way: a bound for culling and
+// collision (the formations are geometry of their own: shaders/formation.glsl).
+RELIEF_FN float relief_bound(float strength) {
+  return relief_normal_bound(strength);
 }
 
 // The relief at world point p on a surface with unit normal n, as drawn by a mesh sampled every
 // `spacing` metres (room.tese: the tessellation's step there; 0: exactly, as relief_at below
 // gives it to collision, baking and engines). roughness (0-1) is the patch's channel, rim the rim
-// weight (1 on a portal rim), room_radius the room's sphere radius and strength scales everything
-// (0: off). The spacing widens the speleothems (columns aside) and draperies to the step
-// (relief_sampled), so none is drawn as a shard or a saw blade.
-RELIEF_FN Relief relief_at_sampled(vec3 p, vec3 n, float roughness, float rim, float room_radius,
-                                   float strength, float spacing) {
+// weight (1 on a portal rim) and strength scales everything
+// (0: off). The spacing drops the rock's octaves the mesh cannot carry (relief_octave_kept).
+RELIEF_FN Relief relief_at_sampled(vec3 p, vec3 n, float roughness, float rim, float strength,
+                                   float spacing) {
   Relief r;
   r.height = 0.0f;
   r.gradient = vec3(0.0f);
-  r.hang = 0.0f;
-  r.hang_gradient = vec3(0.0f);
   r.cavity = 0.5f;
   r.spike = 0.0f;
   r.occlusion = 1.0f;
@@ -355,24 +249,27 @@ RELIEF_FN Relief relief_at_sampled(vec3 p, vec3 n, float roughness, float rim, f
                    relief_noise(w + vec3(9.4f, -3.3f, 4.6f)).x);
   r.warp = 0.45f * warp;
   vec3 q = p + r.warp;
-  vec4 o0 = relief_noise(q * 0.7f);
-  vec4 o1 = relief_ridge_noise(q);
-  vec4 o2 = relief_octave2_noise(q);
-  vec4 o3 = relief_octave3_noise(q);
-  // A ridge softened (|x| as sqrt(x^2 + e)): crested, yet smooth enough that tessellation at
-  // level 8 does not saw its crest into teeth.
-  float soft = sqrt(o1.x * o1.x + 0.05f);
-  float ridge = 1.0f - soft;
-  float ridge_sign = o1.x / soft;
-  float rock = 0.45f * o0.x + 0.28f * (2.0f * ridge * ridge - 1.0f) + 0.16f * o2.x + 0.08f * o3.x;
-  // As sampled: the octaves the mesh cannot carry leave its shape (relief_octave_kept); the
-  // cavity and the crevices below still see the whole rock.
+  // As sampled: the octaves the mesh cannot carry leave its shape (relief_octave_kept). Sampled
+  // exactly (spacing 0: collision, bakes, engines), the cavity and the crevices below see the
+  // whole rock; drawn, an octave the mesh cannot carry at all is not evaluated (room.frag adds it
+  // to the shading: relief_rock_detail), and the cavity and crevices of a vertex that far apart
+  // see the octaves it can carry.
   float kept1 = 1.0f, kept2 = 1.0f, kept3 = 1.0f;
   if (spacing > 0.0f) {
     kept1 = relief_octave_kept(kReliefRidgeSize, spacing);
     kept2 = relief_octave_kept(kReliefOctave2Size, spacing);
     kept3 = relief_octave_kept(kReliefOctave3Size, spacing);
   }
+  vec4 o0 = relief_noise(q * 0.7f);
+  vec4 o1 = relief_ridge_noise(q);
+  vec4 o2 = kept2 > 0.0f ? relief_octave2_noise(q) : vec4(0.0f);
+  vec4 o3 = kept3 > 0.0f ? relief_octave3_noise(q) : vec4(0.0f);
+  // A ridge softened (|x| as sqrt(x^2 + e)): crested, yet smooth enough that tessellation at
+  // level 8 does not saw its crest into teeth.
+  float soft = sqrt(o1.x * o1.x + 0.05f);
+  float ridge = 1.0f - soft;
+  float ridge_sign = o1.x / soft;
+  float rock = 0.45f * o0.x + 0.28f * (2.0f * ridge * ridge - 1.0f) + 0.16f * o2.x + 0.08f * o3.x;
   float drawn = spacing > 0.0f ? 0.45f * o0.x + kept1 * 0.28f * (2.0f * ridge * ridge - 1.0f) +
                                      kept2 * 0.16f * o2.x + kept3 * 0.08f * o3.x
                                : rock;
@@ -434,187 +331,13 @@ RELIEF_FN Relief relief_at_sampled(vec3 p, vec3 n, float roughness, float rim, f
     r.gradient += amplitude * 3.0f * c * c * -f_sign * relief_gradient(f) * scale;
   }
 
-  // Speleothems: the tallest of the 3 x 3 cells around p wins, displacing p vertically.
-  float best = 0.0f;
-  float best_length = 1.0f;
-  vec2 best_gradient = vec2(0.0f);  // in the turned lattice's frame
-  vec3 best_vertical = vec3(0.0f);  // world: a column side's reach follows the point's height
-  float feet = 0.0f;                // the sky that formations hide (relief_pillar_occlusion)
-  if (under > 0.0f || ground > 0.0f) {
-    // Bare zones have shorter ones.
-    float longest = strength * relief_spike_length(room_radius) * keep *
-                    mix(0.45f, 1.0f, smoothstep(0.3f, 0.75f, variety));
-    vec2 here = relief_turn(p);
-    ivec2 base = ivec2(floor(here / kReliefCell));
-    // Columns: the point's height after the rock (the tip must meet the other side's), its
-    // gradient, and whether the ceiling or floor is level enough for one.
-    float y_here = p.y + n.y * r.height;
-    vec3 y_gradient = vec3(0.0f, 1.0f, 0.0f) + n.y * keep * r.gradient;
-    float level_roof = smoothstep(0.85f, 0.95f, -up);
-    float level_floor = smoothstep(0.85f, 0.95f, up);
-    for (int dz = -1; dz <= 1; ++dz) {
-      for (int dx = -1; dx <= 1; ++dx) {
-        Speleothem sp = relief_speleothem(base + ivec2(dx, dz), longest);
-        if (!(sp.len > 0.0f) || !(longest > 0.0f)) continue;
-        vec2 d = here - sp.centre;
-        float dist = length(d);
-        bool column = sp.level >= 0.0f;
-        // As sampled (relief_sampled): the stalactite's radius and length, its stalagmite's.
-        // Columns, the thickest, keep theirs, so floor and ceiling still meet.
-        float radius = sp.radius;
-        float len = sp.len;
-        float rf = mix(2.0f, 1.55f, sp.form) * sp.radius;
-        float len_g = mix(0.5f, 0.65f, sp.form) * sp.len;
-        // The share of its length each keeps: its calcite's cream fades with it (a blunted
-        // spike is not a cream disc; from afar the rock round it shows as much).
-        float kept = 1.0f;
-        float kept_g = 1.0f;
-        if (spacing > 0.0f && !column) {
-          vec2 a = relief_sampled(radius, kReliefSampling * spacing, 0.45f);
-          radius = a.x;
-          kept = a.y * a.y;
-          len *= kept;
-          vec2 b = relief_sampled(rf, kReliefSampling * spacing, 0.9f);
-          rf = b.x;
-          kept_g = b.y * b.y;
-          len_g *= kept_g;
-        }
-        // Stalactite: a concave cone, sharp at its tip; hangs down (negative hang). A column's
-        // reaches its meeting level (kReliefColumnOverlap past it), convex and blunt.
-        // (Cells within a lattice cell of p also darken its sky: relief_pillar_occlusion.)
-        float t = max(1.0f - dist / radius, 0.0f);
-        if (under > 0.0f && dist < kReliefCell) {
-          float reach = len;
-          float cw = 0.0f;
-          if (column && level_roof > 0.0f) {
-            float gap = mod(y_here - sp.level - kReliefColumnStub, kReliefColumnSpan);
-            cw = level_roof * relief_column_weight(gap);
-            reach = mix(len, (gap + kReliefColumnStub + kReliefColumnOverlap) * keep, cw);
-          }
-          float shape = mix(t * t, t * (2.0f - t), cw);
-          float h = under * reach * shape;
-          // Its root hides the ceiling's sky round it: a pillar as wide as the cone at half its
-          // length (the concave cone's t = 0.71; the column's convex one's 0.29).
-          feet += relief_pillar_occlusion(dist, mix(0.29f, 0.71f, cw) * radius,
-                                          under * reach - h);
-          if (h > best) {
-            best = h;
-            best_length = under * reach / kept;
-            // d/dp of -h: the profile's slope along d, and the reach's along the height.
-            float slope = mix(2.0f * t, 2.0f - 2.0f * t, cw);
-            best_gradient = dist > 1e-5f ? (under * reach * slope / (radius * dist)) * d
-                                         : vec2(0.0f);
-            best_vertical = -(under * shape * cw * keep) * y_gradient;
-          }
-        }
-        // Stalagmite beneath it: half (a candle 0.65) as tall, 2 (a candle 1.55) times as wide,
-        // rounded on top; stands up.
-        // Its profile across is (1 - s^e)^2, e from 2 (a bell-shaped cone) to 6 (a candle:
-        // steep sides, a broad rounded top). A column's rises to its meeting level, a bell.
-        float s = min(dist / rf, 1.0f);
-        if (ground > 0.0f && dist < kReliefCell) {
-          float reach = len_g;
-          float cw = 0.0f;
-          if (column && level_floor > 0.0f) {
-            float gap = mod(sp.level - y_here - kReliefColumnBase, kReliefColumnSpan);
-            // Only to a level near the floor: in a tall room a column cell's stalagmite stays
-            // short and its stalactite reaches down (they grow from the same drip, the
-            // stalactite first).
-            cw = level_floor * relief_column_weight(gap) *
-                 (1.0f - smoothstep(kReliefColumnRise - kReliefColumnFade, kReliefColumnRise, gap));
-            reach = mix(len_g, (gap + kReliefColumnBase + kReliefColumnOverlap) * keep, cw);
-          }
-          float lf = reach * ground;
-          float e = mix(mix(2.0f, 6.0f, sp.form), 2.0f, cw);
-          float se2 = e > 2.0f ? pow(s, e - 2.0f) : 1.0f;  // s^(e - 2)
-          float across = 1.0f - s * s * se2;
-          float shape = across * across;
-          float h = lf * shape;
-          // The floor round its foot: a pillar as wide as the stalagmite at half its height
-          // (where (1 - s^e)^2 = 1/2).
-          feet += relief_pillar_occlusion(dist, pow(0.29289f, 1.0f / e) * rf, lf - h);
-          if (h > best) {
-            best = h;
-            best_length = lf / kept_g;
-            best_gradient = (-2.0f * e * lf * across * se2 / (rf * rf)) * d;
-            best_vertical = -(ground * shape * cw * keep) * y_gradient;
-          }
-        }
-      }
-    }
-  }
-
-  // Draperies: curtains hanging from sloping ceilings along the fall line, in runs of
-  // kReliefDraperyRun metres on lines kReliefDraperySpacing apart, in four world directions
-  // (each where it lies within ~20 degrees of the local fall line), wavy across.
-  float slope = length(vec2(n.x, n.z));
-  float drape_zone = smoothstep(0.25f, 0.5f, slope) * smoothstep(0.2f, 0.45f, -up);
-  if (drape_zone > 0.0f) {
-    vec2 fall = vec2(n.x, n.z) / slope;
-    float deepest = 0.5f * strength * relief_spike_length(room_radius) * keep * drape_zone;
-    // As sampled (relief_sampled): thicker and shallower where the step is coarse.
-    float width = kReliefDraperyWidth;
-    float kept = 1.0f;
-    if (spacing > 0.0f) {
-      vec2 a = relief_sampled(width, kReliefCurtainSampling * spacing, 0.3f);
-      width = a.x;
-      kept = a.y;
-      deepest *= kept;
-    }
-    for (int i = 0; i < 4; ++i) {
-      float angle = kReliefDraperyAngle + 0.7853982f * float(i);
-      vec2 along_dir = vec2(cos(angle), sin(angle));
-      float aligned = smoothstep(0.8f, 0.95f, abs(dot(along_dir, fall)));
-      if (!(aligned > 0.0f)) continue;
-      vec2 across_dir = vec2(-along_dir.y, along_dir.x);
-      float along = dot(vec2(p.x, p.z), along_dir);
-      float across = dot(vec2(p.x, p.z), across_dir);
-      float line = floor(across / kReliefDraperySpacing + 0.5f);
-      // Wavy across (8 cm, 0.45 m wavelength), a ragged lower edge.
-      vec4 wave = relief_noise(vec3(along * 2.2f, line * 1.37f, float(i) * 7.1f));
-      float off = across - line * kReliefDraperySpacing + 0.08f * wave.x;
-      float qa = off / width;
-      if (!(abs(qa) < 1.0f)) continue;
-      float run = floor(along / kReliefDraperyRun);
-      ivec3 key = ivec3(int(line), int(run), i);
-      if (relief_hash(key + ivec3(0, 0, 97)) >= 0.3f) continue;
-      float u = along / kReliefDraperyRun - run;
-      float ends = smoothstep(0.0f, 0.3f, u) * smoothstep(0.0f, 0.3f, 1.0f - u);
-      vec4 edge = relief_noise(vec3(along * 1.7f, line * 2.9f, float(i) * 3.3f + 50.0f));
-      float depth = deepest * aligned * ends * (0.4f + 0.6f * relief_hash(key)) *
-                    (0.8f + 0.2f * edge.x);
-      float across_shape = (1.0f - qa * qa) * (1.0f - qa * qa);
-      float h = depth * across_shape;
-      if (h > best) {
-        best = h;
-        // Calcite a shade darker than a speleothem's tip (room.frag): ochre bands, not cream.
-        best_length = 1.6f * depth / kept;
-        // Across the curtain only (its slow changes along the run are left out): d off / dp
-        // is the across direction plus the wave's slope along the run.
-        vec2 d_off = across_dir + (0.08f * 2.2f * wave.y) * along_dir;
-        vec2 g = (-4.0f * depth * (1.0f - qa * qa) * qa / width) * d_off;
-        // The hang is -h: store in best_vertical (world) and clear the lattice-frame part.
-        best_gradient = vec2(0.0f);
-        best_vertical = vec3(-g.x, 0.0f, -g.y);
-      }
-    }
-  }
-  // Under a ceiling the winner hangs (down), on a floor it stands (up).
-  r.hang = under > 0.0f || drape_zone > 0.0f ? -best : best;
-  r.hang_gradient =
-      vec3(kReliefTurnCos * best_gradient.x + kReliefTurnSin * best_gradient.y, 0.0f,
-           kReliefTurnCos * best_gradient.y - kReliefTurnSin * best_gradient.x) +
-      best_vertical;
-  r.spike = max(r.spike, best > 0.0f ? clamp(best / best_length, 0.0f, 1.0f) : 0.0f);
-  r.occlusion = max(broad * (1.0f - crevice) * (1.0f - min(kReliefFoot * feet, 0.7f)),
-                    kReliefOcclusionMin);
+  r.occlusion = max(broad * (1.0f - crevice), kReliefOcclusionMin);
   return r;
 }
 
 // The relief itself (relief_at_sampled, sampled exactly).
-RELIEF_FN Relief relief_at(vec3 p, vec3 n, float roughness, float rim, float room_radius,
-                           float strength) {
-  return relief_at_sampled(p, n, roughness, rim, room_radius, strength, 0.0f);
+RELIEF_FN Relief relief_at(vec3 p, vec3 n, float roughness, float rim, float strength) {
+  return relief_at_sampled(p, n, roughness, rim, strength, 0.0f);
 }
 
 // The unit normal of the surface after relief: the patch normal tilted against the height's
@@ -624,22 +347,9 @@ RELIEF_FN vec3 relief_normal(vec3 n, vec3 gradient) {
   return normalize(n - tangential);
 }
 
-// The unit normal of the surface p + n * height(p) + (0, hang(p), 0) over a locally flat patch
-// with unit normal n: the cross product of the displaced surface's derivatives along a tangent
-// frame of n (any right-handed frame gives the same normal). Without hang it is relief_normal.
-RELIEF_FN vec3 relief_displaced_normal(vec3 n, vec3 gradient, vec3 hang_gradient) {
-  vec3 axis = abs(n.y) < 0.9f ? vec3(0.0f, 1.0f, 0.0f) : vec3(1.0f, 0.0f, 0.0f);
-  vec3 t1 = normalize(cross(axis, n));
-  vec3 t2 = cross(n, t1);
-  vec3 up = vec3(0.0f, 1.0f, 0.0f);
-  vec3 d1 = t1 + n * dot(gradient, t1) + up * dot(hang_gradient, t1);
-  vec3 d2 = t2 + n * dot(gradient, t2) + up * dot(hang_gradient, t2);
-  return normalize(cross(d1, d2));
-}
-
-// Where the relief puts the surface point p (patch normal n): p + n * height + (0, hang, 0).
+// Where the relief puts the surface point p (patch normal n): p + n * height.
 RELIEF_FN vec3 relief_displace(vec3 p, vec3 n, Relief r) {
-  return p + n * r.height + vec3(0.0f, r.hang, 0.0f);
+  return p + n * r.height;
 }
 
 // A PN triangle (Vlachos et al. 2001) at barycentric w over corners p and normals n: the curved

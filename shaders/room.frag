@@ -24,6 +24,7 @@ in float t_occlusion;
 in vec3 t_warp;
 in float t_rock;
 in float t_spacing;
+in vec3 t_haze;  // lights.glsl's lights_haze at the vertices (room.tese, formation.vert)
 
 layout(location = 0) out vec4 frag_color;
 
@@ -154,7 +155,7 @@ void main() {
   // The haze's light, tone-mapped but not gamma-encoded before it is screened over the picture:
   // encoded, a faint veil (0.05 linear) read as a quarter of the way to white, and within a few
   // metres of a light the whole view went milky.
-  vec3 haze = aces(lights_haze(u_camera, t_position) * u_exposure);
+  vec3 haze = aces(t_haze * u_exposure);
 
   vec3 display = pow(aces(color * u_exposure), vec3(1.0 / 2.2));
   float fog = smoothstep(u_fog_start, u_fog_end, dist);

@@ -36,10 +36,7 @@ uniform bool u_patch_culling;    // discard patches that are provably invisible
 uniform vec4 u_frustum[6];       // unit-normal planes (anchor-relative), inside positive
 uniform int u_surface;           // 0 flat, 1 PN triangles, 2 Phong tessellation (room.tese)
 uniform float u_relief_margin;   // metres the relief can move the surface (relief_bound)
-uniform float u_displacement;    // room.tese's relief strength and room radius
-uniform float u_room_radius;
 
-#pragma grotto_include "relief.glsl"
 #pragma grotto_include "lod.glsl"
 
 float distance_level(vec3 a, vec3 b) {
@@ -78,38 +75,17 @@ float edge_level(int i, int j) {
 // control point is within a third of an edge (edge points) or half the longest edge (the centre)
 // of the flat triangle, and the patch lies in their convex hull. Phong tessellation: a projection
 // onto a vertex's tangent plane moves a point by at most its distance to that vertex, at most the
-// longest edge. The relief: relief.glsl's relief_bound for this room, from the renderer.
+// longest edge. The relief: relief.glsl's relief_bound (the rock and flowstone along the normal;
+// the formations are instances of their own, culled apart: renderer.cpp).
 float surface_margin(vec3 p0, vec3 p1, vec3 p2) {
   vec3 e0 = p1 - p0, e1 = p2 - p1, e2 = p0 - p2;
   float longest = sqrt(max(dot(e0, e0), max(dot(e1, e1), dot(e2, e2))));
-  // A column's side reaches metres, but only from level ceilings and floors: other patches keep
-  // the margin of the rock, flowstone and speleothems (relief.glsl, relief_level_possible).
-  float relief = u_relief_margin;
-  if (!relief_level_possible(normalize(v_normal[0]), normalize(v_normal[1]),
-                             normalize(v_normal[2])))
-    relief = min(relief, relief_bound_without_columns(u_displacement, u_room_radius));
-  return (u_surface == 0 ? 0.0 : longest) + relief + 0.01;
+  return (u_surface == 0 ? 0.0 : longest) + u_relief_margin + 0.01;
 }
 
-// surface_margin split as the renderer culls rooms (client/render, Margin): the surface lies within
-// `around` of the flat triangle in any direction, moved further by at most `vertical` up or down
-// (the speleothems and columns hang along gravity; the rock and flowstone move along the normal).
-// For the frustum test, which only needs the distance along each plane's normal, that is tighter
-// than one isotropic margin at the frustum's sides.
-void frustum_margins(vec3 p0, vec3 p1, vec3 p2, out float around, out float vertical) {
-  vec3 e0 = p1 - p0, e1 = p2 - p1, e2 = p0 - p2;
-  float longest = sqrt(max(dot(e0, e0), max(dot(e1, e1), dot(e2, e2))));
-  vertical = relief_hang_bound(u_displacement, u_room_radius);
-  if (!relief_level_possible(normalize(v_normal[0]), normalize(v_normal[1]),
-                             normalize(v_normal[2])))
-    vertical = min(vertical, u_displacement * relief_spike_length(u_room_radius));
-  around = (u_surface == 0 ? 0.0 : longest) + relief_normal_bound(u_displacement) + 0.01;
-}
-
-bool outside_frustum(vec3 p0, vec3 p1, vec3 p2, float around, float vertical) {
+bool outside_frustum(vec3 p0, vec3 p1, vec3 p2, float margin) {
   for (int k = 0; k < 6; ++k) {
-    vec4 plane = u_frustum[k];
-    float margin = around + abs(plane.y) * vertical;  // unit normals
+    vec4 plane = u_frustum[k];  // unit normals
     if (dot(plane.xyz, p0) + plane.w < -margin && dot(plane.xyz, p1) + plane.w < -margin &&
         dot(plane.xyz, p2) + plane.w < -margin)
       return true;
@@ -127,11 +103,9 @@ bool outside_frustum(vec3 p0, vec3 p1, vec3 p2, float around, float vertical) {
 // `margin` behind every vertex's tangent plane: vertex normals average the faces around the
 // vertex, so no ridge that faces the camera meets the patch. A degenerate triangle gives NaN, and
 // NaN comparisons never cull.
-// Speleothems are steep cones up to ~2 m long: where one pokes through thin rock into a
-// neighbouring room, its sides face a camera behind the base plane at grazing angles. The
-// back-facing test therefore asks for kBackMargins margins (measured: 1 or 2 leave a pixel of
-// such tips in the patch-culling test, 3 none; it still culls ~58 % of the triangles).
-const float kBackMargins = 3.0;
+// The relief's bumps reach ~80 degrees of slope: a camera just behind the base plane can see the
+// side of one at a grazing angle, so the back-facing test asks for kBackMargins margins.
+const float kBackMargins = 2.0;
 bool facing_away(vec3 p0, vec3 p1, vec3 p2, float margin) {
   vec3 n = normalize(cross(p1 - p0, p2 - p0));
   if (!(dot(u_camera - p0, n) < -margin)) return false;
@@ -149,10 +123,8 @@ void main() {
   if (gl_InvocationID == 0) {
     vec3 p0 = v_position[0], p1 = v_position[1], p2 = v_position[2];
     if (u_patch_culling) {
-      float around, vertical;
-      frustum_margins(p0, p1, p2, around, vertical);
-      if (outside_frustum(p0, p1, p2, around, vertical) ||
-          facing_away(p0, p1, p2, kBackMargins * surface_margin(p0, p1, p2))) {
+      float margin = surface_margin(p0, p1, p2);
+      if (outside_frustum(p0, p1, p2, margin) || facing_away(p0, p1, p2, kBackMargins * margin)) {
         gl_TessLevelOuter[0] = 0.0;
         gl_TessLevelOuter[1] = 0.0;
         gl_TessLevelOuter[2] = 0.0;

@@ -1,8 +1,7 @@
 // Room tessellation evaluation shader: PN triangles (Vlachos et al. 2001) or Phong tessellation
 // (Boubekeur & Alexa 2008) over the patch, then the rock's relief (shaders/relief.glsl: warped fBm
-// and ridged rock steered by the roughness channel and flowstone on walls, along the normal;
-// stalactites and stalagmites along the vertical, thesis §5.5). Normals after displacement come
-// from the relief's analytic gradients (relief_displaced_normal).
+// and ridged rock steered by the roughness channel and flowstone on walls, along the normal).
+// Normals after displacement come from the relief's analytic gradients (relief_normal).
 //
 // Watertightness: a vertex on a patch edge is evaluated from that edge's two endpoints only, in a
 // canonical order (the lexicographically smaller position first), with `precise` arithmetic, so
@@ -28,19 +27,20 @@ out float t_occlusion;  // relief.glsl's Relief::occlusion (1 without relief)
 out vec3 t_warp;        // Relief::warp, Relief::rock and the step the relief was sampled at:
 out float t_rock;       // room.frag adds the rock's octaves the mesh could not carry
 out float t_spacing;    // (relief_rock_detail)
+out vec3 t_haze;        // the lit haze between the eye and this vertex (lights.glsl), linear
 
 uniform mat4 u_view_proj;      // anchor-relative world to clip space
 uniform vec3 u_anchor;         // the anchor in world space (noise is world-space)
 uniform int u_surface;         // 0 flat, 1 PN triangles, 2 Phong tessellation
 uniform float u_phong_alpha;   // Phong tessellation shape factor (0.75 in the paper)
 uniform float u_displacement;  // relief strength: 1 the designed relief, 0 none
-uniform float u_room_radius;   // the room's sphere radius: speleothems grow with it
 // With lod.glsl's uniforms, what it takes to know the step the relief is sampled at:
 uniform float u_patch_edge;    // the room's median patch edge, metres (0: sample exactly)
 uniform vec3 u_camera;         // anchor-relative
 
 #pragma grotto_include "relief.glsl"
 #pragma grotto_include "lod.glsl"
+#pragma grotto_include "lights.glsl"
 
 // ---- surfaces ----
 
@@ -136,7 +136,7 @@ Sample interior(vec3 w) {
 
 // The tessellation's step near anchor-relative point p: the room's median patch edge over the level
 // room.tesc gives an edge there (the silhouette heuristic's full level, its finest), so the
-// relief draws no spike or curtain narrower than the mesh can carry (relief_at_sampled). A
+// relief draws no octave finer than the mesh can carry (relief_at_sampled). A
 // function of the point and uniforms alone: the patches that share a vertex give it the same
 // step, and the same displacement.
 float sample_spacing(vec3 p) {
@@ -163,12 +163,12 @@ void main() {
 
   precise vec3 world = s.position + u_anchor;
   float spacing = sample_spacing(s.position);
-  Relief r = relief_at_sampled(world, s.normal, s.roughness, s.rim, u_room_radius, u_displacement,
-                               spacing);
-  // Rock and flowstone along the normal, speleothems plumb (relief_displace).
-  precise vec3 displaced = s.position + s.normal * r.height + vec3(0.0, r.hang, 0.0);
+  Relief r = relief_at_sampled(world, s.normal, s.roughness, s.rim, u_displacement, spacing);
+  // Rock and flowstone along the normal (relief_displace); the formations are instances of
+  // their own (formation.vert).
+  precise vec3 displaced = s.position + s.normal * r.height;
   t_position = displaced;
-  t_normal = relief_displaced_normal(s.normal, r.gradient, r.hang_gradient);
+  t_normal = relief_normal(s.normal, r.gradient);
   t_mineral = s.mineral;
   t_cavity = r.cavity;
   t_spike = r.spike;
@@ -176,5 +176,8 @@ void main() {
   t_warp = r.warp;
   t_rock = r.rock;
   t_spacing = spacing;
+  // The haze varies over metres along the view: per tessellated vertex (a few pixels apart), not
+  // per pixel, where its loop over the lights cost as much as their shading.
+  t_haze = lights_haze(u_camera, displaced);
   gl_Position = u_view_proj * vec4(displaced, 1.0);
 }

@@ -102,18 +102,14 @@ RegionMeshes build_meshes(const grotto::cave::World& world, const grotto::cave::
 // The relief baked into every built mesh (shaders/relief_bake.hpp).
 void bake_meshes(const grotto::cave::Region& region, RegionMeshes& meshes) {
   size_t next = 0, moved = 0;
-  double largest = 0, hang = 0;
+  double largest = 0;
   for (size_t i = 0; i < region.rooms.size(); ++i) {
     if (!meshes.errors[i].empty()) continue;
-    grotto::relief::BakeStats s =
-        grotto::relief::bake_relief(meshes.built[next++], region.rooms[i]);
+    grotto::relief::BakeStats s = grotto::relief::bake_relief(meshes.built[next++]);
     moved += s.moved;
     largest = std::max(largest, s.largest);
-    hang = std::max(hang, s.largest_hang);
   }
-  spdlog::info(
-      "event=relief_baked meshes={} vertices={} largest_m={:.2f} longest_speleothem_m={:.2f}", next,
-      moved, largest, hang);
+  spdlog::info("event=relief_baked meshes={} vertices={} largest_m={:.2f}", next, moved, largest);
 }
 
 // glTF 2.0 binary: every room of the region a node, with its mesh where it could be built.

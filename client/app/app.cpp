@@ -4,6 +4,7 @@
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -191,6 +192,9 @@ Session::Session(const Options& o, render::Renderer& r, render::Overlay& ov,
   render_options.exposure = static_cast<float>(o.exposure);
   render_options.headlamp = !o.no_headlamp;
   render_options.ambient_occlusion = !o.no_ao;
+  render_options.formations = !o.no_formations;
+  // Benchmarks and screenshot reports time each pass on the GPU (passes_ms).
+  render_options.gpu_timing = o.bench_s.has_value() || !o.json.empty();
   if (o.no_fine_detail) render_options.fine_detail = 0;
   show_overlay = o.overlay.value_or(o.screenshot.empty() && !o.bench_s);
 }
@@ -458,6 +462,8 @@ int screenshot(Session& s, render::Framebuffer& fb, Clock::time_point deadline) 
     report.rooms_drawn = stats.rooms_drawn;
     report.relief = s.render_options.tessellation && s.render_options.displacement > 0;
     report.gl_renderer = gl_string(GL_RENDERER);
+    report.formations = stats.formations;
+    report.passes = stats.passes;
     std::ofstream out(o.json);
     out << screenshot_json(report);
     out.close();
@@ -468,19 +474,28 @@ int screenshot(Session& s, render::Framebuffer& fb, Clock::time_point deadline) 
 
 int bench(Session& s, render::Framebuffer& fb, Clock::time_point deadline) {
   const Options& o = s.options;
-  if (!wait_until(s, deadline, "path_wait", [&] { return try_plan_path(s); }))
-    return fail("--bench: the scripted path's rooms did not arrive within --wait " +
-                std::to_string(o.wait_s) + " s");
-  // Every room of the path on the GPU and the surroundings of its start, as --screenshot waits.
-  follow_path(s, 0);
-  wait_until(s, deadline, "bench_wait", [&] {
-    for (cave::RoomId id : s.path->rooms())
-      if (!s.cache.contains(id)) return false;
-    return surroundings_ready(s, s.camera.position);
-  });
+  if (o.hold) {
+    // The start pose held: its surroundings loaded, as --screenshot waits for them.
+    if (!wait_until(s, deadline, "bench_wait",
+                    [&] { return s.placed && surroundings_ready(s, s.camera.position); }))
+      return fail("--bench --hold: the rooms round the pose did not arrive within --wait " +
+                  std::to_string(o.wait_s) + " s");
+  } else {
+    if (!wait_until(s, deadline, "path_wait", [&] { return try_plan_path(s); }))
+      return fail("--bench: the scripted path's rooms did not arrive within --wait " +
+                  std::to_string(o.wait_s) + " s");
+    // Every room of the path on the GPU and the surroundings of its start, as --screenshot waits.
+    follow_path(s, 0);
+    wait_until(s, deadline, "bench_wait", [&] {
+      for (cave::RoomId id : s.path->rooms())
+        if (!s.cache.contains(id)) return false;
+      return surroundings_ready(s, s.camera.position);
+    });
+  }
 
   std::vector<double> frame_ms;
-  double patches = 0;
+  double patches = 0, formations = 0;
+  std::array<std::vector<double>, 4> passes;  // FrameStats::Passes in its order
   const auto begin = Clock::now();
   std::fprintf(stderr, "grotto-client: bench: %zu rooms loaded; measuring %g s of frames\n",
                s.cache.size(), *o.bench_s);
@@ -493,10 +508,18 @@ int bench(Session& s, render::Framebuffer& fb, Clock::time_point deadline) {
                    *o.bench_s, frame_ms.size());
     }
     const auto frame_start = Clock::now();
-    follow_path(s, seconds_since(begin));
-    pump(s, kPathSpeed);
+    if (!o.hold) follow_path(s, seconds_since(begin));
+    pump(s, o.hold ? 0.0 : kPathSpeed);
     fb.bind();
-    patches += static_cast<double>(draw_frame(s, o.width, o.height).patches);
+    const render::FrameStats stats = draw_frame(s, o.width, o.height);
+    patches += static_cast<double>(stats.patches);
+    formations += stats.formations;
+    if (stats.passes.timed) {
+      passes[0].push_back(stats.passes.rock);
+      passes[1].push_back(stats.passes.formations);
+      passes[2].push_back(stats.passes.caps);
+      passes[3].push_back(stats.passes.post);
+    }
     glFinish();  // the frame's GPU work belongs to its time (llvmpipe renders here)
     frame_ms.push_back(1000 * seconds_since(frame_start));
   }
@@ -514,8 +537,16 @@ int bench(Session& s, render::Framebuffer& fb, Clock::time_point deadline) {
   report.gl_renderer = gl_string(GL_RENDERER);
   report.gl_version = gl_string(GL_VERSION);
   report.patches_mean = frame_ms.empty() ? 0 : patches / static_cast<double>(frame_ms.size());
-  report.path_length_m = s.path->length();
-  report.path_rooms = s.path->rooms().size();
+  report.formations_mean = frame_ms.empty() ? 0 : formations / static_cast<double>(frame_ms.size());
+  static constexpr const char* kPassNames[4] = {"rock", "formations", "caps", "post"};
+  for (size_t k = 0; k < passes.size(); ++k) {
+    std::vector<double>& v = passes[k];
+    if (v.empty()) continue;
+    std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2), v.end());
+    report.passes_ms.emplace_back(kPassNames[k], v[v.size() / 2]);
+  }
+  report.path_length_m = o.hold ? 0.0 : s.path->length();
+  report.path_rooms = o.hold ? 0 : s.path->rooms().size();
   std::printf("%s\n", bench_line(report).c_str());
   if (!o.json.empty()) {
     std::ofstream out(o.json);

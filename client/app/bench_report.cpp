@@ -47,7 +47,7 @@ std::string bench_line(const BenchReport& r) {
 }
 
 std::string bench_json(const BenchReport& r) {
-  const nlohmann::json j = {
+  nlohmann::json j = {
       {"frames", r.frames},
       {"seconds", r.seconds},
       {"mean_ms", r.mean_ms},
@@ -68,9 +68,13 @@ std::string bench_json(const BenchReport& r) {
       {"gl_version", r.gl_version},
       {"rooms_loaded", r.rooms_loaded},
       {"patches_mean", r.patches_mean},
+      {"formations", r.formations_mean},
       {"path_length_m", r.path_length_m},
       {"path_rooms", r.path_rooms},
   };
+  j["passes_ms"] = nlohmann::json::object();
+  for (const auto& [name, ms] : r.passes_ms)
+    j["passes_ms"][name] = ms;
   return j.dump(2) + "\n";
 }
 

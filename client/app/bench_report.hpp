@@ -4,6 +4,7 @@
 
 #include <cstddef>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace grotto::app {
@@ -23,7 +24,11 @@ struct BenchReport {
   std::string gl_renderer;  // GL_RENDERER, e.g. "llvmpipe (LLVM 15.0.6, 256 bits)"
   std::string gl_version;   // GL_VERSION
   size_t rooms_loaded = 0;
-  double patches_mean = 0;  // triangles submitted per frame
+  double patches_mean = 0;     // triangles submitted per frame
+  double formations_mean = 0;  // formation instances drawn per frame
+  // GPU milliseconds per pass, the median over the frames (GL timer queries: render::FrameStats::
+  // Passes): rock, formations, caps, post. Empty where the queries gave nothing.
+  std::vector<std::pair<std::string, double>> passes_ms;
   double path_length_m = 0;
   size_t path_rooms = 0;
 };

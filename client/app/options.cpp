@@ -126,6 +126,9 @@ std::optional<int> parse_options(int argc, char** argv, Options& o) {
                  "Headless: render the scripted path (--flythrough's) for this many seconds at "
                  "--width x --height once its rooms are loaded, print frame-time statistics "
                  "(frames, mean, median, p95, p99, max ms, fps) and exit");
+  app.add_flag("--hold", o.hold,
+               "With --bench: hold the start pose (--pose) instead of following the path: the "
+               "frame cost of one view (a hall, a ceiling close up)");
   app.add_option("--token-file", o.token_file,
                  "File whose first line (trimmed) is the deployment's shared-secret token, sent in "
                  "hello; without it $GROTTO_TOKEN is used; with neither no token is sent")
@@ -141,14 +144,15 @@ std::optional<int> parse_options(int argc, char** argv, Options& o) {
                "Draw every loaded room in the view frustum instead of the rooms seen through "
                "portals (O toggles)");
   app.add_flag("--no-displacement", o.no_displacement,
-               "Tessellate without the rock's relief (no displacement, stalactites or "
-               "stalagmites; X toggles)");
+               "Tessellate without the rock's relief (no displacement; X toggles)");
+  app.add_flag("--no-formations", o.no_formations,
+               "Draw no stalactites, stalagmites or columns (the formations' instances)");
   app.add_flag("--no-fine-detail", o.no_fine_detail,
                "No fine detail on the rock (the grain, pits and joints below 5 cm that the "
                "shading adds, faded with distance; J toggles)");
   app.add_flag("--no-ao", o.no_ao,
-               "No ambient occlusion (the relief's crevices and the feet of stalagmites, "
-               "stalactites and columns darken; K toggles)");
+               "No ambient occlusion (the relief's crevices and the roots of formations "
+               "darken; K toggles)");
   app.add_flag("--no-bloom", o.no_bloom, "No glow around the mineral veins (B toggles)");
   app.add_flag("--no-motion-blur", o.no_motion_blur,
                "No blur along the camera's motion (M toggles)");
@@ -227,6 +231,8 @@ std::optional<int> parse_options(int argc, char** argv, Options& o) {
   if (o.bench_s && !(std::isfinite(*o.bench_s) && *o.bench_s > 0 && *o.bench_s <= 3600))
     return fail("--bench must be a number of seconds in (0, 3600] (got " + number(*o.bench_s) +
                 ")");
+  if (o.hold && !(o.bench_s && o.pose_text.size()))
+    return fail("--hold is for --bench with --pose (it holds that pose)");
   if (o.bench_s && !o.screenshot.empty())
     return fail("--bench and --screenshot are separate runs: give one of them");
   if (o.gl != "auto" && o.gl != "glfw" && o.gl != "egl")

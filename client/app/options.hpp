@@ -41,6 +41,7 @@ struct Options {
   play::Mode mode = play::Mode::kWalk;
   std::optional<double> flythrough_s;  // time along the scripted path
   std::optional<double> bench_s;       // seconds of frames to measure
+  bool hold = false;                   // --bench at the start pose, not along the path
   std::string json;                    // --bench or --screenshot report
   std::string token_file;
   std::string token;            // from token_file or $GROTTO_TOKEN; empty: none
@@ -49,6 +50,7 @@ struct Options {
   render::LodHeuristic lod = render::LodHeuristic::kScreenSpace;
   bool no_portal_culling = false;
   bool no_displacement = false;
+  bool no_formations = false;  // the speleothems' instances (shaders/formations.hpp)
   bool no_bloom = false;
   bool no_motion_blur = false;
   double exposure = 1.0;

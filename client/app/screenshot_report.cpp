@@ -44,7 +44,7 @@ std::string screenshot_json(const ScreenshotReport& r) {
     lights.push_back({{"kind", l.kind},
                       {"position", {l.position.x, l.position.y, l.position.z}},
                       {"range", l.range}});
-  const nlohmann::json j = {
+  nlohmann::json j = {
       {"picture", r.picture},
       {"seed", r.seed ? nlohmann::json(*r.seed) : nlohmann::json(nullptr)},
       {"width", r.width},
@@ -71,7 +71,15 @@ std::string screenshot_json(const ScreenshotReport& r) {
       {"rooms_drawn", r.rooms_drawn},
       {"relief", r.relief},
       {"gl_renderer", r.gl_renderer},
+      {"formations", r.formations},
   };
+  if (r.passes.timed)
+    j["passes_ms"] = {{"rock", r.passes.rock},
+                      {"formations", r.passes.formations},
+                      {"caps", r.passes.caps},
+                      {"post", r.passes.post}};
+  else
+    j["passes_ms"] = nullptr;
   return j.dump(2) + "\n";
 }
 

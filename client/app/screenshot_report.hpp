@@ -47,6 +47,8 @@ struct ScreenshotReport {
   int rooms_drawn = 0;
   bool relief = true;
   std::string gl_renderer;
+  int formations = 0;                 // formation instances drawn in the last frame
+  render::FrameStats::Passes passes;  // its GPU time per pass (passes_ms; null untimed)
 };
 
 std::string screenshot_json(const ScreenshotReport& report);

@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "mesh/rim.hpp"
+#include "shaders/formations.hpp"
 #include "shaders/relief.hpp"
 
 namespace grotto::play {
@@ -112,9 +113,29 @@ void CollisionWorld::add(const client::ReadyRoom& ready) {
     r.rim.push_back(slot >= 0 ? 1.0f : 0.0f);
   r.rim.resize(mesh.vertex_count(), 0.0f);
   r.indices = mesh.indices;
-  r.relief_reach = relief::relief_normal_bound(relief_strength_);
-  r.relief_reach_y =
-      relief::relief_bound(relief_strength_, static_cast<float>(ready.room.sphere.radius));
+  r.relief_reach = relief::relief_bound(relief_strength_);
+  // The formations as simple shapes: each a six-sided hull round what is drawn.
+  if (relief_strength_ > 0 && formations_) {
+    for (const formations::FormationShape& f :
+         formations::place(formations::surface_of(mesh, ready.origin, ready.room.sphere.radius))) {
+      Formation hull;
+      const std::vector<glm::vec3> points = formations::collision_hull(f);
+      hull.lo = hull.hi = r.origin + Vec3{points[0].x, points[0].y, points[0].z};
+      for (size_t i = 0; i + 2 < points.size(); i += 3) {
+        Triangle t;
+        Vec3* corner[3] = {&t.a, &t.b, &t.c};
+        for (int k = 0; k < 3; ++k) {
+          const glm::vec3& q = points[i + static_cast<size_t>(k)];
+          *corner[k] = r.origin + Vec3{q.x, q.y, q.z};
+          for (int a = 0; a < 3; ++a)
+            hull.lo[a] = std::min(hull.lo[a], (*corner[k])[a]),
+            hull.hi[a] = std::max(hull.hi[a], (*corner[k])[a]);
+        }
+        hull.triangles.push_back(t);
+      }
+      r.formations.push_back(std::move(hull));
+    }
+  }
   r.refined_at.assign(r.indices.size() / 3, 0);
   r.refined_count.assign(r.indices.size() / 3, 0);
   if (mesh.vertex_count() == 0) lo = hi = Vec3{};
@@ -174,7 +195,6 @@ std::span<const Triangle> CollisionWorld::refined(const Room& room, uint32_t t) 
   }
   const glm::vec3 origin{static_cast<float>(room.origin.x), static_cast<float>(room.origin.y),
                          static_cast<float>(room.origin.z)};
-  const float radius = static_cast<float>(room.room.sphere.radius);
   const bool planar = n[0] == n[1] && n[1] == n[2];
   room.refined_at[t] = static_cast<uint32_t>(room.refined.size() + 1);
   if (planar && relief_strength_ == 0) {
@@ -186,8 +206,7 @@ std::span<const Triangle> CollisionWorld::refined(const Room& room, uint32_t t) 
     return {&room.refined.back(), 1};
   }
   // The drawn surface at barycentric (i, j, kRefine - i - j) / kRefine, as room.tese makes it
-  // with PN triangles: the patch point, then the relief (along the interpolated normal, and
-  // speleothems vertically).
+  // with PN triangles: the patch point, then the relief along the interpolated normal.
   Vec3 grid[kRefine + 1][kRefine + 1];
   for (int i = 0; i <= kRefine; ++i) {
     for (int j = 0; i + j <= kRefine; ++j) {
@@ -198,14 +217,14 @@ std::span<const Triangle> CollisionWorld::refined(const Room& room, uint32_t t) 
       const float roughness = rough[0] * w.x + rough[1] * w.y + rough[2] * w.z;
       const float rim_weight = rim[0] * w.x + rim[1] * w.y + rim[2] * w.z;
       const relief::Relief r =
-          relief::relief_at(at + origin, normal, roughness, rim_weight, radius, relief_strength_);
+          relief::relief_at(at + origin, normal, roughness, rim_weight, relief_strength_);
       // The flat interpolation in double, then the PN bulge and the relief as float offsets
       // from it: a flat triangle far from the origin stays exact. (Equal normals make the PN
       // patch the flat triangle; float rounding would only add noise.)
       const glm::vec3 flat = p[0] * w.x + p[1] * w.y + p[2] * w.z;
       const glm::vec3 bulge = planar ? glm::vec3(0.0f) : at - flat;
-      // relief_displace's offsets: rock along the normal, speleothems plumb.
-      const glm::vec3 q = bulge + normal * r.height + glm::vec3(0.0f, r.hang, 0.0f);
+      // relief_displace's offset: the rock along the normal.
+      const glm::vec3 q = bulge + normal * r.height;
       Vec3 base{};
       for (int k = 0; k < 3; ++k)
         base = base + Vec3{p[k].x, p[k].y, p[k].z} * static_cast<double>(w[k]);
@@ -234,15 +253,18 @@ void CollisionWorld::gather(Vec3 lo, Vec3 hi, Neighbourhood& out) const {
       if (boxes_overlap(lo, hi, portal.centre - extent, portal.centre + extent))
         out.walls.push_back({portal.centre, portal.normal, reach});
     }
-    // The relief moves the surface up to relief_reach sideways and relief_reach_y vertically
-    // from the patch triangles the grid holds (a column reaches metres down, not sideways).
-    const double reach_of[3] = {room.relief_reach, room.relief_reach_y, room.relief_reach};
-    const Vec3 extent{room.bound_radius + reach_of[0], room.bound_radius + reach_of[1],
-                      room.bound_radius + reach_of[2]};
+    for (const Formation& f : room.formations) {
+      if (!boxes_overlap(lo, hi, f.lo, f.hi)) continue;
+      for (const Triangle& t : f.triangles)
+        out.triangles.push_back(t);
+    }
+    // The relief moves the surface up to relief_reach from the patch triangles the grid holds.
+    const double reach = room.relief_reach;
+    const Vec3 extent{room.bound_radius + reach, room.bound_radius + reach,
+                      room.bound_radius + reach};
     if (!boxes_overlap(lo, hi, room.bound_centre - extent, room.bound_centre + extent)) continue;
     int c_lo[3], c_hi[3];
     for (int i = 0; i < 3; ++i) {
-      const double reach = reach_of[i];
       c_lo[i] = std::max(0, static_cast<int>(std::floor((lo[i] - reach - room.origin[i]) / kCell)) -
                                 room.grid_lo[i]);
       c_hi[i] = std::min(

@@ -1,10 +1,11 @@
 // What the player collides with: the surface grotto-client draws, i.e. each room's patch mesh as
-// PN triangles with the rock's relief on top (shaders/relief.hpp, the shader's own source: rock,
-// flowstone, stalactites, stalagmites), added when client/stream delivers the room and removed
-// when it is evicted, plus a wall over every portal whose neighbour is not loaded, so nobody
-// falls out of the streamed cave. A patch triangle is refined into kRefine x kRefine triangles
-// of that surface the first time a query comes near it (about 14 cm apart: a stalagmite is a
-// solid cone, not a hole), and kept while its room is.
+// PN triangles with the rock's relief on top (shaders/relief.hpp, the shader's own source: rock
+// and flowstone) and its formations as simple hulls (shaders/formations.hpp: stalactites,
+// stalagmites, columns; six sides round what is drawn), added when client/stream delivers the room
+// and removed when it is evicted, plus a wall over every portal whose neighbour is not loaded, so
+// nobody falls out of the streamed cave. A patch triangle is refined into kRefine x kRefine
+// triangles of that surface the first time a query comes near it (about 14 cm apart), and kept
+// while its room is.
 //
 // Precision: a room keeps its decoded room-frame floats and its grid origin (as
 // client/render/room_cache does); triangles leave the world in double (origin + float offset), so
@@ -62,10 +63,17 @@ struct Neighbourhood {
 };
 
 class CollisionWorld {
+  struct Formation {
+    Vec3 lo, hi;
+    std::vector<Triangle> triangles;
+  };
+
  public:
   // relief_strength: RenderOptions::displacement of the surface to collide with (1: as drawn;
   // 0: the PN patch surface alone, e.g. for flat test shapes).
-  explicit CollisionWorld(float relief_strength = 1.0f) : relief_strength_(relief_strength) {}
+  // formations: the rooms' formations collide too (off: the rock alone, for tests of it).
+  explicit CollisionWorld(float relief_strength = 1.0f, bool formations = true)
+      : relief_strength_(relief_strength), formations_(formations) {}
   // Adds the room's patch mesh, replacing a room with the same id.
   void add(const client::ReadyRoom& room);
   void evict(cave::RoomId id);
@@ -87,10 +95,10 @@ class CollisionWorld {
     std::vector<float> roughness;
     std::vector<float> rim;  // 1 on a portal rim, else 0
     std::vector<uint32_t> indices;
-    // Metres the relief can move the surface: sideways (along a normal only) and vertically
-    // (along a normal, and speleothems, draperies and columns, which hang plumb and reach far).
+    // Metres the relief can move the surface along its normal.
     double relief_reach = 0;
-    double relief_reach_y = 0;
+    // The formations' hulls (formations::collision_hull), world metres, each with its box.
+    std::vector<Formation> formations;
     // Patch triangle t's refined_count[t] triangles start at refined[refined_at[t] - 1] (0: not
     // refined yet).
     mutable std::vector<uint32_t> refined_at;
@@ -110,6 +118,7 @@ class CollisionWorld {
   std::span<const Triangle> refined(const Room& room, uint32_t t) const;
 
   float relief_strength_ = 1.0f;
+  bool formations_ = true;
   std::map<cave::RoomId, Room> rooms_;
   mutable std::vector<uint32_t> seen_;  // gather's dedup scratch
 };

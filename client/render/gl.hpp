@@ -67,7 +67,12 @@ struct FramebufferDeleter {
   void operator()(GLuint n) const { glDeleteFramebuffers(1, &n); }
 };
 
+struct QueryDeleter {
+  void operator()(GLuint n) const { glDeleteQueries(1, &n); }
+};
+
 using Buffer = GlName<BufferDeleter>;
+using Query = GlName<QueryDeleter>;
 using VertexArray = GlName<VertexArrayDeleter>;
 using Shader = GlName<ShaderDeleter>;
 using Texture = GlName<TextureDeleter>;

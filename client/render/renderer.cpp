@@ -246,6 +246,64 @@ std::map<cave::RoomId, ScreenRect> reach_through_portals(const GpuRoomCache& cac
 
 }  // namespace
 
+Renderer::RoomUniforms Renderer::locate(const Program& p) {
+  return {p.uniform("u_room_offset"),  p.uniform("u_relief_margin"), p.uniform("u_camera"),
+          p.uniform("u_max_tess"),     p.uniform("u_max_dist"),      p.uniform("u_view_proj"),
+          p.uniform("u_anchor"),       p.uniform("u_surface"),       p.uniform("u_phong_alpha"),
+          p.uniform("u_displacement"), p.uniform("u_fog_color"),     p.uniform("u_fog_start"),
+          p.uniform("u_fog_end"),      p.uniform("u_lamp_range"),    p.uniform("u_lod"),
+          p.uniform("u_pixel_scale"),  p.uniform("u_target_pixels"), p.uniform("u_patch_culling"),
+          p.uniform("u_frustum"),      p.uniform("u_fine_detail"),   p.uniform("u_ao"),
+          p.uniform("u_lamp"),         p.uniform("u_forward"),       p.uniform("u_exposure"),
+          p.uniform("u_glow"),         p.uniform("u_light_count"),   p.uniform("u_light_position"),
+          p.uniform("u_light_color"),  p.uniform("u_light_glow"),    p.uniform("u_light_bound"),
+          p.uniform("u_light_index"),  p.uniform("u_headlamp"),      p.uniform("u_haze"),
+          p.uniform("u_patch_edge")};
+}
+
+void Renderer::draw_formations(const std::vector<const GpuRoom*>& rooms, Vec3 anchor, glm::vec3 eye,
+                               const std::array<glm::vec4, 6>& planes, float pixel_scale,
+                               FrameStats& stats) {
+  // Per instance: 16 floats (formation.vert's i_root, i_size, i_form, i_turn), anchor-relative.
+  std::array<std::vector<float>, kFormationLods> lods;
+  for (const GpuRoom* room : rooms) {
+    const glm::vec3 offset = to_vec3(room->origin - anchor);  // exact: grid values
+    for (const formations::FormationShape& f : room->formations) {
+      const glm::vec3 root = f.root + offset;
+      const float dir = formations::formation_direction(f);
+      const float half = 0.5f * formations::formation_end(f);
+      const glm::vec3 centre = root + glm::vec3(0.0f, dir * half, 0.0f);
+      const float bound = formations::formation_bound_radius(f);
+      const float reach = half + bound;
+      bool outside = false;
+      for (const glm::vec4& p : planes)
+        outside = outside || glm::dot(glm::vec3(p), centre) + p.w < -reach;
+      if (outside) continue;
+      const int l = formations::lod_for(f, glm::distance(centre, eye) - reach, pixel_scale);
+      if (l < 0) continue;
+      lods[static_cast<size_t>(l)].insert(
+          lods[static_cast<size_t>(l)].end(),
+          {root.x, root.y, root.z, f.length, f.radius, f.tip, f.embed, static_cast<float>(f.kind),
+           f.taper, f.flare, f.rings, f.bulbs, f.seed, f.yaw, 0.0f, 0.0f});
+    }
+  }
+  glBindBuffer(GL_ARRAY_BUFFER, formation_instances_.get());
+  for (int l = 0; l < kFormationLods; ++l) {
+    const std::vector<float>& data = lods[static_cast<size_t>(l)];
+    if (data.empty()) continue;
+    const GLsizei count = static_cast<GLsizei>(data.size() / 16);
+    glBufferData(GL_ARRAY_BUFFER, static_cast<GLsizeiptr>(data.size() * sizeof(float)), data.data(),
+                 GL_STREAM_DRAW);
+    glBindVertexArray(formation_lods_[l].vertex_array.get());
+    glDrawElementsInstanced(GL_TRIANGLES, formation_lods_[l].index_count, GL_UNSIGNED_INT, nullptr,
+                            count);
+    stats.formations += count;
+    stats.formation_triangles +=
+        static_cast<size_t>(count) * static_cast<size_t>(formation_lods_[l].index_count / 3);
+  }
+  glBindVertexArray(0);
+}
+
 const char* lod_heuristic_name(LodHeuristic lod) {
   switch (lod) {
     case LodHeuristic::kDistance:
@@ -276,25 +334,51 @@ Result<Renderer> Renderer::create() {
   auto cap = Program::build(cap_stages());
   if (!cap.ok()) return cap.error();
   r.cap_ = std::move(cap).value();
-  const Program& p = r.room_;
-  r.u_ = {p.uniform("u_room_offset"),   p.uniform("u_room_radius"),
-          p.uniform("u_relief_margin"), p.uniform("u_camera"),
-          p.uniform("u_max_tess"),      p.uniform("u_max_dist"),
-          p.uniform("u_view_proj"),     p.uniform("u_anchor"),
-          p.uniform("u_surface"),       p.uniform("u_phong_alpha"),
-          p.uniform("u_displacement"),  p.uniform("u_fog_color"),
-          p.uniform("u_fog_start"),     p.uniform("u_fog_end"),
-          p.uniform("u_lamp_range"),    p.uniform("u_lod"),
-          p.uniform("u_pixel_scale"),   p.uniform("u_target_pixels"),
-          p.uniform("u_patch_culling"), p.uniform("u_frustum"),
-          p.uniform("u_fine_detail"),   p.uniform("u_ao"),
-          p.uniform("u_lamp"),          p.uniform("u_forward"),
-          p.uniform("u_exposure"),      p.uniform("u_glow"),
-          p.uniform("u_light_count"),   p.uniform("u_light_position"),
-          p.uniform("u_light_color"),   p.uniform("u_light_glow"),
-          p.uniform("u_light_bound"),   p.uniform("u_light_index"),
-          p.uniform("u_headlamp"),      p.uniform("u_haze"),
-          p.uniform("u_patch_edge")};
+  r.u_ = locate(r.room_);
+  auto formation = Program::build(formation_stages());
+  if (!formation.ok()) return formation.error();
+  r.formation_ = std::move(formation).value();
+  r.uf_ = locate(r.formation_);
+  // The formations' meshes, finest first: sides round the axis, rings along it.
+  r.formation_instances_ = make_buffer();
+  for (int l = 0; l < kFormationLods; ++l) {
+    FormationLod& lod = r.formation_lods_[l];
+    lod.sides = formations::kLodSides[l];
+    lod.rings = formations::kLodRings[l];
+    std::vector<float> grid;
+    for (int i = 0; i <= lod.rings; ++i)
+      for (int k = 0; k <= lod.sides; ++k)  // the seam's column twice: the angle runs 0 to 2 pi
+        grid.insert(grid.end(), {static_cast<float>(i) / static_cast<float>(lod.rings),
+                                 static_cast<float>(2 * kPi * k / lod.sides)});
+    std::vector<uint32_t> indices;
+    const uint32_t row = static_cast<uint32_t>(lod.sides + 1);
+    for (uint32_t i = 0; i < static_cast<uint32_t>(lod.rings); ++i)
+      for (uint32_t k = 0; k < static_cast<uint32_t>(lod.sides); ++k) {
+        const uint32_t a0 = i * row + k, a1 = a0 + 1, b0 = a0 + row, b1 = b0 + 1;
+        indices.insert(indices.end(), {a0, b0, b1, a0, b1, a1});
+      }
+    lod.vertex_array = make_vertex_array();
+    glBindVertexArray(lod.vertex_array.get());
+    lod.grid = make_static_buffer(GL_ARRAY_BUFFER, grid.data(), grid.size() * sizeof(float));
+    glEnableVertexAttribArray(0);
+    glVertexAttribPointer(0, 2, GL_FLOAT, GL_FALSE, 2 * sizeof(float), nullptr);
+    lod.indices = make_static_buffer(GL_ELEMENT_ARRAY_BUFFER, indices.data(),
+                                     indices.size() * sizeof(uint32_t));
+    lod.index_count = static_cast<GLsizei>(indices.size());
+    glBindBuffer(GL_ARRAY_BUFFER, r.formation_instances_.get());
+    for (GLuint k = 0; k < 4; ++k) {
+      glEnableVertexAttribArray(1 + k);
+      glVertexAttribPointer(1 + k, 4, GL_FLOAT, GL_FALSE, 16 * sizeof(float),
+                            reinterpret_cast<const void*>(k * 4 * sizeof(float)));
+      glVertexAttribDivisor(1 + k, 1);
+    }
+    glBindVertexArray(0);
+  }
+  for (Query& q : r.queries_) {
+    GLuint n = 0;
+    glGenQueries(1, &n);
+    q = Query(n);
+  }
   auto bloom = Program::build(bloom_stages());
   if (!bloom.ok()) return bloom.error();
   r.bloom_ = std::move(bloom).value();
@@ -370,72 +454,88 @@ FrameStats Renderer::draw(const GpuRoomCache& cache, const Camera& camera, int w
   glDisable(GL_CULL_FACE);  // rooms are seen from inside; a thin wall may show its back
   glPolygonMode(GL_FRONT_AND_BACK, o.wireframe ? GL_LINE : GL_FILL);
 
-  room_.use();
-  glUniformMatrix4fv(u_.view_proj, 1, GL_FALSE, glm::value_ptr(view_proj));
-  glUniform3fv(u_.camera, 1, glm::value_ptr(eye));
-  glUniform3fv(u_.anchor, 1, glm::value_ptr(to_vec3(anchor)));
-  glUniform1f(u_.max_tess, o.tessellation ? std::clamp(o.max_tess, 1.0f, 64.0f) : 1.0f);
-  glUniform1f(u_.max_dist, std::max(o.max_dist, 1e-3f));
-  glUniform1i(u_.surface, o.tessellation ? static_cast<int>(o.surface) : 0);
-  glUniform1f(u_.phong_alpha, o.phong_alpha);
   const float relief = o.tessellation ? std::max(o.displacement, 0.0f) : 0.0f;
-  glUniform1f(u_.displacement, relief);
-  glUniform3fv(u_.fog_color, 1, glm::value_ptr(o.fog_color));
-  glUniform1f(u_.fog_start, o.fog_start);
-  glUniform1f(u_.fog_end, o.fog_end);
-  glUniform1f(u_.lamp_range, o.lamp_range);
-  glUniform1f(u_.fine_detail, std::max(o.fine_detail, 0.0f));
-  glUniform1f(u_.ao, o.ambient_occlusion ? 1.0f : 0.0f);
-  glUniform1f(u_.exposure, o.exposure);
-  glUniform1f(u_.glow, o.glow);
-  glUniform3fv(u_.forward, 1, glm::value_ptr(forward));
   // frame_lights: the headlamp first when on (room.frag's own lamp), then the point lights of
   // shaders/lights.glsl.
   const std::vector<Light> lights = frame_lights(camera, o, scene_lights);
   const bool headlamp = !lights.empty() && lights.front().kind == "headlamp";
-  glUniform1f(u_.headlamp, headlamp ? 1.0f : 0.0f);
-  if (headlamp) glUniform3fv(u_.lamp, 1, glm::value_ptr(to_vec3(lights.front().position - anchor)));
-  // The point lights, and for each room drawn the ones that can reach it (lights_for below).
   std::vector<const Light*> points;
-  {
-    std::array<glm::vec4, kMaxFrameLights> position{}, color{}, glow{}, bound{};
-    int n = 0;
-    for (size_t i = headlamp ? 1 : 0; i < lights.size() && n < static_cast<int>(kMaxFrameLights);
-         ++i, ++n) {
-      const Light& l = lights[i];
-      position[n] = glm::vec4(to_vec3(l.position - anchor), std::max(l.range, 1e-3f));
-      color[n] = glm::vec4(l.colour, 0.0f);
-      glow[n] = glm::vec4(l.size, static_cast<float>(l.glow), light_seed(l.position),
-                          std::max(l.source_radius, 0.05f));
-      bound[n] = glm::vec4(to_vec3(l.bound_centre - anchor), std::max(l.bound_radius, 0.0f));
-      points.push_back(&l);
-    }
-    glUniform4fv(u_.light_position, static_cast<GLsizei>(kMaxFrameLights),
-                 glm::value_ptr(position[0]));
-    glUniform4fv(u_.light_color, static_cast<GLsizei>(kMaxFrameLights), glm::value_ptr(color[0]));
-    glUniform4fv(u_.light_glow, static_cast<GLsizei>(kMaxFrameLights), glm::value_ptr(glow[0]));
-    glUniform4fv(u_.light_bound, static_cast<GLsizei>(kMaxFrameLights), glm::value_ptr(bound[0]));
-    glUniform1f(u_.haze, std::max(o.haze, 0.0f));
+  std::array<glm::vec4, kMaxFrameLights> light_position{}, light_color{}, light_glow{},
+      light_bound{};
+  for (size_t i = headlamp ? 1 : 0; i < lights.size() && points.size() < kMaxFrameLights; ++i) {
+    const Light& l = lights[i];
+    const size_t n = points.size();
+    light_position[n] = glm::vec4(to_vec3(l.position - anchor), std::max(l.range, 1e-3f));
+    light_color[n] = glm::vec4(l.colour, 0.0f);
+    light_glow[n] = glm::vec4(l.size, static_cast<float>(l.glow), light_seed(l.position),
+                              std::max(l.source_radius, 0.05f));
+    light_bound[n] = glm::vec4(to_vec3(l.bound_centre - anchor), std::max(l.bound_radius, 0.0f));
+    points.push_back(&l);
   }
-  glUniform1i(u_.lod, static_cast<int>(o.lod));
-  glUniform1f(u_.pixel_scale,
-              static_cast<float>(height) / (2.0f * std::tan(static_cast<float>(camera.fov_y) / 2)));
-  glUniform1f(u_.target_pixels, std::max(o.target_pixels, 0.5f));
-  glUniform1i(u_.patch_culling, o.patch_culling ? 1 : 0);
+  const float pixel_scale =
+      static_cast<float>(height) / (2.0f * std::tan(static_cast<float>(camera.fov_y) / 2));
   auto planes = frustum_planes(view_proj);
   std::array<glm::vec4, 6> unit_planes;
   for (size_t k = 0; k < planes.size(); ++k)
     unit_planes[k] = planes[k] / glm::length(glm::vec3(planes[k]));
-  glUniform4fv(u_.frustum, 6, glm::value_ptr(unit_planes[0]));
+  // What room.frag (and the stages before it) read, the same in the rooms' and the formations'
+  // programs.
+  auto set_frame = [&](const RoomUniforms& u) {
+    glUniformMatrix4fv(u.view_proj, 1, GL_FALSE, glm::value_ptr(view_proj));
+    glUniform3fv(u.camera, 1, glm::value_ptr(eye));
+    glUniform3fv(u.anchor, 1, glm::value_ptr(to_vec3(anchor)));
+    glUniform1f(u.max_tess, o.tessellation ? std::clamp(o.max_tess, 1.0f, 64.0f) : 1.0f);
+    glUniform1f(u.max_dist, std::max(o.max_dist, 1e-3f));
+    glUniform1i(u.surface, o.tessellation ? static_cast<int>(o.surface) : 0);
+    glUniform1f(u.phong_alpha, o.phong_alpha);
+    glUniform1f(u.displacement, relief);
+    glUniform3fv(u.fog_color, 1, glm::value_ptr(o.fog_color));
+    glUniform1f(u.fog_start, o.fog_start);
+    glUniform1f(u.fog_end, o.fog_end);
+    glUniform1f(u.lamp_range, o.lamp_range);
+    glUniform1f(u.fine_detail, std::max(o.fine_detail, 0.0f));
+    glUniform1f(u.ao, o.ambient_occlusion ? 1.0f : 0.0f);
+    glUniform1f(u.exposure, o.exposure);
+    glUniform1f(u.glow, o.glow);
+    glUniform3fv(u.forward, 1, glm::value_ptr(forward));
+    glUniform1f(u.headlamp, headlamp ? 1.0f : 0.0f);
+    if (headlamp)
+      glUniform3fv(u.lamp, 1, glm::value_ptr(to_vec3(lights.front().position - anchor)));
+    if (!points.empty()) {
+      glUniform4fv(u.light_position, static_cast<GLsizei>(kMaxFrameLights),
+                   glm::value_ptr(light_position[0]));
+      glUniform4fv(u.light_color, static_cast<GLsizei>(kMaxFrameLights),
+                   glm::value_ptr(light_color[0]));
+      glUniform4fv(u.light_glow, static_cast<GLsizei>(kMaxFrameLights),
+                   glm::value_ptr(light_glow[0]));
+      glUniform4fv(u.light_bound, static_cast<GLsizei>(kMaxFrameLights),
+                   glm::value_ptr(light_bound[0]));
+      glUniform1f(u.haze, std::max(o.haze, 0.0f));
+    }
+    glUniform1i(u.lod, static_cast<int>(o.lod));
+    glUniform1f(u.pixel_scale, pixel_scale);
+    glUniform1f(u.target_pixels, std::max(o.target_pixels, 0.5f));
+    glUniform1i(u.patch_culling, o.patch_culling ? 1 : 0);
+    glUniform4fv(u.frustum, 6, glm::value_ptr(unit_planes[0]));
+  };
+  // The passes' GPU times (FrameStats::passes), one query at a time.
+  const bool timing = o.gpu_timing && queries_[0];
+  auto begin_pass = [&](int k) {
+    if (timing) glBeginQuery(GL_TIME_ELAPSED, queries_[k].get());
+  };
+  auto end_pass = [&]() {
+    if (timing) glEndQuery(GL_TIME_ELAPSED);
+  };
+  room_.use();
+  set_frame(u_);
+  begin_pass(0);
   glPatchParameteri(GL_PATCH_VERTICES, 3);
 
   // Rooms whose sphere is outside the frustum are skipped. Every vertex of a room lies in its
   // sphere up to vertex_sphere_margin (client/stream/verify.hpp checks it on arrival); PN bulges
   // (0.5 m) and the relief along the normal push surface points out by less than margin.around
-  // more, and the relief's hanging part moves them by less than margin.vertical up or down (any
-  // room: the longest spikes, the columns).
-  const Margin margin{relief::relief_normal_bound(relief) + 0.5f,
-                      relief::relief_hang_bound(relief, 1e9f)};
+  // more. The formations are culled one by one (draw_formations).
+  const Margin margin{relief::relief_bound(relief) + 0.5f, 0.0f};
   std::map<cave::RoomId, ScreenRect> reached;
   if (o.portal_culling) {
     reached = reach_through_portals(cache, camera.position, anchor, view_proj, o.near_plane, margin,
@@ -443,7 +543,22 @@ FrameStats Renderer::draw(const GpuRoomCache& cache, const Camera& camera, int w
     stats.camera_located = !reached.empty();
   }
   std::vector<float> caps;
-  for (const auto& [id, room] : cache.rooms()) {
+  std::vector<const GpuRoom*> drawn;
+  // Nearest first (by the distance to the room's sphere): the rock in front fills the depth buffer
+  // before the rock behind it is shaded, so early depth testing skips most hidden fragments (the
+  // rooms reached through portals overlap on screen).
+  std::vector<std::pair<double, const std::pair<const cave::RoomId, GpuRoom>*>> order;
+  order.reserve(cache.size());
+  for (const auto& entry : cache.rooms()) {
+    const cave::Sphere& sphere = entry.second.room.sphere;
+    order.emplace_back(std::max(length(sphere.centre - camera.position) - sphere.radius, 0.0),
+                       &entry);
+  }
+  std::stable_sort(order.begin(), order.end(),
+                   [](const auto& a, const auto& b) { return a.first < b.first; });
+  for (const auto& [distance, entry] : order) {
+    const cave::RoomId id = entry->first;
+    const GpuRoom& room = entry->second;
     const ScreenRect* rect = nullptr;
     if (stats.camera_located) {
       auto it = reached.find(id);
@@ -472,9 +587,7 @@ FrameStats Renderer::draw(const GpuRoomCache& cache, const Camera& camera, int w
     }
     // Exact: origin and anchor are wire-grid values within 65,536 m of each other.
     glUniform3fv(u_.room_offset, 1, glm::value_ptr(to_vec3(room.origin - anchor)));
-    const float room_radius = static_cast<float>(room.room.sphere.radius);
-    glUniform1f(u_.room_radius, room_radius);
-    glUniform1f(u_.relief_margin, relief::relief_bound(relief, room_radius));
+    glUniform1f(u_.relief_margin, relief::relief_bound(relief));
     glUniform1f(u_.patch_edge, room.patch_edge);
     {
       // Only the lights that can reach this room's rock, or whose haze lies between it and the
@@ -482,7 +595,7 @@ FrameStats Renderer::draw(const GpuRoomCache& cache, const Camera& camera, int w
       // over costs, and most rooms are lit by none or one room's few.
       std::array<GLint, kMaxFrameLights> index{};
       int count = 0;
-      const double reach = radius + margin.around + margin.vertical;
+      const double reach = radius + margin.around;
       for (size_t i = 0; i < points.size(); ++i) {
         const Light& l = *points[i];
         const bool bounded = l.bound_radius > 0;
@@ -499,7 +612,25 @@ FrameStats Renderer::draw(const GpuRoomCache& cache, const Camera& camera, int w
     glDrawElements(GL_PATCHES, room.index_count, GL_UNSIGNED_INT, nullptr);
     ++stats.rooms_drawn;
     stats.patches += static_cast<size_t>(room.index_count) / 3;
+    if (o.formations) drawn.push_back(&room);
   }
+  end_pass();
+
+  // The formations of the rooms drawn, each culled and given its level of detail by its size on
+  // screen.
+  begin_pass(1);
+  if (!drawn.empty()) {
+    formation_.use();
+    set_frame(uf_);
+    glUniform1i(uf_.light_count, static_cast<GLint>(points.size()));
+    std::array<GLint, kMaxFrameLights> identity{};
+    for (size_t i = 0; i < kMaxFrameLights; ++i)
+      identity[i] = static_cast<GLint>(i);
+    glUniform1iv(uf_.light_index, static_cast<GLsizei>(kMaxFrameLights), identity.data());
+    draw_formations(drawn, anchor, eye, unit_planes, pixel_scale, stats);
+  }
+  end_pass();
+  begin_pass(2);
 
   if (!caps.empty()) {
     cap_.use();
@@ -515,6 +646,7 @@ FrameStats Renderer::draw(const GpuRoomCache& cache, const Camera& camera, int w
     glDrawArrays(GL_TRIANGLES, 0, static_cast<GLsizei>(caps.size() / 3));
     glDepthMask(GL_TRUE);
   }
+  end_pass();
   glBindVertexArray(0);
   glPolygonMode(GL_FRONT_AND_BACK, GL_FILL);
 
@@ -528,7 +660,19 @@ FrameStats Renderer::draw(const GpuRoomCache& cache, const Camera& camera, int w
       stats.motion_cut ? view_proj
                        : previous_view_proj_ *
                              glm::translate(glm::mat4(1.0f), to_vec3(anchor - previous_anchor_));
+  begin_pass(3);
   if (posting) post_process(target, width, height, view_proj, previous, o);
+  end_pass();
+  if (timing) {
+    double* out[4] = {&stats.passes.rock, &stats.passes.formations, &stats.passes.caps,
+                      &stats.passes.post};
+    for (int k = 0; k < 4; ++k) {
+      GLuint64 ns = 0;
+      glGetQueryObjectui64v(queries_[k].get(), GL_QUERY_RESULT, &ns);
+      *out[k] = static_cast<double>(ns) * 1e-6;
+    }
+    stats.passes.timed = true;
+  }
   has_previous_ = true;
   previous_camera_ = camera;
   previous_view_proj_ = view_proj;

@@ -7,6 +7,7 @@
 // (shaders/post_*.frag). Needs a GL 4.1 core context current for its whole life.
 #pragma once
 
+#include <array>
 #include <glm/glm.hpp>
 #include <span>
 #include <string>
@@ -16,6 +17,7 @@
 #include "client/render/room_cache.hpp"
 #include "core/result.hpp"
 #include "core/vec3.hpp"
+#include "shaders/formations.hpp"
 
 namespace grotto::render {
 
@@ -60,6 +62,11 @@ struct RenderOptions {
   // Rooms whose rock (sphere, relief and hanging formations) is wholly outside the frustum are
   // not drawn; off only to check and measure that test.
   bool room_culling = true;
+  // The speleothems (shaders/formations.hpp), instanced meshes of their own; off: bare rock.
+  bool formations = true;
+  // Time each pass on the GPU (GL timer queries: FrameStats::passes). Each frame then waits for
+  // its queries: for benchmarks and reports, not for play.
+  bool gpu_timing = false;
   LodHeuristic lod = LodHeuristic::kScreenSpace;  // near relief dense, far relief cheap
   float target_pixels = 6;                        // kScreenSpace: pixels per tessellated segment
   // Fog into darkness: a hall is up to 68 m across, and its far wall, lit by its own lights or a
@@ -101,6 +108,14 @@ struct FrameStats {
   size_t patches = 0;           // triangles submitted as patches
   int caps = 0;                 // fog caps drawn
   bool motion_cut = false;      // no motion blur: first frame, or the camera jumped
+  int formations = 0;           // formation instances drawn
+  size_t formation_triangles = 0;
+  // GPU milliseconds of each pass (RenderOptions::gpu_timing; all 0 without it): the rooms'
+  // tessellated rock (with their lighting), the formations, the fog caps, the post passes.
+  struct Passes {
+    bool timed = false;
+    double rock = 0, formations = 0, caps = 0, post = 0;
+  } passes;
 };
 
 // A light source that lights a frame: what it is ("headlamp", a world light's
@@ -162,10 +177,34 @@ class Renderer {
     Texture bloom_color[2];
   };
   Status ensure_post_targets(int width, int height);
+  // The formations of `rooms` inside the frustum (unit planes, anchor-relative), each at the
+  // level of detail its size on screen asks for; none under a pixel.
+  void draw_formations(const std::vector<const GpuRoom*>& rooms, Vec3 anchor, glm::vec3 eye,
+                       const std::array<glm::vec4, 6>& planes, float pixel_scale,
+                       FrameStats& stats);
   void post_process(GLint target, int width, int height, const glm::mat4& view_proj,
                     const glm::mat4& previous_view_proj, const RenderOptions& options);
 
+  // The uniforms room.frag reads, located in one program (the rooms' or the formations').
+  struct RoomUniforms {
+    GLint room_offset, relief_margin, camera, max_tess, max_dist, view_proj, anchor, surface,
+        phong_alpha, displacement, fog_color, fog_start, fog_end, lamp_range, lod, pixel_scale,
+        target_pixels, patch_culling, frustum, fine_detail, ao, lamp, forward, exposure, glow,
+        light_count, light_position, light_color, light_glow, light_bound, light_index, headlamp,
+        haze, patch_edge;
+  };
+  static RoomUniforms locate(const Program& p);
+  // One formation mesh: rings x sides, drawn instanced.
+  struct FormationLod {
+    VertexArray vertex_array;
+    Buffer grid, indices;
+    GLsizei index_count = 0;
+    int sides = 0, rings = 0;
+  };
+  static constexpr int kFormationLods = formations::kLods;
+
   Program room_;
+  Program formation_;
   Program cap_;
   Program bloom_;
   Program composite_;
@@ -173,13 +212,11 @@ class Renderer {
   Buffer cap_vertices_;
   VertexArray post_vertex_array_;  // empty: post.vert makes its triangle from gl_VertexID
   PostTargets post_;
-  struct RoomUniforms {
-    GLint room_offset, room_radius, relief_margin, camera, max_tess, max_dist, view_proj, anchor,
-        surface, phong_alpha, displacement, fog_color, fog_start, fog_end, lamp_range, lod,
-        pixel_scale, target_pixels, patch_culling, frustum, fine_detail, ao, lamp, forward,
-        exposure, glow, light_count, light_position, light_color, light_glow, light_bound,
-        light_index, headlamp, haze, patch_edge;
-  } u_{};
+  RoomUniforms u_{};
+  RoomUniforms uf_{};  // formation_'s
+  FormationLod formation_lods_[kFormationLods];
+  Buffer formation_instances_;
+  Query queries_[4];  // FrameStats::Passes, in its order
   struct BloomUniforms {
     GLint source, texel, downsample, offset;
   } ub_{};

@@ -14,6 +14,7 @@
 #include "client/render/gl.hpp"
 #include "client/stream/room_store.hpp"
 #include "core/vec3.hpp"
+#include "shaders/formations.hpp"
 
 namespace grotto::render {
 
@@ -42,7 +43,10 @@ struct GpuRoom {
   Buffer indices;
   GLsizei index_count = 0;
   float patch_edge = 0;  // median_edge_length of its mesh
-  size_t bytes = 0;      // GPU bytes of both buffers
+  // Its speleothems (formations::place over its patch mesh), roots in its frame: the renderer
+  // streams the ones it draws each frame as instances.
+  std::vector<formations::FormationShape> formations;
+  size_t bytes = 0;  // GPU bytes of both buffers
 };
 
 class GpuRoomCache {

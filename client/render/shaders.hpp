@@ -8,9 +8,10 @@
 
 namespace grotto::render {
 
-std::vector<ShaderStage> room_stages();  // room.vert, room.tesc, room.tese, room.frag
-std::vector<ShaderStage> cap_stages();   // cap.vert, cap.frag
-std::vector<ShaderStage> text_stages();  // text.vert, text.frag (the overlay)
+std::vector<ShaderStage> room_stages();       // room.vert, room.tesc, room.tese, room.frag
+std::vector<ShaderStage> formation_stages();  // formation.vert, room.frag (speleothem instances)
+std::vector<ShaderStage> cap_stages();        // cap.vert, cap.frag
+std::vector<ShaderStage> text_stages();       // text.vert, text.frag (the overlay)
 // Post passes over a full-screen triangle (post.vert): Kawase bloom and the composite.
 std::vector<ShaderStage> bloom_stages();      // post_bloom.frag: downsample or one Kawase pass
 std::vector<ShaderStage> composite_stages();  // post_composite.frag: motion blur + bloom

@@ -435,7 +435,7 @@ TEST(GrottoClient, screenshot_json_reports_the_view_depth_of_the_room_in_view) {
     const double d = length(m.world_position(i) - eye);
     nearest = std::min(nearest, d), farthest = std::max(farthest, d);
   }
-  const double relief = grotto::relief::relief_bound(1.0f, static_cast<float>(room->sphere.radius));
+  const double relief = grotto::relief::relief_bound(1.0f);
   auto pose = [&](double yaw) {
     char text[128];
     std::snprintf(text, sizeof text, "%.3f,%.3f,%.3f,%.0f,0", eye.x, eye.y, eye.z, yaw);

@@ -133,9 +133,10 @@ TEST(Renderer, screenshots_are_lit_not_blank_and_change_with_tessellation) {
 
 // The GPU carries the detail (issue 15): over poses in two worlds (the biggest room, a cavern;
 // the smallest, a tunnel or passage; looking level, up a shaft or at a ceiling, and down at the
-// floor), the relief changes at least a tenth of the pixels by more than 8/255 at every pose.
-// Relief off is the same tessellated PN surface with displacement strength 0: no tint is switched
-// with it, and the mean brightness stays close (the change is shape and its lighting).
+// floor), the relief and the formations change at least a tenth of the pixels by more than 8/255
+// at every pose. Off is the same tessellated PN surface with displacement strength 0 and no
+// formations: no tint is switched with it, and the mean brightness stays close (the change is
+// shape and its lighting).
 TEST(Renderer, the_relief_changes_a_tenth_of_the_pixels_at_every_pose) {
   REQUIRE_GL();
   int poses = 0;
@@ -162,6 +163,7 @@ TEST(Renderer, the_relief_changes_a_tenth_of_the_pixels_at_every_pose) {
       on.bloom = false;  // the relief alone
       RenderOptions off = on;
       off.displacement = 0;
+      off.formations = false;
       const Camera camera = camera_in(*v.room, v.yaw, v.pitch);
       const Image a = scene.draw(camera, on);
       const Image b = scene.draw(camera, off);
@@ -286,10 +288,8 @@ TEST(Renderer, portal_culling_outside_every_room_draws_everything) {
 }
 
 // Room culling against the frustum never drops a visible room: the same pixels as drawing every
-// loaded room, with fewer rooms drawn. The formations hang along gravity, so the test widens a
-// room's sphere by the relief along the normal and stretches it up and down by their length
-// (relief_test checks each part's bound on its own; these poses pass even without the vertical
-// part, so this test guards the frustum test's sides and signs, not that margin).
+// loaded room, with fewer rooms drawn (the formations of a culled room are culled one by one all
+// the same: each lies within its room's sphere).
 TEST(Renderer, room_culling_draws_fewer_rooms_and_the_same_pixels) {
   REQUIRE_GL();
   Scene scene;

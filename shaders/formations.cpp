@@ -1,0 +1,454 @@
+#include "shaders/formations.hpp"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <map>
+#include <tuple>
+#include <utility>
+
+#include "shaders/relief.hpp"
+
+namespace grotto::formations {
+namespace {
+
+// Where the surface faces, by its triangle's normal: relief.glsl's zones (`under` starts at
+// n.y < -0.3, `ground` at n.y > 0.55).
+constexpr float kCeiling = -0.3f;
+constexpr float kFloor = 0.55f;
+// Closer than this to a portal's rim (the rim weight interpolated over a patch triangle), or on a
+// triangle with a corner on a rim, nothing grows: a portal is no ceiling, and its neighbour does
+// not draw the room's formations.
+constexpr float kRimClear = 0.02f;
+// Drips closer than this to the floor make no formation; below `kColumnGap` metres a column cell
+// joins its floor and ceiling.
+constexpr float kMinGap = 0.4f;
+constexpr float kColumnGap = 4.0f;
+// Of the stalactites shorter than kStrawLength, this share are soda straws: hollow tubes as wide
+// as the drop (3-4.5 mm radius) that have not yet thickened.
+constexpr float kStrawLength = 0.35f;
+constexpr float kStrawShare = 0.6f;
+// A floor's drip point whose ceiling is no ceiling (a wall's overhang, the rock of a room above)
+// still grows a stalagmite with this chance.
+constexpr float kLoneStalagmite = 0.1f;
+
+// The lattice's own hash of cell c with salt k (relief_hash), 0-1.
+float cell_hash(ivec2 c, int salt) {
+  return relief::relief_hash(ivec3(c.x, salt, c.y));
+}
+
+// Where a vertical line through room-frame (x, z) meets one patch triangle.
+struct Hit {
+  float y = 0;   // metres, room frame, on the flat triangle
+  vec3 w{0.0f};  // barycentric
+  uint32_t tri = 0;
+  float facing = 0;  // the triangle's normal's y
+};
+
+// The drawn surface (PN triangle, then the relief along the interpolated normal, exactly as
+// relief_at gives it) at barycentric w of triangle t: position (room frame) and whether it is
+// clear of portal rims.
+struct SurfacePoint {
+  vec3 position{0.0f};
+  vec3 normal{0.0f, 1.0f, 0.0f};
+  bool clear = false;
+};
+
+class Placer {
+ public:
+  explicit Placer(const Surface& s) : s_(s) {
+    origin_ = vec3(static_cast<float>(s.origin.x), static_cast<float>(s.origin.y),
+                   static_cast<float>(s.origin.z));
+    // The triangles over a grid of kGrid-metre cells of the room's xz plane (each in every cell
+    // its box meets), for the heights round a root.
+    const size_t triangles = s.indices.size() / 3;
+    vec2 lo(1e30f), hi(-1e30f);
+    for (const auto& p : s.positions) {
+      lo = min(lo, vec2(p.x, p.z));
+      hi = max(hi, vec2(p.x, p.z));
+    }
+    if (triangles == 0) return;
+    grid_lo_ = lo;
+    dims_ = ivec2((hi - lo) / kGrid) + ivec2(1);
+    cells_.resize(static_cast<size_t>(dims_.x) * static_cast<size_t>(dims_.y));
+    for (uint32_t t = 0; t < triangles; ++t) {
+      vec2 a(1e30f), b(-1e30f);
+      for (int k = 0; k < 3; ++k) {
+        const vec3 p = position(s.indices[3 * t + k]);
+        a = min(a, vec2(p.x, p.z));
+        b = max(b, vec2(p.x, p.z));
+      }
+      const ivec2 ca = cell_of(a), cb = cell_of(b);
+      for (int z = ca.y; z <= cb.y; ++z)
+        for (int x = ca.x; x <= cb.x; ++x)
+          cells_[static_cast<size_t>(z) * static_cast<size_t>(dims_.x) + static_cast<size_t>(x)]
+              .push_back(t);
+    }
+  }
+
+  ivec2 cell_of(vec2 xz) const {
+    return clamp(ivec2(floor((xz - grid_lo_) / kGrid)), ivec2(0), dims_ - ivec2(1));
+  }
+
+  // The height of the drawn surface straight above or below room-frame (x, z), on the sheet of
+  // rock nearest to height `near`: NaN where no triangle lies over (x, z).
+  float height_near(vec2 xz, float near) const {
+    if (cells_.empty()) return std::nanf("");
+    const ivec2 c = cell_of(xz);
+    float best = std::nanf(""), gap = 1e30f;
+    for (uint32_t t : cells_[static_cast<size_t>(c.y) * static_cast<size_t>(dims_.x) +
+                             static_cast<size_t>(c.x)]) {
+      const vec3 w = barycentric(t, xz);
+      if (!(w.x >= -1e-4f && w.y >= -1e-4f && w.z >= -1e-4f)) continue;
+      const std::array<uint32_t, 3> k = corners(t);
+      const float flat = dot(w, vec3(position(k[0]).y, position(k[1]).y, position(k[2]).y));
+      if (!(std::abs(flat - near) < gap)) continue;
+      gap = std::abs(flat - near);
+      best = surface(t, w).position.y;
+    }
+    return best;
+  }
+
+  // Grows f's embedding until the rock round its root (and a column's far end), at the widest
+  // its flare reaches, lies within it: no side of the root shows its end in the air. False where
+  // that would take more than kMaxEmbed (a root on a fold or a pocket's rim) or where the flare
+  // reaches over a portal's opening: no formation there.
+  bool fit_embed(FormationShape& f) const {
+    const float reach = formation_bound_radius(f);
+    const float dir = formation_direction(f);
+    float need = f.embed;
+    const int ends = f.kind == kFormationColumn ? 2 : 1;
+    for (int e = 0; e < ends; ++e) {
+      // The root end grows from rock on the far side of dir; a column's far end the other way.
+      const float y0 = f.root.y + (e == 0 ? 0.0f : dir * f.length);
+      const float into = e == 0 ? -dir : dir;  // the direction of the rock from that end
+      for (int k = 0; k < 8; ++k) {
+        const float a = 0.7853982f * static_cast<float>(k);
+        const vec2 at = vec2(f.root.x, f.root.z) + reach * vec2(std::cos(a), std::sin(a));
+        const float y = height_near(at, y0);
+        if (std::isnan(y)) return false;  // beyond the mesh's edge: a portal's opening
+        need = std::max(need, into * (y - y0) + 0.05f);
+      }
+    }
+    if (need > kMaxEmbed) return false;
+    f.embed = need;
+    return true;
+  }
+
+  static constexpr float kGrid = 1.0f;
+  static constexpr float kMaxEmbed = 3.0f;
+  vec2 grid_lo_{0.0f};
+  ivec2 dims_{0};
+  std::vector<std::vector<uint32_t>> cells_;
+
+  // Triangle t's corners, turned (keeping the winding) so that the lexicographically smallest
+  // position comes first: the same arithmetic whatever order a decoder gave the triangle's
+  // corners in (room.tese orders an edge's ends the same way).
+  std::array<uint32_t, 3> corners(uint32_t t) const {
+    std::array<uint32_t, 3> c = {s_.indices[3 * t], s_.indices[3 * t + 1], s_.indices[3 * t + 2]};
+    auto before = [&](uint32_t a, uint32_t b) {
+      const auto &p = s_.positions[a], &q = s_.positions[b];
+      return std::tie(p.x, p.y, p.z) < std::tie(q.x, q.y, q.z);
+    };
+    int first = 0;
+    for (int k = 1; k < 3; ++k)
+      if (before(c[static_cast<size_t>(k)], c[static_cast<size_t>(first)])) first = k;
+    std::rotate(c.begin(), c.begin() + first, c.end());
+    return c;
+  }
+
+  vec3 position(uint32_t v) const {
+    const auto& p = s_.positions[v];
+    return {p.x, p.y, p.z};
+  }
+  vec3 normal(uint32_t v) const {
+    const auto& n = s_.normals[v];
+    return {n.x, n.y, n.z};
+  }
+
+  SurfacePoint surface(uint32_t t, vec3 w) const {
+    SurfacePoint out;
+    vec3 p[3], n[3];
+    float rough = 0, rim = 0, rim_corner = 0;
+    const std::array<uint32_t, 3> c = corners(t);
+    for (int k = 0; k < 3; ++k) {
+      const uint32_t v = c[static_cast<size_t>(k)];
+      p[k] = position(v);
+      n[k] = normal(v);
+      rough += w[k] * (v < s_.roughness.size() ? s_.roughness[v] : 0.0f);
+      const float on_rim = v < s_.rim_portal.size() && s_.rim_portal[v] >= 0 ? 1.0f : 0.0f;
+      rim += w[k] * on_rim;
+      rim_corner = std::max(rim_corner, on_rim);
+    }
+    const vec3 at = relief::relief_pn_point(p[0], p[1], p[2], n[0], n[1], n[2], w);
+    const vec3 nn = normalize(n[0] * w.x + n[1] * w.y + n[2] * w.z);
+    const relief::Relief r = relief::relief_at(at + origin_, nn, rough, rim, 1.0f);
+    out.position = at + nn * r.height;
+    out.normal = nn;
+    // Not on a triangle that touches a rim: its neighbour across the rim is the portal's opening,
+    // which the PN bulge and the relief can move the surface out over.
+    out.clear = rim < kRimClear && rim_corner == 0.0f;
+    return out;
+  }
+
+  // The surface of triangle t straight above or below room-frame (x, z): the flat triangle's
+  // barycentric corrected twice for the PN bulge's and the relief's sideways shift.
+  SurfacePoint surface_at(const Hit& h, vec2 xz) const {
+    SurfacePoint sp = surface(h.tri, h.w);
+    vec3 w = h.w;
+    for (int i = 0; i < 3; ++i) {
+      const vec2 drift = vec2(sp.position.x, sp.position.z) - xz;
+      const vec3 moved = barycentric(h.tri, xz - drift);
+      if (!(moved.x >= -0.25f && moved.y >= -0.25f && moved.z >= -0.25f)) break;
+      w = moved;
+      sp = surface(h.tri, w);
+    }
+    // Where the surface leans too far to find the point over (x, z) on this triangle (a steep
+    // fold whose relief moves it sideways), no root.
+    if (!(length(vec2(sp.position.x, sp.position.z) - xz) < 0.02f)) sp.clear = false;
+    return sp;
+  }
+
+  // Barycentric coordinates of room-frame (x, z) in triangle t's projection on the xz plane.
+  vec3 barycentric(uint32_t t, vec2 q) const {
+    const std::array<uint32_t, 3> k = corners(t);
+    const vec3 a = position(k[0]), b = position(k[1]), c = position(k[2]);
+    const vec2 v0 = vec2(b.x - a.x, b.z - a.z), v1 = vec2(c.x - a.x, c.z - a.z),
+               v2 = vec2(q.x - a.x, q.y - a.z);
+    const float den = v0.x * v1.y - v1.x * v0.y;
+    if (!(std::abs(den) > 1e-9f)) return vec3(-1.0f);
+    const float wb = (v2.x * v1.y - v1.x * v2.y) / den;
+    const float wc = (v0.x * v2.y - v2.x * v0.y) / den;
+    return vec3(1.0f - wb - wc, wb, wc);
+  }
+
+  const Surface& s_;
+  vec3 origin_;
+};
+
+// A stalactite's or stalagmite's share of its cell's hashes that shapes it (not where it is).
+void shape_from_hashes(FormationShape& f, ivec2 c, int salt) {
+  f.seed = cell_hash(c, salt + 11);
+  f.yaw = 6.2831853f * cell_hash(c, salt + 13);
+  f.rings = 0.02f + 0.05f * cell_hash(c, salt + 17);
+  const float b = cell_hash(c, salt + 19);
+  f.bulbs = b > 0.6f ? 0.25f * (b - 0.6f) : 0.0f;
+}
+
+}  // namespace
+
+float root_embed() {
+  return relief::relief_normal_bound(1.0f);
+}
+
+std::vector<FormationShape> place(const Surface& s) {
+  std::vector<FormationShape> out;
+  const size_t triangles = s.indices.size() / 3;
+  if (triangles == 0 || s.normals.size() < s.positions.size()) return out;
+  const Placer placer(s);
+  const float longest_here = relief::relief_spike_length(static_cast<float>(s.room_radius));
+
+  // Every triangle's hits, by lattice cell: the cell's candidate (relief_speleothem) stands where
+  // the vertical through its centre meets the triangle.
+  std::map<std::pair<int, int>, relief::Speleothem> candidates;
+  std::map<std::pair<int, int>, std::vector<Hit>> hits;
+  const double ct = relief::kReliefTurnCos, st = relief::kReliefTurnSin;
+  for (uint32_t t = 0; t < triangles; ++t) {
+    vec3 p[3];
+    double lo[2] = {1e300, 1e300}, hi[2] = {-1e300, -1e300};
+    const std::array<uint32_t, 3> corner = placer.corners(t);
+    for (int k = 0; k < 3; ++k) {
+      p[k] = placer.position(corner[static_cast<size_t>(k)]);
+      const double wx = s.origin.x + p[k].x, wz = s.origin.z + p[k].z;
+      const double tx = ct * wx - st * wz, tz = st * wx + ct * wz;  // relief_turn
+      lo[0] = std::min(lo[0], tx), hi[0] = std::max(hi[0], tx);
+      lo[1] = std::min(lo[1], tz), hi[1] = std::max(hi[1], tz);
+    }
+    const vec3 face = cross(p[1] - p[0], p[2] - p[0]);
+    const float len = length(face);
+    if (!(len > 1e-9f)) continue;
+    const float facing = face.y / len;
+    if (std::abs(facing) < 0.05f) continue;  // vertical: no vertical line meets it once
+    for (int cz = static_cast<int>(std::floor(lo[1])); cz <= static_cast<int>(std::floor(hi[1]));
+         ++cz) {
+      for (int cx = static_cast<int>(std::floor(lo[0])); cx <= static_cast<int>(std::floor(hi[0]));
+           ++cx) {
+        auto [it, fresh] = candidates.try_emplace({cx, cz});
+        if (fresh) it->second = relief::relief_speleothem(ivec2(cx, cz), 1.0f);
+        const relief::Speleothem& sp = it->second;
+        if (!(sp.len > 0.0f)) continue;
+        // The centre from the lattice's frame to the world (the turn's inverse), then the room's.
+        const double wx = ct * sp.centre.x + st * sp.centre.y;
+        const double wz = -st * sp.centre.x + ct * sp.centre.y;
+        const vec2 xz(static_cast<float>(wx - s.origin.x), static_cast<float>(wz - s.origin.z));
+        const vec3 w = placer.barycentric(t, xz);
+        // Half-open on the edges, so a centre on a shared edge counts once.
+        if (!(w.x >= 0.0f && w.y >= 0.0f && w.z > 0.0f)) continue;
+        Hit h;
+        h.y = dot(w, vec3(p[0].y, p[1].y, p[2].y));
+        h.w = w;
+        h.tri = t;
+        h.facing = facing;
+        hits[{cx, cz}].push_back(h);
+      }
+    }
+  }
+
+  for (auto& [key, list] : hits) {
+    const ivec2 c(key.first, key.second);
+    const relief::Speleothem& cand = candidates.at(key);
+    std::sort(list.begin(), list.end(), [](const Hit& a, const Hit& b) { return a.y < b.y; });
+    const double wx = ct * cand.centre.x + st * cand.centre.y;
+    const double wz = -st * cand.centre.x + ct * cand.centre.y;
+    const vec2 xz(static_cast<float>(wx - s.origin.x), static_cast<float>(wz - s.origin.z));
+    const vec3 world_centre(static_cast<float>(wx), static_cast<float>(s.origin.y),
+                            static_cast<float>(wz));
+    const float variety = relief::relief_variety(world_centre);
+    const float longest = longest_here * mix(0.45f, 1.0f, smoothstep(0.3f, 0.75f, variety));
+    // cand.len is max(straw, size^3) for a longest of 1.
+    const float size3 = cand.len;
+    for (size_t i = 0; i < list.size(); ++i) {
+      const Hit& h = list[i];
+      const bool ceiling = h.facing < kCeiling;
+      const bool floor = h.facing > kFloor;
+      // Inside the cave, a vertical line leaves a floor upwards and meets a ceiling; the surface
+      // below a ceiling hit is the one the drip falls on.
+      if (ceiling) {
+        const Hit* below = i > 0 ? &list[i - 1] : nullptr;
+        const SurfacePoint top = placer.surface_at(h, xz);
+        if (!top.clear) continue;
+        const bool on_floor = below != nullptr && below->facing > kFloor;
+        SurfacePoint ground;
+        float gap = 1e9f;
+        if (on_floor) {
+          ground = placer.surface_at(*below, xz);
+          gap = top.position.y - ground.position.y;
+        } else if (below != nullptr) {
+          gap = top.position.y - below->y;
+        }
+        if (!(gap > kMinGap)) continue;
+        float len = std::max(relief::kReliefStraw, longest * size3);
+        const bool straw = len < kStrawLength && cell_hash(c, 31337) < kStrawShare;
+        float radius =
+            straw ? 0.003f + 0.0015f * cell_hash(c, 4241) : std::min(0.015f + 0.09f * len, 0.4f);
+        const float tilt = std::sqrt(std::max(1.0f - top.normal.y * top.normal.y, 0.0f)) /
+                           std::max(std::abs(top.normal.y), 0.3f);
+        float len_g = mix(0.5f, 0.65f, cand.form) * len * (0.5f + cell_hash(c, 271));
+        const bool column = on_floor && ground.clear &&
+                            ((cand.level >= 0.0f && gap < kColumnGap) || len + len_g > 0.8f * gap);
+        if (column) {
+          FormationShape f{};
+          f.kind = kFormationColumn;
+          f.root = vec3(xz.x, ground.position.y, xz.y);
+          f.length = gap;
+          f.radius = std::clamp(0.12f + 0.06f * gap, 0.15f, 0.45f) * (0.8f + 0.4f * cand.form);
+          f.tip = f.radius;
+          f.taper = 0.3f + 0.5f * cell_hash(c, 977);
+          f.flare = 0.8f;
+          const float r = f.radius * (1.0f + f.flare);
+          f.embed = root_embed() + r * tilt + 0.1f;
+          shape_from_hashes(f, c, 500);
+          if (placer.fit_embed(f)) out.push_back(f);
+          continue;
+        }
+        len = std::min(len, 0.45f * gap);
+        FormationShape f{};
+        f.kind = kFormationStalactite;
+        f.root = vec3(xz.x, top.position.y, xz.y);
+        f.length = len;
+        f.radius = radius;
+        f.tip = straw ? radius : std::min(0.004f + 0.05f * radius, radius);
+        f.taper = straw ? 1.0f : mix(1.0f, 1.6f, cell_hash(c, 641));
+        f.flare = straw ? 0.3f : 0.25f + 0.3f * cell_hash(c, 643);
+        f.embed = root_embed() + radius * (1.0f + f.flare) * tilt + 0.05f;
+        shape_from_hashes(f, c, 600);
+        if (straw) f.bulbs = 0.0f, f.rings *= 0.3f;
+        if (placer.fit_embed(f)) out.push_back(f);
+        // Its stalagmite, where the drip lands on a floor: broader, blunter, neighbours unlike.
+        len_g = std::min(len_g, 0.45f * gap);
+        // A slow drip (a long stalactite) builds a stalagmite more often than a straw's.
+        const bool drips = cell_hash(c, 1709) < 0.15f + 0.85f * std::min(len / 1.2f, 1.0f);
+        if (on_floor && ground.clear && drips && len_g > 0.03f) {
+          FormationShape g{};
+          g.kind = kFormationStalagmite;
+          g.root = vec3(xz.x, ground.position.y, xz.y);
+          g.length = len_g;
+          g.radius = std::clamp(mix(2.0f, 1.55f, cand.form) * std::max(radius, 0.02f) *
+                                    (0.7f + 0.6f * cell_hash(c, 787)),
+                                0.03f, 0.9f);
+          g.tip = 0.0f;
+          g.taper = mix(2.0f, 6.0f, cand.form);
+          g.flare = 0.35f;
+          const float gt = std::sqrt(std::max(1.0f - ground.normal.y * ground.normal.y, 0.0f)) /
+                           std::max(ground.normal.y, 0.3f);
+          g.embed = root_embed() + g.radius * (1.0f + g.flare) * gt + 0.05f;
+          shape_from_hashes(g, c, 700);
+          if (placer.fit_embed(g)) out.push_back(g);
+        }
+      } else if (floor) {
+        // A floor whose drip comes from no ceiling of this room (the next surface up is a wall or
+        // there is none): sometimes a stalagmite all the same.
+        const bool capped = i + 1 < list.size() && list[i + 1].facing < kCeiling;
+        if (capped || cell_hash(c, 9173) >= kLoneStalagmite) continue;
+        const SurfacePoint ground = placer.surface_at(h, xz);
+        if (!ground.clear) continue;
+        const float above = i + 1 < list.size() ? list[i + 1].y - ground.position.y : 1e9f;
+        const float len_g =
+            std::min(0.5f * std::max(relief::kReliefStraw, longest * size3), 0.45f * above);
+        if (!(len_g > 0.03f)) continue;
+        FormationShape g{};
+        g.kind = kFormationStalagmite;
+        g.root = vec3(xz.x, ground.position.y, xz.y);
+        g.length = len_g;
+        g.radius = std::clamp(0.05f + 0.2f * len_g, 0.03f, 0.9f);
+        g.tip = 0.0f;
+        g.taper = mix(2.0f, 6.0f, cand.form);
+        g.flare = 0.35f;
+        const float gt = std::sqrt(std::max(1.0f - ground.normal.y * ground.normal.y, 0.0f)) /
+                         std::max(ground.normal.y, 0.3f);
+        g.embed = root_embed() + g.radius * (1.0f + g.flare) * gt + 0.05f;
+        shape_from_hashes(g, c, 800);
+        if (placer.fit_embed(g)) out.push_back(g);
+      }
+    }
+  }
+  return out;
+}
+
+std::vector<vec3> collision_hull(const FormationShape& f, int sides, int rings) {
+  std::vector<vec3> out;
+  sides = std::max(sides, 3);
+  rings = std::max(rings, 1);
+  // Rings from the root to the far end, each a polygon of the largest radius at its level
+  // (irregularity included), so the hull holds what is drawn near the axis.
+  const float start = 0.0f, end = formation_end(f) - (f.kind == kFormationColumn ? f.embed : 0.0f);
+  std::vector<std::vector<vec3>> ring(static_cast<size_t>(rings) + 1);
+  for (int i = 0; i <= rings; ++i) {
+    const float s = start + (end - start) * static_cast<float>(i) / static_cast<float>(rings);
+    float r = 0;
+    for (int k = 0; k < 12; ++k)
+      r = std::max(r, formation_radius(f, s, 6.2831853f * static_cast<float>(k) / 12.0f));
+    r = std::max(r, 0.01f);
+    for (int k = 0; k < sides; ++k) {
+      const float a = 6.2831853f * static_cast<float>(k) / static_cast<float>(sides);
+      ring[static_cast<size_t>(i)].push_back(
+          f.root + vec3(r * std::cos(a), formation_direction(f) * s, r * std::sin(a)));
+    }
+  }
+  for (int i = 0; i < rings; ++i) {
+    const auto& a = ring[static_cast<size_t>(i)];
+    const auto& b = ring[static_cast<size_t>(i) + 1];
+    for (int k = 0; k < sides; ++k) {
+      const int k1 = (k + 1) % sides;
+      out.insert(out.end(), {a[k], b[k], b[k1], a[k], b[k1], a[k1]});
+    }
+  }
+  // The far end's cap (the root's end is in the rock).
+  const auto& last = ring.back();
+  const vec3 tip = f.root + vec3(0.0f, formation_direction(f) * end, 0.0f);
+  for (int k = 0; k < sides; ++k)
+    out.insert(out.end(), {last[k], last[(k + 1) % sides], tip});
+  return out;
+}
+
+}  // namespace grotto::formations

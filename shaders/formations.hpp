@@ -1,0 +1,92 @@
+// Speleothems as instanced geometry (issue 43): where a room's stalactites, stalagmites, soda
+// straws and columns are and what shape each has, as a pure function of (world, room): the cells
+// of relief.glsl's speleothem lattice (relief_speleothem: one candidate per 1 m cell, pulled onto
+// the cracks water seeps along, heavy-tailed lengths) that lie under the room's ceilings, each
+// hung plumb from the drawn ceiling with its stalagmite beneath it on the floor the drip falls on,
+// and columns where the two would meet. The shape of one instance is shaders/formation.glsl's,
+// compiled here as C++ over GLM (as relief.hpp does), so the renderer, collision, the glb export
+// and engines see the same formations.
+//
+// The input is what every client already has: the room's patch mesh as decoded (positions in the
+// room's frame, normals, roughness, rims) and its sphere's radius; nothing new on the wire, like
+// the world's lights. Part of the world: proto::world_params_digest folds
+// proto::kFormationsVersion. Deterministic: the lattice's hashes, the mesh's floats and float
+// arithmetic in a fixed order.
+#pragma once
+
+#include <algorithm>
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include <glm/glm.hpp>
+
+#include "codec/room_codec.hpp"
+#include "core/vec3.hpp"
+#include "mesh/deform.hpp"
+
+namespace grotto::formations {
+
+using namespace glm;
+
+#define RELIEF_FN inline
+#include "shaders/formation.glsl"
+#undef RELIEF_FN
+
+// A room's patch mesh as placement reads it (codec::DecodedRoom's or mesh::RoomMesh's arrays).
+struct Surface {
+  Vec3 origin;                                    // the room's grid origin, world metres
+  std::span<const mesh::core::float3> positions;  // metres from origin
+  std::span<const mesh::core::float3> normals;    // unit, into the cave
+  std::span<const float> roughness;
+  std::span<const int8_t> rim_portal;  // >= 0 on a portal rim
+  std::span<const uint32_t> indices;   // triangles
+  double room_radius = 0;              // the room's sphere
+};
+
+// A received room's patch mesh (decoded: what every client has) as placement reads it.
+inline Surface surface_of(const codec::DecodedRoom& mesh, Vec3 origin, double room_radius) {
+  Surface s;
+  s.origin = origin;
+  s.positions = mesh.positions;
+  s.normals = mesh.normals;
+  s.roughness = mesh.roughness;
+  s.rim_portal = mesh.rim_portal;
+  s.indices = mesh.indices;
+  s.room_radius = room_radius;
+  return s;
+}
+
+// The formations of the room, roots in its frame (metres from Surface::origin), in a fixed order
+// (by lattice cell, then height). Empty for an empty mesh.
+std::vector<FormationShape> place(const Surface& surface);
+
+// How far the drawn rock can lie from the patch surface along its normal (relief_normal_bound at
+// full strength): the root's embedding covers it.
+float root_embed();
+
+// The meshes formation.vert draws an instance with, finest first: sides round the axis and rings
+// along it (rings + 1 rows of sides + 1 points; 2 x sides x rings triangles).
+inline constexpr int kLods = 4;
+inline constexpr int kLodSides[kLods] = {16, 10, 6, 4};
+inline constexpr int kLodRings[kLods] = {32, 16, 8, 4};
+inline constexpr int lod_triangles(int lod) {
+  return 2 * kLodSides[lod] * kLodRings[lod];
+}
+
+// The level of detail of an instance whose nearest point is `distance` metres from the eye, with
+// `pixel_scale` pixels per metre at 1 m: by its radius on screen (formation_bound_radius) and its
+// length over the rings its profile needs. -1: under a pixel wide and long, not drawn.
+inline int lod_for(const FormationShape& f, float distance, float pixel_scale) {
+  const float d = std::max(distance, 0.05f);
+  const float bound = formation_bound_radius(f);
+  if (std::max(bound, 0.5f * f.length) * pixel_scale / d < 0.6f) return -1;
+  const float detail = std::max(bound, f.length / 6.0f) * pixel_scale / d;
+  return detail > 12.0f ? 0 : detail > 4.0f ? 1 : detail > 1.5f ? 2 : 3;
+}
+
+// A closed convex hull of the instance for collision: `sides` around, `rings` rings along the
+// visible part, as triangles (three vec3 each), in the instance's frame (root included).
+std::vector<vec3> collision_hull(const FormationShape& f, int sides = 6, int rings = 4);
+
+}  // namespace grotto::formations
