@@ -415,6 +415,47 @@ std::vector<FormationShape> place(const Surface& s) {
   return out;
 }
 
+void append_mesh(const FormationShape& f, int lod, std::vector<vec3>& positions,
+                 std::vector<vec3>& normals, std::vector<uint32_t>& indices) {
+  lod = std::clamp(lod, 0, kLods - 1);
+  const int sides = kLodSides[lod], rings = kLodRings[lod];
+  const uint32_t base = static_cast<uint32_t>(positions.size());
+  const float start = formation_start(f), end = formation_end(f);
+  const vec3 axis(0.0f, formation_direction(f), 0.0f);
+  // formation.vert's arithmetic, point for point.
+  for (int i = 0; i <= rings; ++i) {
+    const float v = static_cast<float>(i) / static_cast<float>(rings);
+    const float g = v - 0.6f * std::sin(6.2831853f * v) / 6.2831853f;
+    const float s = mix(start, end, g);
+    const float ds = std::max(0.002f, 0.004f * (end - start));
+    for (int k = 0; k <= sides; ++k) {
+      const float theta = 6.2831853f * static_cast<float>(k) / static_cast<float>(sides);
+      const vec3 p = formation_point(f, s, theta);
+      const vec3 along = formation_point(f, s + ds, theta) - formation_point(f, s - ds, theta);
+      const vec3 round =
+          formation_point(f, s, theta + 0.02f) - formation_point(f, s, theta - 0.02f);
+      vec3 n = cross(along, round);
+      const float nl = length(n);
+      n = nl > 1e-9f ? n / nl : axis;
+      const vec3 out_dir = p - (f.root + axis * s);
+      if (dot(n, out_dir) < 0.0f) n = -n;
+      if (dot(out_dir, out_dir) < 1e-12f) n = axis;
+      positions.push_back(p);
+      normals.push_back(n);
+    }
+  }
+  const uint32_t row = static_cast<uint32_t>(sides + 1);
+  for (uint32_t i = 0; i < static_cast<uint32_t>(rings); ++i)
+    for (uint32_t k = 0; k < static_cast<uint32_t>(sides); ++k) {
+      const uint32_t a0 = base + i * row + k, a1 = a0 + 1, b0 = a0 + row, b1 = b0 + 1;
+      // Counter-clockwise seen from outside, whichever way the axis runs.
+      if (f.kind == kFormationStalactite)
+        indices.insert(indices.end(), {a0, b1, b0, a0, a1, b1});
+      else
+        indices.insert(indices.end(), {a0, b0, b1, a0, b1, a1});
+    }
+}
+
 std::vector<vec3> collision_hull(const FormationShape& f, int sides, int rings) {
   std::vector<vec3> out;
   sides = std::max(sides, 3);

@@ -85,6 +85,13 @@ inline int lod_for(const FormationShape& f, float distance, float pixel_scale) {
   return detail > 12.0f ? 0 : detail > 4.0f ? 1 : detail > 1.5f ? 2 : 3;
 }
 
+// The instance as triangles in the room's frame, as formation.vert draws it at level of detail
+// `lod` (the same rings, points and normals): appended to positions and normals (one each a
+// vertex) and indices (counter-clockwise seen from outside, offset by the vertices already
+// there). For exports (grotto-layout --glb) and engines that do not instance.
+void append_mesh(const FormationShape& f, int lod, std::vector<vec3>& positions,
+                 std::vector<vec3>& normals, std::vector<uint32_t>& indices);
+
 // A closed convex hull of the instance for collision: `sides` around, `rings` rings along the
 // visible part, as triangles (three vec3 each), in the instance's frame (root included).
 std::vector<vec3> collision_hull(const FormationShape& f, int sides = 6, int rings = 4);

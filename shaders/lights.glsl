@@ -22,8 +22,10 @@
 #define GLOW_CRYSTALS 2
 #define GLOW_FLARE 3
 
-uniform int u_light_count;                         // lights that can reach this room
+uniform int u_light_count;                         // lights that can reach this room's rock
 uniform int u_light_index[GROTTO_MAX_LIGHTS];      // which of the arrays' lights they are
+uniform int u_haze_count;                          // lights whose haze the view rays to this
+uniform int u_haze_index[GROTTO_MAX_LIGHTS];       // room's rock can cross, and which they are
 uniform vec4 u_light_position[GROTTO_MAX_LIGHTS];  // xyz anchor-relative; w: range (m)
 uniform vec4 u_light_color[GROTTO_MAX_LIGHTS];     // rgb: linear colour x intensity at 1 m
 uniform vec4 u_light_glow[GROTTO_MAX_LIGHTS];      // x: glowing patch radius (m); y: GLOW_*;
@@ -106,6 +108,8 @@ vec3 lights_shade(vec3 p, vec3 world, vec3 s, vec3 v, vec3 albedo, float wrap, f
                   out float glow) {
   vec3 sum = vec3(0.0);
   glow = 0.0;
+  int glow_light = -1;     // the light whose glowing patch is nearest its full strength here
+  float glow_near = 0.0;
   for (int k = 0; k < u_light_count; ++k) {
     int i = u_light_index[k];
     vec3 to_light = u_light_position[i].xyz - p;
@@ -128,35 +132,46 @@ vec3 lights_shade(vec3 p, vec3 world, vec3 s, vec3 v, vec3 albedo, float wrap, f
     float sheen = pow(max(dot(s, h), 0.0), 24.0) * 0.08;
     sum += radiance * (albedo * lambert + sheen * lambert);
 
-    // The source itself: its rock glows within `size` metres, in a pattern of its kind.
+    // The source itself: its rock glows within `size` metres. Only the nearest source's patch
+    // is drawn (below): patches seldom overlap, and evaluated in the loop every pattern's noise
+    // ran for every light (a renderer that runs both sides of a branch, as llvmpipe does, paid it
+    // for every pixel).
     float size = u_light_glow[i].x;
     if (d < size) {
       float near = 1.0 - smoothstep(0.2 * size, size, d);
-      float pattern;
-      if (kind == GLOW_WORMS) {
-        // Thousands of tiny lights: a starry patch of larvae.
-        pattern = 40.0 * glow_worms(world, s, footprint);
-      } else if (kind == GLOW_SEAM) {
-        // The mineral's vein through the source, in a fracture's plane (its direction the
-        // light's own, steep as joints are), with a thinner one crossing it.
-        float a = 6.2832 * u_light_glow[i].z;
-        vec3 dir = normalize(vec3(cos(a), 0.25 * sin(3.0 * a), sin(a)));
-        vec3 across = normalize(cross(dir, vec3(0.3, 1.0, 0.2)));
-        vec3 from_source = p - u_light_position[i].xyz;
-        pattern = max(vein_through(from_source, dir, 0.09, footprint),
-                      0.7 * vein_through(from_source, across, 0.035, footprint));
-      } else if (kind == GLOW_CRYSTALS) {
-        // Facets: cells of noise that catch and hold the light.
-        pattern = smoothstep(0.25, 0.6, relief_noise(world * 4.0 + vec3(0.0, 0.0, 11.0)).x);
-      } else {
-        pattern = 1.0;  // a flare: its own spot of rock is white hot
+      if (near > glow_near) {
+        glow_near = near;
+        glow_light = i;
       }
-      vec3 tint = u_light_color[i].rgb / max(max(u_light_color[i].r, u_light_color[i].g),
-                                             max(u_light_color[i].b, 1e-4));
-      float strength = kind == GLOW_FLARE ? 12.0 : 2.5;
-      sum += tint * (strength * pattern * near);
-      glow = max(glow, pattern * near);
     }
+  }
+  if (glow_light >= 0) {
+    int i = glow_light;
+    int kind = int(u_light_glow[i].y + 0.5);
+    float pattern;
+    if (kind == GLOW_WORMS) {
+      // Thousands of tiny lights: a starry patch of larvae.
+      pattern = 40.0 * glow_worms(world, s, footprint);
+    } else if (kind == GLOW_SEAM) {
+      // The mineral's vein through the source, in a fracture's plane (its direction the light's
+      // own, steep as joints are), with a thinner one crossing it.
+      float a = 6.2832 * u_light_glow[i].z;
+      vec3 dir = normalize(vec3(cos(a), 0.25 * sin(3.0 * a), sin(a)));
+      vec3 across = normalize(cross(dir, vec3(0.3, 1.0, 0.2)));
+      vec3 from_source = p - u_light_position[i].xyz;
+      pattern = max(vein_through(from_source, dir, 0.09, footprint),
+                    0.7 * vein_through(from_source, across, 0.035, footprint));
+    } else if (kind == GLOW_CRYSTALS) {
+      // Facets: cells of noise that catch and hold the light.
+      pattern = smoothstep(0.25, 0.6, relief_noise(world * 4.0 + vec3(0.0, 0.0, 11.0)).x);
+    } else {
+      pattern = 1.0;  // a flare: its own spot of rock is white hot
+    }
+    vec3 tint = u_light_color[i].rgb / max(max(u_light_color[i].r, u_light_color[i].g),
+                                           max(u_light_color[i].b, 1e-4));
+    float strength = kind == GLOW_FLARE ? 12.0 : 2.5;
+    sum += tint * (strength * pattern * glow_near);
+    glow = pattern * glow_near;
   }
   return sum;
 }
@@ -169,8 +184,8 @@ vec3 lights_haze(vec3 c, vec3 p) {
   float len = length(ray);
   vec3 v = ray / max(len, 1e-4);
   vec3 sum = vec3(0.0);
-  for (int k = 0; k < u_light_count; ++k) {
-    int i = u_light_index[k];
+  for (int k = 0; k < u_haze_count; ++k) {
+    int i = u_haze_index[k];
     // The part of the ray inside the light's bound.
     float t_lo = 0.0, t_hi = len;
     float bound = u_light_bound[i].w;

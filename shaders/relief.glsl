@@ -55,14 +55,22 @@ const float kReliefCrevice = 0.6f;        // occlusion at the bottom of the deep
 const float kReliefOcclusionMin = 0.3f;   // the darkest ambient occlusion
 
 
-// An integer lattice point to [0, 1).
-RELIEF_FN float relief_hash(ivec3 c) {
-  uvec3 q = uvec3(c) * uvec3(1597334673u, 3812015801u, 2798796415u);
-  uint n = (q.x ^ q.y ^ q.z) * 1597334673u;
+// The lattice hash's per-axis multipliers: a point's hash mixes c.x * x, c.y * y and c.z * z.
+const uvec3 kReliefHashAxes = uvec3(1597334673u, 3812015801u, 2798796415u);
+
+// The hash of a lattice point from its per-axis products q = uvec3(c) * kReliefHashAxes.
+RELIEF_FN float relief_hash_mixed(uint qx, uint qy, uint qz) {
+  uint n = (qx ^ qy ^ qz) * 1597334673u;
   n ^= n >> 16;
   n *= 2246822519u;
   n ^= n >> 13;
   return float(n >> 8) * (1.0f / 16777216.0f);
+}
+
+// An integer lattice point to [0, 1).
+RELIEF_FN float relief_hash(ivec3 c) {
+  uvec3 q = uvec3(c) * kReliefHashAxes;
+  return relief_hash_mixed(q.x, q.y, q.z);
 }
 
 // 3-D value noise with a quintic fade: .x in [-1, 1], .yzw its analytic gradient.
@@ -72,14 +80,18 @@ RELIEF_FN vec4 relief_noise(vec3 x) {
   vec3 f = x - cell;
   vec3 u = f * f * f * (f * (f * 6.0f - 15.0f) + 10.0f);
   vec3 du = 30.0f * f * f * (f * (f - 2.0f) + 1.0f);
-  float a = relief_hash(i + ivec3(0, 0, 0));
-  float b = relief_hash(i + ivec3(1, 0, 0));
-  float c = relief_hash(i + ivec3(0, 1, 0));
-  float d = relief_hash(i + ivec3(1, 1, 0));
-  float e = relief_hash(i + ivec3(0, 0, 1));
-  float g = relief_hash(i + ivec3(1, 0, 1));
-  float h = relief_hash(i + ivec3(0, 1, 1));
-  float k = relief_hash(i + ivec3(1, 1, 1));
+  // The eight corners' hashes, sharing the per-axis products: (c + 1) * m = c * m + m, wrapping
+  // alike, so these are relief_hash's bits with 3 multiplications for the corners instead of 24.
+  uvec3 q0 = uvec3(i) * kReliefHashAxes;
+  uvec3 q1 = q0 + kReliefHashAxes;
+  float a = relief_hash_mixed(q0.x, q0.y, q0.z);
+  float b = relief_hash_mixed(q1.x, q0.y, q0.z);
+  float c = relief_hash_mixed(q0.x, q1.y, q0.z);
+  float d = relief_hash_mixed(q1.x, q1.y, q0.z);
+  float e = relief_hash_mixed(q0.x, q0.y, q1.z);
+  float g = relief_hash_mixed(q1.x, q0.y, q1.z);
+  float h = relief_hash_mixed(q0.x, q1.y, q1.z);
+  float k = relief_hash_mixed(q1.x, q1.y, q1.z);
   float k1 = b - a, k2 = c - a, k3 = e - a, k4 = a - b - c + d, k5 = a - c - e + h,
         k6 = a - b - e + g, k7 = -a + b + c - d + e - g - h + k;
   float v = a + k1 * u.x + k2 * u.y + k3 * u.z + k4 * u.x * u.y + k5 * u.y * u.z +

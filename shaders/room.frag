@@ -90,7 +90,7 @@ void main() {
   vec3 wall = mix(grey, buff, clamp(0.5 + 0.9 * strata, 0.0, 1.0)) * (0.75 + 0.5 * mottle);
 
   // Sediment floors: damp brown mud with grit, wetter in the hollows.
-  float grit = relief_fine_fade(0.05, footprint) * relief_noise(world * 19.0).x;
+  float grit = ground > 0.0 ? relief_fine_fade(0.05, footprint) * relief_noise(world * 19.0).x : 0.0;
   vec3 mud = vec3(0.27, 0.21, 0.16) * (0.8 + 0.25 * mottle + 0.12 * grit);
   // Ceilings: the same rock, darker and greyer.
   vec3 roof = wall * vec3(0.62, 0.62, 0.66);
@@ -100,8 +100,9 @@ void main() {
   albedo = mix(albedo, vec3(0.36, 0.40, 0.44), 0.4 * t_mineral);
   // Speleothems are calcite over their whole length: ochre at the root, cream towards the tip
   // where it still grows, banded by growth rings a few centimetres apart.
-  float rings = relief_fine_fade(0.028, footprint) *
-                relief_noise(vec3(world.x * 3.0, world.y * 35.0, world.z * 3.0)).x;
+  float rings = calcite > 0.0 ? relief_fine_fade(0.028, footprint) *
+                                   relief_noise(vec3(world.x * 3.0, world.y * 35.0, world.z * 3.0)).x
+                             : 0.0;
   vec3 dripstone =
       mix(vec3(0.55, 0.47, 0.36), vec3(0.78, 0.74, 0.66), smoothstep(0.2, 1.0, t_spike)) *
       (0.9 + 0.1 * rings);

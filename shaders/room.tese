@@ -17,6 +17,7 @@ in vec3 c_normal[];
 in float c_roughness[];
 in float c_mineral[];
 in float c_rim[];
+in vec3 c_haze[];
 
 out vec3 t_position;  // anchor-relative world position after displacement
 out vec3 t_normal;    // after the relief
@@ -27,7 +28,7 @@ out float t_occlusion;  // relief.glsl's Relief::occlusion (1 without relief)
 out vec3 t_warp;        // Relief::warp, Relief::rock and the step the relief was sampled at:
 out float t_rock;       // room.frag adds the rock's octaves the mesh could not carry
 out float t_spacing;    // (relief_rock_detail)
-out vec3 t_haze;        // the lit haze between the eye and this vertex (lights.glsl), linear
+out vec3 t_haze;        // the lit haze, interpolated from the control points' (room.vert)
 
 uniform mat4 u_view_proj;      // anchor-relative world to clip space
 uniform vec3 u_anchor;         // the anchor in world space (noise is world-space)
@@ -40,7 +41,6 @@ uniform vec3 u_camera;         // anchor-relative
 
 #pragma grotto_include "relief.glsl"
 #pragma grotto_include "lod.glsl"
-#pragma grotto_include "lights.glsl"
 
 // ---- surfaces ----
 
@@ -176,8 +176,6 @@ void main() {
   t_warp = r.warp;
   t_rock = r.rock;
   t_spacing = spacing;
-  // The haze varies over metres along the view: per tessellated vertex (a few pixels apart), not
-  // per pixel, where its loop over the lights cost as much as their shading.
-  t_haze = lights_haze(u_camera, displaced);
+  t_haze = c_haze[0] * w.x + c_haze[1] * w.y + c_haze[2] * w.z;
   gl_Position = u_view_proj * vec4(displaced, 1.0);
 }

@@ -1,6 +1,7 @@
 #include "glb.hpp"
 
 #include <unistd.h>
+#include <algorithm>
 #include <bit>
 #include <cassert>
 #include <cerrno>
@@ -15,6 +16,7 @@
 #include "core/bytes.hpp"
 #include "core/parallel.hpp"
 #include "proto/layout_json.hpp"
+#include "shaders/formations.hpp"
 
 namespace grotto::tools {
 namespace {
@@ -179,6 +181,61 @@ json add_room_mesh(Document& doc, const cave::Room& room, const CodedRoom& coded
   return json{{"name", id}, {"primitives", json::array({std::move(primitive)})}};
 }
 
+// A mesh of one triangle primitive from plain arrays (positions in its node's frame): POSITION,
+// NORMAL and indices, with material `material`.
+json add_plain_mesh(Document& doc, const std::string& name, std::span<const glm::vec3> positions,
+                    std::span<const glm::vec3> normals, std::span<const uint32_t> indices,
+                    int material) {
+  std::vector<uint8_t> bytes;
+  constexpr double kInf = std::numeric_limits<double>::infinity();
+  Vec3 lo{kInf, kInf, kInf}, hi{-kInf, -kInf, -kInf};
+  for (const glm::vec3& p : positions) {
+    append_f32(bytes, p.x);
+    append_f32(bytes, p.y);
+    append_f32(bytes, p.z);
+    lo = {std::min<double>(lo.x, p.x), std::min<double>(lo.y, p.y), std::min<double>(lo.z, p.z)};
+    hi = {std::max<double>(hi.x, p.x), std::max<double>(hi.y, p.y), std::max<double>(hi.z, p.z)};
+  }
+  const size_t position = doc.add_accessor(bytes, kArrayBuffer, kFloat, positions.size(), "VEC3");
+  doc.accessors[position]["min"] = vec3(lo);
+  doc.accessors[position]["max"] = vec3(hi);
+  bytes.clear();
+  for (const glm::vec3& n : normals) {
+    append_f32(bytes, n.x);
+    append_f32(bytes, n.y);
+    append_f32(bytes, n.z);
+  }
+  const size_t normal = doc.add_accessor(bytes, kArrayBuffer, kFloat, normals.size(), "VEC3");
+  bytes.clear();
+  for (uint32_t index : indices)
+    le::append(bytes, index, 4);
+  const size_t index =
+      doc.add_accessor(bytes, kElementArrayBuffer, kUnsignedInt, indices.size(), "SCALAR");
+  json primitive = {{"attributes", {{"POSITION", position}, {"NORMAL", normal}}},
+                    {"indices", index},
+                    {"material", material},
+                    {"mode", kTriangles}};
+  return json{{"name", name}, {"primitives", json::array({std::move(primitive)})}};
+}
+
+// One formation's shape as the file's extras give it (formations::FormationShape: root in its
+// room's frame, metres and radians).
+json formation_json(const formations::FormationShape& f) {
+  static constexpr const char* kKinds[] = {"stalactite", "stalagmite", "column"};
+  return {{"kind", kKinds[std::clamp(f.kind, 0, 2)]},
+          {"root", {f.root.x, f.root.y, f.root.z}},
+          {"length", f.length},
+          {"radius", f.radius},
+          {"tip", f.tip},
+          {"embed", f.embed},
+          {"taper", f.taper},
+          {"flare", f.flare},
+          {"rings", f.rings},
+          {"bulbs", f.bulbs},
+          {"seed", f.seed},
+          {"yaw", f.yaw}};
+}
+
 void append_chunk(std::vector<uint8_t>& out, uint32_t type, std::span<const uint8_t> data,
                   uint8_t pad) {
   size_t padded = (data.size() + 3) / 4 * 4;
@@ -193,7 +250,8 @@ void append_chunk(std::vector<uint8_t>& out, uint32_t type, std::span<const uint
 Result<std::vector<uint8_t>> region_glb(const GlbSource& source, std::span<const GlbRoom> rooms) {
   Document doc;
   json nodes = json::array(), meshes = json::array(), scene_nodes = json::array();
-  json light_defs = json::array(), light_nodes = json::array();
+  json light_defs = json::array(), child_nodes = json::array();
+  bool calcite = false;  // a formations mesh uses the second material
   // The meshes encoded and decoded on every hardware thread (each room's alone), a window of
   // rooms at a time so that only the window's decoded meshes are held, then laid into the buffer
   // in the rooms' order.
@@ -233,8 +291,8 @@ Result<std::vector<uint8_t>> region_glb(const GlbSource& source, std::span<const
     for (size_t k = 0; k < r.lights.size(); ++k) {
       const cave::WorldLight& l = r.lights[k];
       const std::string kind = cave::light_kind_name(l.kind);
-      children.push_back(rooms.size() + light_nodes.size());
-      light_nodes.push_back({{"name", r.room->id.to_string() + ".light" + std::to_string(k)},
+      children.push_back(rooms.size() + child_nodes.size());
+      child_nodes.push_back({{"name", r.room->id.to_string() + ".light" + std::to_string(k)},
                              {"translation", vec3(l.position - parent)},
                              {"extensions", {{kLights, {{"light", light_defs.size()}}}}},
                              {"extras",
@@ -249,6 +307,28 @@ Result<std::vector<uint8_t>> region_glb(const GlbSource& source, std::span<const
                             {"intensity", l.intensity},
                             {"range", l.range}});
     }
+    // The room's formations (formations::place over its mesh as decoded, what a client places
+    // them over): one child node with them all as one mesh, and each instance's shape in extras.
+    if (r.mesh != nullptr && source.formations) {
+      const std::vector<formations::FormationShape> placed = formations::place(
+          formations::surface_of(room_coded->decoded, r.mesh->origin, r.room->sphere.radius));
+      if (!placed.empty()) {
+        std::vector<glm::vec3> positions, normals;
+        std::vector<uint32_t> indices;
+        json shapes = json::array();
+        for (const formations::FormationShape& f : placed) {
+          formations::append_mesh(f, kGlbFormationLod, positions, normals, indices);
+          shapes.push_back(formation_json(f));
+        }
+        children.push_back(rooms.size() + child_nodes.size());
+        child_nodes.push_back({{"name", r.room->id.to_string() + ".formations"},
+                               {"mesh", meshes.size()},
+                               {"extras", {{"formations", std::move(shapes)}}}});
+        meshes.push_back(add_plain_mesh(doc, r.room->id.to_string() + ".formations", positions,
+                                        normals, indices, 1));
+        calcite = true;
+      }
+    }
     if (!children.empty()) node["children"] = std::move(children);
     scene_nodes.push_back(nodes.size());
     nodes.push_back(std::move(node));
@@ -261,9 +341,9 @@ Result<std::vector<uint8_t>> region_glb(const GlbSource& source, std::span<const
   if (!light_defs.empty()) {
     used.push_back(kLights);
     doc_json["extensions"] = {{kLights, {{"lights", std::move(light_defs)}}}};
-    for (json& l : light_nodes)
-      nodes.push_back(std::move(l));
   }
+  for (json& c : child_nodes)
+    nodes.push_back(std::move(c));
   if (!used.empty()) doc_json["extensionsUsed"] = std::move(used);
   json scene = {{"name", "grotto seed " + std::to_string(source.seed)}};
   if (!scene_nodes.empty()) scene["nodes"] = std::move(scene_nodes);
@@ -284,6 +364,14 @@ Result<std::vector<uint8_t>> region_glb(const GlbSource& source, std::span<const
                                            {{"baseColorFactor", {0.55, 0.50, 0.45, 1.0}},
                                             {"metallicFactor", 0.0},
                                             {"roughnessFactor", 0.9}}}}});
+    if (calcite) {
+      // Wet calcite, pale (room.frag's dripstone between its root and its tip).
+      doc_json["materials"].push_back({{"name", "calcite"},
+                                       {"pbrMetallicRoughness",
+                                        {{"baseColorFactor", {0.70, 0.64, 0.54, 1.0}},
+                                         {"metallicFactor", 0.0},
+                                         {"roughnessFactor", 0.45}}}});
+    }
     doc_json["accessors"] = std::move(doc.accessors);
     doc_json["bufferViews"] = std::move(doc.buffer_views);
     doc_json["buffers"] = json::array({{{"byteLength", doc.bin.size()}}});

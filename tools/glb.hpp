@@ -3,7 +3,9 @@
 //
 // Each room is a node (named by its id, translated by its origin minus the file's anchor, portals
 // in its extras) holding a mesh of one triangle primitive; the world's lights in it are its child
-// nodes (KHR_lights_punctual), listed after every room's node. The primitive carries
+// nodes (KHR_lights_punctual), and so are its formations (one node, one mesh of them all,
+// material "calcite", each instance's shape in extras.formations), listed after every room's
+// node. The primitive carries
 // KHR_draco_mesh_compression whose bufferView is the room's Draco payload exactly as a server
 // streams it to a protocol version 1 client (codec::encode_room with default options: normals
 // included, which glTF readers expect), and, since the extension is used but not
@@ -33,7 +35,13 @@ struct GlbSource {
   // World metres that every node's translation is relative to (the scene's extras say it), so
   // that float32 translations keep the grid's precision.
   Vec3 anchor;
+  // Each room's formations (shaders/formations.hpp) as a child node: one mesh of them all at
+  // kGlbFormationLod, each instance's shape in its extras.
+  bool formations = true;
 };
+
+// The level of detail formations are written at (formations::kLodSides / kLodRings: 10 x 16).
+inline constexpr int kGlbFormationLod = 1;
 
 // One room of the file: its layout and its mesh, or why it has none (its node then has no mesh
 // and says the reason in extras.mesh_error).

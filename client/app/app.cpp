@@ -181,6 +181,7 @@ Session::Session(const Options& o, render::Renderer& r, render::Overlay& ov,
   }
   render_options.tessellation = !o.no_tess;
   render_options.max_tess = o.tess_max;
+  render_options.target_pixels = o.tess_pixels;
   render_options.wireframe = o.wireframe;
   render_options.surface =
       o.surface == "phong" ? render::Surface::kPhong : render::Surface::kPnTriangles;

@@ -89,6 +89,11 @@ std::optional<int> parse_options(int argc, char** argv, Options& o) {
                  "MaxTess: the tessellation level of the nearest edges (1-64)")
       ->capture_default_str()
       ->check(CLI::Range(1.0f, 64.0f));
+  app.add_option("--tess-pixels", o.tess_pixels,
+                 "With --lod screen: the pixels a tessellated segment spans on screen (fewer: "
+                 "finer relief far away, more vertices)")
+      ->capture_default_str()
+      ->check(CLI::Range(1.0f, 64.0f));
   app.add_flag("--no-tess", o.no_tess,
                "Draw the patch mesh flat: no tessellation, no displacement");
   app.add_flag("--wireframe", o.wireframe, "Draw edges only");

@@ -28,6 +28,7 @@ struct Options {
   int width = 1280;
   int height = 720;
   float tess_max = 8;
+  float tess_pixels = render::RenderOptions{}.target_pixels;
   bool no_tess = false;
   bool wireframe = false;
   std::string surface = "pn";

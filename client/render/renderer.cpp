@@ -258,7 +258,7 @@ Renderer::RoomUniforms Renderer::locate(const Program& p) {
           p.uniform("u_glow"),         p.uniform("u_light_count"),   p.uniform("u_light_position"),
           p.uniform("u_light_color"),  p.uniform("u_light_glow"),    p.uniform("u_light_bound"),
           p.uniform("u_light_index"),  p.uniform("u_headlamp"),      p.uniform("u_haze"),
-          p.uniform("u_patch_edge")};
+          p.uniform("u_patch_edge"),   p.uniform("u_haze_count"),    p.uniform("u_haze_index")};
 }
 
 void Renderer::draw_formations(const std::vector<const GpuRoom*>& rooms, Vec3 anchor, glm::vec3 eye,
@@ -590,11 +590,12 @@ FrameStats Renderer::draw(const GpuRoomCache& cache, const Camera& camera, int w
     glUniform1f(u_.relief_margin, relief::relief_bound(relief));
     glUniform1f(u_.patch_edge, room.patch_edge);
     {
-      // Only the lights that can reach this room's rock, or whose haze lies between it and the
-      // camera (the camera is inside their bound): on llvmpipe every light a fragment loops
-      // over costs, and most rooms are lit by none or one room's few.
-      std::array<GLint, kMaxFrameLights> index{};
-      int count = 0;
+      // Only the lights that can reach this room's rock shade it (room.frag loops over them per
+      // pixel: on llvmpipe every one costs, and most rooms are lit by none or one room's few);
+      // the haze (room.tese, per vertex) also takes those whose bound holds the camera, since the
+      // view ray to this room's rock crosses it.
+      std::array<GLint, kMaxFrameLights> shading{}, hazing{};
+      int shade_count = 0, haze_count = 0;
       const double reach = radius + margin.around;
       for (size_t i = 0; i < points.size(); ++i) {
         const Light& l = *points[i];
@@ -603,10 +604,13 @@ FrameStats Renderer::draw(const GpuRoomCache& cache, const Camera& camera, int w
             length(l.position - room.room.sphere.centre) < l.range + reach &&
             (!bounded || length(l.bound_centre - room.room.sphere.centre) < l.bound_radius + reach);
         const bool hazes = !bounded || length(l.bound_centre - camera.position) < l.bound_radius;
-        if (shades || hazes) index[static_cast<size_t>(count++)] = static_cast<GLint>(i);
+        if (shades) shading[static_cast<size_t>(shade_count++)] = static_cast<GLint>(i);
+        if (shades || hazes) hazing[static_cast<size_t>(haze_count++)] = static_cast<GLint>(i);
       }
-      glUniform1i(u_.light_count, count);
-      glUniform1iv(u_.light_index, static_cast<GLsizei>(kMaxFrameLights), index.data());
+      glUniform1i(u_.light_count, shade_count);
+      glUniform1iv(u_.light_index, static_cast<GLsizei>(kMaxFrameLights), shading.data());
+      glUniform1i(u_.haze_count, haze_count);
+      glUniform1iv(u_.haze_index, static_cast<GLsizei>(kMaxFrameLights), hazing.data());
     }
     glBindVertexArray(room.vertex_array.get());
     glDrawElements(GL_PATCHES, room.index_count, GL_UNSIGNED_INT, nullptr);

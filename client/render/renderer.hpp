@@ -68,7 +68,7 @@ struct RenderOptions {
   // its queries: for benchmarks and reports, not for play.
   bool gpu_timing = false;
   LodHeuristic lod = LodHeuristic::kScreenSpace;  // near relief dense, far relief cheap
-  float target_pixels = 6;                        // kScreenSpace: pixels per tessellated segment
+  float target_pixels = 9;                        // kScreenSpace: pixels per tessellated segment
   // Fog into darkness: a hall is up to 68 m across, and its far wall, lit by its own lights or a
   // flare, should show from its entrance.
   float fog_start = 24;  // metres
@@ -191,7 +191,7 @@ class Renderer {
         phong_alpha, displacement, fog_color, fog_start, fog_end, lamp_range, lod, pixel_scale,
         target_pixels, patch_culling, frustum, fine_detail, ao, lamp, forward, exposure, glow,
         light_count, light_position, light_color, light_glow, light_bound, light_index, headlamp,
-        haze, patch_edge;
+        haze, patch_edge, haze_count, haze_index;
   };
   static RoomUniforms locate(const Program& p);
   // One formation mesh: rings x sides, drawn instanced.

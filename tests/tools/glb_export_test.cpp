@@ -23,6 +23,7 @@
 #include "codec/room_codec.hpp"
 #include "layout_process.hpp"
 #include "mesh/room_mesh.hpp"
+#include "shaders/formations.hpp"
 
 namespace {
 
@@ -171,6 +172,22 @@ bool is_light(const json& node) {
   return node.contains("extensions") && node["extensions"].contains("KHR_lights_punctual");
 }
 
+// A node of a room's formations (a room's child).
+bool is_formations(const json& node) {
+  return node.contains("extras") && node["extras"].contains("formations");
+}
+
+// The mesh of a room's formations (named <room>.formations), not a room's.
+bool is_formations_mesh(const json& mesh) {
+  const std::string name = mesh.value("name", "");
+  return name.size() > 11 && name.compare(name.size() - 11, 11, ".formations") == 0;
+}
+
+// A room's child (a light or its formations), not a room.
+bool is_child(const json& node) {
+  return is_light(node) || is_formations(node);
+}
+
 // The file of the export tests, written once by the real binary.
 class GlbExport : public ::testing::Test {
  protected:
@@ -249,6 +266,7 @@ TEST_F(GlbExport, primitives_are_indexed_triangles_with_exact_position_bounds) {
   ASSERT_TRUE(doc().contains("meshes"));
   for (const json& m : doc()["meshes"]) {
     SCOPED_TRACE(m.value("name", "?"));
+    if (is_formations_mesh(m)) continue;  // plain arrays (their own test)
     ASSERT_EQ(m["primitives"].size(), 1u);
     const json& p = m["primitives"][0];
     EXPECT_EQ(p.value("mode", 4), 4);
@@ -304,7 +322,7 @@ TEST_F(GlbExport, primitives_are_indexed_triangles_with_exact_position_bounds) {
 TEST_F(GlbExport, front_faces_look_into_the_cave) {
   size_t triangles = 0, agree = 0, inward = 0;
   for (const json& node : doc()["nodes"]) {
-    if (is_light(node)) continue;
+    if (is_child(node)) continue;
     const json& p = doc()["meshes"][node["mesh"].get<size_t>()]["primitives"][0];
     std::vector<float> pos = floats(accessor_bytes(*glb_, p["attributes"]["POSITION"]));
     std::vector<float> nrm = floats(accessor_bytes(*glb_, p["attributes"]["NORMAL"]));
@@ -352,7 +370,7 @@ TEST_F(GlbExport, draco_payload_decodes_to_the_fallback_arrays) {
         << "a reader without Draco must be able to use the fallback";
   }
   for (const json& node : doc()["nodes"]) {
-    if (is_light(node)) continue;
+    if (is_child(node)) continue;
     SCOPED_TRACE(node["name"].get<std::string>());
     ASSERT_TRUE(node.contains("mesh"));
     const json& p = doc()["meshes"][node["mesh"].get<size_t>()]["primitives"][0];
@@ -406,7 +424,7 @@ TEST_F(GlbExport, draco_bytes_are_what_the_server_streams_and_nodes_place_rooms_
   EXPECT_EQ(extras["anchor"], anchor) << "the block's first corner, in world metres";
   size_t payload_bytes = 0;
   for (const json& node : doc()["nodes"]) {
-    if (is_light(node)) continue;
+    if (is_child(node)) continue;
     const std::string name = node["name"];
     SCOPED_TRACE(name);
     auto id = grotto::cave::RoomId::parse(name);
@@ -465,7 +483,7 @@ TEST_F(GlbExport, a_node_per_region_room_with_its_portals_in_extras) {
     ++mesh_users[node["mesh"].get<size_t>()];
   }
   for (size_t users : mesh_users)
-    EXPECT_EQ(users, 1u) << "one mesh per room";
+    EXPECT_LE(users, 1u) << "one mesh per room";
   // Each portal to a room in the file has a portal back at the same disc, facing the other way.
   size_t inside = 0;
   for (const auto& [id, node] : by_id) {
@@ -499,8 +517,11 @@ TEST_F(GlbExport, the_worlds_lights_are_child_nodes_with_punctual_point_lights) 
   for (size_t i = 0; i < region.rooms.size(); ++i) {
     const auto want = cave::room_lights(kSeed, cave::LayoutParams{}, region.rooms[i]);
     const json& node = nodes[i];
-    ASSERT_EQ(node.contains("children") ? node["children"].size() : 0u, want.size())
-        << region.rooms[i].id.to_string();
+    size_t children = 0;  // its lights come first, then its formations' node
+    if (node.contains("children"))
+      for (const json& c : node["children"])
+        children += is_light(nodes[c.get<size_t>()]);
+    ASSERT_EQ(children, want.size()) << region.rooms[i].id.to_string();
     Vec3 parent = anchor;
     if (node.contains("translation"))
       parent =
@@ -524,9 +545,101 @@ TEST_F(GlbExport, the_worlds_lights_are_child_nodes_with_punctual_point_lights) 
     }
   }
   ASSERT_GT(lights, 0u) << "no lit room in the fixture's sector: the test checks nothing";
-  EXPECT_EQ(nodes.size(), region.rooms.size() + lights);
+  const size_t formation_nodes = static_cast<size_t>(
+      std::count_if(nodes.begin(), nodes.end(), [](const json& n) { return is_formations(n); }));
+  EXPECT_EQ(nodes.size(), region.rooms.size() + lights + formation_nodes);
   const json& used = doc()["extensionsUsed"];
   EXPECT_NE(std::find(used.begin(), used.end(), "KHR_lights_punctual"), used.end());
+}
+
+// Each room's formations are one child node: their mesh faces out (every triangle's
+// counter-clockwise normal agrees with its vertex normals) in the calcite material, and its
+// extras list exactly the instances formations::place gives over the room's mesh as the file
+// holds it (the payload decoded: what a client places them over), root for root.
+TEST_F(GlbExport, each_rooms_formations_are_a_child_node_placed_as_the_client_places_them) {
+  const json& nodes = doc()["nodes"];
+  size_t rooms_with = 0, instances = 0, triangles = 0, agree = 0;
+  for (const json& node : nodes) {
+    if (is_child(node) || !node.contains("mesh")) continue;
+    const json* child = nullptr;
+    if (node.contains("children"))
+      for (const json& c : node["children"])
+        if (is_formations(nodes[c.get<size_t>()])) child = &nodes[c.get<size_t>()];
+    // The room's mesh as the client has it, from the file's plain arrays.
+    const json& p = doc()["meshes"][node["mesh"].get<size_t>()]["primitives"][0];
+    const std::vector<float> pos = floats(accessor_bytes(*glb_, p["attributes"]["POSITION"]));
+    const std::vector<float> nrm = floats(accessor_bytes(*glb_, p["attributes"]["NORMAL"]));
+    const std::vector<float> ch = floats(accessor_bytes(*glb_, p["attributes"]["_CHANNELS"]));
+    const std::vector<uint32_t> rim = unsigneds(accessor_bytes(*glb_, p["attributes"]["_RIM"]), 2);
+    const json& idx = doc()["accessors"][p["indices"].get<size_t>()];
+    const std::vector<uint32_t> indices =
+        unsigneds(accessor_bytes(*glb_, p["indices"]), component_size(idx["componentType"]));
+    std::vector<grotto::mesh::core::float3> positions, normals;
+    std::vector<float> roughness;
+    std::vector<int8_t> rim_portal;
+    for (size_t v = 0; v < pos.size() / 3; ++v) {
+      positions.push_back({pos[3 * v], pos[3 * v + 1], pos[3 * v + 2]});
+      normals.push_back({nrm[3 * v], nrm[3 * v + 1], nrm[3 * v + 2]});
+      roughness.push_back(ch[2 * v]);
+      rim_portal.push_back(static_cast<int8_t>(static_cast<int>(rim[2 * v]) - 1));
+    }
+    grotto::formations::Surface surface;
+    for (int a = 0; a < 3; ++a)
+      surface.origin[a] = doc()["scenes"][0]["extras"]["anchor"][a].get<double>() +
+                          node["translation"][a].get<double>();
+    surface.positions = positions;
+    surface.normals = normals;
+    surface.roughness = roughness;
+    surface.rim_portal = rim_portal;
+    surface.indices = indices;
+    surface.room_radius = node["extras"]["radius"].get<double>();
+    const auto want = grotto::formations::place(surface);
+    if (want.empty()) {
+      EXPECT_EQ(child, nullptr) << node["name"];
+      continue;
+    }
+    ASSERT_NE(child, nullptr) << node["name"];
+    ++rooms_with;
+    const json& got = (*child)["extras"]["formations"];
+    ASSERT_EQ(got.size(), want.size()) << node["name"];
+    for (size_t k = 0; k < want.size(); ++k) {
+      ++instances;
+      EXPECT_EQ(got[k]["root"][0].get<float>(), want[k].root.x);
+      EXPECT_EQ(got[k]["root"][1].get<float>(), want[k].root.y);
+      EXPECT_EQ(got[k]["length"].get<float>(), want[k].length);
+    }
+    const json& fp = doc()["meshes"][(*child)["mesh"].get<size_t>()]["primitives"][0];
+    EXPECT_EQ(doc()["materials"][fp["material"].get<size_t>()]["name"], "calcite");
+    const std::vector<float> fpos = floats(accessor_bytes(*glb_, fp["attributes"]["POSITION"]));
+    const std::vector<float> fnrm = floats(accessor_bytes(*glb_, fp["attributes"]["NORMAL"]));
+    const std::vector<uint32_t> fidx = unsigneds(accessor_bytes(*glb_, fp["indices"]), 4);
+    for (size_t t = 0; t + 2 < fidx.size(); t += 3) {
+      const float* a = &fpos[3 * fidx[t]];
+      const float* b = &fpos[3 * fidx[t + 1]];
+      const float* c = &fpos[3 * fidx[t + 2]];
+      double face[3], n[3] = {0, 0, 0};
+      const double u[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]};
+      const double v[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
+      face[0] = u[1] * v[2] - u[2] * v[1];
+      face[1] = u[2] * v[0] - u[0] * v[2];
+      face[2] = u[0] * v[1] - u[1] * v[0];
+      double area = 0, along = 0;
+      for (int k = 0; k < 3; ++k) {
+        for (int corner = 0; corner < 3; ++corner)
+          n[k] += fnrm[3 * fidx[t + corner] + k];
+        along += face[k] * n[k];
+        area += face[k] * face[k];
+      }
+      if (area < 1e-16) continue;  // a tip's degenerate sliver
+      ++triangles;
+      agree += along > 0;
+    }
+  }
+  std::printf("%zu rooms with formations, %zu instances, %zu triangles (%zu facing out)\n",
+              rooms_with, instances, triangles, agree);
+  EXPECT_GT(rooms_with, 3u);
+  EXPECT_GT(triangles, 0u);
+  EXPECT_GT(agree, triangles * 99 / 100);
 }
 
 // gltfpack parses the file with cgltf and validates it (cgltf_validate: buffers, views,
@@ -583,7 +696,7 @@ TEST(GlbExportDetail, detail_payloads_decode_to_their_fallback) {
   ASSERT_EQ(g.error, "");
   EXPECT_EQ(g.doc["scenes"][0]["extras"]["lod"], "detail");
   for (const json& node : g.doc["nodes"]) {
-    if (is_light(node)) continue;
+    if (is_child(node)) continue;
     const json& p = g.doc["meshes"][node["mesh"].get<size_t>()]["primitives"][0];
     grotto::codec::DecodeLimits limits = grotto::codec::kDetailLimits;
     limits.portal_count = static_cast<int>(node["extras"]["portals"].size());
@@ -615,14 +728,15 @@ TEST(GlbExportFailures, the_sector_whose_room_could_not_be_meshed_exports_whole)
   ASSERT_EQ(g.error, "");
   bool found = false;
   for (const json& node : g.doc["nodes"]) {
-    if (is_light(node)) continue;
+    if (is_child(node)) continue;
     EXPECT_TRUE(node.contains("mesh")) << node["name"];
     found = found || node["name"] == "676.1.-2.r5";
   }
   EXPECT_TRUE(found);
-  EXPECT_EQ(g.doc["meshes"].size(),
+  EXPECT_EQ(std::count_if(g.doc["meshes"].begin(), g.doc["meshes"].end(),
+                          [](const json& m) { return !is_formations_mesh(m); }),
             std::count_if(g.doc["nodes"].begin(), g.doc["nodes"].end(),
-                          [](const json& node) { return !is_light(node); }));
+                          [](const json& node) { return !is_child(node); }));
 }
 
 // A file that cannot be written is one line and exit 1, and leaves nothing behind: no temporary
