@@ -100,14 +100,19 @@ std::vector<cave::RoomId> visible_neighbours(const Session& s, cave::RoomId id, 
   return out;
 }
 
-// Rooms around p are ready: its room and every neighbour it can show are on the GPU, and nothing
-// is in flight.
+// Every arrived room's formations are placed (place_formations).
+bool formations_placed(const Session& s) {
+  return s.to_place.empty() && s.placing.empty();
+}
+
+// Rooms around p are ready: its room and every neighbour it can show are on the GPU with their
+// formations, and nothing is in flight.
 bool surroundings_ready(const Session& s, Vec3 p) {
   auto id = room_at(s.cache, p);
   if (!id) return false;
   for (cave::RoomId n : visible_neighbours(s, *id, p))
     if (!s.cache.contains(n)) return false;
-  return s.stream.stats().in_flight == 0;
+  return s.stream.stats().in_flight == 0 && formations_placed(s);
 }
 
 // Pumps the stream until `ready` holds or the deadline passes (false, with a warning).
@@ -200,10 +205,44 @@ Session::Session(const Options& o, render::Renderer& r, render::Overlay& ov,
   show_overlay = o.overlay.value_or(o.screenshot.empty() && !o.bench_s);
 }
 
+// Hands finished placements to the cache and the collision world and starts the next ones, at
+// most one a hardware thread at once.
+void place_formations(Session& s) {
+  for (auto it = s.placing.begin(); it != s.placing.end();) {
+    if (it->second.wait_for(std::chrono::seconds(0)) != std::future_status::ready) {
+      ++it;
+      continue;
+    }
+    std::vector<formations::FormationShape> placed = it->second.get();
+    s.world.set_formations(it->first, placed);
+    s.cache.set_formations(it->first, std::move(placed));
+    it = s.placing.erase(it);
+  }
+  std::erase_if(s.retired, [](const auto& f) {
+    return f.wait_for(std::chrono::seconds(0)) == std::future_status::ready;
+  });
+  const size_t threads = std::max(1u, std::thread::hardware_concurrency());
+  while (!s.to_place.empty() && s.placing.size() + s.retired.size() < threads) {
+    std::shared_ptr<const client::ReadyRoom> room = std::move(s.to_place.front());
+    s.to_place.pop_front();
+    if (!s.cache.contains(room->room.id)) continue;  // evicted before its turn
+    if (auto old = s.placing.find(room->room.id); old != s.placing.end()) {
+      s.retired.push_back(std::move(old->second));
+      s.placing.erase(old);
+    }
+    s.placing[room->room.id] = std::async(std::launch::async, [room] {
+      return formations::place(
+          formations::surface_of(room->mesh, room->origin, room->room.sphere.radius));
+    });
+  }
+}
+
 void pump(Session& s, double speed) {
   for (auto& room : s.stream.take_new_rooms()) {
-    s.cache.upload(*room);
-    s.world.add(*room);
+    // The rock now, its formations when a worker has placed them (place_formations).
+    s.cache.upload(*room, {});
+    s.world.add(*room, {});
+    s.to_place.push_back(room);
     // The world's lights: a function of the seed and the room (the default layout parameters'
     // floors, as the client assumes them elsewhere).
     if (const auto seed = s.stream.stats().seed; seed && !s.options.no_world_lights) {
@@ -217,7 +256,12 @@ void pump(Session& s, double speed) {
     s.cache.evict(id);
     s.world.evict(id);
     s.world_lights.erase(id);
+    if (auto it = s.placing.find(id); it != s.placing.end()) {
+      s.retired.push_back(std::move(it->second));
+      s.placing.erase(it);
+    }
   }
+  place_formations(s);
   aim_when_known(s.camera, s.aim_room, [&](cave::RoomId id) { return s.stream.descriptor(id); });
   if (!s.placed && s.pose_room) {
     // --pose room:<id>: the stream plans from that room until its descriptor is here, then the

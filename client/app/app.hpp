@@ -6,7 +6,10 @@
 #pragma once
 
 #include <chrono>
+#include <deque>
+#include <future>
 #include <map>
+#include <memory>
 #include <optional>
 #include <vector>
 
@@ -51,6 +54,13 @@ struct Session {
   bool following = false;  // the camera is on the scripted path
   // The world's lights of the rooms on the GPU (cave::room_lights), and the flares thrown.
   std::map<cave::RoomId, std::vector<render::Light>> world_lights;
+  // The formations of arrived rooms, placed on worker threads (formations::place: a hall's takes
+  // milliseconds, two frames of a 120 Hz display), a few at a time; then handed to the cache and
+  // the collision world. Rooms wait in `to_place` for a thread; `retired`: placements of rooms
+  // evicted meanwhile, dropped once they end.
+  std::deque<std::shared_ptr<const client::ReadyRoom>> to_place;
+  std::map<cave::RoomId, std::future<std::vector<formations::FormationShape>>> placing;
+  std::vector<std::future<std::vector<formations::FormationShape>>> retired;
   std::vector<play::Flare> flares;
   double flare_carry = 0;  // seconds not yet stepped (advance_flares)
   HudMeter meter;

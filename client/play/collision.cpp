@@ -87,7 +87,8 @@ bool segment_crosses(const Disc& d, Vec3 p, Vec3 q) {
   return length_squared(x - d.centre) <= d.radius * d.radius;
 }
 
-void CollisionWorld::add(const client::ReadyRoom& ready) {
+void CollisionWorld::add(const client::ReadyRoom& ready,
+                         std::span<const formations::FormationShape> placed) {
   evict(ready.room.id);
   Room r;
   r.room = ready.room;
@@ -114,28 +115,6 @@ void CollisionWorld::add(const client::ReadyRoom& ready) {
   r.rim.resize(mesh.vertex_count(), 0.0f);
   r.indices = mesh.indices;
   r.relief_reach = relief::relief_bound(relief_strength_);
-  // The formations as simple shapes: each a six-sided hull round what is drawn.
-  if (relief_strength_ > 0 && formations_) {
-    for (const formations::FormationShape& f :
-         formations::place(formations::surface_of(mesh, ready.origin, ready.room.sphere.radius))) {
-      Formation hull;
-      const std::vector<glm::vec3> points = formations::collision_hull(f);
-      hull.lo = hull.hi = r.origin + Vec3{points[0].x, points[0].y, points[0].z};
-      for (size_t i = 0; i + 2 < points.size(); i += 3) {
-        Triangle t;
-        Vec3* corner[3] = {&t.a, &t.b, &t.c};
-        for (int k = 0; k < 3; ++k) {
-          const glm::vec3& q = points[i + static_cast<size_t>(k)];
-          *corner[k] = r.origin + Vec3{q.x, q.y, q.z};
-          for (int a = 0; a < 3; ++a)
-            hull.lo[a] = std::min(hull.lo[a], (*corner[k])[a]),
-            hull.hi[a] = std::max(hull.hi[a], (*corner[k])[a]);
-        }
-        hull.triangles.push_back(t);
-      }
-      r.formations.push_back(std::move(hull));
-    }
-  }
   r.refined_at.assign(r.indices.size() / 3, 0);
   r.refined_count.assign(r.indices.size() / 3, 0);
   if (mesh.vertex_count() == 0) lo = hi = Vec3{};
@@ -175,6 +154,43 @@ void CollisionWorld::add(const client::ReadyRoom& ready) {
   for (uint32_t t = 0; t < triangles; ++t)
     for_each_cell(t, [&](size_t c) { r.cell_triangles[fill[c]++] = t; });
   rooms_.emplace(ready.room.id, std::move(r));
+  set_formations(ready.room.id, placed);
+}
+
+void CollisionWorld::add(const client::ReadyRoom& ready) {
+  std::vector<formations::FormationShape> placed;
+  if (relief_strength_ > 0 && formations_)
+    placed = formations::place(
+        formations::surface_of(ready.mesh, ready.origin, ready.room.sphere.radius));
+  add(ready, placed);
+}
+
+void CollisionWorld::set_formations(cave::RoomId id,
+                                    std::span<const formations::FormationShape> placed) {
+  auto it = rooms_.find(id);
+  if (it == rooms_.end()) return;
+  Room& r = it->second;
+  r.formations.clear();
+  if (!(relief_strength_ > 0 && formations_)) return;
+  // The formations as simple shapes: each a six-sided hull round what is drawn.
+  for (const formations::FormationShape& f : placed) {
+    Formation hull;
+    const std::vector<glm::vec3> points = formations::collision_hull(f);
+    hull.lo = hull.hi = r.origin + Vec3{points[0].x, points[0].y, points[0].z};
+    for (size_t i = 0; i + 2 < points.size(); i += 3) {
+      Triangle t;
+      Vec3* corner[3] = {&t.a, &t.b, &t.c};
+      for (int k = 0; k < 3; ++k) {
+        const glm::vec3& q = points[i + static_cast<size_t>(k)];
+        *corner[k] = r.origin + Vec3{q.x, q.y, q.z};
+        for (int a = 0; a < 3; ++a)
+          hull.lo[a] = std::min(hull.lo[a], (*corner[k])[a]),
+          hull.hi[a] = std::max(hull.hi[a], (*corner[k])[a]);
+      }
+      hull.triangles.push_back(t);
+    }
+    r.formations.push_back(std::move(hull));
+  }
 }
 
 void CollisionWorld::evict(cave::RoomId id) {

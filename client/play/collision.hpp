@@ -24,6 +24,7 @@
 #include "cave/layout.hpp"
 #include "client/stream/room_store.hpp"
 #include "core/vec3.hpp"
+#include "shaders/formations.hpp"
 
 namespace grotto::play {
 
@@ -74,8 +75,12 @@ class CollisionWorld {
   // formations: the rooms' formations collide too (off: the rock alone, for tests of it).
   explicit CollisionWorld(float relief_strength = 1.0f, bool formations = true)
       : relief_strength_(relief_strength), formations_(formations) {}
-  // Adds the room's patch mesh, replacing a room with the same id.
+  // Adds the room's patch mesh, replacing a room with the same id, with its formations placed
+  // here (formations::place) or given (placed elsewhere, or to come through set_formations).
   void add(const client::ReadyRoom& room);
+  void add(const client::ReadyRoom& room, std::span<const formations::FormationShape> formations);
+  // The room's formations, when they were placed apart from add; nothing when it is gone.
+  void set_formations(cave::RoomId id, std::span<const formations::FormationShape> formations);
   void evict(cave::RoomId id);
   void clear() { rooms_.clear(); }
   bool contains(cave::RoomId id) const { return rooms_.count(id) != 0; }

@@ -42,6 +42,17 @@ float median_edge_length(const codec::DecodedRoom& mesh) {
 }
 
 void GpuRoomCache::upload(const client::ReadyRoom& room) {
+  upload(room, formations::place(
+                   formations::surface_of(room.mesh, room.origin, room.room.sphere.radius)));
+}
+
+void GpuRoomCache::set_formations(cave::RoomId id,
+                                  std::vector<formations::FormationShape> formations) {
+  if (auto it = rooms_.find(id); it != rooms_.end()) it->second.formations = std::move(formations);
+}
+
+void GpuRoomCache::upload(const client::ReadyRoom& room,
+                          std::vector<formations::FormationShape> formations) {
   evict(room.room.id);
   GpuRoom g;
   g.room = room.room;

@@ -51,8 +51,13 @@ struct GpuRoom {
 
 class GpuRoomCache {
  public:
-  // Uploads the room, replacing one with the same id.
+  // Uploads the room, replacing one with the same id, with its formations placed here
+  // (formations::place: a hall's takes milliseconds) or given (placed elsewhere, or to come
+  // through set_formations).
   void upload(const client::ReadyRoom& room);
+  void upload(const client::ReadyRoom& room, std::vector<formations::FormationShape> formations);
+  // The room's formations, when they were placed apart from its upload; nothing when it is gone.
+  void set_formations(cave::RoomId id, std::vector<formations::FormationShape> formations);
   void evict(cave::RoomId id);
   void clear() { rooms_.clear(), bytes_ = 0; }
   bool contains(cave::RoomId id) const { return rooms_.count(id) != 0; }
