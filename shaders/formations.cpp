@@ -57,8 +57,6 @@ struct SurfacePoint {
 class Placer {
  public:
   explicit Placer(const Surface& s) : s_(s) {
-    origin_ = vec3(static_cast<float>(s.origin.x), static_cast<float>(s.origin.y),
-                   static_cast<float>(s.origin.z));
     // The triangles over a grid of kGrid-metre cells of the room's xz plane (each in every cell
     // its box meets), for the heights round a root.
     const size_t triangles = s.indices.size() / 3;
@@ -182,7 +180,8 @@ class Placer {
     }
     const vec3 at = relief::relief_pn_point(p[0], p[1], p[2], n[0], n[1], n[2], w);
     const vec3 nn = normalize(n[0] * w.x + n[1] * w.y + n[2] * w.z);
-    const relief::Relief r = relief::relief_at(at + origin_, nn, rough, rim, 1.0f);
+    const relief::Relief r =
+        relief::relief_at(relief::relief_pos_of(s_.origin, at), nn, rough, rim, 1.0f);
     out.position = at + nn * r.height;
     out.normal = nn;
     // Not on a triangle that touches a rim: its neighbour across the rim is the portal's opening,
@@ -223,7 +222,6 @@ class Placer {
   }
 
   const Surface& s_;
-  vec3 origin_;
 };
 
 // A stalactite's or stalagmite's share of its cell's hashes that shapes it (not where it is).
@@ -278,8 +276,9 @@ std::vector<FormationShape> place(const Surface& s) {
         const relief::Speleothem& sp = it->second;
         if (!(sp.len > 0.0f)) continue;
         // The centre from the lattice's frame to the world (the turn's inverse), then the room's.
-        const double wx = ct * sp.centre.x + st * sp.centre.y;
-        const double wz = -st * sp.centre.x + ct * sp.centre.y;
+        const double ux = cx + static_cast<double>(sp.offset.x);
+        const double uz = cz + static_cast<double>(sp.offset.y);
+        const double wx = ct * ux + st * uz, wz = -st * ux + ct * uz;
         const vec2 xz(static_cast<float>(wx - s.origin.x), static_cast<float>(wz - s.origin.z));
         const vec3 w = placer.barycentric(t, xz);
         // Half-open on the edges, so a centre on a shared edge counts once.
@@ -298,12 +297,12 @@ std::vector<FormationShape> place(const Surface& s) {
     const ivec2 c(key.first, key.second);
     const relief::Speleothem& cand = candidates.at(key);
     std::sort(list.begin(), list.end(), [](const Hit& a, const Hit& b) { return a.y < b.y; });
-    const double wx = ct * cand.centre.x + st * cand.centre.y;
-    const double wz = -st * cand.centre.x + ct * cand.centre.y;
+    const double ux = c.x + static_cast<double>(cand.offset.x);
+    const double uz = c.y + static_cast<double>(cand.offset.y);
+    const double wx = ct * ux + st * uz, wz = -st * ux + ct * uz;
     const vec2 xz(static_cast<float>(wx - s.origin.x), static_cast<float>(wz - s.origin.z));
-    const vec3 world_centre(static_cast<float>(wx), static_cast<float>(s.origin.y),
-                            static_cast<float>(wz));
-    const float variety = relief::relief_variety(world_centre);
+    const float variety =
+        relief::relief_variety(relief::relief_pos_of(Vec3{wx, s.origin.y, wz}, vec3(0.0f)));
     const float longest = longest_here * mix(0.45f, 1.0f, smoothstep(0.3f, 0.75f, variety));
     // cand.len is max(straw, size^3) for a longest of 1.
     const float size3 = cand.len;

@@ -61,6 +61,19 @@ float vein_width(vec3 p, vec3 dir, float width) {
   return width * clamp(0.55 + 0.6 * relief_noise(p * 0.9 + dir * 11.0).x, 0.1, 1.0);
 }
 
+// A vein plane through world point p (relief.glsl's ReliefPos): the plane's offset of the block's
+// corner in doubles (a world coordinate 6,000 km out), the rest in floats; its noise at the
+// world's own lattice (kReliefBlock's whole cycles).
+float vein_plane_at(ReliefPos p, vec3 dir, float spacing) {
+  double corner = dot(dvec3(p.block) * double(kReliefBlock), dvec3(dir));
+  float across = float(corner - double(spacing) * floor(corner / double(spacing)));
+  return across + dot(p.local, dir) +
+         0.6 * relief_noise_at(p, ivec3(215), dir * 5.0).x;  // 0.21 per metre
+}
+float vein_width_at(ReliefPos p, vec3 dir, float width) {
+  return width * clamp(0.55 + 0.6 * relief_noise_at(p, ivec3(922), dir * 11.0).x, 0.1, 1.0);
+}
+
 // The vein of one plane through p = 0 (a seam through its source).
 float vein_through(vec3 p, vec3 dir, float width, float footprint) {
   return vein_line(vein_plane(p, dir), vein_width(p, dir, width), footprint);
@@ -68,9 +81,9 @@ float vein_through(vec3 p, vec3 dir, float width, float footprint) {
 
 // A set of such veins, planes `spacing` metres apart shifted by `phase` of it: on a wall each
 // leaves a long, nearly straight trace; two sets cross, as joints do.
-float vein_trace(vec3 p, vec3 dir, float spacing, float phase, float width, float footprint) {
-  float t = vein_plane(p, dir) / spacing + phase;
-  return vein_line((fract(t + 0.5) - 0.5) * spacing, vein_width(p, dir, width), footprint);
+float vein_trace(ReliefPos p, vec3 dir, float spacing, float phase, float width, float footprint) {
+  float t = vein_plane_at(p, dir, spacing) / spacing + phase;
+  return vein_line((fract(t + 0.5) - 0.5) * spacing, vein_width_at(p, dir, width), footprint);
 }
 
 // A glow-worm colony's larvae (Arachnocampa): points of light a few millimetres across, one in a
@@ -80,16 +93,18 @@ float vein_trace(vec3 p, vec3 dir, float spacing, float phase, float width, floa
 // than the pixel's footprint spreads over the pixel with its light kept (its peak held where it
 // would wash out to white, so the colony keeps its colour); where the lattice itself is finer than
 // a pixel, the colony is its mean glow, mottled by the clusters (no shimmer).
-float glow_worms(vec3 world, vec3 n, float footprint) {
-  const float cell = 0.07, larva = 0.005;
-  float occupied = 0.7 *
-                   (0.3 + 0.7 * smoothstep(-0.5, 0.6, relief_noise(world * 1.9 + vec3(4.0, 1.0, 0.0)).x)) *
-                   smoothstep(-0.6, 0.2, relief_noise(world * 0.6 + vec3(0.0, 9.0, 2.0)).x);
-  ivec3 c = ivec3(floor(world / cell));
-  vec3 at = (vec3(c) + 0.2 + 0.6 * vec3(relief_hash(c + ivec3(11, 0, 0)),
-                                        relief_hash(c + ivec3(0, 13, 0)),
-                                        relief_hash(c + ivec3(0, 0, 17)))) * cell;
-  vec3 off = world - at;
+float glow_worms(ReliefPos world, vec3 n, float footprint) {
+  const float cell = kReliefBlock / float(kReliefPitK.x), larva = 0.005;  // 7 cm cells
+  float occupied =
+      0.7 *
+      (0.3 + 0.7 * smoothstep(-0.5, 0.6, relief_noise_at(world, ivec3(1946), vec3(4.0, 1.0, 0.0)).x)) *
+      smoothstep(-0.6, 0.2, relief_noise_at(world, ivec3(614), vec3(0.0, 9.0, 2.0)).x);
+  vec3 x = world.local / cell;
+  vec3 whole = floor(x);
+  ivec3 c = world.block * kReliefPitK + ivec3(whole);
+  vec3 at = 0.2 + 0.6 * vec3(relief_hash(c + ivec3(11, 0, 0)), relief_hash(c + ivec3(0, 13, 0)),
+                             relief_hash(c + ivec3(0, 0, 17)));
+  vec3 off = (x - whole - at) * cell;
   off -= n * dot(off, n);
   float spread = max(larva, footprint);
   float bright = relief_hash(c) < occupied ? 0.4 + 0.6 * relief_hash(c + ivec3(5, 7, 3)) : 0.0;
@@ -104,7 +119,7 @@ float glow_worms(vec3 world, vec3 n, float footprint) {
 // space) with shading normal s, unit vector v towards the eye and albedo (occlusion applied);
 // footprint: the pixel's size on the surface (metres). wrap: translucency (calcite lets light
 // wrap round). glow: the emissive mask for bloom.
-vec3 lights_shade(vec3 p, vec3 world, vec3 s, vec3 v, vec3 albedo, float wrap, float footprint,
+vec3 lights_shade(vec3 p, ReliefPos world, vec3 s, vec3 v, vec3 albedo, float wrap, float footprint,
                   out float glow) {
   vec3 sum = vec3(0.0);
   glow = 0.0;
@@ -163,7 +178,7 @@ vec3 lights_shade(vec3 p, vec3 world, vec3 s, vec3 v, vec3 albedo, float wrap, f
                     0.7 * vein_through(from_source, across, 0.035, footprint));
     } else if (kind == GLOW_CRYSTALS) {
       // Facets: cells of noise that catch and hold the light.
-      pattern = smoothstep(0.25, 0.6, relief_noise(world * 4.0 + vec3(0.0, 0.0, 11.0)).x);
+      pattern = smoothstep(0.25, 0.6, relief_noise_at(world, ivec3(4096), vec3(0.0, 0.0, 11.0)).x);
     } else {
       pattern = 1.0;  // a flare: its own spot of rock is white hot
     }

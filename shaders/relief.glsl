@@ -73,11 +73,9 @@ RELIEF_FN float relief_hash(ivec3 c) {
   return relief_hash_mixed(q.x, q.y, q.z);
 }
 
-// 3-D value noise with a quintic fade: .x in [-1, 1], .yzw its analytic gradient.
-RELIEF_FN vec4 relief_noise(vec3 x) {
-  vec3 cell = floor(x);
-  ivec3 i = ivec3(cell);
-  vec3 f = x - cell;
+// 3-D value noise with a quintic fade at the point f (0-1 on each axis) of lattice cell i: .x in
+// [-1, 1], .yzw its analytic gradient.
+RELIEF_FN vec4 relief_noise_cell(ivec3 i, vec3 f) {
   vec3 u = f * f * f * (f * (f * 6.0f - 15.0f) + 10.0f);
   vec3 du = 30.0f * f * f * (f * (f - 2.0f) + 1.0f);
   // The eight corners' hashes, sharing the per-axis products: (c + 1) * m = c * m + m, wrapping
@@ -102,14 +100,73 @@ RELIEF_FN vec4 relief_noise(vec3 x) {
   return vec4(2.0f * v - 1.0f, 2.0f * dv);
 }
 
+// The same at the point x of the lattice (for points near the origin of their frame: a vein's
+// source, a lattice cell's own corner).
+RELIEF_FN vec4 relief_noise(vec3 x) {
+  vec3 cell = floor(x);
+  return relief_noise_cell(ivec3(cell), x - cell);
+}
+
+// ---- Far from the origin (issue 43, item 5) ----
+// Sectors reach 6,291 km from the origin, where a float's step is 0.5 m: noise of world positions
+// in float32 made the rock a mosaic of flat squares there. A world position is therefore a block
+// of kReliefBlock metres held exactly in integers and a float offset from the block's corner that
+// stays within a kilometre or two (the renderer's anchor is such a corner near the camera; C++
+// callers take the block of a room's origin: relief.hpp's relief_pos_of). Every noise of the
+// world runs at a whole number k of cycles per block on each axis, so the block's share of its
+// lattice coordinate, block * k, is an exact integer and only the offset's is a float: the same
+// precision 6,000 km out as at the origin.
+const float kReliefBlock = 1024.0f;
+struct ReliefPos {
+  ivec3 block;  // world = block * kReliefBlock + local
+  vec3 local;   // metres from the block's corner
+};
+
+RELIEF_FN ReliefPos relief_pos(ivec3 block, vec3 local) {
+  ReliefPos p;
+  p.block = block;
+  p.local = local;
+  return p;
+}
+
+// The frequency, cycles per metre, of k cycles per block.
+RELIEF_FN vec3 relief_frequency(ivec3 k) {
+  return vec3(k) * (1.0f / kReliefBlock);
+}
+
+// The noise at world * k / kReliefBlock + c (relief_noise's value and gradient with respect to
+// that argument: times relief_frequency(k) for metres).
+RELIEF_FN vec4 relief_noise_at(ReliefPos p, ivec3 k, vec3 c) {
+  vec3 x = p.local * relief_frequency(k) + c;
+  vec3 cell = floor(x);
+  return relief_noise_cell(p.block * k + ivec3(cell), x - cell);
+}
+
+// The world's noises, cycles per block (kReliefBlock), each the nearest to the frequency it was
+// designed at.
+const ivec3 kReliefVarietyK = ivec3(43);                // 1 / 24 m
+const ivec3 kReliefWarpK = ivec3(379);                  // 0.37
+const ivec3 kReliefOctave0K = ivec3(717);               // 0.7
+const ivec3 kReliefRidgeK = ivec3(1587);                // 1.55
+const ivec3 kReliefOctave2K = ivec3(3277);              // 3.2
+const ivec3 kReliefOctave3K = ivec3(6861);              // 6.7
+const ivec3 kReliefLobeK = ivec3(563, 225, 563);        // (0.55, 0.22, 0.55)
+const ivec3 kReliefCurtainK = ivec3(2458, 389, 2458);   // (2.4, 0.38, 2.4)
+const ivec3 kReliefGrainCoarseK = ivec3(29257);         // 1 / 3.5 cm
+const ivec3 kReliefGrainFineK = ivec3(64000);           // 1 / 1.6 cm
+const ivec3 kReliefPitK = ivec3(14629);                 // 1 / 7 cm
+const ivec3 kReliefJointK = ivec3(1862, 620, 1862);     // (1, 0.333, 1) / 0.55 m
+const ivec3 kReliefJointRunK = ivec3(931);              // 0.5 / 0.55 m
+const int kReliefCrackK = 164;                          // 0.16: the speleothems' crack field
+
 RELIEF_FN vec3 relief_gradient(vec4 n) {
   return vec3(n.y, n.z, n.w);
 }
 
 // The slow world-space variety field in [0, 1] (one cycle per ~24 m): bare rock against rough,
 // decorated rock.
-RELIEF_FN float relief_variety(vec3 p) {
-  return 0.5f + 0.5f * relief_noise(p * (1.0f / 24.0f) + vec3(17.3f, 5.1f, -9.7f)).x;
+RELIEF_FN float relief_variety(ReliefPos p) {
+  return 0.5f + 0.5f * relief_noise_at(p, kReliefVarietyK, vec3(17.3f, 5.1f, -9.7f)).x;
 }
 
 // The displaced surface point is p + n * height.
@@ -132,14 +189,14 @@ const float kReliefOctave2Size = 0.3125f;
 const float kReliefOctave3Size = 0.149f;
 
 // The rock's octaves above its broadest at the warped point q (relief_at; relief_rock_detail).
-RELIEF_FN vec4 relief_ridge_noise(vec3 q) {
-  return relief_noise(q * 1.55f + vec3(31.0f, 0.0f, 0.0f));
+RELIEF_FN vec4 relief_ridge_noise(ReliefPos q) {
+  return relief_noise_at(q, kReliefRidgeK, vec3(31.0f, 0.0f, 0.0f));
 }
-RELIEF_FN vec4 relief_octave2_noise(vec3 q) {
-  return relief_noise(q * 3.2f + vec3(-17.0f, 5.0f, 0.0f));
+RELIEF_FN vec4 relief_octave2_noise(ReliefPos q) {
+  return relief_noise_at(q, kReliefOctave2K, vec3(-17.0f, 5.0f, 0.0f));
 }
-RELIEF_FN vec4 relief_octave3_noise(vec3 q) {
-  return relief_noise(q * 6.7f + vec3(0.0f, 47.0f, 11.0f));
+RELIEF_FN vec4 relief_octave3_noise(ReliefPos q) {
+  return relief_noise_at(q, kReliefOctave3K, vec3(0.0f, 47.0f, 11.0f));
 }
 
 // The share of a rock octave of feature size `size` metres that a mesh sampled every `spacing`
@@ -152,7 +209,7 @@ RELIEF_FN float relief_octave_kept(float size, float spacing) {
 
 // One speleothem candidate of the turned lattice: where it stands and how long it is.
 struct Speleothem {
-  vec2 centre;   // metres, in the turned lattice's frame (relief_turn)
+  vec2 offset;   // metres from its cell's low corner, in the turned lattice's frame (relief_turn)
   float len;     // metres: the stalactite's length (0: none); its stalagmite is 0.5-0.65 as tall
   float radius;  // metres: the stalactite's radius at its root (its stalagmite's is twice that)
   float level;   // metres in [0, kReliefColumnSpan): a column cell's meeting levels are
@@ -167,33 +224,41 @@ RELIEF_FN vec2 relief_turn(vec3 p) {
               kReliefTurnSin * p.x + kReliefTurnCos * p.z);
 }
 
+// The crack field at `offset` metres into lattice cell c (1 m cells of the turned frame): the
+// noise at (c + offset) * kReliefCrackK / kReliefBlock, its cell's whole part c * kReliefCrackK
+// split in integers (exact however far out the cell is).
+RELIEF_FN vec4 relief_crack_noise(ivec2 c, vec2 offset) {
+  ivec2 m = c * kReliefCrackK;
+  vec2 x = (vec2(m & ivec2(1023)) + offset * float(kReliefCrackK)) * (1.0f / kReliefBlock);
+  vec2 cell = floor(x);
+  ivec2 whole = (m >> ivec2(10)) + ivec2(cell);
+  return relief_noise_cell(ivec3(whole.x, 3, whole.y), vec3(x.x - cell.x, 0.7f, x.y - cell.y));
+}
+
 // The speleothem of lattice cell c, the longest of its room being `longest` metres. Which cells
 // hold one depends on the hashes and the crack field at the cell alone, so none is cut off by a
 // threshold crossing it. The centre stays inside its cell, so the 3 x 3 cells around a point hold
 // every speleothem that reaches it (radius at most 0.45 m, a stalagmite's 0.9 m < 1 cell).
 RELIEF_FN Speleothem relief_speleothem(ivec2 c, float longest) {
   Speleothem s;
-  s.centre = vec2(0.0f);
+  s.offset = vec2(0.0f);
   s.len = 0.0f;
   s.radius = 0.0f;
   s.level = -1.0f;
   s.form = 0.0f;
   float jx = relief_hash(ivec3(c.x, 104729, c.y));
   float jz = relief_hash(ivec3(c.x, 1299709, c.y));
-  vec2 lo = vec2(c) * kReliefCell;
-  vec2 centre = lo + vec2(0.1f + 0.8f * jx, 0.1f + 0.8f * jz) * kReliefCell;
+  vec2 offset = vec2(0.1f + 0.8f * jx, 0.1f + 0.8f * jz) * kReliefCell;
   // One Newton step onto the crack (the zero line of the field), then back inside the cell.
-  vec4 k = relief_noise(vec3(centre.x * kReliefCrackScale, 3.7f, centre.y * kReliefCrackScale));
-  vec2 g = vec2(k.y, k.w) * kReliefCrackScale;
+  vec4 k = relief_crack_noise(c, offset);
+  vec2 g = vec2(k.y, k.w) * relief_frequency(ivec3(kReliefCrackK)).x;
   float g2 = dot(g, g) + 1e-6f;
-  centre = clamp(centre - (k.x / g2) * g, lo + vec2(0.05f * kReliefCell),
-                 lo + vec2(0.95f * kReliefCell));
-  float from_crack = abs(relief_noise(vec3(centre.x * kReliefCrackScale, 3.7f,
-                                           centre.y * kReliefCrackScale)).x) / sqrt(g2);
+  offset = clamp(offset - (k.x / g2) * g, vec2(0.05f * kReliefCell), vec2(0.95f * kReliefCell));
+  float from_crack = abs(relief_crack_noise(c, offset).x) / sqrt(g2);
   float on_crack = 1.0f - smoothstep(0.3f * kReliefCrackWidth, kReliefCrackWidth, from_crack);
   if (relief_hash(ivec3(c.x, 7919, c.y)) >= 0.9f * on_crack) return s;
   float size = relief_hash(ivec3(c.x, 15485863, c.y));
-  s.centre = centre;
+  s.offset = offset;
   s.len = max(kReliefStraw, longest * size * size * size);
   s.radius = min(0.03f + 0.11f * s.len, 0.45f);
   s.form = relief_hash(ivec3(c.x, 2750159, c.y));
@@ -227,7 +292,7 @@ RELIEF_FN float relief_bound(float strength) {
 // gives it to collision, baking and engines). roughness (0-1) is the patch's channel, rim the rim
 // weight (1 on a portal rim) and strength scales everything
 // (0: off). The spacing drops the rock's octaves the mesh cannot carry (relief_octave_kept).
-RELIEF_FN Relief relief_at_sampled(vec3 p, vec3 n, float roughness, float rim, float strength,
+RELIEF_FN Relief relief_at_sampled(ReliefPos p, vec3 n, float roughness, float rim, float strength,
                                    float spacing) {
   Relief r;
   r.height = 0.0f;
@@ -255,12 +320,11 @@ RELIEF_FN Relief relief_at_sampled(vec3 p, vec3 n, float roughness, float rim, f
 
   // Rock: fBm and one ridged octave over a domain-warped position. The warp's own Jacobian is
   // left out of the gradient (it bends the lighting of the rock slightly, not its shape).
-  vec3 w = p * 0.37f;
-  vec3 warp = vec3(relief_noise(w + vec3(3.1f, 7.7f, 1.3f)).x,
-                   relief_noise(w + vec3(-5.2f, 2.4f, 8.8f)).x,
-                   relief_noise(w + vec3(9.4f, -3.3f, 4.6f)).x);
+  vec3 warp = vec3(relief_noise_at(p, kReliefWarpK, vec3(3.1f, 7.7f, 1.3f)).x,
+                   relief_noise_at(p, kReliefWarpK, vec3(-5.2f, 2.4f, 8.8f)).x,
+                   relief_noise_at(p, kReliefWarpK, vec3(9.4f, -3.3f, 4.6f)).x);
   r.warp = 0.45f * warp;
-  vec3 q = p + r.warp;
+  ReliefPos q = relief_pos(p.block, p.local + r.warp);
   // As sampled: the octaves the mesh cannot carry leave its shape (relief_octave_kept). Sampled
   // exactly (spacing 0: collision, bakes, engines), the cavity and the crevices below see the
   // whole rock; drawn, an octave the mesh cannot carry at all is not evaluated (room.frag adds it
@@ -272,7 +336,7 @@ RELIEF_FN Relief relief_at_sampled(vec3 p, vec3 n, float roughness, float rim, f
     kept2 = relief_octave_kept(kReliefOctave2Size, spacing);
     kept3 = relief_octave_kept(kReliefOctave3Size, spacing);
   }
-  vec4 o0 = relief_noise(q * 0.7f);
+  vec4 o0 = relief_noise_at(q, kReliefOctave0K, vec3(0.0f));
   vec4 o1 = relief_ridge_noise(q);
   vec4 o2 = kept2 > 0.0f ? relief_octave2_noise(q) : vec4(0.0f);
   vec4 o3 = kept3 > 0.0f ? relief_octave3_noise(q) : vec4(0.0f);
@@ -313,8 +377,8 @@ RELIEF_FN Relief relief_at_sampled(vec3 p, vec3 n, float roughness, float rim, f
   if (flow_zone > 0.0f) {
     // The sheet: lobes of a noise stretched 2.5x vertically (1.8 m wide, 4.5 m tall), smooth
     // where they cover (thickness s^2 (3 - 2 s), flat on top), drowning the rock beneath.
-    vec3 lobe_scale = vec3(0.55f, 0.22f, 0.55f);
-    vec4 lobe = relief_noise(p * lobe_scale + vec3(-41.0f, 9.0f, 23.0f));
+    vec3 lobe_scale = relief_frequency(kReliefLobeK);
+    vec4 lobe = relief_noise_at(p, kReliefLobeK, vec3(-41.0f, 9.0f, 23.0f));
     float cover = clamp((lobe.x + 0.15f) * 2.5f, 0.0f, 1.0f);
     vec3 cover_gradient = cover > 0.0f && cover < 1.0f
                               ? 2.5f * relief_gradient(lobe) * lobe_scale
@@ -332,8 +396,8 @@ RELIEF_FN Relief relief_at_sampled(vec3 p, vec3 n, float roughness, float rim, f
     crevice *= drown;  // a sheet fills the crevices it covers
     broad = mix(broad, 1.0f, sheet);
     r.spike = 0.45f * sheet;  // calcite (room.frag): tan, short of the cream of a growing tip
-    vec3 scale = vec3(2.4f, 0.38f, 2.4f);
-    vec4 f = relief_noise(p * scale + vec3(0.0f, 0.0f, 73.0f));
+    vec3 scale = relief_frequency(kReliefCurtainK);
+    vec4 f = relief_noise_at(p, kReliefCurtainK, vec3(0.0f, 0.0f, 73.0f));
     // A crest softened like the rock's ridge: curtains, not saw teeth.
     float f_soft = sqrt(f.x * f.x + 0.02f);
     float c = 1.0f - f_soft;
@@ -348,7 +412,7 @@ RELIEF_FN Relief relief_at_sampled(vec3 p, vec3 n, float roughness, float rim, f
 }
 
 // The relief itself (relief_at_sampled, sampled exactly).
-RELIEF_FN Relief relief_at(vec3 p, vec3 n, float roughness, float rim, float strength) {
+RELIEF_FN Relief relief_at(ReliefPos p, vec3 n, float roughness, float rim, float strength) {
   return relief_at_sampled(p, n, roughness, rim, strength, 0.0f);
 }
 
@@ -418,7 +482,8 @@ RELIEF_FN float relief_fine_fade(float cell, float footprint) {
 // (relief_octave_kept), as the gradient room.frag tilts the normal by: the same noises at the
 // warped point p + warp (Relief::warp), times the rock's amplitude (Relief::rock), each faded
 // by the pixel's footprint like the fine detail. Zero where the mesh carries them all.
-RELIEF_FN vec3 relief_rock_detail(vec3 p, vec3 warp, float rock, float spacing, float footprint) {
+RELIEF_FN vec3 relief_rock_detail(ReliefPos p, vec3 warp, float rock, float spacing,
+                                  float footprint) {
   vec3 g = vec3(0.0f);
   if (!(rock > 0.0f)) return g;  // no relief (off, or the flat meshes)
   float w1 = (1.0f - relief_octave_kept(kReliefRidgeSize, spacing)) *
@@ -427,7 +492,7 @@ RELIEF_FN vec3 relief_rock_detail(vec3 p, vec3 warp, float rock, float spacing, 
              relief_fine_fade(kReliefOctave2Size, footprint);
   float w3 = (1.0f - relief_octave_kept(kReliefOctave3Size, spacing)) *
              relief_fine_fade(kReliefOctave3Size, footprint);
-  vec3 q = p + warp;
+  ReliefPos q = relief_pos(p.block, p.local + warp);
   if (w1 > 0.0f) {
     vec4 o1 = relief_ridge_noise(q);
     float soft = sqrt(o1.x * o1.x + 0.05f);
@@ -441,7 +506,8 @@ RELIEF_FN vec3 relief_rock_detail(vec3 p, vec3 warp, float rock, float spacing, 
 // The fine detail at world point p for a pixel covering `footprint` metres of the surface.
 // grain, pits and joints (0-1) weigh the three (room.frag: rock has all three, sediment grain,
 // calcite a finer grain); a weight of 0, or a footprint too coarse for an octave, skips its noise.
-RELIEF_FN ReliefFine relief_fine(vec3 p, float footprint, float grain, float pits, float joints) {
+RELIEF_FN ReliefFine relief_fine(ReliefPos p, float footprint, float grain, float pits,
+                                 float joints) {
   ReliefFine f;
   f.gradient = vec3(0.0f);
   f.tint = 1.0f;
@@ -450,13 +516,13 @@ RELIEF_FN ReliefFine relief_fine(vec3 p, float footprint, float grain, float pit
   float g1 = grain * relief_fine_fade(kReliefGrainCoarse, footprint);
   float jag = 0.0f;  // the coarse grain, which also roughens a joint's edges
   if (g1 > 0.0f) {
-    vec4 a = relief_noise(p * (1.0f / kReliefGrainCoarse) + vec3(7.0f, 0.0f, 0.0f));
+    vec4 a = relief_noise_at(p, kReliefGrainCoarseK, vec3(7.0f, 0.0f, 0.0f));
     f.gradient += (g1 * 0.003f / kReliefGrainCoarse) * relief_gradient(a);
     f.tint += g1 * 0.10f * a.x;
     jag = g1 * a.x;
     float g2 = grain * relief_fine_fade(kReliefGrainFine, footprint);
     if (g2 > 0.0f) {
-      vec4 b = relief_noise(p * (1.0f / kReliefGrainFine) + vec3(0.0f, 13.0f, 0.0f));
+      vec4 b = relief_noise_at(p, kReliefGrainFineK, vec3(0.0f, 13.0f, 0.0f));
       f.gradient += (g2 * 0.001f / kReliefGrainFine) * relief_gradient(b);
       f.tint += g2 * 0.08f * b.x;
     }
@@ -466,9 +532,9 @@ RELIEF_FN ReliefFine relief_fine(vec3 p, float footprint, float grain, float pit
   // a bowl of depth kReliefPitDepth, darker inside. Fades once a pit spans under ~4 pixels.
   float gp = pits * relief_fine_fade(0.5f * kReliefPitCell, footprint);
   if (gp > 0.0f) {
-    vec3 x = p * (1.0f / kReliefPitCell);
+    vec3 x = p.local * relief_frequency(kReliefPitK);
     vec3 cell = floor(x);
-    ivec3 id = ivec3(cell);
+    ivec3 id = p.block * kReliefPitK + ivec3(cell);
     if (relief_hash(id + ivec3(0, 0, 7001)) < kReliefPitShare) {
       vec3 centre = cell + vec3(0.3f + 0.4f * relief_hash(id + ivec3(131, 0, 0)),
                                 0.3f + 0.4f * relief_hash(id + ivec3(0, 131, 0)),
@@ -492,14 +558,14 @@ RELIEF_FN ReliefFine relief_fine(vec3 p, float footprint, float grain, float pit
   // themselves fade once they crowd closer than ~4 pixels.
   float gj = joints * relief_fine_fade(0.5f * kReliefJointCell, footprint);
   if (gj > 0.0f) {
-    vec3 stretch = vec3(1.0f, 0.333f, 1.0f) * (1.0f / kReliefJointCell);
-    vec4 c = relief_noise(p * stretch + vec3(19.0f, -5.0f, 37.0f));
+    vec3 stretch = relief_frequency(kReliefJointK);
+    vec4 c = relief_noise_at(p, kReliefJointK, vec3(19.0f, -5.0f, 37.0f));
     float slope = length(relief_gradient(c) * stretch) + 1e-4f;
     float d = max(abs(c.x) / slope + 0.0025f * jag, 0.0f);
     float w = kReliefJointWidth;
     float lo = max(d - 0.5f * footprint, -w), hi = min(d + 0.5f * footprint, w);
     float covered = max(hi - lo, 0.0f) / max(footprint, 1e-6f);
-    float run = relief_noise(p * (0.5f / kReliefJointCell) + vec3(-29.0f, 3.0f, 11.0f)).x;
+    float run = relief_noise_at(p, kReliefJointRunK, vec3(-29.0f, 3.0f, 11.0f)).x;
     f.cavity *= 1.0f - 0.7f * gj * smoothstep(0.0f, 0.25f, run) * min(covered, 1.0f);
   }
   return f;

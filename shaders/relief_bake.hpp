@@ -33,8 +33,6 @@ inline BakeStats bake_relief(mesh::RoomMesh& mesh, double rim_fade = 0.56) {
   for (size_t v = 0; v < mesh.vertex_count(); ++v) {
     if (mesh.rim_portal[v] >= 0) rim.push_back(mesh.world_position(v));
   }
-  const glm::vec3 origin{static_cast<float>(mesh.origin.x), static_cast<float>(mesh.origin.y),
-                         static_cast<float>(mesh.origin.z)};
   for (size_t v = 0; v < mesh.vertex_count(); ++v) {
     if (mesh.rim_portal[v] >= 0) continue;
     double nearest = rim_fade;
@@ -46,7 +44,8 @@ inline BakeStats bake_relief(mesh::RoomMesh& mesh, double rim_fade = 0.56) {
     const float rim_weight = static_cast<float>(1.0 - nearest / rim_fade);
     const glm::vec3 p{mesh.positions[v].x, mesh.positions[v].y, mesh.positions[v].z};
     const glm::vec3 n{mesh.normals[v].x, mesh.normals[v].y, mesh.normals[v].z};
-    const Relief r = relief_at(p + origin, n, mesh.roughness[v], rim_weight, 1.0f);
+    const Relief r =
+        relief_at(relief_pos_of(mesh.origin, p), n, mesh.roughness[v], rim_weight, 1.0f);
     const glm::vec3 moved = relief_displace(p, n, r);
     const glm::vec3 normal = relief_normal(n, r.gradient);
     mesh.positions[v] = {moved.x, moved.y, moved.z};

@@ -29,7 +29,7 @@ in vec3 t_haze;  // lights.glsl's lights_haze at the vertices (room.tese, format
 layout(location = 0) out vec4 frag_color;
 
 uniform vec3 u_camera;   // anchor-relative
-uniform vec3 u_anchor;   // world position of the anchor (the rock is world-space)
+uniform ivec3 u_block;   // the anchor in world space: u_block * kReliefBlock (relief.glsl)
 uniform vec3 u_lamp;     // anchor-relative headlamp position
 uniform vec3 u_forward;  // unit view direction: the beam's axis
 uniform vec3 u_fog_color;  // display space
@@ -57,7 +57,8 @@ void main() {
   vec3 v = to_eye / max(dist, 1e-4);
   // Cave meshes face inward, but a thin wall can be seen from behind: light both sides.
   if (dot(n, v) < 0.0) n = -n;
-  vec3 world = t_position + u_anchor;
+  // World-space, exact however far out (relief.glsl's ReliefPos): the anchor is a block's corner.
+  ReliefPos world = relief_pos(u_block, t_position);
 
   // The pixel's footprint on the surface, metres: its size at this distance, stretched as the
   // surface turns away (capped at 4x). From the interpolated normal and the distance, not from
@@ -71,8 +72,8 @@ void main() {
   float calcite = smoothstep(0.02, 0.2, t_spike);
 
   // Limestone walls: mottling at two scales, strata whose thickness wanders, bedding lines.
-  vec4 m1 = relief_noise(world * 0.8 + vec3(5.0, 1.0, 3.0));
-  vec4 m2 = relief_noise(world * 3.3 + vec3(-9.0, 4.0, 2.0));
+  vec4 m1 = relief_noise_at(world, ivec3(819), vec3(5.0, 1.0, 3.0));    // 0.8 per metre
+  vec4 m2 = relief_noise_at(world, ivec3(3379), vec3(-9.0, 4.0, 2.0));  // 3.3
 
   // Fine detail: bare rock is grained, pitted in patches and jointed in runs; sediment grained;
   // calcite only finely grained (its wet film smooths it).
@@ -84,13 +85,14 @@ void main() {
   vec3 rock = relief_rock_detail(world, t_warp, t_rock, t_spacing, footprint);
   vec3 s = relief_normal(n, fine.gradient + rock);
   float mottle = 0.5 + 0.3 * m1.x + 0.2 * m2.x;
-  float strata = relief_noise(vec3(world.x * 0.07, world.y * 2.6, world.z * 0.07) +
-                              0.35 * vec3(m1.x, m1.x, m1.x)).x;
+  float strata =
+      relief_noise_at(world, ivec3(72, 2662, 72), 0.35 * vec3(m1.x, m1.x, m1.x)).x;  // 0.07, 2.6
   vec3 buff = vec3(0.42, 0.34, 0.25), grey = vec3(0.30, 0.29, 0.27);
   vec3 wall = mix(grey, buff, clamp(0.5 + 0.9 * strata, 0.0, 1.0)) * (0.75 + 0.5 * mottle);
 
   // Sediment floors: damp brown mud with grit, wetter in the hollows.
-  float grit = ground > 0.0 ? relief_fine_fade(0.05, footprint) * relief_noise(world * 19.0).x : 0.0;
+  float grit = ground > 0.0 ? relief_fine_fade(0.05, footprint) * relief_noise_at(world, ivec3(19456), vec3(0.0)).x
+                           : 0.0;
   vec3 mud = vec3(0.27, 0.21, 0.16) * (0.8 + 0.25 * mottle + 0.12 * grit);
   // Ceilings: the same rock, darker and greyer.
   vec3 roof = wall * vec3(0.62, 0.62, 0.66);
@@ -101,7 +103,7 @@ void main() {
   // Speleothems are calcite over their whole length: ochre at the root, cream towards the tip
   // where it still grows, banded by growth rings a few centimetres apart.
   float rings = calcite > 0.0 ? relief_fine_fade(0.028, footprint) *
-                                   relief_noise(vec3(world.x * 3.0, world.y * 35.0, world.z * 3.0)).x
+                                   relief_noise_at(world, ivec3(3072, 35840, 3072), vec3(0.0)).x
                              : 0.0;
   vec3 dripstone =
       mix(vec3(0.55, 0.47, 0.36), vec3(0.78, 0.74, 0.66), smoothstep(0.2, 1.0, t_spike)) *
@@ -114,9 +116,9 @@ void main() {
   // Their six noises only where veins can be (most of the rock has none).
   float veins = smoothstep(0.55, 0.85, t_mineral) * (1.0 - calcite) * (1.0 - ground);
   if (veins > 0.0) {
-    veins *= max(smoothstep(0.05, 0.4, relief_noise(world * 0.3 + vec3(0.0, 0.0, 29.0)).x) *
+    veins *= max(smoothstep(0.05, 0.4, relief_noise_at(world, ivec3(307), vec3(0.0, 0.0, 29.0)).x) *
                      vein_trace(world, vec3(0.87, 0.12, 0.48), 2.3, 0.0, 0.03, footprint),
-                 smoothstep(0.2, 0.5, relief_noise(world * 0.25 + vec3(7.0, 0.0, 3.0)).x) *
+                 smoothstep(0.2, 0.5, relief_noise_at(world, ivec3(256), vec3(7.0, 0.0, 3.0)).x) *
                      vein_trace(world, vec3(-0.47, 0.1, 0.88), 3.1, 0.4, 0.015, footprint));
   }
   albedo = mix(albedo, vec3(0.72, 0.70, 0.64), 0.8 * veins);

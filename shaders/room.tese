@@ -31,7 +31,7 @@ out float t_spacing;    // (relief_rock_detail)
 out vec3 t_haze;        // the lit haze, interpolated from the control points' (room.vert)
 
 uniform mat4 u_view_proj;      // anchor-relative world to clip space
-uniform vec3 u_anchor;         // the anchor in world space (noise is world-space)
+uniform ivec3 u_block;         // the anchor in world space: u_block * kReliefBlock (relief.glsl)
 uniform int u_surface;         // 0 flat, 1 PN triangles, 2 Phong tessellation
 uniform float u_phong_alpha;   // Phong tessellation shape factor (0.75 in the paper)
 uniform float u_displacement;  // relief strength: 1 the designed relief, 0 none
@@ -161,7 +161,7 @@ void main() {
   else
     s = interior(w);
 
-  precise vec3 world = s.position + u_anchor;
+  ReliefPos world = relief_pos(u_block, s.position);  // the anchor is a block's corner
   float spacing = sample_spacing(s.position);
   Relief r = relief_at_sampled(world, s.normal, s.roughness, s.rim, u_displacement, spacing);
   // Rock and flowstone along the normal (relief_displace); the formations are instances of

@@ -209,8 +209,6 @@ std::span<const Triangle> CollisionWorld::refined(const Room& room, uint32_t t) 
     rough[k] = room.roughness[v];
     rim[k] = room.rim[v];
   }
-  const glm::vec3 origin{static_cast<float>(room.origin.x), static_cast<float>(room.origin.y),
-                         static_cast<float>(room.origin.z)};
   const bool planar = n[0] == n[1] && n[1] == n[2];
   room.refined_at[t] = static_cast<uint32_t>(room.refined.size() + 1);
   if (planar && relief_strength_ == 0) {
@@ -232,8 +230,8 @@ std::span<const Triangle> CollisionWorld::refined(const Room& room, uint32_t t) 
       const glm::vec3 normal = glm::normalize(n[0] * w.x + n[1] * w.y + n[2] * w.z);
       const float roughness = rough[0] * w.x + rough[1] * w.y + rough[2] * w.z;
       const float rim_weight = rim[0] * w.x + rim[1] * w.y + rim[2] * w.z;
-      const relief::Relief r =
-          relief::relief_at(at + origin, normal, roughness, rim_weight, relief_strength_);
+      const relief::Relief r = relief::relief_at(relief::relief_pos_of(room.origin, at), normal,
+                                                 roughness, rim_weight, relief_strength_);
       // The flat interpolation in double, then the PN bulge and the relief as float offsets
       // from it: a flat triangle far from the origin stays exact. (Equal normals make the PN
       // patch the flat triangle; float rounding would only add noise.)

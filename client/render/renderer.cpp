@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <array>
+#include <cassert>
 #include <cmath>
 #include <cstdio>
 #include <glm/gtc/matrix_transform.hpp>
@@ -249,7 +250,7 @@ std::map<cave::RoomId, ScreenRect> reach_through_portals(const GpuRoomCache& cac
 Renderer::RoomUniforms Renderer::locate(const Program& p) {
   return {p.uniform("u_room_offset"),  p.uniform("u_relief_margin"), p.uniform("u_camera"),
           p.uniform("u_max_tess"),     p.uniform("u_max_dist"),      p.uniform("u_view_proj"),
-          p.uniform("u_anchor"),       p.uniform("u_surface"),       p.uniform("u_phong_alpha"),
+          p.uniform("u_block"),        p.uniform("u_surface"),       p.uniform("u_phong_alpha"),
           p.uniform("u_displacement"), p.uniform("u_fog_color"),     p.uniform("u_fog_start"),
           p.uniform("u_fog_end"),      p.uniform("u_lamp_range"),    p.uniform("u_lod"),
           p.uniform("u_pixel_scale"),  p.uniform("u_target_pixels"), p.uniform("u_patch_culling"),
@@ -483,7 +484,12 @@ FrameStats Renderer::draw(const GpuRoomCache& cache, const Camera& camera, int w
   auto set_frame = [&](const RoomUniforms& u) {
     glUniformMatrix4fv(u.view_proj, 1, GL_FALSE, glm::value_ptr(view_proj));
     glUniform3fv(u.camera, 1, glm::value_ptr(eye));
-    glUniform3fv(u.anchor, 1, glm::value_ptr(to_vec3(anchor)));
+    // The anchor as the relief's block: render_anchor's step is kReliefBlock (1024 m), so the
+    // anchor is a block's corner.
+    assert(kAnchorStep == relief::kReliefBlock);
+    glUniform3i(u.block, static_cast<GLint>(std::lround(anchor.x / relief::kReliefBlock)),
+                static_cast<GLint>(std::lround(anchor.y / relief::kReliefBlock)),
+                static_cast<GLint>(std::lround(anchor.z / relief::kReliefBlock)));
     glUniform1f(u.max_tess, o.tessellation ? std::clamp(o.max_tess, 1.0f, 64.0f) : 1.0f);
     glUniform1f(u.max_dist, std::max(o.max_dist, 1e-3f));
     glUniform1i(u.surface, o.tessellation ? static_cast<int>(o.surface) : 0);

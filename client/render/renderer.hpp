@@ -187,7 +187,7 @@ class Renderer {
 
   // The uniforms room.frag reads, located in one program (the rooms' or the formations').
   struct RoomUniforms {
-    GLint room_offset, relief_margin, camera, max_tess, max_dist, view_proj, anchor, surface,
+    GLint room_offset, relief_margin, camera, max_tess, max_dist, view_proj, block, surface,
         phong_alpha, displacement, fog_color, fog_start, fog_end, lamp_range, lod, pixel_scale,
         target_pixels, patch_culling, frustum, fine_detail, ao, lamp, forward, exposure, glow,
         light_count, light_position, light_color, light_glow, light_bound, light_index, headlamp,

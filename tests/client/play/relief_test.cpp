@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "core/random.hpp"
+#include "core/vec3.hpp"
 #include "proto/world_digest.hpp"
 #include "shaders/relief.hpp"
 
@@ -22,14 +23,13 @@ namespace rl = grotto::relief;
 constexpr float kHall = 20.0f;  // metres of room radius: the longest speleothems
 const glm::vec3 kSlopeNormal = glm::normalize(glm::vec3(0.0f, -1.0f, 1.0f));
 
-rl::Relief relief(glm::vec3 p, glm::vec3 n, float rim = 0.0f) {
-  return rl::relief_at(p, n, 0.0f, rim, 1.0f);
+// A point near the origin as the relief takes it (block 0: world = local).
+rl::ReliefPos at(glm::vec3 p) {
+  return rl::relief_pos(glm::ivec3(0), p);
 }
 
-// A point of the speleothem lattice's turned frame (relief_turn) in world space, at height y.
-glm::vec3 lattice_to_world(glm::vec2 t, float y) {
-  return {rl::kReliefTurnCos * t.x + rl::kReliefTurnSin * t.y, y,
-          -rl::kReliefTurnSin * t.x + rl::kReliefTurnCos * t.y};
+rl::Relief relief(glm::vec3 p, glm::vec3 n, float rim = 0.0f) {
+  return rl::relief_at(at(p), n, 0.0f, rim, 1.0f);
 }
 
 // The lattice's speleothems over 60 x 60 cells (one per 1 m cell at most) in the longest room.
@@ -67,11 +67,16 @@ TEST(Relief, speleothems_grow_in_rows_along_cracks_with_bare_rock_between) {
   EXPECT_GT(var, 1.5 * mean);
   // In rows: a speleothem's nearest neighbour is usually close (within 2 cells).
   int close = 0;
+  // Where each stands in the lattice's frame: its cell's corner and its offset.
+  auto where = [](std::pair<int, int> cell, const rl::Speleothem& s) {
+    return glm::vec2(static_cast<float>(cell.first), static_cast<float>(cell.second)) + s.offset;
+  };
   for (const auto& [cell, s] : all) {
     double nearest = 1e9;
     for (const auto& [other, t] : all)
       if (other != cell)
-        nearest = std::min(nearest, static_cast<double>(glm::length(s.centre - t.centre)));
+        nearest =
+            std::min(nearest, static_cast<double>(glm::length(where(cell, s) - where(other, t))));
     close += nearest < 2.0;
   }
   EXPECT_GT(close, static_cast<int>(0.8 * static_cast<double>(all.size())));
@@ -89,11 +94,12 @@ TEST(Relief, octaves_too_fine_for_the_mesh_move_from_its_shape_to_the_shading) {
     const glm::vec3 p(static_cast<float>(rng.uniform(-50, 50)), 10.0f,
                       static_cast<float>(rng.uniform(-50, 50)));
     const float roughness = static_cast<float>(rng.uniform());
-    const rl::Relief exact = rl::relief_at(p, down, roughness, 0.0f, 1.0f);
-    EXPECT_EQ(rl::relief_rock_detail(p, exact.warp, exact.rock, 0.0f, 1e-4f), glm::vec3(0.0f));
+    const rl::Relief exact = rl::relief_at(at(p), down, roughness, 0.0f, 1.0f);
+    EXPECT_EQ(rl::relief_rock_detail(at(p), exact.warp, exact.rock, 0.0f, 1e-4f), glm::vec3(0.0f));
     for (float spacing : {0.06f, 0.12f, 0.4f}) {
-      const rl::Relief drawn = rl::relief_at_sampled(p, down, roughness, 0.0f, 1.0f, spacing);
-      const glm::vec3 detail = rl::relief_rock_detail(p, drawn.warp, drawn.rock, spacing, 1e-4f);
+      const rl::Relief drawn = rl::relief_at_sampled(at(p), down, roughness, 0.0f, 1.0f, spacing);
+      const glm::vec3 detail =
+          rl::relief_rock_detail(at(p), drawn.warp, drawn.rock, spacing, 1e-4f);
       const glm::vec3 sum = drawn.gradient + detail;
       EXPECT_NEAR(sum.x, exact.gradient.x, 1e-4f) << "spacing " << spacing;
       EXPECT_NEAR(sum.y, exact.gradient.y, 1e-4f) << "spacing " << spacing;
@@ -102,9 +108,10 @@ TEST(Relief, octaves_too_fine_for_the_mesh_move_from_its_shape_to_the_shading) {
     }
     // Sampled every 0.4 m, octaves 2 and 3 (0.31 and 0.15 m) are not in the shape at all: the
     // height is what the two broad octaves alone give.
-    const rl::Relief coarse = rl::relief_at_sampled(p, down, roughness, 0.0f, 1.0f, 0.4f);
+    const rl::Relief coarse = rl::relief_at_sampled(at(p), down, roughness, 0.0f, 1.0f, 0.4f);
     const glm::vec3 q = p + coarse.warp;
-    const glm::vec4 o0 = rl::relief_noise(q * 0.7f), o1 = rl::relief_ridge_noise(q);
+    const glm::vec4 o0 = rl::relief_noise_at(at(q), rl::kReliefOctave0K, glm::vec3(0.0f)),
+                    o1 = rl::relief_ridge_noise(at(q));
     const float soft = std::sqrt(o1.x * o1.x + 0.05f);
     const float kept1 = rl::relief_octave_kept(rl::kReliefRidgeSize, 0.4f);
     const float broad = 0.45f * o0.x + kept1 * 0.28f * (2.0f * (1 - soft) * (1 - soft) - 1.0f);
@@ -132,7 +139,7 @@ TEST(Relief, its_values_are_pinned_to_the_version_in_the_world_digest) {
     const glm::vec3 n =
         glm::normalize(glm::vec3(next() - 0.5f, 2.0f * next() - 1.0f, next() - 0.5f));
     const float roughness = next(), rim = next() < 0.1f ? next() : 0.0f;
-    const rl::Relief r = rl::relief_at(p, n, roughness, rim, 1.0f);
+    const rl::Relief r = rl::relief_at(at(p), n, roughness, rim, 1.0f);
     put(r.height, 1e-4f);
     for (float v : {r.gradient.x, r.gradient.y, r.gradient.z, r.cavity, r.spike, r.occlusion})
       put(v, 1e-3f);
@@ -142,8 +149,9 @@ TEST(Relief, its_values_are_pinned_to_the_version_in_the_world_digest) {
   const std::map<std::string_view, uint64_t> pinned = {
       {"grotto.relief.v1", 0x3ce883fafaec6c06ull},
       {"grotto.relief.v2", 0x493b6ced8188ba3dull},  // stalagmites from cones to candles
-      {"grotto.relief.v3",
-       0x226e49d6084d43b2ull},  // the formations out of the relief (shaders/formations.hpp)
+      // The formations out of the relief (shaders/formations.hpp), every noise at whole cycles
+      // per block (the same precision 6,000 km out).
+      {"grotto.relief.v3", 0x1d8b82e08bfa825cull},
   };
   ASSERT_TRUE(pinned.count(proto::kReliefVersion)) << proto::kReliefVersion << " has no row";
   EXPECT_EQ(digest, pinned.at(proto::kReliefVersion))
@@ -161,7 +169,7 @@ TEST(Relief, nothing_moves_on_a_portal_rim) {
       for (float b = -6; b <= 6; b += 0.17f) {
         const glm::vec3 p{a, 3.0f + 0.37f * b, b};
         for (float rim : {1.0f, 0.99995f}) {
-          const rl::Relief r = rl::relief_at(p, n, 1.0f, rim, 1.0f);
+          const rl::Relief r = rl::relief_at(at(p), n, 1.0f, rim, 1.0f);
           ASSERT_EQ(r.height, 0.0f);
           ASSERT_EQ(rl::relief_displace(p, n, r), p);
           ++checked;
@@ -178,8 +186,8 @@ TEST(Relief, flowstone_sheets_cover_part_of_the_walls_and_smooth_the_rock_beneat
     for (float z = -20; z <= 20; z += 0.25f) {
       const glm::vec3 p{0, y, z};
       // Roughness 1: the rock at its roughest, so the sheet's smoothing shows.
-      const rl::Relief r = rl::relief_at(p, n, 1.0f, 0.0f, 1.0f);
-      const rl::Relief rx = rl::relief_at(p + glm::vec3(0, 0.05f, 0), n, 1.0f, 0.0f, 1.0f);
+      const rl::Relief r = rl::relief_at(at(p), n, 1.0f, 0.0f, 1.0f);
+      const rl::Relief rx = rl::relief_at(at(p + glm::vec3(0, 0.05f, 0)), n, 1.0f, 0.0f, 1.0f);
       const double bumpiness = std::abs(rx.height - r.height) / 0.05;
       ++samples;
       if (r.spike > 0.44f) ++covered, covered_roughness += bumpiness;
@@ -195,7 +203,7 @@ TEST(Relief, flowstone_sheets_cover_part_of_the_walls_and_smooth_the_rock_beneat
   int on_floor = 0;
   for (float x = -20; x <= 20; x += 0.25f)
     for (float z = -20; z <= 20; z += 0.25f) {
-      const rl::Relief r = rl::relief_at({x, 0, z}, {0, 1, 0}, 1.0f, 0.0f, 1.0f);
+      const rl::Relief r = rl::relief_at(at({x, 0, z}), {0, 1, 0}, 1.0f, 0.0f, 1.0f);
       on_floor += r.spike > 0.0f;
     }
   EXPECT_EQ(on_floor, 0);
@@ -208,15 +216,15 @@ TEST(Relief, fine_detail_vanishes_under_coarse_pixels_and_occlusion_stays_in_bou
   int detailed = 0;
   for (int i = 0; i < 400; ++i) {
     const glm::vec3 p{0.37f * i, 1.3f + 0.011f * i, -0.23f * i};
-    const rl::ReliefFine coarse = rl::relief_fine(p, 0.14f, 1, 1, 1);
+    const rl::ReliefFine coarse = rl::relief_fine(at(p), 0.14f, 1, 1, 1);
     EXPECT_EQ(coarse.gradient, glm::vec3(0.0f));
     EXPECT_EQ(coarse.tint, 1.0f);
     EXPECT_EQ(coarse.cavity, 1.0f);
-    const rl::ReliefFine fine = rl::relief_fine(p, 0.002f, 1, 1, 1);
+    const rl::ReliefFine fine = rl::relief_fine(at(p), 0.002f, 1, 1, 1);
     detailed += glm::length(fine.gradient) > 0.01f && fine.tint != 1.0f;
     EXPECT_GT(fine.cavity, 0.0f);
     EXPECT_LE(fine.cavity, 1.0f);
-    EXPECT_EQ(rl::relief_at(p, {0, 1, 0}, 0.5f, 0, 0).occlusion, 1.0f);
+    EXPECT_EQ(rl::relief_at(at(p), {0, 1, 0}, 0.5f, 0, 0).occlusion, 1.0f);
     for (const glm::vec3& n : {glm::vec3(0, 1, 0), glm::vec3(0, -1, 0), glm::vec3(1, 0, 0)}) {
       const float o = relief(p, n).occlusion;
       EXPECT_GE(o, rl::kReliefOcclusionMin);
@@ -224,6 +232,69 @@ TEST(Relief, fine_detail_vanishes_under_coarse_pixels_and_occlusion_stays_in_bou
     }
   }
   EXPECT_GT(detailed, 350);
+}
+
+// The same look everywhere (issue 43, item 5): 6,240 km out (sector 65000,0,65000), where a
+// float's step is 0.5 m, the relief evaluated from a block and an offset (relief_pos_of, as the
+// renderer's anchor and collision give it) varies as smoothly and as much as near the origin:
+// along a 2 m line in 1 cm steps no two neighbouring samples are equal, and the height's spread
+// and its steps' are those of the origin's within a factor of 1.5. A position formed in float
+// world coordinates there (what the shaders did before) is flat in 0.5 m steps: caught below.
+TEST(Relief, six_thousand_km_out_it_is_as_fine_as_at_the_origin) {
+  struct Line {
+    double spread = 0, step = 0;
+    int flat = 0;  // neighbouring samples with the same height
+  };
+  auto line = [](Vec3 frame, bool split) {
+    std::vector<float> h;
+    for (int i = 0; i <= 200; ++i) {
+      const glm::vec3 off(0.01f * static_cast<float>(i), 0.3f, 0.2f);
+      const rl::ReliefPos p =
+          split ? rl::relief_pos_of(frame, off)
+                : rl::relief_pos(glm::ivec3(0),
+                                 glm::vec3(static_cast<float>(frame.x), static_cast<float>(frame.y),
+                                           static_cast<float>(frame.z)) +
+                                     off);
+      h.push_back(rl::relief_at(p, {0, 0, 1}, 1.0f, 0.0f, 1.0f).height);
+    }
+    Line out;
+    double mean = 0;
+    for (float v : h)
+      mean += v;
+    mean /= static_cast<double>(h.size());
+    for (size_t i = 0; i < h.size(); ++i) {
+      out.spread += (h[i] - mean) * (h[i] - mean);
+      if (i > 0) {
+        out.step += std::abs(h[i] - h[i - 1]);
+        out.flat += h[i] == h[i - 1];
+      }
+    }
+    out.spread = std::sqrt(out.spread / static_cast<double>(h.size()));
+    out.step /= static_cast<double>(h.size() - 1);
+    return out;
+  };
+  double near_spread = 0, near_step = 0, far_spread = 0, far_step = 0;
+  int far_flat = 0, float_flat = 0;
+  for (int k = 0; k < 8; ++k) {
+    const Vec3 near{37.0 * k, 3.5, -11.0 * k};
+    const Vec3 far{65000 * 96.0 + 37.0 * k, 3.5, 65000 * 96.0 - 11.0 * k};
+    const Line a = line(near, true), b = line(far, true), c = line(far, false);
+    near_spread += a.spread, near_step += a.step;
+    far_spread += b.spread, far_step += b.step;
+    far_flat += b.flat;
+    float_flat += c.flat;
+  }
+  std::printf(
+      "spread %.4f near, %.4f far; mean step %.5f near, %.5f far; flat steps far %d, in "
+      "float world coordinates %d of 1600\n",
+      near_spread / 8, far_spread / 8, near_step / 8, far_step / 8, far_flat, float_flat);
+  EXPECT_EQ(far_flat, 0);
+  EXPECT_GT(far_step, near_step / 1.5);
+  EXPECT_LT(far_step, near_step * 1.5);
+  EXPECT_GT(far_spread, near_spread / 1.5);
+  EXPECT_LT(far_spread, near_spread * 1.5);
+  EXPECT_GT(float_flat, 1000)
+      << "the float world coordinates were not coarse: the test shows nothing";
 }
 
 // The renderer culls rooms and portals and collision gathers triangles with relief_bound: the
@@ -245,7 +316,7 @@ TEST(Relief, the_displacement_stays_within_its_bound_of_under_a_metre) {
       for (float a = -12; a <= 12; a += 0.09f)
         for (float b = -12; b <= 12; b += 0.37f) {
           const glm::vec3 p{a, 3.0f + 0.2f * b, b};
-          const rl::Relief r = rl::relief_at(p, n, roughness, 0.0f, 1.0f);
+          const rl::Relief r = rl::relief_at(at(p), n, roughness, 0.0f, 1.0f);
           worst = std::max(worst, std::abs(r.height));
         }
   std::printf("along the normal %.2f of %.2f m\n", worst, bound);
