@@ -24,14 +24,12 @@ in vec3 v_normal[];
 in float v_roughness[];
 in float v_mineral[];
 in float v_rim[];
-in vec3 v_haze[];
 
 out vec3 c_position[];
 out vec3 c_normal[];
 out float c_roughness[];
 out float c_mineral[];
 out float c_rim[];
-out vec3 c_haze[];
 
 uniform vec3 u_camera;           // anchor-relative
 uniform bool u_patch_culling;    // discard patches that are provably invisible
@@ -122,7 +120,6 @@ void main() {
   c_roughness[gl_InvocationID] = v_roughness[gl_InvocationID];
   c_mineral[gl_InvocationID] = v_mineral[gl_InvocationID];
   c_rim[gl_InvocationID] = v_rim[gl_InvocationID];
-  c_haze[gl_InvocationID] = v_haze[gl_InvocationID];
   if (gl_InvocationID == 0) {
     vec3 p0 = v_position[0], p1 = v_position[1], p2 = v_position[2];
     if (u_patch_culling) {

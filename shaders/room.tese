@@ -17,7 +17,6 @@ in vec3 c_normal[];
 in float c_roughness[];
 in float c_mineral[];
 in float c_rim[];
-in vec3 c_haze[];
 
 out vec3 t_position;  // anchor-relative world position after displacement
 out vec3 t_normal;    // after the relief
@@ -28,7 +27,7 @@ out float t_occlusion;  // relief.glsl's Relief::occlusion (1 without relief)
 out vec3 t_warp;        // Relief::warp, Relief::rock and the step the relief was sampled at:
 out float t_rock;       // room.frag adds the rock's octaves the mesh could not carry
 out float t_spacing;    // (relief_rock_detail)
-out vec3 t_haze;        // the lit haze, interpolated from the control points' (room.vert)
+out vec3 t_haze;        // the lit haze between the eye and this vertex (lights.glsl), linear
 
 uniform mat4 u_view_proj;      // anchor-relative world to clip space
 uniform ivec3 u_block;         // the anchor in world space: u_block * kReliefBlock (relief.glsl)
@@ -41,6 +40,7 @@ uniform vec3 u_camera;         // anchor-relative
 
 #pragma grotto_include "relief.glsl"
 #pragma grotto_include "lod.glsl"
+#pragma grotto_include "lights.glsl"
 
 // ---- surfaces ----
 
@@ -176,6 +176,9 @@ void main() {
   t_warp = r.warp;
   t_rock = r.rock;
   t_spacing = spacing;
-  t_haze = c_haze[0] * w.x + c_haze[1] * w.y + c_haze[2] * w.z;
+  // The haze varies over metres along the view: per tessellated vertex (a few pixels apart), not
+  // per pixel, where its loop over the lights cost as much as their shading. (Per control point,
+  // a metre apart, a bright halo showed the patches' facets.)
+  t_haze = lights_haze(u_camera, displaced);
   gl_Position = u_view_proj * vec4(displaced, 1.0);
 }

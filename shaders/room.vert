@@ -11,17 +11,12 @@ layout(location = 3) in float a_mineral;
 layout(location = 4) in float a_rim;  // 1 on a portal rim, else 0
 
 uniform vec3 u_room_offset;  // room origin - anchor
-uniform vec3 u_camera;       // anchor-relative
-
-#pragma grotto_include "relief.glsl"
-#pragma grotto_include "lights.glsl"
 
 out vec3 v_position;
 out vec3 v_normal;
 out float v_roughness;
 out float v_mineral;
 out float v_rim;
-out vec3 v_haze;  // the lit haze between the eye and this control point (lights.glsl), linear
 
 void main() {
   precise vec3 p = a_position + u_room_offset;
@@ -30,8 +25,4 @@ void main() {
   v_roughness = a_roughness;
   v_mineral = a_mineral;
   v_rim = a_rim;
-  // The haze varies over metres along the view: per control point (a patch is about a metre),
-  // interpolated over the patch (room.tese), not per pixel or per tessellated vertex, where its
-  // loop over the lights cost a GPU as much as their shading.
-  v_haze = lights_haze(u_camera, p);
 }

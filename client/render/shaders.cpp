@@ -49,8 +49,7 @@ std::vector<ShaderStage> room_stages() {
   static const std::string tesc = with_relief(kernels::source_room_tesc());  // lod.glsl
   static const std::string tese = with_relief(kernels::source_room_tese());
   static const std::string frag = with_relief(kernels::source_room_frag());
-  static const std::string vert = with_relief(kernels::source_room_vert());  // lights.glsl
-  return {{GL_VERTEX_SHADER, vert, "room.vert"},
+  return {{GL_VERTEX_SHADER, kernels::source_room_vert(), "room.vert"},
           {GL_TESS_CONTROL_SHADER, tesc, "room.tesc"},
           {GL_TESS_EVALUATION_SHADER, tese, "room.tese"},
           {GL_FRAGMENT_SHADER, frag, "room.frag"}};
