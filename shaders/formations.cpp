@@ -233,11 +233,37 @@ void shape_from_hashes(FormationShape& f, ivec2 c, int salt) {
   f.bulbs = b > 0.6f ? 0.25f * (b - 0.6f) : 0.0f;
 }
 
+// How far a root's flare `reach` metres wide spans in height on a surface with unit normal n
+// (a slope's rise over the flare), for its embedding.
+float slope_rise(vec3 n, float reach) {
+  return reach * std::sqrt(std::max(1.0f - n.y * n.y, 0.0f)) / std::max(std::abs(n.y), 0.3f);
+}
+
 }  // namespace
 
 float root_embed() {
   return relief::relief_normal_bound(1.0f);
 }
+
+namespace {
+
+// A stalagmite standing at room-frame (x, z) on `ground`: `height` tall, `radius` wide at its
+// root (clamped to 3-90 cm), its form (0 a bell-shaped cone, 1 a candle) from the drip's cell.
+FormationShape stalagmite(const SurfacePoint& ground, vec2 xz, float height, float radius,
+                          float form) {
+  FormationShape g{};
+  g.kind = kFormationStalagmite;
+  g.root = vec3(xz.x, ground.position.y, xz.y);
+  g.length = height;
+  g.radius = std::clamp(radius, 0.03f, 0.9f);
+  g.tip = 0.0f;
+  g.taper = mix(2.0f, 6.0f, form);
+  g.flare = 0.35f;
+  g.embed = root_embed() + slope_rise(ground.normal, g.radius * (1.0f + g.flare)) + 0.05f;
+  return g;
+}
+
+}  // namespace
 
 std::vector<FormationShape> place(const Surface& s) {
   std::vector<FormationShape> out;
@@ -330,8 +356,6 @@ std::vector<FormationShape> place(const Surface& s) {
         const bool straw = len < kStrawLength && cell_hash(c, 31337) < kStrawShare;
         float radius =
             straw ? 0.003f + 0.0015f * cell_hash(c, 4241) : std::min(0.015f + 0.09f * len, 0.4f);
-        const float tilt = std::sqrt(std::max(1.0f - top.normal.y * top.normal.y, 0.0f)) /
-                           std::max(std::abs(top.normal.y), 0.3f);
         float len_g = mix(0.5f, 0.65f, cand.form) * len * (0.5f + cell_hash(c, 271));
         const bool column = on_floor && ground.clear &&
                             ((cand.level >= 0.0f && gap < kColumnGap) || len + len_g > 0.8f * gap);
@@ -345,7 +369,7 @@ std::vector<FormationShape> place(const Surface& s) {
           f.taper = 0.3f + 0.5f * cell_hash(c, 977);
           f.flare = 0.8f;
           const float r = f.radius * (1.0f + f.flare);
-          f.embed = root_embed() + r * tilt + 0.1f;
+          f.embed = root_embed() + slope_rise(top.normal, r) + 0.1f;
           shape_from_hashes(f, c, 500);
           if (placer.fit_embed(f)) out.push_back(f);
           continue;
@@ -359,7 +383,7 @@ std::vector<FormationShape> place(const Surface& s) {
         f.tip = straw ? radius : std::min(0.004f + 0.05f * radius, radius);
         f.taper = straw ? 1.0f : mix(1.0f, 1.6f, cell_hash(c, 641));
         f.flare = straw ? 0.3f : 0.25f + 0.3f * cell_hash(c, 643);
-        f.embed = root_embed() + radius * (1.0f + f.flare) * tilt + 0.05f;
+        f.embed = root_embed() + slope_rise(top.normal, radius * (1.0f + f.flare)) + 0.05f;
         shape_from_hashes(f, c, 600);
         if (straw) f.bulbs = 0.0f, f.rings *= 0.3f;
         if (placer.fit_embed(f)) out.push_back(f);
@@ -368,19 +392,10 @@ std::vector<FormationShape> place(const Surface& s) {
         // A slow drip (a long stalactite) builds a stalagmite more often than a straw's.
         const bool drips = cell_hash(c, 1709) < 0.15f + 0.85f * std::min(len / 1.2f, 1.0f);
         if (on_floor && ground.clear && drips && len_g > 0.03f) {
-          FormationShape g{};
-          g.kind = kFormationStalagmite;
-          g.root = vec3(xz.x, ground.position.y, xz.y);
-          g.length = len_g;
-          g.radius = std::clamp(mix(2.0f, 1.55f, cand.form) * std::max(radius, 0.02f) *
-                                    (0.7f + 0.6f * cell_hash(c, 787)),
-                                0.03f, 0.9f);
-          g.tip = 0.0f;
-          g.taper = mix(2.0f, 6.0f, cand.form);
-          g.flare = 0.35f;
-          const float gt = std::sqrt(std::max(1.0f - ground.normal.y * ground.normal.y, 0.0f)) /
-                           std::max(ground.normal.y, 0.3f);
-          g.embed = root_embed() + g.radius * (1.0f + g.flare) * gt + 0.05f;
+          FormationShape g = stalagmite(ground, xz, len_g,
+                                        mix(2.0f, 1.55f, cand.form) * std::max(radius, 0.02f) *
+                                            (0.7f + 0.6f * cell_hash(c, 787)),
+                                        cand.form);
           shape_from_hashes(g, c, 700);
           if (placer.fit_embed(g)) out.push_back(g);
         }
@@ -395,17 +410,7 @@ std::vector<FormationShape> place(const Surface& s) {
         const float len_g =
             std::min(0.5f * std::max(relief::kReliefStraw, longest * size3), 0.45f * above);
         if (!(len_g > 0.03f)) continue;
-        FormationShape g{};
-        g.kind = kFormationStalagmite;
-        g.root = vec3(xz.x, ground.position.y, xz.y);
-        g.length = len_g;
-        g.radius = std::clamp(0.05f + 0.2f * len_g, 0.03f, 0.9f);
-        g.tip = 0.0f;
-        g.taper = mix(2.0f, 6.0f, cand.form);
-        g.flare = 0.35f;
-        const float gt = std::sqrt(std::max(1.0f - ground.normal.y * ground.normal.y, 0.0f)) /
-                         std::max(ground.normal.y, 0.3f);
-        g.embed = root_embed() + g.radius * (1.0f + g.flare) * gt + 0.05f;
+        FormationShape g = stalagmite(ground, xz, len_g, 0.05f + 0.2f * len_g, cand.form);
         shape_from_hashes(g, c, 800);
         if (placer.fit_embed(g)) out.push_back(g);
       }
