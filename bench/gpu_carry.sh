@@ -33,4 +33,15 @@ while read -r name path; do
   [[ "$name" =~ $skip ]] && continue
   cp -L "$path" "$dest/lib/$name" || exit 1
 done < <(for b in "${bins[@]}"; do ldd "$build/bin/$b"; done | awk '/=> \// { print $1, $3 }' | sort -u)
+# glvnd's EGL dispatcher, which libepoxy loads at run time (so ldd does not list it): the lent
+# NVIDIA machine has the driver's vendor library (libEGL_nvidia.so.0 and its glvnd JSON) but not
+# the dispatcher, and grotto-client's EGL path fails without it (2026-11-27).
+for lib in libEGL.so.1 libGLdispatch.so.0 libOpenGL.so.0; do
+  for dir in /usr/lib/x86_64-linux-gnu /usr/lib64 /usr/lib; do
+    if [[ -e "$dir/$lib" ]]; then
+      cp -L "$dir/$lib" "$dest/lib/$lib" || exit 1
+      break
+    fi
+  done
+done
 echo "gpu_carry.sh: $(du -sh "$dest" | cut -f1) in $dest ($(ls "$dest/lib" | wc -l) libraries)"
