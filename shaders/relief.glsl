@@ -44,7 +44,6 @@ const float kReliefSpikeMax = 3.5f;     // metres: the longest stalactite at str
 const float kReliefSpikeMin = 0.35f;    // metres: the longest stalactite of the smallest rooms
 const float kReliefSpikePerRadius = 0.2f;  // spike length per metre of room radius
 const float kReliefStraw = 0.05f;       // metres: the shortest speleothem (a soda straw)
-const float kReliefCrackScale = 0.16f;  // cycles per metre of the crack field (~6 m apart)
 const float kReliefCrackWidth = 0.45f;  // metres from a crack within which dripstone grows
 const float kReliefSheet = 0.22f;         // metres: the thickest flowstone sheet at strength 1
 const float kReliefColumnShare = 0.15f;   // of the speleothem cells: column candidates
@@ -157,7 +156,7 @@ const ivec3 kReliefGrainFineK = ivec3(64000);           // 1 / 1.6 cm
 const ivec3 kReliefPitK = ivec3(14629);                 // 1 / 7 cm
 const ivec3 kReliefJointK = ivec3(1862, 620, 1862);     // (1, 0.333, 1) / 0.55 m
 const ivec3 kReliefJointRunK = ivec3(931);              // 0.5 / 0.55 m
-const int kReliefCrackK = 164;                          // 0.16: the speleothems' crack field
+const int kReliefCrackK = 164;  // 0.16: the speleothems' crack field (cracks ~6 m apart)
 
 RELIEF_FN vec3 relief_gradient(vec4 n) {
   return vec3(n.y, n.z, n.w);
