@@ -101,10 +101,17 @@ void main() {
   // Minerals stain the rock grey-blue.
   albedo = mix(albedo, vec3(0.36, 0.40, 0.44), 0.4 * t_mineral);
   // Speleothems are calcite over their whole length: ochre at the root, cream towards the tip
-  // where it still grows, banded by growth rings a few centimetres apart.
-  float rings = calcite > 0.0 ? relief_fine_fade(0.028, footprint) *
-                                   relief_noise_at(world, ivec3(3072, 35840, 3072), vec3(0.0)).x
-                             : 0.0;
+  // where it still grows, banded by growth rings a few centimetres apart (formations: t_rock 0).
+  // Flowstone (calcite on the rock, t_rock > 0) ran down the wall: fine vertical flutes, not
+  // rings (horizontal bands 3 cm apart across a sheet read as streaks: issue 43, item 4).
+  bool formation = !(t_rock > 0.0);
+  float rings = calcite > 0.0
+                    ? relief_fine_fade(0.028, footprint) *
+                          relief_noise_at(world,
+                                          formation ? ivec3(3072, 35840, 3072)
+                                                    : ivec3(20480, 2048, 20480),
+                                          vec3(0.0)).x
+                    : 0.0;
   vec3 dripstone =
       mix(vec3(0.55, 0.47, 0.36), vec3(0.78, 0.74, 0.66), smoothstep(0.2, 1.0, t_spike)) *
       (0.9 + 0.1 * rings);
@@ -113,8 +120,10 @@ void main() {
   // two sets of steep joints (fractures 2-3 m apart that water filled), long and nearly straight
   // across a wall, in runs with bare rock between, the second set thinner and rarer; pale in the
   // light, and faintly glowing.
-  // Their six noises only where veins can be (most of the rock has none).
-  float veins = smoothstep(0.55, 0.85, t_mineral) * (1.0 - calcite) * (1.0 - ground);
+  // Their six noises only where veins can be (most of the rock has none). Not on ceilings: seen
+  // from below at a grazing angle their straight traces read as scratches across the roof.
+  float veins =
+      smoothstep(0.55, 0.85, t_mineral) * (1.0 - calcite) * (1.0 - ground) * (1.0 - ceiling);
   if (veins > 0.0) {
     veins *= max(smoothstep(0.05, 0.4, relief_noise_at(world, ivec3(307), vec3(0.0, 0.0, 29.0)).x) *
                      vein_trace(world, vec3(0.87, 0.12, 0.48), 2.3, 0.0, 0.03, footprint),

@@ -78,8 +78,7 @@ void GpuRoomCache::upload(const client::ReadyRoom& room,
   glBindVertexArray(0);
   g.index_count = static_cast<GLsizei>(room.mesh.indices.size());
   g.patch_edge = median_edge_length(room.mesh);
-  g.formations =
-      formations::place(formations::surface_of(room.mesh, room.origin, room.room.sphere.radius));
+  g.formations = std::move(formations);
   g.bytes = vertices.size() * sizeof(RoomVertex) + room.mesh.indices.size() * sizeof(uint32_t);
   bytes_ += g.bytes;
   rooms_.emplace(room.room.id, std::move(g));
