@@ -2,7 +2,8 @@
 # Packs what a bare GPU machine (no Debian packages: a driver, and nothing of ours) needs to run
 # bench/gpu.sh, capacity rows and the client: stripped Release binaries from BUILD_DIR/bin and the
 # shared libraries they link (ldd's list, less the C runtime, which the machine has newer, and
-# the GL loaders, which come from the machine's driver and its glvnd packages), into DEST
+# the GL libraries, which come from the machine's driver), plus glvnd's EGL dispatcher (the
+# machine has the driver's vendor library but not the dispatcher), into DEST
 # (default .gpu, which .git/info/exclude should ignore so that it travels only when carried).
 # On that machine:
 #   mkdir -p /etc/OpenCL/vendors && echo libnvidia-opencl.so.1 >/etc/OpenCL/vendors/nvidia.icd
