@@ -95,14 +95,23 @@ prefix=$(cd "$prefix" && pwd)
 pids=() replica_pid=() replica_port=() nginx_pid=""
 stop_all() {
   trap - TERM INT
-  [[ -n "$nginx_pid" ]] && kill -QUIT "$nginx_pid" 2>/dev/null
+  # `|| true` throughout: a replica a test killed is gone, and under `set -e` one failed kill
+  # ended this function there, leaving the replicas after it running, orphaned.
+  [[ -n "$nginx_pid" ]] && { kill -QUIT "$nginx_pid" 2>/dev/null || true; }
   for p in "${replica_pid[@]}"; do
-    kill -TERM "$p" 2>/dev/null
+    kill -TERM "$p" 2>/dev/null || true
   done
-  # Replicas drain (their --drain-timeout-ms) and exit; nothing waits longer than 30 s.
-  local deadline=$((SECONDS + 30)) p
+  # Replicas drain (their --drain-timeout-ms) and exit; nothing waits longer than 10 s. nginx is
+  # asked to stop at once (TERM) when its graceful stop takes longer: a SIGKILL of its master
+  # would leave its workers running.
+  local deadline=$((SECONDS + 10)) p
   for p in "${pids[@]}"; do
     while kill -0 "$p" 2>/dev/null && ((SECONDS < deadline)); do sleep 0.1; done
+    if [[ "$p" == "$nginx_pid" ]] && kill -0 "$p" 2>/dev/null; then
+      kill -TERM "$p" 2>/dev/null || true
+      local grace=$((SECONDS + 3))
+      while kill -0 "$p" 2>/dev/null && ((SECONDS < grace)); do sleep 0.1; done
+    fi
     kill -KILL "$p" 2>/dev/null || true
   done
   wait 2>/dev/null || true

@@ -6,7 +6,7 @@
 # built-ins talk HTTP (/dev/tcp), so nothing beyond deploy/setup.sh's packages is needed.
 
 lb_repo="$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)"
-lb_pids=()           # every process started here, killed by lb_cleanup
+lb_pids=()           # every process started here, stopped by lb_cleanup
 lb_replica_pid=()    # replica i's pid ("" while it is down)
 lb_replica_port=()   # replica i's port, kept across restarts
 lb_replica_args=()   # extra grotto-server flags for every replica
@@ -33,7 +33,15 @@ lb_init() {
 
 lb_cleanup() {
   local rc=$?
+  # TERM first, so that what we started stops what it started (nginx's master its workers,
+  # local-cluster.sh its replicas and nginx: a SIGKILL leaves those running, orphaned); KILL what
+  # is still there after a bounded wait.
+  local p deadline=$((SECONDS + 15))
   for p in "${lb_pids[@]}"; do
+    kill -TERM "$p" 2>/dev/null
+  done
+  for p in "${lb_pids[@]}"; do
+    while kill -0 "$p" 2>/dev/null && ((SECONDS < deadline)); do sleep 0.1; done
     kill -KILL "$p" 2>/dev/null
   done
   wait 2>/dev/null
