@@ -89,23 +89,14 @@ std::array<glm::vec4, 6> frustum_planes(const glm::mat4& m) {
   return {r3 + r0, r3 - r0, r3 + r1, r3 - r1, r3 + r2, r3 - r2};
 }
 
-// How far drawn rock can lie from the surface it was sent as: `around` metres in any direction
-// (the relief along the normal, PN bulges) plus `vertical` metres up or down (the speleothems,
-// draperies and columns hang along gravity, relief::relief_hang_bound). Culling with the two
-// apart keeps a room or portal whose rock could reach in by its sides only as far as it can:
-// the vertical part is three quarters of the whole bound.
-struct Margin {
-  float around = 0;
-  float vertical = 0;
-};
-
-// Whether a room's rock (within its sphere grown by `margin`, the vertical part as a segment
-// along y) is wholly outside one of the frustum's planes.
+// Whether a room's rock (within its sphere grown by `margin` metres: how far drawn rock can lie
+// from the surface it was sent as, the relief along the normal and PN bulges) is wholly outside
+// one of the frustum's planes. (The formations are culled one by one: draw_formations.)
 bool sphere_outside(const std::array<glm::vec4, 6>& planes, glm::vec3 c, float radius,
-                    Margin margin) {
+                    float margin) {
   for (const glm::vec4& p : planes) {
     const glm::vec3 n{p};
-    const float reach = (radius + margin.around) * glm::length(n) + margin.vertical * std::abs(n.y);
+    const float reach = (radius + margin) * glm::length(n);
     if (glm::dot(n, c) + p.w < -reach) return true;
   }
   return false;
@@ -137,27 +128,25 @@ struct PortalView {
 // The opening of `portal` (what shows the neighbour) lies within a slab around the portal's disc:
 // the rim loop stays inside the disc grown like the caps, and PN bulges and displacement of the
 // patches next to it move the surface by less than `margin` (the same bound as room culling).
-// Bounded by a circumscribed octagon of that disc grown by margin.around, at ±margin.around along
-// the normal, each point also moved ±margin.vertical along y: 32 points whose convex hull holds the
-// opening. Hidden when every point is outside one clip plane; kNearPlane when a point is not in
-// front of the near plane (the projection of the hull is then no rectangle, so the portal passes
-// with its parent's rectangle).
+// Bounded by a circumscribed octagon of that disc grown by `margin`, at ±margin along the normal:
+// 16 points whose convex hull holds the opening. Hidden when every point is outside one clip plane;
+// kNearPlane when a point is not in front of the near plane (the projection of the hull is then no
+// rectangle, so the portal passes with its parent's rectangle).
 PortalView view_portal(const cave::Portal& portal, Vec3 anchor, const glm::mat4& view_proj,
-                       float near_plane, Margin margin) {
+                       float near_plane, float margin) {
   constexpr int kSides = 8;
   const Vec3 n = normalized(portal.normal);
   const Vec3 helper = std::abs(n.y) < 0.9 ? Vec3{0, 1, 0} : Vec3{1, 0, 0};
   const Vec3 t = normalized(cross(n, helper));
   const Vec3 b = cross(n, t);
-  const double r = (cover_radius(portal) + margin.around) / std::cos(kPi / kSides);
-  std::array<glm::vec4, 4 * kSides> clip;
+  const double r = (cover_radius(portal) + margin) / std::cos(kPi / kSides);
+  std::array<glm::vec4, 2 * kSides> clip;
   for (int k = 0; k < kSides; ++k) {
     const double a = 2 * kPi * (k + 0.5) / kSides;
     const Vec3 rim = portal.centre - anchor + t * (r * std::cos(a)) + b * (r * std::sin(a));
-    for (int side = 0; side < 4; ++side) {
-      const Vec3 p = rim + n * ((side & 1) == 0 ? -margin.around : margin.around) +
-                     Vec3{0, (side & 2) == 0 ? -margin.vertical : margin.vertical, 0};
-      clip[4 * k + side] = view_proj * glm::vec4(to_vec3(p), 1.0f);
+    for (int side = 0; side < 2; ++side) {
+      const Vec3 p = rim + n * (side == 0 ? -margin : static_cast<double>(margin));
+      clip[2 * k + side] = view_proj * glm::vec4(to_vec3(p), 1.0f);
     }
   }
   // Outside one of the six clip planes (-w <= x, y, z <= w) with every point: hidden.
@@ -210,7 +199,7 @@ std::vector<cave::RoomId> rooms_holding(const GpuRoomCache& cache, Vec3 camera, 
 // again when it grows. Empty when the camera is in no loaded room.
 std::map<cave::RoomId, ScreenRect> reach_through_portals(const GpuRoomCache& cache, Vec3 camera,
                                                          Vec3 anchor, const glm::mat4& view_proj,
-                                                         float near_plane, Margin margin,
+                                                         float near_plane, float margin,
                                                          FrameStats& stats) {
   // A camera this close to a portal plane stands in the portal: both rooms are its rooms.
   constexpr double kLocateTolerance = 0.25;
@@ -539,9 +528,9 @@ FrameStats Renderer::draw(const GpuRoomCache& cache, const Camera& camera, int w
 
   // Rooms whose sphere is outside the frustum are skipped. Every vertex of a room lies in its
   // sphere up to vertex_sphere_margin (client/stream/verify.hpp checks it on arrival); PN bulges
-  // (0.5 m) and the relief along the normal push surface points out by less than margin.around
+  // (0.5 m) and the relief along the normal push surface points out by less than `margin`
   // more. The formations are culled one by one (draw_formations).
-  const Margin margin{relief::relief_bound(relief) + 0.5f, 0.0f};
+  const float margin = relief::relief_bound(relief) + 0.5f;
   std::map<cave::RoomId, ScreenRect> reached;
   if (o.portal_culling) {
     reached = reach_through_portals(cache, camera.position, anchor, view_proj, o.near_plane, margin,
@@ -602,7 +591,7 @@ FrameStats Renderer::draw(const GpuRoomCache& cache, const Camera& camera, int w
       // view ray to this room's rock crosses it.
       std::array<GLint, kMaxFrameLights> shading{}, hazing{};
       int shade_count = 0, haze_count = 0;
-      const double reach = radius + margin.around;
+      const double reach = radius + margin;
       for (size_t i = 0; i < points.size(); ++i) {
         const Light& l = *points[i];
         const bool bounded = l.bound_radius > 0;
