@@ -93,7 +93,11 @@ class Placer {
   float height_near(vec2 xz, float near) const {
     if (cells_.empty()) return std::nanf("");
     const ivec2 c = cell_of(xz);
-    float best = std::nanf(""), gap = 1e30f;
+    // The nearest sheet by the flat triangles; the drawn surface (a relief_at) of that one only.
+    bool found = false;
+    uint32_t best = 0;
+    vec3 best_w(0.0f);
+    float gap = 1e30f;
     for (uint32_t t : cells_[static_cast<size_t>(c.y) * static_cast<size_t>(dims_.x) +
                              static_cast<size_t>(c.x)]) {
       const vec3 w = barycentric(t, xz);
@@ -102,9 +106,11 @@ class Placer {
       const float flat = dot(w, vec3(position(k[0]).y, position(k[1]).y, position(k[2]).y));
       if (!(std::abs(flat - near) < gap)) continue;
       gap = std::abs(flat - near);
-      best = surface(t, w).position.y;
+      found = true;
+      best = t;
+      best_w = w;
     }
-    return best;
+    return found ? surface(best, best_w).position.y : std::nanf("");
   }
 
   // Grows f's embedding until the rock round its root (and a column's far end), at the widest
@@ -191,7 +197,7 @@ class Placer {
   }
 
   // The surface of triangle t straight above or below room-frame (x, z): the flat triangle's
-  // barycentric corrected twice for the PN bulge's and the relief's sideways shift.
+  // barycentric corrected up to three times for the PN bulge's and the relief's sideways shift.
   SurfacePoint surface_at(const Hit& h, vec2 xz) const {
     SurfacePoint sp = surface(h.tri, h.w);
     vec3 w = h.w;
