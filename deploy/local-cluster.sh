@@ -148,7 +148,7 @@ pids+=("$nginx_pid")
 for ((t = 0; t < 100; t++)); do
   kill -0 "$nginx_pid" 2>/dev/null || fail "nginx exited: $(tail -n 3 "$prefix/logs/nginx.out")"
   if (exec 3<>"/dev/tcp/$tier_addr/$port") 2>/dev/null; then
-    echo "cluster ready: players ws://$listen/ws, rooms http://$listen/rooms/, metrics http://$listen/replica/<i>/metrics"
+    echo "cluster ready: players ws://$listen/ws, the viewer http://$listen/, rooms http://$listen/rooms/, metrics http://$listen/replica/<i>/metrics"
     break
   fi
   sleep 0.1

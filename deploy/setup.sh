@@ -4,6 +4,9 @@
 #   deploy/setup.sh           the build, run and test dependencies
 #   deploy/setup.sh --list    print the package list and exit
 #   deploy/setup.sh --help    this text
+# It also installs the browser viewer's npm packages (three.js, Draco's decoder, playwright-core:
+# web/package-lock.json pins them) into web/node_modules with `npm ci`, again only when they are
+# missing or the lockfile changed.
 # Besides packages it keeps Debian's source package of Draco (the version libdraco-dev has) in
 # /var/cache/grotto/src (GROTTO_DRACO_SOURCE_DIR): tests/fuzz builds it with sanitizers, and
 # downloading it here means the fuzz test needs no network. For that it adds a deb-src entry
@@ -25,10 +28,16 @@ packages=(
   curl  # tests/deploy/cluster_test.sh: room URLs through the cache (headers, ETag, 304)
   python3-yaml systemd  # tests/deploy/manifests_test.sh: YAML checks, systemd-analyze verify
   gltfpack  # tests/tools: a second, independent reader of grotto-layout --glb files
+  chromium  # web/e2e: the viewer in a real browser (headless, SwiftShader's WebGL2)
 )
 # kubectl (kustomize builds of deploy/k8s in tests/deploy): Debian's kubernetes-client, unless a
 # kubectl is already installed (another package owning /usr/bin/kubectl would clash with it).
 command -v kubectl >/dev/null 2>&1 || packages+=(kubernetes-client)
+# Node.js and npm (the browser viewer, web/: bundled at build time, its unit tests under node
+# --test): Debian's, unless a node and an npm are already installed (NodeSource's nodejs package
+# carries npm and conflicts with Debian's).
+command -v node >/dev/null 2>&1 || packages+=(nodejs)
+command -v npm >/dev/null 2>&1 || packages+=(npm)
 
 case "${1:-}" in
   "") ;;
@@ -60,7 +69,12 @@ draco_source_missing() {
   [[ ! -d "$draco_cache/draco_${version#*:}" ]]
 }
 
-[[ ${#missing[@]} -eq 0 ]] && ! draco_source_missing && exit 0
+# The viewer's npm packages: installed for the lockfile that a stamp in node_modules names.
+web=$(cd "$(dirname "$0")/../web" && pwd)
+npm_stamp() { sha256sum <"$web/package-lock.json" | cut -d' ' -f1; }
+npm_missing() { [[ "$(cat "$web/node_modules/.grotto-lock" 2>/dev/null)" != "$(npm_stamp)" ]]; }
+
+[[ ${#missing[@]} -eq 0 ]] && ! draco_source_missing && ! npm_missing && exit 0
 
 if [[ $(id -u) -eq 0 ]]; then
   sudo=()
@@ -109,5 +123,10 @@ if draco_source_missing; then
   "${sudo[@]}" chown -R --reference="$draco_cache" "$target.partial"
   "${sudo[@]}" chmod -R a+rX "$draco_cache"
   "${sudo[@]}" mv "$target.partial" "$target"
+fi
+if npm_missing; then
+  echo "setup: installing the viewer's npm packages (web/package-lock.json) into $web/node_modules"
+  (cd "$web" && npm ci --no-audit --no-fund --loglevel=error >/dev/null)
+  npm_stamp >"$web/node_modules/.grotto-lock"
 fi
 echo "setup: done"

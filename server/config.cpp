@@ -244,6 +244,20 @@ const std::vector<Setting>& settings() {
       };
       t.push_back(std::move(queue));
     }
+    {
+      Setting viewer{"viewer",
+                     "Serve the browser viewer at / and the room extras it reads at /extras/ "
+                     "(true or false; --no-viewer is false)",
+                     Setting::Type::kBool,
+                     0,
+                     0,
+                     {},
+                     {},
+                     {}};
+      viewer.get = [](const ServerConfig& c) { return Value{c.viewer}; };
+      viewer.set = [](ServerConfig& c, const Value& v) { c.viewer = std::get<bool>(v); };
+      t.push_back(std::move(viewer));
+    }
     t.push_back(string_setting(
         "log-level", "trace, debug, info, warn, error or off",
         {"trace", "debug", "info", "warn", "error", "off"},
@@ -430,12 +444,15 @@ CommandLine parse_command_line(int argc, const char* const* argv) {
                  "JSON config file: {\"port\": 7878, \"workers\": 4, ...}");
   bool version = false;
   app.add_flag("--version", version, "Print the product and protocol version and exit");
+  bool no_viewer = false;
+  app.add_flag("--no-viewer", no_viewer, "Do not serve the browser viewer (as --viewer false)");
   std::map<std::string, std::string> given;
   for (const auto& s : settings()) {
     std::string help = s.help + " [default: " + show(s.get(defaults)) + "]";
     app.add_option("--" + s.name, given[s.name], help)
         ->type_name(s.type == Setting::Type::kString   ? "TEXT"
                     : s.type == Setting::Type::kDouble ? "NUMBER"
+                    : s.type == Setting::Type::kBool   ? "BOOL"
                                                        : "INT");
   }
   try {
@@ -471,6 +488,7 @@ CommandLine parse_command_line(int argc, const char* const* argv) {
     }
     s.set(config, *v);
   }
+  if (no_viewer) config.viewer = false;
   auto token = proto::resolve_token(config.token_file, std::getenv(proto::kTokenEnvVariable));
   if (!token) {
     out.exit_code = 2;

@@ -42,6 +42,9 @@ struct ServerConfig {
   // parse_command_line reads it from token_file, else from $GROTTO_TOKEN. Never logged.
   std::string token;
   std::string token_file;  // where the token came from ("" for the environment or none)
+  // The browser viewer (web/) at / and the room extras it reads (/extras/...); false: both
+  // answer 404 (--no-viewer), the rooms and the WebSocket are served as before.
+  bool viewer = true;
 };
 
 // Range checks the settings cannot express alone (layout and mesh parameters, limit minimums).

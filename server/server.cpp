@@ -17,6 +17,7 @@
 #include <boost/asio/post.hpp>
 #include <boost/asio/steady_timer.hpp>
 #include <boost/asio/strand.hpp>
+#include <boost/asio/thread_pool.hpp>
 #include <boost/beast/core.hpp>
 #include <boost/beast/http.hpp>
 #include <boost/beast/websocket.hpp>
@@ -39,9 +40,11 @@
 #include "proto/token.hpp"
 #include "proto/world_digest.hpp"
 #include "server/conversation.hpp"
+#include "server/extras.hpp"
 #include "server/fd_limit.hpp"
 #include "server/room_fetch.hpp"
 #include "server/send_queue.hpp"
+#include "server/viewer.hpp"
 
 namespace grotto::server {
 namespace {
@@ -82,6 +85,8 @@ constexpr uint32_t kRoomGetPriorityMs = 500;
 // the Grotto-Priority header, whole milliseconds up to this.
 constexpr uint32_t kMaxRoomGetPriorityMs = 3'600'000;
 constexpr const char* kRoomCacheControl = "public, max-age=31536000, immutable";
+// Room extras (server/extras.hpp): /extras/ then a room URL's path after /rooms/.
+constexpr std::string_view kExtrasPathPrefix = "/extras/";
 constexpr const char* kRoomContentType = "application/octet-stream";
 
 class WsSession;
@@ -130,6 +135,9 @@ struct Server::Impl {
   // io_context's pending handlers still call remove_client.
   std::unique_ptr<Generator> generator;
   net::io_context ioc;
+  // Room extras (server/extras.hpp: a formation placement, milliseconds) are computed here, off
+  // the I/O threads. Declared after the io_context so it is joined first: its jobs hold sessions.
+  net::thread_pool extras_pool{2};
   std::optional<tcp::acceptor> acceptor;
   std::optional<net::strand<net::io_context::executor_type>> accept_strand;
   // Accepting pauses after a failure (EMFILE: no file descriptors left), doubling up to a
@@ -426,7 +434,11 @@ class WsSession : public std::enable_shared_from_this<WsSession>, private WorldP
     if (closing_) return;
     close_code_ = websocket::close_reason(static_cast<websocket::close_code>(a.code), a.reason);
     close_after_flush_ = true;
-    begin_closing(dropped_ || !a.await_reply ? kCloseGrace : server_.config.http_timeout);
+    // A slow client lingers (issue 45): its frame in flight and then the close frame wait up to
+    // the HTTP timeout for it to read again, while what it sends is read and dropped (on_read),
+    // so that a client that resumes reading gets the close, not a reset. A client that said
+    // nothing for the whole idle timeout gets 1 s: it may be stuck in the middle of a frame.
+    begin_closing(dropped_ || a.await_reply ? server_.config.http_timeout : kCloseGrace);
     if (!queue_.writing()) do_write();
   }
 
@@ -447,7 +459,6 @@ class WsSession : public std::enable_shared_from_this<WsSession>, private WorldP
   // ---- reading: in pieces, so a message over the limit is refused before it is held whole ----
 
   void do_read() {
-    if (closing_) return;
     ws_.async_read_some(buffer_, kReadPiece,
                         beast::bind_front_handler(&WsSession::on_read, shared_from_this()));
   }
@@ -456,7 +467,7 @@ class WsSession : public std::enable_shared_from_this<WsSession>, private WorldP
     if (ec) {
       if (!closing_ && ec != websocket::error::closed && ec != net::error::operation_aborted) {
         spdlog::debug("event=read_failed session={} error=\"{}\"", registry_id_, ec.message());
-      } else if (ec == websocket::error::closed) {
+      } else if (ec == websocket::error::closed && !closing_) {
         spdlog::info("event=closed session={} reason=client_closed", registry_id_);
       }
       closing_ = true;
@@ -465,7 +476,13 @@ class WsSession : public std::enable_shared_from_this<WsSession>, private WorldP
       release();
       return;
     }
-    if (closing_) return;
+    if (closing_) {
+      // Lingering (nginx's lingering close): whatever the client still sends is read and
+      // dropped until its close frame or the end of the grace, so that unread bytes in the
+      // socket do not turn the close into a TCP reset that discards what was sent before it.
+      buffer_.consume(buffer_.size());
+      return do_read();
+    }
     if (!ws_.got_text()) {
       buffer_.consume(buffer_.size());
       conversation_->binary();
@@ -671,6 +688,13 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
     }
     server_.metrics.http_requests_total.add();
     if (path.starts_with(proto::kRoomPathPrefix)) return serve_room(req, path);
+    if (path.starts_with(kExtrasPathPrefix)) {
+      if (!server_.config.viewer) {
+        return respond(req, http::status::not_found, "text/plain",
+                       "room extras are served with the viewer, which is off here (--no-viewer)\n");
+      }
+      return serve_room(req, path, true);
+    }
     if (req.method() != http::verb::get && req.method() != http::verb::head) {
       return respond(req, http::status::method_not_allowed, "text/plain", "GET only\n");
     }
@@ -700,6 +724,9 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
                          "],\"seed\":\"" + std::to_string(server_.generator->world().seed()) +
                          "\",\"params\":\"" + proto::digest_text(server_.params_digest) + "\"}\n");
     }
+    if (server_.config.viewer) {
+      if (const ViewerAsset* asset = find_viewer_asset(path)) return serve_asset(req, *asset);
+    }
     if (path == proto::kWebSocketPath) {
       return respond(req, http::status::upgrade_required, "text/plain",
                      "this path speaks WebSocket (proto/PROTOCOL.md): send an upgrade request\n",
@@ -717,16 +744,47 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
     bool keep_alive = true;
     bool head = false;
     std::string if_none_match;
+    bool extras = false;  // /extras/...: the room's extras as JSON, not its frame
+    uint64_t seed = 0;    // the world the path names
   };
+
+  // A file of the browser viewer: revalidated on every load (no-cache) by its ETag, so a new
+  // server's viewer replaces the old one at once and an unchanged one costs a 304.
+  template <class Request>
+  void serve_asset(const Request& req, const ViewerAsset& asset) {
+    auto res = std::make_shared<http::response<http::string_body>>(http::status::ok, req.version());
+    res->set(http::field::server, product_version());
+    res->set(http::field::cache_control, "no-cache");
+    res->set(http::field::etag, std::string(asset.etag));
+    auto inm = req[http::field::if_none_match];
+    if (etag_matches(std::string_view(inm.data(), inm.size()), asset.etag)) {
+      res->result(http::status::not_modified);
+    } else {
+      res->set(http::field::content_type, std::string(asset.content_type));
+      res->set("X-Content-Type-Options", "nosniff");
+      res->content_length(asset.bytes.size());
+      if (req.method() != http::verb::head)
+        res->body().assign(asset.bytes.begin(), asset.bytes.end());
+    }
+    send_room_answer(std::move(res), req.keep_alive());
+  }
 
   // The checks in PROTOCOL.md's order: method, path, token, rate, then what the path asks (the
   // version, the world's parameters, the lod, the world and the room).
+  // The room's extras (/extras/..., PROTOCOL.md "Room extras over HTTP") take the same path after
+  // their prefix, the same checks and the same fetch, and answer JSON computed from the frame.
   template <class Request>
-  void serve_room(const Request& req, std::string_view path) {
+  void serve_room(const Request& req, std::string_view path, bool extras = false) {
     RoomRequest r{req.version(), req.keep_alive(), req.method() == http::verb::head,
-                  std::string(req[http::field::if_none_match])};
+                  std::string(req[http::field::if_none_match]), extras};
     if (req.method() != http::verb::get && req.method() != http::verb::head) {
       return refuse_room(r, http::status::method_not_allowed, "room URLs take GET and HEAD only");
+    }
+    std::string room_path;
+    if (extras) {
+      room_path =
+          std::string(proto::kRoomPathPrefix) + std::string(path.substr(kExtrasPathPrefix.size()));
+      path = room_path;
     }
     auto parsed = proto::parse_room_path(path);
     if (!parsed) return refuse_room(r, http::status::bad_request, parsed.error().message);
@@ -766,6 +824,7 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
       priority = static_cast<uint32_t>(ms);
     }
     const proto::RoomPath& p = *parsed;
+    r.seed = p.seed;
     if (!proto::speaks_version(p.version)) {
       return refuse_room(r, http::status::not_found,
                          "protocol version " + std::to_string(p.version) +
@@ -825,6 +884,7 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
     // Strong: the same bytes give the same tag on every replica and build (FNV-1a, as the world
     // digest), different bytes a different one.
     const std::string etag = "\"" + proto::digest_text(fnv1a64(frame.data(), frame.size())) + "\"";
+    if (r.extras) return on_room_extras(std::move(r), std::move(*room), etag);
     auto res =
         std::make_shared<http::response<http::string_body>>(http::status::ok, r.http_version);
     res->set(http::field::server, product_version());
@@ -842,6 +902,37 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
       if (!r.head) server_.metrics.rooms_http_bytes.add(frame.size());
     }
     send_room_answer(std::move(res), r.keep_alive);
+  }
+
+  // The extras are a function of the frame and the world (seed and parameters, both in the URL),
+  // so their tag is the frame's with an "x": a revalidation costs no placement.
+  void on_room_extras(RoomRequest r, RoomPtr room, const std::string& frame_etag) {
+    const std::string etag = "\"x" + frame_etag.substr(1);
+    auto res =
+        std::make_shared<http::response<http::string_body>>(http::status::ok, r.http_version);
+    res->set(http::field::server, product_version());
+    res->set(http::field::cache_control, kRoomCacheControl);
+    res->set(http::field::etag, etag);
+    if (etag_matches(r.if_none_match, etag)) {
+      res->result(http::status::not_modified);
+      return send_room_answer(std::move(res), r.keep_alive);
+    }
+    auto executor = stream_.get_executor();
+    net::post(server_.extras_pool, [self = shared_from_this(), r = std::move(r), room, res,
+                                    executor, gate = server_.gate]() mutable {
+      auto json = room_extras_json(room->frame, r.seed, self->server_.config.layout);
+      std::lock_guard lock(gate->mutex);
+      if (!gate->open) return;
+      net::post(executor, [self, r = std::move(r), res, json = std::move(json)]() mutable {
+        if (!json)
+          return self->refuse_room(r, http::status::internal_server_error, json.error().message);
+        res->set(http::field::content_type, "application/json");
+        res->set("X-Content-Type-Options", "nosniff");
+        res->content_length(json->size());
+        if (!r.head) res->body() = std::move(*json);
+        self->send_room_answer(std::move(res), r.keep_alive);
+      });
+    });
   }
 
   // RFC 9110 13.1.2: If-None-Match compares weakly, "*" matches any tag.

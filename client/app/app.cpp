@@ -42,11 +42,6 @@ double seconds_since(Clock::time_point t) {
   return std::chrono::duration<double>(Clock::now() - t).count();
 }
 
-// A light lights its room's sphere grown by this much (the relief and the rim noise reach out of
-// the sphere; a hall keeps its sphere, mesh params keep_distance).
-constexpr double kLightBoundScale = 1.1;
-constexpr double kLightBoundMargin = 1.5;  // metres
-
 // A world light as the renderer takes it: colour x intensity, its range, its glowing patch.
 render::Light to_light(const cave::WorldLight& w, const cave::Room& room) {
   render::Light l;
@@ -60,7 +55,7 @@ render::Light to_light(const cave::WorldLight& w, const cave::Room& room) {
   l.source_radius = static_cast<float>(cave::light_source_radius(w));
   l.glow = static_cast<int>(w.kind);  // shaders/lights.glsl's GLOW_* follow cave::LightKind
   l.bound_centre = room.sphere.centre;
-  l.bound_radius = static_cast<float>(kLightBoundScale * room.sphere.radius + kLightBoundMargin);
+  l.bound_radius = static_cast<float>(cave::light_bound_radius(room));
   return l;
 }
 
@@ -78,7 +73,7 @@ render::Light flare_light(const play::Flare& f, const play::CollisionWorld& worl
   l.glow = 3;
   if (const cave::Room* room = world.room_at(f.position)) {
     l.bound_centre = room->sphere.centre;
-    l.bound_radius = static_cast<float>(kLightBoundScale * room->sphere.radius + kLightBoundMargin);
+    l.bound_radius = static_cast<float>(cave::light_bound_radius(*room));
   }
   return l;
 }

@@ -12,6 +12,7 @@
 #include <tuple>
 #include <vector>
 
+#include "cave/lights.hpp"
 #include "client/render/shaders.hpp"
 #include "client/stream/verify.hpp"
 #include "core/random.hpp"
@@ -36,15 +37,6 @@ constexpr double kCapOffset = 0.01;  // metres beyond the portal plane
 
 glm::vec3 to_vec3(Vec3 v) {
   return {static_cast<float>(v.x), static_cast<float>(v.y), static_cast<float>(v.z)};
-}
-
-// A light's own number in [0, 1), from where it is (to the millimetre): the same in every frame
-// wherever the camera is, which orients a seam's vein in shaders/lights.glsl.
-float light_seed(Vec3 p) {
-  const uint64_t h = hash_words(0x6c69676874ull, static_cast<uint64_t>(std::llround(p.x * 1000.0)),
-                                static_cast<uint64_t>(std::llround(p.y * 1000.0)),
-                                static_cast<uint64_t>(std::llround(p.z * 1000.0)));
-  return static_cast<float>(h >> 40) / 16777216.0f;
 }
 
 Vec3 normalized(Vec3 v) {
@@ -457,8 +449,9 @@ FrameStats Renderer::draw(const GpuRoomCache& cache, const Camera& camera, int w
     const size_t n = points.size();
     light_position[n] = glm::vec4(to_vec3(l.position - anchor), std::max(l.range, 1e-3f));
     light_color[n] = glm::vec4(l.colour, 0.0f);
-    light_glow[n] = glm::vec4(l.size, static_cast<float>(l.glow), light_seed(l.position),
-                              std::max(l.source_radius, 0.05f));
+    light_glow[n] =
+        glm::vec4(l.size, static_cast<float>(l.glow), cave::light_pattern_seed(l.position),
+                  std::max(l.source_radius, 0.05f));
     light_bound[n] = glm::vec4(to_vec3(l.bound_centre - anchor), std::max(l.bound_radius, 0.0f));
     points.push_back(&l);
   }

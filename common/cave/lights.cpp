@@ -1,6 +1,7 @@
 #include "cave/lights.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <optional>
 
 #include "core/random.hpp"
@@ -123,6 +124,19 @@ double light_falloff(const WorldLight& light, double d) {
   const double window = std::clamp(1 - x * x * x * x, 0.0, 1.0);
   const double r = light_source_radius(light);
   return window * window / (r * r + d * d);
+}
+
+double light_bound_radius(const Room& room) {
+  constexpr double kScale = 1.1;
+  constexpr double kMargin = 1.5;  // metres
+  return kScale * room.sphere.radius + kMargin;
+}
+
+float light_pattern_seed(Vec3 p) {
+  const uint64_t h = hash_words(0x6c69676874ull, static_cast<uint64_t>(std::llround(p.x * 1000.0)),
+                                static_cast<uint64_t>(std::llround(p.y * 1000.0)),
+                                static_cast<uint64_t>(std::llround(p.z * 1000.0)));
+  return static_cast<float>(h >> 40) / 16777216.0f;
 }
 
 std::vector<WorldLight> room_lights(uint64_t seed, const LayoutParams& layout, const Room& room,

@@ -81,6 +81,17 @@ double light_source_radius(const WorldLight& light);
 // convention above, in one function (collision-free gameplay light levels, engines, tests).
 double light_falloff(const WorldLight& light, double d);
 
+// The sphere a light of `room` lights rock within: the room's sphere grown by a tenth and 1.5 m
+// (the relief and the rim noise reach out of the sphere; a hall keeps its sphere). The rock
+// between rooms casts no shadow in the shader, so this bound keeps a light from shining through
+// into the next room. Flares use the bound of the room they burn in.
+double light_bound_radius(const Room& room);
+
+// A light's own number in [0, 1), from where it is (to the millimetre): the same in every frame
+// wherever the camera is; it orients a seam's vein and phases a colony's dots
+// (shaders/lights.glsl's u_light_glow.z).
+float light_pattern_seed(Vec3 position);
+
 // The room's lights, in the order they were drawn (deterministic). Any room of the world with
 // its portals (cave::room); `layout` gives its floor (floor_height). Lights keep clear of every
 // portal and lie inside cave::in_space(room, position) and above the floor.

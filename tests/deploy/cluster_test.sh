@@ -85,6 +85,17 @@ status=$(curl -sS -o /dev/null -w '%{http_code}' -H "If-None-Match: $etag" "http
 [[ "$status" == 304 ]] || lb_fail "If-None-Match: $etag got $status, want 304"
 echo "room URL $url: immutable, ETag $etag, then a cache hit, then 304"
 
+# ---- the browser viewer through nginx (issue 44): the page, its files, a room's extras ----
+page=$(curl -sS "http://127.0.0.1:$port/" -D - -o "$lb_dir/index.html" | tr -d '\r')
+grep -qi '^content-type: text/html' <<<"$page" || lb_fail "/ through nginx is not the viewer: $page"
+grep -q 'viewer/main.js' "$lb_dir/index.html" || lb_fail "/ through nginx has no viewer script"
+status=$(curl -sS -o /dev/null -w '%{http_code} %{content_type}' "http://127.0.0.1:$port/viewer/lib/draco_decoder.wasm")
+[[ "$status" == "200 application/wasm" ]] || lb_fail "the viewer's decoder through nginx: $status"
+extras=$(curl -sS "http://127.0.0.1:$port/extras/${url#/rooms/}" -o "$lb_dir/extras.json" -D - | tr -d '\r')
+grep -qi '^content-type: application/json' <<<"$extras" || lb_fail "/extras/ through nginx: $extras"
+grep -q '"formations":{"count":' "$lb_dir/extras.json" || lb_fail "extras through nginx: $(head -c 200 "$lb_dir/extras.json")"
+echo "viewer through nginx: the page, its wasm decoder, and the extras of $url"
+
 # ---- 3. kill -9 of a replica mid-run ----
 victim_pid=$(replica_pid 1)
 [[ -n "$victim_pid" ]] || lb_fail "no pid for replica 1 in the cluster's output"

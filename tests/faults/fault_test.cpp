@@ -536,6 +536,51 @@ TEST(SlowReader, a_client_that_does_not_read_is_dropped_and_others_carry_on) {
   expect_still_serving(server->port());
 }
 
+// The close arrives (issue 45): a client with a small receive buffer asks for the same 4 cached
+// rooms 377 times (1,508 frames: its queue passes the bound at once, and the server's socket
+// buffer fills with frames it cannot send), says nothing for 3 s, then reads. It gets the frames
+// that were on their way and then the close frame, 1008 slow_client: the server lingered, reading
+// and dropping, instead of cutting the socket after 1 s with a TCP reset that threw away what it
+// had sent and left the client one frame and ECONNRESET.
+TEST(SlowReader, a_slow_reader_that_reads_again_gets_close_1008_slow_client) {
+  auto c = test_config();
+  c.send_queue_bytes = 256 << 10;
+  auto server = start(c);
+  ASSERT_TRUE(server);
+  auto rooms = many_rooms(4);
+  Client warm(server->port());
+  ASSERT_FALSE(warm.connect());
+  warm.hello("warm");
+  ASSERT_FALSE(warm.send(request_of(rooms, 0, 4, 1)));
+  for (int i = 0; i < 4; ++i) {
+    auto [ec, in] = warm.read();
+    ASSERT_FALSE(ec);
+    ASSERT_FALSE(in.text) << in.data;
+  }
+  Client slow(server->port());
+  slow.set_receive_buffer(4096);
+  ASSERT_FALSE(slow.connect());
+  slow.hello("slow");
+  for (int i = 0; i < 377; ++i)
+    ASSERT_FALSE(slow.send(request_of(rooms, 0, 4, static_cast<size_t>(i))));
+  std::this_thread::sleep_for(3s);
+  EXPECT_EQ(server->metrics().slow_clients_dropped.value(), 1u);
+  size_t frames = 0;
+  websocket::close_reason reason;
+  for (;;) {
+    auto [ec, in] = slow.read();
+    if (ec) {
+      reason = slow.ws().reason();
+      EXPECT_EQ(ec, websocket::error::closed) << ec.message() << " after " << frames << " frames";
+      break;
+    }
+    ++frames;
+  }
+  EXPECT_EQ(reason.code, 1008) << "after " << frames << " frames";
+  EXPECT_EQ(std::string(reason.reason.c_str()), "slow_client");
+  expect_still_serving(server->port(), &warm);
+}
+
 // ---- 6. request floods ----
 
 // One client with 1,000 rooms queued saturates the only worker: probes still answer (they touch

@@ -15,8 +15,10 @@ root=${1:?usage: layering_test.sh <repository root>}
 cd "$root" || exit 2
 
 # Stages in pipeline order (earlier first). Folders on one line are one stage. common/tools holds
-# only the PNG writer (common/core and zlib); shaders/ holds the GLSL the client's collision and
-# renderer share, so it comes before both.
+# only the PNG writer (common/core and zlib); shaders/ holds the GLSL (and its C++ twins: the
+# relief, the formations' placement and shape) that the client's collision and renderer share and
+# the server's room extras derive from (server/extras, the browser viewer's), so it comes before
+# them all, after the codec whose decoded rooms it reads.
 stages=(
   "common/core"
   "common/tools"
@@ -24,10 +26,10 @@ stages=(
   "common/mesh"
   "kernels"
   "common/codec"
+  "shaders"
   "proto"
   "server"
   "client/stream"
-  "shaders"
   "client/play client/render"
   "client/app client/load client/engine"
   "tools bench tests"
