@@ -1,8 +1,9 @@
 // The browser viewer's figures (issue 44's targets), as a benchmark with a JSON report, never a
 // timed test: the first picture after opening the page (median of `loads` fresh pages), the decode
-// and subdivision medians, and the page's memory over a walk (flying forward, turning a little
-// every few seconds, for `minutes`), sampled every 10 s.
-//   GROTTO_SERVER=build/bin/grotto-server node web/e2e/bench.mjs [--minutes 5] [--loads 3] [--json FILE]
+// and subdivision medians, and the page's memory over a walk across the world (flying forward,
+// and every 10 s on to the next sector, for `minutes`), sampled every 10 s.
+//   GROTTO_SERVER=build/bin/grotto-server GROTTO_LAYOUT=build/bin/grotto-layout \
+//     node web/e2e/bench.mjs [--minutes 5] [--loads 3] [--json FILE]
 import { writeFileSync, readFileSync } from "node:fs";
 import { cpus, loadavg } from "node:os";
 import { startServer, launchBrowser } from "./harness.mjs";
@@ -43,20 +44,29 @@ try {
   await page.click("canvas");
   await page.keyboard.press("g");
   await page.keyboard.down("w");
+  // Every 10 s the walk jumps to the next sector along +x (its first room's centre, from the
+  // layout), so the page keeps meeting new rooms and its store (400 rooms) has to let old ones go.
+  const { execFileSync } = await import("node:child_process");
+  const centre = (k) => JSON.parse(execFileSync(process.env.GROTTO_LAYOUT, ["--seed", "7", "--room", `${k}.0.0.r0`]).toString()).centre;
+  const cdp = await page.context().newCDPSession(page);
+  await cdp.send("Performance.enable");
   const samples = [];
   const end = Date.now() + minutes * 60000;
   let turn = 0;
   while (Date.now() < end) {
     await page.waitForTimeout(10000);
-    // A little turn now and then, so the walk is not one straight line out of the world.
-    await page.evaluate((t) => { const p = window.grotto.pose; window.grotto.setPose(p.x, p.y, p.z, p.yaw + (t % 2 ? 0.6 : -0.4), 0); }, turn++);
+    await page.evaluate(([c, t]) => window.grotto.setPose(c[0], c[1], c[2], t * 0.7, 0), [centre(++turn), turn]);
     const s = await page.evaluate(() => ({
       heap_mb: performance.memory ? performance.memory.usedJSHeapSize / 1048576 : null,
       rooms: window.grotto.rooms_loaded, requests: window.grotto.requests, cancels: window.grotto.cancels,
-      frames: window.grotto.frames, errors: window.grotto.errors.length,
+      frames: window.grotto.frames, errors: window.grotto.errors.length, last_error: window.grotto.errors.at(-1),
     }));
-    const metrics = await (await page.context().newCDPSession(page)).send("Performance.getMetrics").catch(() => null);
-    s.js_heap_mb = metrics ? metrics.metrics.find((m) => m.name === "JSHeapUsedSize").value / 1048576 : s.heap_mb;
+    // The page's JavaScript heap, and the workers' and GPU buffers are not in it: the page
+    // process's resident memory says the rest (Chrome's own figure, through the DevTools protocol).
+    const { metrics } = await cdp.send("Performance.getMetrics");
+    const metric = (name) => metrics.find((m) => m.name === name)?.value;
+    s.js_heap_mb = metric("JSHeapUsedSize") / 1048576;
+    s.nodes = metric("Nodes");
     samples.push({ t_s: samples.length * 10 + 10, ...s });
     console.log(JSON.stringify(samples.at(-1)));
   }

@@ -17,6 +17,9 @@ export class Controls {
     this.canvas = canvas;
     this.pose = pose; // {x, y, z, yaw, pitch}: mutated
     this.collide = collide; // (x, y, z) -> floor height under the point (within reach) or null
+    // (x, y, z) -> whether the point is in the loaded rooms' space; flying stops at its edge (the
+    // player never flies out into rock, where no room holds it). Null: anywhere.
+    this.inside = null;
     this.keys = new Set();
     this.fly = false;
     this.vy = 0;
@@ -100,9 +103,16 @@ export class Controls {
       const f = [sy * cp, sp, -cy * cp];
       const r = [cy, 0, sy];
       const v = this.speed() * dt;
-      p.x += (f[0] * fwd + r[0] * side) * v;
-      p.y += (f[1] * fwd) * v + ((k.has("Space") ? 1 : 0) - (k.has("ShiftLeft") ? 1 : 0)) * v;
-      p.z += (f[2] * fwd + r[2] * side) * v;
+      const nx = p.x + (f[0] * fwd + r[0] * side) * v;
+      const ny = p.y + (f[1] * fwd) * v + ((k.has("Space") ? 1 : 0) - (k.has("ShiftLeft") ? 1 : 0)) * v;
+      const nz = p.z + (f[2] * fwd + r[2] * side) * v;
+      // Out of the rooms' space only from inside it: a player already outside (a link into
+      // rock, rooms not loaded yet) may move back in.
+      if (!this.inside || this.inside(nx, ny, nz) || !this.inside(p.x, p.y, p.z)) {
+        p.x = nx;
+        p.y = ny;
+        p.z = nz;
+      }
       this.vy = 0;
       return p.x !== before[0] || p.y !== before[1] || p.z !== before[2];
     }

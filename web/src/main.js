@@ -283,6 +283,9 @@ const session = new Session({
 
 const controls = new Controls(canvas, pose, (x, top, z) => floorAt(store.rooms.values(), x, top, z));
 controls.fly = q.get("fly") === "1";
+// Flying keeps within the loaded rooms' spheres, short of their rims (the rock beyond is no place
+// to be, and the native client's fly mode collides with it too).
+controls.inside = (x, y, z) => roomsHolding([x, y, z]).length > 0;
 
 function link() {
   const u = new URL(location.href);
