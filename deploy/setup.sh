@@ -36,8 +36,9 @@ command -v kubectl >/dev/null 2>&1 || packages+=(kubernetes-client)
 # Node.js and npm (the browser viewer, web/: bundled at build time, its unit tests under node
 # --test): Debian's, unless a node and an npm are already installed (NodeSource's nodejs package
 # carries npm and conflicts with Debian's).
-command -v node >/dev/null 2>&1 || packages+=(nodejs)
-command -v npm >/dev/null 2>&1 || packages+=(npm)
+# --list names them always: they are what a fresh Debian machine gets.
+if [[ "${1:-}" == --list ]] || ! command -v node >/dev/null 2>&1; then packages+=(nodejs); fi
+if [[ "${1:-}" == --list ]] || ! command -v npm >/dev/null 2>&1; then packages+=(npm); fi
 
 case "${1:-}" in
   "") ;;

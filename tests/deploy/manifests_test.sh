@@ -193,7 +193,12 @@ check(ann.get("nginx.ingress.kubernetes.io/load-balance") == "round_robin",
       "the Ingress must set load-balance: round_robin (ewma scores WebSockets by session length)")
 routes = {p["path"]: p["backend"]["service"] for r in ing["spec"]["rules"] for p in r["http"]["paths"]}
 check(routes.get("/ws", {}).get("name") == svc["metadata"]["name"], "Ingress /ws is not the Service")
-check(set(routes) <= {"/ws", "/rooms/"}, f"the Ingress should route /ws (and /rooms/) only (got {list(routes)})")
+# The browser viewer (issue 44): its page, files and room extras, from the replicas too.
+check(set(routes) <= {"/ws", "/rooms/", "/", "/viewer/", "/extras/"},
+      f"the Ingress should route /ws, the viewer's paths (and /rooms/) only (got {list(routes)})")
+for path in ("/", "/viewer/", "/extras/"):
+    check(routes.get(path, {}).get("name") == svc["metadata"]["name"],
+          f"Ingress {path} (the browser viewer) is not the Service")
 if "/rooms/" in routes:
     check(routes["/rooms/"].get("name") == tier_svc["metadata"]["name"],
           "Ingress /rooms/ must go to the room tier's Service (its cache), not to the replicas")
