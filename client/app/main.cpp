@@ -93,6 +93,7 @@ int main(int argc, char** argv) {
   so.name = "grotto-client";
   so.protocol_version = o.protocol_version;
   so.spawn = !o.pose.has_value();
+  so.net = o.net;
   // Pictures and benchmarks wait for every room within the fixed horizon before they shoot, so
   // that what a frame shows does not depend on how quickly the server answered (the adaptive
   // horizon, the default for play, follows the server's latency).

@@ -134,6 +134,11 @@ std::optional<int> parse_options(int argc, char** argv, Options& o) {
   app.add_flag("--hold", o.hold,
                "With --bench: hold the start pose (--pose) instead of following the path: the "
                "frame cost of one view (a hall, a ceiling close up)");
+  app.add_option("--net", o.net_text,
+                 "Play over a simulated network: rtt=150ms,jitter=20ms,kbps=2000,stall=0.5s/30s "
+                 "(each part optional: round trip, jitter without reordering, the downlink's cap "
+                 "in kbit/s, a stall of the link and its period), as grotto-load --net")
+      ->type_name("PROFILE");
   app.add_option("--token-file", o.token_file,
                  "File whose first line (trimmed) is the deployment's shared-secret token, sent in "
                  "hello; without it $GROTTO_TOKEN is used; with neither no token is sent")
@@ -221,6 +226,9 @@ std::optional<int> parse_options(int argc, char** argv, Options& o) {
   auto token = proto::resolve_token(o.token_file, std::getenv(proto::kTokenEnvVariable));
   if (!token) return fail(token.error().message);
   o.token = std::move(token).value();
+  auto net = client::parse_net_profile(o.net_text);
+  if (!net) return fail(net.error().message);
+  o.net = *net;
   if (o.lod_text == "distance") {
     o.lod = render::LodHeuristic::kDistance;
   } else if (o.lod_text == "screen") {

@@ -9,6 +9,7 @@
 #include "cave/room_id.hpp"
 #include "client/play/player.hpp"
 #include "client/render/renderer.hpp"
+#include "client/stream/net_sim.hpp"
 #include "core/vec3.hpp"
 
 namespace grotto::app {
@@ -46,6 +47,8 @@ struct Options {
   std::string json;                    // --bench or --screenshot report
   std::string token_file;
   std::string token;            // from token_file or $GROTTO_TOKEN; empty: none
+  std::string net_text;         // --net: a simulated network (client/stream/net_sim.hpp)
+  client::NetProfile net;       // parsed from net_text; zero: the real network
   std::optional<bool> overlay;  // --overlay / --no-overlay; default: in the window only
   std::string lod_text = "screen";
   render::LodHeuristic lod = render::LodHeuristic::kScreenSpace;

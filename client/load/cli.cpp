@@ -95,6 +95,7 @@ CommandLine parse_command_line(int argc, const char* const* argv) {
                  "World seed (unsigned 64-bit). Embedded server: the world it serves (default "
                  "7); remote: the world asked for (default: the server's)");
   std::string token_file;
+  std::string net_text;
   std::string seeds_text;
   app.add_option("--seeds", seeds_text,
                  "Several worlds: comma-separated seeds, player i asks for seed i mod count "
@@ -131,6 +132,11 @@ CommandLine parse_command_line(int argc, const char* const* argv) {
       ->check(CLI::Range(0.0, 3600.0))
       ->type_name("SECONDS")
       ->capture_default_str();
+  app.add_option("--net", net_text,
+                 "Simulate each player's network: rtt=150ms,jitter=20ms,kbps=2000,stall=0.5s/30s "
+                 "(each part optional: round trip, jitter without reordering, the player's "
+                 "downlink cap in kbit/s, a stall of the link and its period)")
+      ->type_name("PROFILE");
   app.add_flag("--spread", o.spread,
                "Player i starts in room 0 of sector (3i, 0, 0) instead of the spawn point, so "
                "players share no rooms (with --server, give --seed or --seeds)");
@@ -217,6 +223,9 @@ CommandLine parse_command_line(int argc, const char* const* argv) {
       rest.remove_prefix(item.size() + 1);
     }
   }
+  auto net = parse_net_profile(net_text);
+  if (!net) return fail(net.error().message);
+  o.net = *net;
   auto token = proto::resolve_token(token_file, std::getenv(proto::kTokenEnvVariable));
   if (!token) return fail(token.error().message);
   o.token = std::move(token).value();

@@ -197,6 +197,7 @@ Result<LoadReport> run_load(const LoadOptions& options) {
   report.min_horizon_s = burst ? 0 : options.min_horizon_s;
   report.protocol_version = options.protocol_version;
   report.radius_m = burst ? options.radius_m : 0;
+  report.net = net_profile_text(options.net);
   report.duration_s = duration;
   report.ramp_s = options.ramp_s;
   report.max_stalls = options.max_stalls;
@@ -265,6 +266,7 @@ Result<LoadReport> run_load(const LoadOptions& options) {
     so.protocol_version = options.protocol_version;
     so.spawn = !options.spread;
     so.store_bytes = options.store_bytes;
+    so.net = options.net;
     auto stream = Stream::start(so, runtime);
     if (!stream) return stream.error();
     p.stream = std::move(stream).value();

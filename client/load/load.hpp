@@ -66,6 +66,7 @@ struct LoadOptions {
   double tick_hz = 20;     // simulation steps per second
   bool progress = false;   // a live progress line on stderr (grotto-load: when it is a TTY)
   WalkerOptions walker{};  // speed is taken from `speed`
+  NetProfile net{};        // every player's simulated network (StreamOptions::net); zero: none
 };
 
 // Default duration of a mode when duration_s is 0.

@@ -123,6 +123,7 @@ std::string format_table(const LoadReport& r) {
           r.seed ? std::to_string(*r.seed).c_str() : "(the server's)",
           r.server.empty() ? "server unknown" : r.server.c_str(), r.speed, r.horizon_s);
   if (r.ramp_s > 0) appendf(out, "  players joined over %.1f s\n", r.ramp_s);
+  if (r.net != "off") appendf(out, "  simulated network: %s\n", r.net.c_str());
   if (!r.compute.empty()) appendf(out, "  embedded server compute: %s\n", r.compute.c_str());
   appendf(out, "\n  %-22s %8s %9s %9s %9s %9s %9s\n", "", "count", "mean", "p50", "p90", "p99",
           "max");
@@ -253,6 +254,7 @@ std::string to_json_text(const LoadReport& r) {
       {"players", r.players},
       {"rng_seed", std::to_string(r.rng_seed)},
       {"spread", r.spread},
+      {"net", r.net},
       {"speed_m_s", r.speed},
       {"horizon_s", r.horizon_s},
       {"min_horizon_s", r.min_horizon_s},

@@ -69,8 +69,9 @@ struct LoadReport {
   std::string server;            // welcome.server
   std::string compute;           // embedded server: its compute path ("opencl: ..." or "cpu: ...")
   int players = 0;
-  uint64_t rng_seed = 0;  // the walks' seed (player i: rng_seed + i)
-  bool spread = false;    // players started in sectors (3i, 0, 0) instead of the spawn point
+  uint64_t rng_seed = 0;    // the walks' seed (player i: rng_seed + i)
+  bool spread = false;      // players started in sectors (3i, 0, 0) instead of the spawn point
+  std::string net = "off";  // the simulated network, as --net takes it (net_sim.hpp)
   double speed = 0;
   double horizon_s = 0;
   double radius_m = 0;    // burst mode

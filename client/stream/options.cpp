@@ -34,6 +34,11 @@ Status validate_options(const StreamOptions& options) {
   if (options.replan_interval.count() < 1) return invalid("replan_interval must be at least 1 ms");
   if (options.max_room_failures < 1) return invalid("max_room_failures must be at least 1");
   if (options.lod > 255) return invalid("lod must be in [0, 255] (PROTOCOL.md: max_lod <= 255)");
+  const NetProfile& net = options.net;
+  if (net.rtt.count() < 0 || net.jitter.count() < 0 || net.stall.count() < 0 ||
+      (net.stall.count() > 0 && net.stall_every <= net.stall)) {
+    return invalid("net: times must be >= 0 and a stall's period longer than the stall");
+  }
   if (options.protocol_version != 0 && !proto::speaks_version(options.protocol_version)) {
     return invalid("protocol_version must be 0 (all) or one of " +
                    std::to_string(proto::kMinProtocolVersion) + ".." +

@@ -10,6 +10,7 @@
 #include <string>
 
 #include "cave/room_id.hpp"
+#include "client/stream/net_sim.hpp"
 #include "client/stream/portal_graph.hpp"
 #include "core/result.hpp"
 #include "proto/messages.hpp"
@@ -65,6 +66,9 @@ struct StreamOptions {
   // (proto::kMinProtocolVersion..kProtocolVersion, the server picks the highest); 1 or 2 offers
   // that one alone (to measure or test one version against a server that speaks both).
   uint32_t protocol_version = 0;
+  // A simulated network between this stream and the server (net_sim.hpp): latency, jitter, a
+  // bandwidth cap on what it receives, stalls. Zero: the real network as it is.
+  NetProfile net{};
 };
 
 // Whether Stream::start would take `options`: the url parses (url.hpp), the horizon is a positive

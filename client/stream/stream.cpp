@@ -27,11 +27,14 @@
 #include <deque>
 #include <future>
 #include <mutex>
+#include <optional>
 #include <random>
+#include <span>
 #include <thread>
 
 #include "client/stream/conversation.hpp"
 #include "client/stream/decode_queue.hpp"
+#include "client/stream/net_sim.hpp"
 #include "codec/room_codec.hpp"
 #include "core/thread_name.hpp"
 
@@ -80,14 +83,39 @@ Runtime::~Runtime() = default;
 
 namespace {
 
+// A message the simulated network (StreamOptions::net) holds until its link delivers it: a
+// frame, or the end of the connection (a close or an error), which waits behind the frames.
+struct Held {
+  Clock::time_point due;
+  std::string bytes;
+  bool text = false;
+  bool end = false;
+  beast::error_code ec;  // with `end`: websocket::error::closed for a close, else the error
+  uint16_t close_code = 0;
+  std::string close_reason;
+};
+
 // One WebSocket connection: its stream, read buffer and write queue.
 struct Conn {
-  explicit Conn(net::strand<net::io_context::executor_type> strand) : ws(strand) {}
+  explicit Conn(net::strand<net::io_context::executor_type> strand)
+      : ws(strand), inbox_timer(strand), outbox_timer(strand) {}
   websocket::stream<beast::tcp_stream> ws;
   beast::flat_buffer buffer;
   std::deque<std::string> queue;  // text messages waiting for the one async_write in flight
   bool writing = false;
+  // The simulated network, when there is one: each direction's link, and what it holds.
+  std::optional<NetLink> down, up;
+  std::deque<Held> inbox;  // received, not yet delivered to the conversation
+  size_t inbox_bytes = 0;
+  bool read_paused = false;  // the inbox is full: the socket is not read until it drains
+  std::deque<std::pair<Clock::time_point, std::string>> outbox;  // sent, not yet on the wire
+  net::steady_timer inbox_timer, outbox_timer;
 };
+
+// What the simulated link's buffers hold before the player stops reading its socket: past it,
+// the server's socket backs up as over a real slow link (and its send queue keeps the urgent rooms
+// first), instead of the whole stream piling up here.
+constexpr size_t kSimulatedBufferBytes = size_t{64} << 10;
 
 }  // namespace
 
@@ -246,6 +274,24 @@ struct Stream::Impl : std::enable_shared_from_this<Stream::Impl> {
     t.idle_timeout = std::chrono::seconds(15);
     t.keep_alive_pings = true;
     c->ws.set_option(t);
+    if (options.net.active()) {
+      // The simulated network: the TCP connect and the upgrade took a round trip each.
+      const auto now = Clock::now();
+      const uint64_t seed = std::random_device{}();
+      c->down.emplace(options.net, true, now, seed);
+      c->up.emplace(options.net, false, now, seed ^ 0x9e3779b97f4a7c15ull);
+      c->inbox_timer.expires_after(2 * options.net.rtt);
+      c->inbox_timer.async_wait([self = shared_from_this(), c](beast::error_code e) {
+        std::lock_guard guard(self->mu);
+        if (e || c != self->conn || self->stopping) return;
+        self->open(c);
+      });
+      return;
+    }
+    open(c);
+  }
+
+  void open(const std::shared_ptr<Conn>& c) {
     run(conversation.opened(Clock::now()));
     if (c != conn) return;
     read(c);
@@ -265,6 +311,7 @@ struct Stream::Impl : std::enable_shared_from_this<Stream::Impl> {
   void on_read(const std::shared_ptr<Conn>& c, beast::error_code ec) {
     std::lock_guard lock(mu);
     if (c != conn || stopping) return;
+    if (c->down) return hold(c, ec);
     if (ec) {
       if (ec != websocket::error::closed) return lost("reading: " + ec.message());
       const auto& reason = c->ws.reason();
@@ -282,6 +329,85 @@ struct Stream::Impl : std::enable_shared_from_this<Stream::Impl> {
     }
     c->buffer.consume(c->buffer.size());
     if (c == conn) read(c);
+  }
+
+  // ---- the simulated network: what was read waits for its link to deliver it ----
+
+  void hold(const std::shared_ptr<Conn>& c, beast::error_code ec) {
+    Held h;
+    if (ec) {
+      h.end = true;
+      h.ec = ec;
+      if (ec == websocket::error::closed) {
+        h.close_code = static_cast<uint16_t>(c->ws.reason().code);
+        h.close_reason = std::string(c->ws.reason().reason.c_str());
+      }
+    } else {
+      auto data = c->buffer.cdata();
+      h.bytes.assign(static_cast<const char*>(data.data()), data.size());
+      h.text = c->ws.got_text();
+      c->buffer.consume(c->buffer.size());
+    }
+    h.due = c->down->arrival(Clock::now(), h.bytes.size());
+    c->inbox_bytes += h.bytes.size();
+    c->inbox.push_back(std::move(h));
+    if (c->inbox.size() == 1) arm_inbox(c);
+    if (ec) return;
+    if (c->inbox_bytes < kSimulatedBufferBytes) {
+      read(c);
+    } else {
+      c->read_paused = true;
+    }
+  }
+
+  void arm_inbox(const std::shared_ptr<Conn>& c) {
+    if (c->inbox.empty()) return;
+    c->inbox_timer.expires_at(c->inbox.front().due);
+    c->inbox_timer.async_wait([self = shared_from_this(), c](beast::error_code ec) {
+      std::lock_guard lock(self->mu);
+      if (ec || c != self->conn || self->stopping) return;
+      self->deliver(c);
+    });
+  }
+
+  void deliver(const std::shared_ptr<Conn>& c) {
+    while (c == conn && !c->inbox.empty() && c->inbox.front().due <= Clock::now()) {
+      Held h = std::move(c->inbox.front());
+      c->inbox.pop_front();
+      c->inbox_bytes -= h.bytes.size();
+      if (h.end) {
+        if (h.ec != websocket::error::closed) return lost("reading: " + h.ec.message());
+        return run(conversation.closed(h.close_code, h.close_reason, Clock::now()));
+      }
+      if (h.text) {
+        run(conversation.text(h.bytes, Clock::now()));
+      } else {
+        run(conversation.binary(
+            std::span(reinterpret_cast<const uint8_t*>(h.bytes.data()), h.bytes.size()),
+            Clock::now()));
+      }
+    }
+    if (c != conn) return;
+    if (c->read_paused && c->inbox_bytes < kSimulatedBufferBytes) {
+      c->read_paused = false;
+      read(c);
+    }
+    arm_inbox(c);
+  }
+
+  void arm_outbox(const std::shared_ptr<Conn>& c) {
+    if (c->outbox.empty()) return;
+    c->outbox_timer.expires_at(c->outbox.front().first);
+    c->outbox_timer.async_wait([self = shared_from_this(), c](beast::error_code ec) {
+      std::lock_guard lock(self->mu);
+      if (ec || c != self->conn || self->stopping) return;
+      while (!c->outbox.empty() && c->outbox.front().first <= Clock::now()) {
+        c->queue.push_back(std::move(c->outbox.front().second));
+        c->outbox.pop_front();
+      }
+      if (!c->writing && !c->queue.empty()) self->write(c);
+      self->arm_outbox(c);
+    });
   }
 
   // ---- periodic work ----
@@ -304,6 +430,12 @@ struct Stream::Impl : std::enable_shared_from_this<Stream::Impl> {
 
   void send(std::string text) {
     if (!conn) return;
+    if (conn->up) {  // the simulated network: on the wire once its link carries it there
+      const auto due = conn->up->arrival(Clock::now(), text.size());
+      conn->outbox.emplace_back(due, std::move(text));
+      if (conn->outbox.size() == 1) arm_outbox(conn);
+      return;
+    }
     conn->queue.push_back(std::move(text));
     if (!conn->writing) write(conn);
   }

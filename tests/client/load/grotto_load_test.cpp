@@ -99,6 +99,9 @@ TEST(GrottoLoad, bad_flags_exit_2_with_a_message_naming_the_flag) {
       {"--ramp -1", "--ramp"},
       {"--ramp 5 --duration 5", "--ramp must be shorter than the run"},
       {"--ramp 1 --mode burst", "--ramp is for walk and soak"},
+      {"--net rtt=150", "--net: rtt must be a time"},
+      {"--net loss=1%", "--net: unknown part 'loss'"},
+      {"--net stall=2s/1s", "--net: stall must be"},
   };
   for (const auto& [args, flag] : cases) {
     ProcessResult r = run(args);
@@ -187,6 +190,31 @@ TEST(GrottoLoad, four_players_walk_the_embedded_server_without_errors_or_stalls)
   }
   EXPECT_EQ(j["player_kbps"]["count"], 4);
   EXPECT_GT(j["rooms_per_room_entered"].get<double>(), 0);
+  std::filesystem::remove_all(dir);
+}
+
+// Over a simulated network (issue 45): a 400 ms round trip and a 1 Mbit/s downlink. The first room
+// takes the connect, the upgrade, hello, spawn and the request (five round trips: >= 2 s) and the
+// frame's time on the link; every room's latency includes a round trip; the report names the
+// profile; nothing is lost or refused on the way.
+TEST(GrottoLoad, players_over_a_simulated_slow_link_see_its_latency) {
+  auto dir = temp_dir("grotto-load-net");
+  auto json = dir / "out.json";
+  ProcessResult r =
+      run("--players 2 --duration 6 --device none --server-workers 2 --verify "
+          "--net rtt=400ms,jitter=20ms,kbps=1000 --json '" +
+          json.string() + "'");
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("simulated network: rtt=400ms,jitter=20ms,kbps=1000"), std::string::npos)
+      << r.output;
+  auto j = read_json(json);
+  EXPECT_EQ(j["net"], "rtt=400ms,jitter=20ms,kbps=1000");
+  EXPECT_EQ(j["errors_total"], 0) << j.dump(2);
+  EXPECT_EQ(j["verify"]["failures"], 0);
+  EXPECT_GE(j["first_room_ms"]["p50"].get<double>(), 2000.0) << j["first_room_ms"].dump();
+  EXPECT_GE(j["latency_ms"]["p50"].get<double>(), 400.0) << j["latency_ms"].dump();
+  EXPECT_GT(j["rooms"]["ready"].get<uint64_t>(), 2u);
+  EXPECT_EQ(j["rooms"]["rejected"], 0);
   std::filesystem::remove_all(dir);
 }
 
