@@ -157,6 +157,8 @@ Actions Conversation::binary(std::span<const uint8_t> bytes, SteadyTime now) {
     recent_latency_ms_.push_back({now, sample.latency_ms});
     if (recent_latency_ms_.size() > kLatencyWindow) recent_latency_ms_.pop_front();
   }
+  recent_any_latency_ms_.push_back({now, sample.latency_ms});
+  if (recent_any_latency_ms_.size() > kLatencyWindow) recent_any_latency_ms_.pop_front();
   in_flight_.erase(it);
   if (auto added = graph_.add(frame.room); !added) {
     ++stats_.rooms_rejected;
@@ -474,10 +476,25 @@ void Conversation::on_message(const proto::ErrorMessage& e, SteadyTime now, Acti
 double Conversation::horizon_s(SteadyTime now) const {
   const double max = options_.plan.horizon_s;
   if (options_.min_horizon_s <= 0) return max;
-  const double floor = std::min(options_.min_horizon_s, max);
+  double floor = std::min(options_.min_horizon_s, max);
   std::vector<double> waits;
   for (const auto& [at, ms] : recent_latency_ms_)
     if (now - at <= kLatencyWindowTime) waits.push_back(ms);
+  // The link's round trip (issue 45): no room comes sooner than the quickest of the last ones
+  // (urgent or not) did, a round trip and a frame's time on the link; on a far or thin link
+  // (300 ms, 512 kbit/s) that is most of what a room takes, and a plan that changes (a turn, a
+  // sprint) costs it again before the first new room can come. The floor keeps six of them
+  // ahead, once enough rooms have come to know it (on loopback, a few milliseconds: the floor
+  // stays as it is).
+  double quickest = -1;
+  size_t samples = 0;
+  for (const auto& [at, ms] : recent_any_latency_ms_) {
+    if (now - at > kLatencyWindowTime) continue;
+    quickest = samples++ == 0 ? ms : std::min(quickest, ms);
+  }
+  if (samples >= kRoundTripSamples) {
+    floor = std::min(max, std::max(floor, 1.0 + 6.0 * quickest / 1000.0));
+  }
   for (const auto& [id, room] : in_flight_)
     if (room.priority <= kUrgentPriorityMs) waits.push_back(ms_between(room.sent, now));
   if (waits.empty()) return floor;

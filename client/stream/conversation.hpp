@@ -268,6 +268,11 @@ class Conversation {
   std::deque<std::pair<SteadyTime, double>> recent_latency_ms_;
   static constexpr size_t kLatencyWindow = 32;
   static constexpr std::chrono::seconds kLatencyWindowTime{10};
+  // Rooms come in the window before their quickest one is taken for the link's round trip.
+  static constexpr size_t kRoundTripSamples = 4;
+  // The last kLatencyWindow request->room latencies of every class: the quickest is the link's
+  // round trip and a frame's time on it (horizon_s).
+  std::deque<std::pair<SteadyTime, double>> recent_any_latency_ms_;
   double horizon_s_ = 0;  // the last plan's
   std::vector<cave::RoomId> evicted_;
   StreamStats stats_;

@@ -845,6 +845,46 @@ TEST(Conversation, room_frames_table) {
   });
 }
 
+// The link's round trip raises the adaptive horizon's floor (issue 45): when every room takes
+// `latency` to come (here the first five rooms, round after round), the p90 rule alone gives
+// 1 + 2 x latency, but no room can come sooner than the quickest did, so the floor keeps six of
+// those ahead: 1 + 6 x 0.3 s = 2.8 s over a 300 ms link. On loopback (3 ms) the floor stays 1.5 s.
+double horizon_after_rooms_that_took(milliseconds latency) {
+  Harness h{StreamOptions{}};  // the adaptive horizon, the default
+  reach(h, Start::kReady, {});
+  Pose fast;  // running: the neighbours are within even the shortest horizon
+  fast.room = rid(0);
+  fast.speed = 40.0;
+  h.c.set_pose(fast);
+  // Every room asked for comes `latency` later, round after round, until five have come.
+  auto asked_in = [](const Actions& out, std::vector<int>& into) {
+    for (const std::string& a : describe(out))
+      for (size_t at = a.find(".r"); a.starts_with("request") && at != std::string::npos;
+           at = a.find(".r", at + 1))
+        into.push_back(std::stoi(a.substr(at + 2)));
+  };
+  std::vector<int> due = {0};
+  int came = 0;
+  for (int round = 0; round < 8 && came < 5 && !due.empty(); ++round) {
+    h.now += latency;
+    std::vector<int> next;
+    for (int i : due) {
+      asked_in(h.frame(frame_of(i)), next);
+      asked_in(h.decode_ok(rid(i)), next);
+      ++came;
+    }
+    due = std::move(next);
+  }
+  EXPECT_GE(came, 5);
+  return h.c.stats().horizon_s;
+}
+
+TEST(Conversation, a_far_links_round_trip_raises_the_horizon_floor) {
+  EXPECT_NEAR(horizon_after_rooms_that_took(milliseconds(300)), 2.8, 1e-9);
+  EXPECT_NEAR(horizon_after_rooms_that_took(milliseconds(3)), 1.5, 1e-9);
+  EXPECT_NEAR(horizon_after_rooms_that_took(milliseconds(600)), 4.0, 1e-9);  // at most the max
+}
+
 // ---- timers, the in-flight limit, cancels ----
 
 TEST(Conversation, timers_limits_and_cancels_table) {
