@@ -81,8 +81,9 @@ test("walking forward asks for more rooms", async () => {
 test("a link opens its place and the page gives the link of where it is", async () => {
   const room = layoutRoom("1.0.0.r0");
   const [x, y, z] = room.centre;
-  // Degrees, as grotto-client's --pose takes them.
-  const page = await openPage(browser, `${server.url}/?seed=7&pose=${x},${y},${z},70,-10`);
+  // Degrees, as grotto-client's --pose takes them; flying, so that the eye stays where the link
+  // put it (the room's centre is in mid-air: walking, the player falls to the floor).
+  const page = await openPage(browser, `${server.url}/?seed=7&pose=${x},${y},${z},70,-10&fly=1`);
   await waitFor(page, () => window.grotto && window.grotto.rooms_loaded >= 1 && window.grotto.frames >= 2);
   const s = await state(page);
   assert.ok(Math.hypot(s.pose.x - x, s.pose.y - y, s.pose.z - z) < 2.0, `pose ${JSON.stringify(s.pose)} not at ${room.centre}`);
@@ -92,6 +93,7 @@ test("a link opens its place and the page gives the link of where it is", async 
   const { link, now } = await page.evaluate(() => ({ link: window.grotto.link(), now: window.grotto.pose }));
   const u = new URL(link);
   assert.equal(u.searchParams.get("seed"), "7");
+  assert.equal(u.searchParams.get("fly"), "1", `${link}: a flying player's link flies`);
   const pose = u.searchParams.get("pose").split(",").map(Number);
   assert.equal(pose.length, 5);
   assert.ok(Math.hypot(pose[0] - now.x, pose[1] - now.y, pose[2] - now.z) < 0.01, `${link} vs ${JSON.stringify(now)}`);
