@@ -752,21 +752,40 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
   // server's viewer replaces the old one at once and an unchanged one costs a 304.
   template <class Request>
   void serve_asset(const Request& req, const ViewerAsset& asset) {
-    auto res = std::make_shared<http::response<http::string_body>>(http::status::ok, req.version());
-    res->set(http::field::server, product_version());
-    res->set(http::field::cache_control, "no-cache");
-    res->set(http::field::etag, std::string(asset.etag));
     auto inm = req[http::field::if_none_match];
-    if (etag_matches(std::string_view(inm.data(), inm.size()), asset.etag)) {
-      res->result(http::status::not_modified);
-    } else {
-      res->set(http::field::content_type, std::string(asset.content_type));
-      res->set("X-Content-Type-Options", "nosniff");
-      res->content_length(asset.bytes.size());
-      if (req.method() != http::verb::head)
-        res->body().assign(asset.bytes.begin(), asset.bytes.end());
+    auto res = tagged_answer(req.version(), "no-cache", asset.etag,
+                             std::string_view(inm.data(), inm.size()));
+    if (res->result() == http::status::ok) {
+      set_body(
+          *res, asset.content_type,
+          std::string_view(reinterpret_cast<const char*>(asset.bytes.data()), asset.bytes.size()),
+          req.method() == http::verb::head);
     }
     send_room_answer(std::move(res), req.keep_alive());
+  }
+
+  using Answer = std::shared_ptr<http::response<http::string_body>>;
+
+  // A cacheable answer (a room, its extras, a file of the viewer): the server's name,
+  // `cache_control` and the strong `etag`; 304 Not Modified when `if_none_match` lists the tag,
+  // else 200 for the caller to give its body (set_body).
+  static Answer tagged_answer(unsigned http_version, std::string_view cache_control,
+                              std::string_view etag, std::string_view if_none_match) {
+    auto res = std::make_shared<http::response<http::string_body>>(http::status::ok, http_version);
+    res->set(http::field::server, product_version());
+    res->set(http::field::cache_control, std::string(cache_control));
+    res->set(http::field::etag, std::string(etag));
+    if (etag_matches(if_none_match, etag)) res->result(http::status::not_modified);
+    return res;
+  }
+
+  // A 200's body: its type (never sniffed), its length, and the bytes unless it answers a HEAD.
+  static void set_body(http::response<http::string_body>& res, std::string_view type,
+                       std::string_view bytes, bool head) {
+    res.set(http::field::content_type, std::string(type));
+    res.set("X-Content-Type-Options", "nosniff");
+    res.content_length(bytes.size());
+    if (!head) res.body().assign(bytes.begin(), bytes.end());
   }
 
   // The checks in PROTOCOL.md's order: method, path, token, rate, then what the path asks (the
@@ -885,19 +904,12 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
     // digest), different bytes a different one.
     const std::string etag = "\"" + proto::digest_text(fnv1a64(frame.data(), frame.size())) + "\"";
     if (r.extras) return on_room_extras(std::move(r), std::move(*room), etag);
-    auto res =
-        std::make_shared<http::response<http::string_body>>(http::status::ok, r.http_version);
-    res->set(http::field::server, product_version());
-    res->set(http::field::cache_control, kRoomCacheControl);
-    res->set(http::field::etag, etag);
-    if (etag_matches(r.if_none_match, etag)) {
-      res->result(http::status::not_modified);
+    auto res = tagged_answer(r.http_version, kRoomCacheControl, etag, r.if_none_match);
+    if (res->result() == http::status::not_modified) {
       server_.metrics.rooms_http_not_modified.add();
     } else {
-      res->set(http::field::content_type, kRoomContentType);
-      res->set("X-Content-Type-Options", "nosniff");
-      res->content_length(frame.size());
-      if (!r.head) res->body().assign(frame.begin(), frame.end());
+      set_body(*res, kRoomContentType,
+               std::string_view(reinterpret_cast<const char*>(frame.data()), frame.size()), r.head);
       server_.metrics.rooms_http_served.add();
       if (!r.head) server_.metrics.rooms_http_bytes.add(frame.size());
     }
@@ -908,15 +920,9 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
   // so their tag is the frame's with an "x": a revalidation costs no placement.
   void on_room_extras(RoomRequest r, RoomPtr room, const std::string& frame_etag) {
     const std::string etag = "\"x" + frame_etag.substr(1);
-    auto res =
-        std::make_shared<http::response<http::string_body>>(http::status::ok, r.http_version);
-    res->set(http::field::server, product_version());
-    res->set(http::field::cache_control, kRoomCacheControl);
-    res->set(http::field::etag, etag);
-    if (etag_matches(r.if_none_match, etag)) {
-      res->result(http::status::not_modified);
+    auto res = tagged_answer(r.http_version, kRoomCacheControl, etag, r.if_none_match);
+    if (res->result() == http::status::not_modified)
       return send_room_answer(std::move(res), r.keep_alive);
-    }
     auto executor = stream_.get_executor();
     net::post(server_.extras_pool, [self = shared_from_this(), r = std::move(r), room, res,
                                     executor, gate = server_.gate]() mutable {
@@ -926,10 +932,7 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
       net::post(executor, [self, r = std::move(r), res, json = std::move(json)]() mutable {
         if (!json)
           return self->refuse_room(r, http::status::internal_server_error, json.error().message);
-        res->set(http::field::content_type, "application/json");
-        res->set("X-Content-Type-Options", "nosniff");
-        res->content_length(json->size());
-        if (!r.head) res->body() = std::move(*json);
+        set_body(*res, "application/json", *json, r.head);
         self->send_room_answer(std::move(res), r.keep_alive);
       });
     });
