@@ -179,7 +179,9 @@ test("turning back cancels the rooms ahead that are still on their way", async (
     const before = await state(page);
     const far = layoutRoom("3.0.0.r0");
     await page.evaluate(([x, y, z]) => window.grotto.setPose(x, y, z, 0, 0), far.centre);
-    await waitFor(page, (c) => window.grotto.cancels > c, before.cancels, 30000);
+    // Cancels round the old place, requests round the new one (after its locate: a moment later).
+    await waitFor(page, ([c, r]) => window.grotto.cancels > c && window.grotto.requests > r,
+                  [before.cancels, before.requests], 30000);
     const later = await state(page);
     assert.ok(later.cancels > before.cancels);
     assert.ok(later.requests > before.requests, "nothing asked for round the new place");
