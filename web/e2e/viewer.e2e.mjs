@@ -3,7 +3,7 @@
 // loopback. Run by CTest (web.e2e) with GROTTO_SERVER, GROTTO_LAYOUT and GROTTO_RIM_REFERENCE
 // set; GROTTO_WEB_REPORT names a JSON file for the figures it measures (first picture, decode
 // times): benchmarks' numbers, reported, never asserted against a time.
-import { test, before, after } from "node:test";
+import { test, before, after, afterEach } from "node:test";
 import assert from "node:assert/strict";
 import { execFileSync } from "node:child_process";
 import { mkdtempSync, writeFileSync, rmSync } from "node:fs";
@@ -26,6 +26,17 @@ after(async () => {
   await server?.stop();
   rmSync(scratch, { recursive: true, force: true });
 });
+// Every page and context a test opens is closed after it, passed or failed: a failed test's page
+// would go on drawing with SwiftShader and starve the tests after it of the CPU.
+const opened = [];
+const open = async (url) => {
+  const page = await openPage(browser, url);
+  opened.push(page);
+  return page;
+};
+afterEach(async () => {
+  for (const p of opened.splice(0)) await p.close().catch(() => {});
+});
 
 const state = (page) => page.evaluate(() => {
   const g = window.grotto;
@@ -38,7 +49,7 @@ const median = (a) => { const s = [...a].sort((x, y) => x - y); return s.length 
 
 test("the page loads rooms and draws the cave, with no error", async () => {
   const t0 = Date.now();
-  const page = await openPage(browser, `${server.url}/`);
+  const page = await open(`${server.url}/`);
   await waitFor(page, () => window.grotto && window.grotto.rooms_loaded >= 1 && window.grotto.frames >= 2);
   report.first_picture_ms = Date.now() - t0;
   await waitFor(page, () => window.grotto.rooms_loaded >= 5 && window.grotto.frames >= 10);
@@ -60,14 +71,18 @@ test("the page loads rooms and draws the cave, with no error", async () => {
 });
 
 test("walking forward asks for more rooms", async () => {
-  const page = await openPage(browser, `${server.url}/`);
+  const page = await open(`${server.url}/`);
   await waitFor(page, () => window.grotto && window.grotto.rooms_loaded >= 3 && window.grotto.frames >= 3);
   await page.waitForTimeout(1000);
   const before = await state(page);
   await page.click("canvas");
   await page.keyboard.press("g");  // fly: walls do not stop the walk this test is about
+  // W held for 6 s and 10 frames at least: the walk moves by each frame's time (at most 1 s of
+  // it), so a page drawing slowly on a busy machine walks in fewer, longer steps.
   await page.keyboard.down("w");
+  const held = await page.evaluate(() => window.grotto.frames);
   await page.waitForTimeout(6000);
+  await waitFor(page, (f) => window.grotto.frames >= f + 10, held);
   await page.keyboard.up("w");
   await page.waitForTimeout(1000);
   const later = await state(page);
@@ -83,7 +98,7 @@ test("a link opens its place and the page gives the link of where it is", async 
   const [x, y, z] = room.centre;
   // Degrees, as grotto-client's --pose takes them; flying, so that the eye stays where the link
   // put it (the room's centre is in mid-air: walking, the player falls to the floor).
-  const page = await openPage(browser, `${server.url}/?seed=7&pose=${x},${y},${z},70,-10&fly=1`);
+  const page = await open(`${server.url}/?seed=7&pose=${x},${y},${z},70,-10&fly=1`);
   await waitFor(page, () => window.grotto && window.grotto.rooms_loaded >= 1 && window.grotto.frames >= 2);
   const s = await state(page);
   assert.ok(Math.hypot(s.pose.x - x, s.pose.y - y, s.pose.z - z) < 2.0, `pose ${JSON.stringify(s.pose)} not at ${room.centre}`);
@@ -102,7 +117,7 @@ test("a link opens its place and the page gives the link of where it is", async 
 });
 
 test("a portal's rim decodes to the native decoder's positions, bit for bit", async () => {
-  const page = await openPage(browser, `${server.url}/`);
+  const page = await open(`${server.url}/`);
   await waitFor(page, () => window.grotto && window.grotto.rooms_loaded >= 3);
   const ids = await page.evaluate(() => window.grotto.rooms());
   const version = await (await fetch(`${server.url}/version`)).json();
@@ -132,6 +147,7 @@ test("a portal's rim decodes to the native decoder's positions, bit for bit", as
 
 test("hostile frames and a closed socket give a clear message, then a reconnect", async () => {
   const context = await browser.newContext({ viewport: { width: 640, height: 360 } });
+  opened.push(context);
   const page = await context.newPage();
   page.problems = [];
   let route;
@@ -169,22 +185,31 @@ test("hostile frames and a closed socket give a clear message, then a reconnect"
 });
 
 test("turning back cancels the rooms ahead that are still on their way", async () => {
-  // A slow link (16 kbit/s: a room takes seconds): rooms wait at the server, in flight, long
-  // enough to be cancelled.
-  const slow = await startServer(["--max-kbps", "16"]);
+  // The slowest link a server allows (1 kbit/s): the first room goes out at once (the bandwidth
+  // bucket is full at welcome and one frame may overdraw it), the rooms asked for next wait at
+  // the server for many seconds, in flight, whatever the machine's load. At 16 kbit/s they could
+  // all arrive between the wait below and the jump (a fresh-clone run failed so).
+  const slow = await startServer(["--max-kbps", "1"]);
   try {
-    const page = await openPage(browser, `${slow.url}/`);
-    // Rooms on their way (in flight: asked, not yet arrived) round the spawn point.
+    const page = await open(`${slow.url}/`);
     await waitFor(page, () => window.grotto && window.grotto.rooms_loaded >= 1 && window.grotto.in_flight >= 3);
     const before = await state(page);
+    assert.ok(before.rooms_loaded <= 2, `rooms arrived faster than 1 kbit/s allows: ${before.rooms_loaded}`);
     const far = layoutRoom("3.0.0.r0");
     await page.evaluate(([x, y, z]) => window.grotto.setPose(x, y, z, 0, 0), far.centre);
     // Cancels round the old place, requests round the new one (after its locate: a moment later).
-    await waitFor(page, ([c, r]) => window.grotto.cancels > c && window.grotto.requests > r,
-                  [before.cancels, before.requests], 30000);
+    try {
+      await waitFor(page, ([c, r]) => window.grotto.cancels > c && window.grotto.requests > r,
+                    [before.cancels, before.requests], 30000);
+    } catch (e) {
+      const s = await state(page);
+      throw new Error(`${e.message}: before the jump ${JSON.stringify({ ...before, decode_ms: undefined, subdivide_ms: undefined })}, ` +
+                      `now ${JSON.stringify({ ...s, decode_ms: undefined, subdivide_ms: undefined })}, room ${await page.evaluate(() => window.grotto.room)}`);
+    }
     const later = await state(page);
     assert.ok(later.cancels > before.cancels);
     assert.ok(later.requests > before.requests, "nothing asked for round the new place");
+    assert.equal(await page.evaluate(() => window.grotto.room), "3.0.0.r0");
     await page.close();
   } finally {
     await slow.stop();
