@@ -10,7 +10,10 @@
 // flare; a glow-worm colony's patch; for a seam or crystals that light a hall, metres, so that the
 // rock beside them shows its grain instead of burning white.
 // Rock casts no shadows here, so a light stays in its room: it lights only what lies within its
-// bound (its room's sphere, a little grown for the relief), not the next room through the rock.
+// bound (its room's sphere, a little grown for the relief), not the next room through the rock;
+// but the rooms through its room's portals get its light kLightSpill metres past the bound
+// (u_light_next_door), fading into them: a passage seen from a lit hall shows its first metres
+// and the dark deepening along it, not a flat black disc.
 // Haze: single scattering in a thin medium round each source, the in-scattered light along the
 // view ray in closed form (after Sun et al. 2005, "A Practical Analytic Single Scattering Model
 // for Real Time Rendering", without extinction). The kernel is 1 / (1 + d^2)^2 rather than the
@@ -21,6 +24,8 @@
 #define GLOW_SEAM 1
 #define GLOW_CRYSTALS 2
 #define GLOW_FLARE 3
+// Metres past its bound that a light still reaches in the rooms next to its own, fading to nothing.
+const float kLightSpill = 7.0;
 
 uniform int u_light_count;                         // lights that can reach this room's rock
 uniform int u_light_index[GROTTO_MAX_LIGHTS];      // which of the arrays' lights they are
@@ -32,6 +37,9 @@ uniform vec4 u_light_glow[GROTTO_MAX_LIGHTS];      // x: glowing patch radius (m
                                                    // z: the light's own number in [0, 1);
                                                    // w: the source's radius (m)
 uniform vec4 u_light_bound[GROTTO_MAX_LIGHTS];     // xyz anchor-relative centre; w: radius, 0: none
+uniform float u_light_next_door[GROTTO_MAX_LIGHTS];  // by k, as u_light_index: 1 where this
+                                                     // room is through a portal of the light's
+                                                     // own, 0 elsewhere
 uniform float u_headlamp;                          // 1: the headlamp is on; 0: off
 uniform float u_haze;                              // scattering per metre of the lit haze
 
@@ -132,9 +140,9 @@ vec3 lights_shade(vec3 p, ReliefPos world, vec3 s, vec3 v, vec3 albedo, float wr
     float range = u_light_position[i].w;
     if (d >= range) continue;
     float bound = u_light_bound[i].w;
-    float inside = bound > 0.0 ? 1.0 - smoothstep(0.9 * bound, bound,
-                                                  length(p - u_light_bound[i].xyz))
-                               : 1.0;
+    float reach = bound + kLightSpill * u_light_next_door[k];
+    float inside =
+        bound > 0.0 ? 1.0 - smoothstep(0.9 * bound, reach, length(p - u_light_bound[i].xyz)) : 1.0;
     if (inside <= 0.0) continue;
     vec3 l = to_light / max(d, 1e-4);
     int kind = int(u_light_glow[i].y + 0.5);

@@ -56,6 +56,7 @@ render::Light to_light(const cave::WorldLight& w, const cave::Room& room) {
   l.glow = static_cast<int>(w.kind);  // shaders/lights.glsl's GLOW_* follow cave::LightKind
   l.bound_centre = room.sphere.centre;
   l.bound_radius = static_cast<float>(cave::light_bound_radius(room));
+  l.room = room.id;
   return l;
 }
 
@@ -74,6 +75,7 @@ render::Light flare_light(const play::Flare& f, const play::CollisionWorld& worl
   if (const cave::Room* room = world.room_at(f.position)) {
     l.bound_centre = room->sphere.centre;
     l.bound_radius = static_cast<float>(cave::light_bound_radius(*room));
+    l.room = room->id;
   }
   return l;
 }

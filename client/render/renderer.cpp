@@ -240,7 +240,8 @@ Renderer::RoomUniforms Renderer::locate(const Program& p) {
           p.uniform("u_glow"),         p.uniform("u_light_count"),   p.uniform("u_light_position"),
           p.uniform("u_light_color"),  p.uniform("u_light_glow"),    p.uniform("u_light_bound"),
           p.uniform("u_light_index"),  p.uniform("u_headlamp"),      p.uniform("u_haze"),
-          p.uniform("u_patch_edge"),   p.uniform("u_haze_count"),    p.uniform("u_haze_index")};
+          p.uniform("u_patch_edge"),   p.uniform("u_haze_count"),    p.uniform("u_haze_index"),
+          p.uniform("u_light_next_door")};
 }
 
 void Renderer::draw_formations(const std::vector<const GpuRoom*>& rooms, Vec3 anchor, glm::vec3 eye,
@@ -583,6 +584,7 @@ FrameStats Renderer::draw(const GpuRoomCache& cache, const Camera& camera, int w
       // the haze (room.tese, per vertex) also takes those whose bound holds the camera, since the
       // view ray to this room's rock crosses it.
       std::array<GLint, kMaxFrameLights> shading{}, hazing{};
+      std::array<GLfloat, kMaxFrameLights> next_door{};
       int shade_count = 0, haze_count = 0;
       const double reach = radius + margin;
       for (size_t i = 0; i < points.size(); ++i) {
@@ -592,11 +594,19 @@ FrameStats Renderer::draw(const GpuRoomCache& cache, const Camera& camera, int w
             length(l.position - room.room.sphere.centre) < l.range + reach &&
             (!bounded || length(l.bound_centre - room.room.sphere.centre) < l.bound_radius + reach);
         const bool hazes = !bounded || length(l.bound_centre - camera.position) < l.bound_radius;
-        if (shades) shading[static_cast<size_t>(shade_count++)] = static_cast<GLint>(i);
+        if (shades) {
+          // Through a portal of the light's room: its light reaches the first metres in.
+          const bool through =
+              l.room && std::any_of(room.room.portals.begin(), room.room.portals.end(),
+                                    [&](const cave::Portal& p) { return p.neighbour == *l.room; });
+          next_door[static_cast<size_t>(shade_count)] = through ? 1.0f : 0.0f;
+          shading[static_cast<size_t>(shade_count++)] = static_cast<GLint>(i);
+        }
         if (shades || hazes) hazing[static_cast<size_t>(haze_count++)] = static_cast<GLint>(i);
       }
       glUniform1i(u_.light_count, shade_count);
       glUniform1iv(u_.light_index, static_cast<GLsizei>(kMaxFrameLights), shading.data());
+      glUniform1fv(u_.light_next_door, static_cast<GLsizei>(kMaxFrameLights), next_door.data());
       glUniform1i(u_.haze_count, haze_count);
       glUniform1iv(u_.haze_index, static_cast<GLsizei>(kMaxFrameLights), hazing.data());
     }

@@ -8,6 +8,7 @@
 #pragma once
 
 #include <array>
+#include <optional>
 #include <glm/glm.hpp>
 #include <span>
 #include <string>
@@ -134,6 +135,11 @@ struct Light {
   // rooms casts no shadow in the shader); radius 0: everywhere in range.
   Vec3 bound_centre{};
   float bound_radius = 0;
+  // The room it lights (the bound's): the rooms through that room's portals get its light a few
+  // metres past the bound (shaders/lights.glsl's kLightSpill), so a passage seen from a hall
+  // shows its first metres lit and darkening into the passage instead of a flat black disc.
+  // None: no spill.
+  std::optional<cave::RoomId> room{};
 };
 // Lights of the scene at most that one frame shades with (shaders/lights.glsl's
 // GROTTO_MAX_LIGHTS), besides the headlamp.
@@ -191,7 +197,7 @@ class Renderer {
         phong_alpha, displacement, fog_color, fog_start, fog_end, lamp_range, lod, pixel_scale,
         target_pixels, patch_culling, frustum, fine_detail, ao, lamp, forward, exposure, glow,
         light_count, light_position, light_color, light_glow, light_bound, light_index, headlamp,
-        haze, patch_edge, haze_count, haze_index;
+        haze, patch_edge, haze_count, haze_index, light_next_door;
   };
   static RoomUniforms locate(const Program& p);
   // One formation mesh: rings x sides, drawn instanced.

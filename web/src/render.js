@@ -126,6 +126,7 @@ export class Renderer {
       u_light_index: { value: new Int32Array(MAX_LIGHTS) },
       u_haze_count: { value: 0 },
       u_haze_index: { value: new Int32Array(MAX_LIGHTS) },
+      u_light_next_door: { value: new Float32Array(MAX_LIGHTS) },
     };
   }
 
@@ -258,15 +259,16 @@ export class Renderer {
     // The world's lights: those whose range reaches rock nearer than the fog's end, nearest first,
     // 16 at most, packed as renderer.cpp packs them.
     const picks = [];
-    for (const room of this.rooms.values())
+    for (const [id, room] of this.rooms)
       for (const l of room.lights) {
         const d = len3(l.position, position);
         if (d >= l.range + o.fogEnd) continue;
         if (l.bound_radius > 0 && len3(l.bound_centre, position) >= l.bound_radius + o.fogEnd) continue;
-        picks.push({ d, l });
+        picks.push({ d, l, id });
       }
     picks.sort((a, b) => a.d - b.d);
     const points = picks.slice(0, MAX_LIGHTS).map((p) => p.l);
+    const pointRooms = picks.slice(0, MAX_LIGHTS).map((p) => p.id);
     this.points = points;
     const P = fr.u_light_position.value, C = fr.u_light_color.value, G = fr.u_light_glow.value, B = fr.u_light_bound.value;
     P.fill(0); C.fill(0); G.fill(0); B.fill(0);
@@ -299,12 +301,18 @@ export class Renderer {
       const reach = f.radius + 2.5 + margin;
       let shade = 0, haze = 0;
       const si = room.uniforms.u_light_index.value, hi = room.uniforms.u_haze_index.value;
-      si.fill(0); hi.fill(0);
+      const nd = room.uniforms.u_light_next_door.value;
+      si.fill(0); hi.fill(0); nd.fill(0);
       points.forEach((l, i) => {
         const bounded = l.bound_radius > 0;
         const shades = len3(l.position, f.centre) < l.range + reach && (!bounded || len3(l.bound_centre, f.centre) < l.bound_radius + reach);
         const hazes = !bounded || len3(l.bound_centre, position) < l.bound_radius;
-        if (shades) si[shade++] = i;
+        // Through a portal of the light's room: its light reaches the first metres in (lights.glsl's
+        // kLightSpill).
+        if (shades) {
+          nd[shade] = f.portals.some((p) => p.to === pointRooms[i]) ? 1 : 0;
+          si[shade++] = i;
+        }
         if (shades || hazes) hi[haze++] = i;
       });
       room.uniforms.u_light_count.value = shade;
