@@ -25,7 +25,7 @@ uint64_t fold_digest(uint64_t digest, std::span<const uint8_t> bytes);
 // depend on it, yet it is part of the world. A test pins relief_at's values at sample points to
 // this version (tests/client/play/relief_test.cpp): a change of the relief fails it until the
 // version moves on, while a change of how it is drawn (relief_at_sampled's filtering) does not.
-inline constexpr std::string_view kReliefVersion = "grotto.relief.v3";
+inline constexpr std::string_view kReliefVersion = "grotto.relief.v4";
 // The version of the formations (shaders/formations.hpp: where a room's stalactites, stalagmites,
 // soda straws and columns stand and what shape each has), folded likewise: what the client draws
 // and collides with, and what engines and the glb export place.

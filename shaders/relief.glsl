@@ -150,6 +150,7 @@ const ivec3 kReliefRidgeK = ivec3(1587);                // 1.55
 const ivec3 kReliefOctave2K = ivec3(3277);              // 3.2
 const ivec3 kReliefOctave3K = ivec3(6861);              // 6.7
 const ivec3 kReliefLobeK = ivec3(563, 225, 563);        // (0.55, 0.22, 0.55)
+const ivec3 kReliefScallopK = ivec3(1433, 573, 1433);   // (1.4, 0.56, 1.4): the sheet's edge
 const ivec3 kReliefCurtainK = ivec3(2458, 389, 2458);   // (2.4, 0.38, 2.4)
 const ivec3 kReliefGrainCoarseK = ivec3(29257);         // 1 / 3.5 cm
 const ivec3 kReliefGrainFineK = ivec3(64000);           // 1 / 1.6 cm
@@ -375,13 +376,19 @@ RELIEF_FN Relief relief_at_sampled(ReliefPos p, vec3 n, float roughness, float r
   float flow_zone = smoothstep(0.35f, 0.65f, variety) * wall;
   if (flow_zone > 0.0f) {
     // The sheet: lobes of a noise stretched 2.5x vertically (1.8 m wide, 4.5 m tall), smooth
-    // where they cover (thickness s^2 (3 - 2 s), flat on top), drowning the rock beneath.
-    vec3 lobe_scale = relief_frequency(kReliefLobeK);
-    vec4 lobe = relief_noise_at(p, kReliefLobeK, vec3(-41.0f, 9.0f, 23.0f));
-    float cover = clamp((lobe.x + 0.15f) * 2.5f, 0.0f, 1.0f);
-    vec3 cover_gradient = cover > 0.0f && cover < 1.0f
-                              ? 2.5f * relief_gradient(lobe) * lobe_scale
-                              : vec3(0.0f);
+    // where they cover (thickness s^2 (3 - 2 s), flat on top), drowning the rock beneath. Its
+    // edge is the noise's level set, which on the lattice's own axes ran straight for metres (a
+    // cell of value noise thresholded: a rectangle of bare rock cut out of a sheet); the rock's
+    // domain warp, doubled, bends it, and a finer octave scallops it into lobes.
+    ReliefPos lobe_at = relief_pos(p.block, p.local + 2.5f * r.warp);
+    vec4 lobe = relief_noise_at(lobe_at, kReliefLobeK, vec3(-41.0f, 9.0f, 23.0f));
+    vec4 scallop = relief_noise_at(lobe_at, kReliefScallopK, vec3(13.0f, -29.0f, 5.0f));
+    float cover = clamp((lobe.x + 0.5f * scallop.x + 0.15f) * 2.5f, 0.0f, 1.0f);
+    vec3 cover_gradient =
+        cover > 0.0f && cover < 1.0f
+            ? 2.5f * (relief_gradient(lobe) * relief_frequency(kReliefLobeK) +
+                      0.5f * relief_gradient(scallop) * relief_frequency(kReliefScallopK))
+            : vec3(0.0f);
     float sheet = flow_zone * cover * cover * (3.0f - 2.0f * cover);
     vec3 sheet_gradient = flow_zone * 6.0f * cover * (1.0f - cover) * cover_gradient;
     float drown = 1.0f - 0.75f * sheet;

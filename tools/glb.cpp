@@ -221,8 +221,8 @@ json add_plain_mesh(Document& doc, const std::string& name, std::span<const glm:
 // One formation's shape as the file's extras give it (formations::FormationShape: root in its
 // room's frame, metres and radians).
 json formation_json(const formations::FormationShape& f) {
-  static constexpr const char* kKinds[] = {"stalactite", "stalagmite", "column"};
-  return {{"kind", kKinds[std::clamp(f.kind, 0, 2)]},
+  static constexpr const char* kKinds[] = {"stalactite", "stalagmite", "column", "drapery"};
+  return {{"kind", kKinds[std::clamp(f.kind, 0, 3)]},
           {"root", {f.root.x, f.root.y, f.root.z}},
           {"length", f.length},
           {"radius", f.radius},
@@ -400,8 +400,12 @@ Status write_file_replacing(const std::string& path, std::span<const uint8_t> by
   namespace fs = std::filesystem;
   const fs::path target(path);
   // Beside the target, so the rename stays on one file system; the pid keeps two writers apart.
-  const fs::path temp = target.parent_path() / ("." + target.filename().string() + "." +
-                                                std::to_string(::getpid()) + ".tmp");
+  std::string name = ".";  // appended: GCC 12 warns falsely (-Wrestrict) on "." + string
+  name += target.filename().string();
+  name += '.';
+  name += std::to_string(::getpid());
+  name += ".tmp";
+  const fs::path temp = target.parent_path() / name;
   std::ofstream f(temp, std::ios::binary | std::ios::trunc);
   f.write(reinterpret_cast<const char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
   f.close();

@@ -60,8 +60,9 @@ TEST(WorldDigest, the_servers_digest_is_pinned_and_sees_the_mesh_settings) {
   // the patch level's donor cap 28 -> 24 (issue 28: a hall's cost), then the relief's version
   // (kReliefVersion: the relief and formations engines evaluate; no room changed), then its
   // version 2 (stalagmites from cones to candles), then the formations as geometry (issue 43:
-  // grotto.relief.v3, grotto.formations.v1).
-  EXPECT_EQ(d, 0xc9dc860dc424d78cull);
+  // grotto.relief.v3, grotto.formations.v1), then the flowstone's irregular edges
+  // (grotto.relief.v4).
+  EXPECT_EQ(d, 0x72f6d4fb1de6c715ull);
   EXPECT_NE(d, layout_params_digest(layout));
   std::vector<mesh::MeshParams> variants(12, mesh);
   variants[0].lods[0].edge_length += 0.125;

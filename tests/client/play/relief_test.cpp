@@ -152,6 +152,9 @@ TEST(Relief, its_values_are_pinned_to_the_version_in_the_world_digest) {
       // The formations out of the relief (shaders/formations.hpp), every noise at whole cycles
       // per block (the same precision 6,000 km out).
       {"grotto.relief.v3", 0x1d8b82e08bfa825cull},
+      // Flowstone sheets' edges bent by the rock's warp and scalloped by a finer octave (a
+      // value-noise cell thresholded cut a rectangle of bare rock out of a sheet).
+      {"grotto.relief.v4", 0xc2e4e4a5483daf32ull},
   };
   ASSERT_TRUE(pinned.count(proto::kReliefVersion)) << proto::kReliefVersion << " has no row";
   EXPECT_EQ(digest, pinned.at(proto::kReliefVersion))
