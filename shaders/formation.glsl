@@ -11,6 +11,13 @@
 // the ceiling). s is metres along the axis from the root (negative: inside the rock, where the
 // root keeps flaring so that no gap opens whatever the rock's relief does round it), theta the
 // angle round it.
+//
+// A drapery (a curtain: calcite deposited by water trickling down an inclined ceiling along a
+// line) is a thin sheet hanging from that line, longest in its middle, its lower edge in tongues
+// and beaded, folded more towards the bottom, banded. It uses the same mesh the other way round:
+// s runs across it, from -radius to radius along its line, and theta round the loop of its
+// cross-section, from its top edge inside the rock (theta 0) down its front face to its lower
+// edge (pi) and up its back.
 #ifndef RELIEF_FN
 #define RELIEF_FN
 #endif
@@ -18,34 +25,45 @@
 const int kFormationStalactite = 0;
 const int kFormationStalagmite = 1;
 const int kFormationColumn = 2;
+const int kFormationDrapery = 3;
 
 struct FormationShape {
-  vec3 root;         // metres: where the axis leaves the rock (room frame, or anchor-relative)
-  float length;      // metres from the root to the tip (a column: to the ceiling's root)
-  float radius;      // metres: the radius at the root, above its flare
-  float tip;         // metres: the radius at the tip (a soda straw keeps its radius)
-  float embed;       // metres the mesh reaches past the root into the rock (both ends of a column)
-  int kind;          // kFormationStalactite, kFormationStalagmite or kFormationColumn
+  vec3 root;         // metres: where the axis leaves the rock (room frame, or anchor-relative);
+                     // a drapery's: the middle of its top edge
+  float length;      // metres from the root to the tip (a column: to the ceiling's root); a
+                     // drapery's longest drop
+  float radius;      // metres: the radius at the root, above its flare; a drapery's half width
+  float tip;         // metres: the radius at the tip (a soda straw keeps its radius); a
+                     // drapery's half thickness
+  float embed;       // metres the mesh reaches past the root into the rock (both ends of a
+                     // column; a drapery's whole top edge)
+  int kind;          // kFormationStalactite, kFormationStalagmite, kFormationColumn or
+                     // kFormationDrapery
   float taper;       // stalactites: the profile's exponent (1 a cone, 2-3 concave); stalagmites:
                      // e of (1 - sqrt(u))^(1/e), 2 a bell-shaped cone to 6 a candle; columns: the
-                     // waist, 0-1
-  float flare;       // how much wider than `radius` the root is where it meets the rock
-  float rings;       // relative depth of the growth rings
-  float bulbs;       // relative size of the bulbs (water that ran down and left a swelling)
+                     // waist, 0-1; draperies: metres of fold at the lower edge
+  float flare;       // how much wider than `radius` the root is where it meets the rock;
+                     // draperies: folds across the width
+  float rings;       // relative depth of the growth rings; a drapery's slope: metres its line
+                     // rises per metre along (it follows its ceiling)
+  float bulbs;       // relative size of the bulbs (water that ran down and left a swelling); a
+                     // drapery's bead along its lower edge
   float seed;        // 0-1: the phase of its rings, bulbs and irregularity
-  float yaw;         // radians: its turn about the axis
+  float yaw;         // radians: its turn about the axis (a drapery's line: (cos, 0, sin))
 };
 
-// The axis's direction: down for stalactites, up for the rest.
+// The axis's direction: down for stalactites and draperies, up for the rest.
 RELIEF_FN float formation_direction(FormationShape f) {
-  return f.kind == kFormationStalactite ? -1.0f : 1.0f;
+  return f.kind == kFormationStalactite || f.kind == kFormationDrapery ? -1.0f : 1.0f;
 }
 
-// The span of the mesh along the axis: from -embed to length (+ embed for a column).
+// The span of the mesh's s: from -embed to length (+ embed for a column); across a drapery, from
+// one end of its line to the other.
 RELIEF_FN float formation_start(FormationShape f) {
-  return -f.embed;
+  return f.kind == kFormationDrapery ? -f.radius : -f.embed;
 }
 RELIEF_FN float formation_end(FormationShape f) {
+  if (f.kind == kFormationDrapery) return f.radius;
   return f.kind == kFormationColumn ? f.length + f.embed : f.length;
 }
 
@@ -90,14 +108,110 @@ RELIEF_FN float formation_radius(FormationShape f, float s, float theta) {
   return body * flare * rings * bulbs * irregular;
 }
 
-// The point of the surface at s metres along the axis and angle theta (radians).
+// A drapery's line (along) and the horizontal across it.
+RELIEF_FN vec3 drapery_along(FormationShape f) {
+  return vec3(cos(f.yaw), 0.0f, sin(f.yaw));
+}
+RELIEF_FN vec3 drapery_across(FormationShape f) {
+  return vec3(-sin(f.yaw), 0.0f, cos(f.yaw));
+}
+
+// The point of a drapery's line (along its ceiling, at the root's level) x metres from the root.
+RELIEF_FN vec3 drapery_line(FormationShape f, float x) {
+  return f.root + drapery_along(f) * x + vec3(0.0f, f.rings * x, 0.0f);
+}
+
+// A drapery's drop at x metres along its line: longest in the middle, nothing at its ends, the
+// lower edge hanging in rounded tongues, one every other fold.
+RELIEF_FN float drapery_drop(FormationShape f, float x) {
+  float e = clamp(x / max(f.radius, 1e-3f), -1.0f, 1.0f);
+  float phase = 6.2831853f * f.seed;
+  float outline = sqrt(max(1.0f - e * e, 0.0f));
+  float tongues = 1.0f + 0.14f * sin(1.5707963f * f.flare * (e + 1.0f) + phase) +
+                  0.06f * sin(4.0f * e - 2.0f * phase);
+  return f.length * outline * tongues;
+}
+
+// How far below its line the loop of a drapery's cross-section at theta lies where its drop is
+// `drop` (negative: above, in the rock). The loop's first step from the top (theta 0, embed
+// above the line) reaches the line: the rest of the loop's points lie along the drop, closer
+// together towards the lower edge.
+RELIEF_FN float drapery_depth(FormationShape f, float drop, float theta) {
+  float q = 0.5f - 0.5f * cos(theta);
+  return q * drop - f.embed * max(1.0f - q / 0.035f, 0.0f);
+}
+
+// The point of a drapery at x metres along its line and theta round its cross-section.
+RELIEF_FN vec3 drapery_point(FormationShape f, float x, float theta) {
+  float drop = drapery_drop(f, x);
+  float h = drapery_depth(f, drop, theta);
+  float u = clamp(h / max(drop, 1e-3f), 0.0f, 1.0f);
+  float e = clamp(x / max(f.radius, 1e-3f), -1.0f, 1.0f);
+  float phase = 6.2831853f * f.seed;
+  // Thicker where it leaves the rock, a bead along the lower edge, a knife's edge at its ends.
+  float thick = f.tip * (1.0f + 2.0f * (1.0f - smoothstep(0.0f, 0.15f, h))) *
+                (1.0f + f.bulbs * smoothstep(0.75f, 0.95f, u)) *
+                sqrt(sqrt(max(1.0f - e * e, 0.0f)));
+  // Folds: the sheet waves across its width, more towards its lower edge, the waves turning a
+  // little as it grows.
+  float fold = f.taper * (0.45f + 0.55f * u) *
+               sin(3.14159265f * f.flare * (e + 1.0f) + phase + 1.2f * u);
+  return drapery_line(f, x) + drapery_across(f) * (fold + thick * sin(theta)) +
+         vec3(0.0f, -h, 0.0f);
+}
+
+// The point of the surface at s metres along the axis and angle theta (radians); a drapery's at
+// s across it (drapery_point).
 RELIEF_FN vec3 formation_point(FormationShape f, float s, float theta) {
+  if (f.kind == kFormationDrapery) return drapery_point(f, s, theta);
   float r = formation_radius(f, s, theta);
   float a = theta + f.yaw;
   return f.root + vec3(r * cos(a), formation_direction(f) * s, r * sin(a));
 }
 
-// The largest radius anywhere along the visible part: culling and collision bounds.
+// A direction out of the surface at (s, theta), point p: the normal is turned to agree with it.
+RELIEF_FN vec3 formation_outward(FormationShape f, float s, float theta, vec3 p) {
+  if (f.kind == kFormationDrapery)
+    return drapery_across(f) * sin(theta) + vec3(0.0f, 0.5f * cos(theta), 0.0f);
+  vec3 out_dir = p - (f.root + vec3(0.0f, formation_direction(f) * s, 0.0f));
+  return dot(out_dir, out_dir) < 1e-12f ? vec3(0.0f, formation_direction(f), 0.0f) : out_dir;
+}
+
+// How old the calcite is at (s, theta), 0-1 (t_spike: ochre at 0, cream towards 1): youngest at
+// a stalactite's or stalagmite's tip, old at both ends of a column; a drapery in bands along its
+// lower edge (the "bacon" of iron-stained and clean calcite).
+RELIEF_FN float formation_age(FormationShape f, float s, float theta) {
+  if (f.kind == kFormationDrapery) {
+    float drop = drapery_drop(f, s);
+    float u = clamp(drapery_depth(f, drop, theta) / max(drop, 1e-3f), 0.0f, 1.0f);
+    float e = s / max(f.radius, 1e-3f);
+    float band = sin(u * 11.0f + 6.2831853f * f.seed + 1.5f * sin(2.5f * e));
+    return 0.45f * smoothstep(-0.5f, 0.5f, band) + 0.2f * u;
+  }
+  float u = clamp(s / max(f.length, 1e-3f), 0.0f, 1.0f);
+  if (f.kind == kFormationColumn) return 0.35f + 0.15f * sin(3.14159f * u);
+  if (f.kind == kFormationStalagmite) return 0.2f + 0.45f * u * u;
+  return 0.3f + 0.7f * u;
+}
+
+// A sphere holding the visible instance (its centre, in the instance's frame, and radius):
+// culling.
+RELIEF_FN vec3 formation_centre(FormationShape f) {
+  // A drapery's: below its root (formation_reach covers its line's slope).
+  if (f.kind == kFormationDrapery) return f.root + vec3(0.0f, -0.5f * f.length, 0.0f);
+  return f.root + vec3(0.0f, formation_direction(f) * 0.5f * formation_end(f), 0.0f);
+}
+
+// The largest radius anywhere along the visible part: culling and collision bounds (a
+// drapery's: how far it reaches from its root horizontally).
 RELIEF_FN float formation_bound_radius(FormationShape f) {
+  if (f.kind == kFormationDrapery) return f.radius + f.taper + 3.0f * f.tip * (1.0f + f.bulbs);
   return f.radius * (1.0f + f.flare) * (1.0f + f.rings) * (1.0f + f.bulbs) * 1.12f;
+}
+RELIEF_FN float formation_reach(FormationShape f) {
+  if (f.kind == kFormationDrapery)
+    return sqrt(0.5625f * f.length * f.length +  // the drop reaches 1.2 x length
+                formation_bound_radius(f) * formation_bound_radius(f)) +
+           abs(f.rings) * f.radius;
+  return 0.5f * formation_end(f) + formation_bound_radius(f);
 }

@@ -1,7 +1,7 @@
 // Formation vertex shader (issue 43): one instance of a speleothem mesh. The mesh is a grid of
 // rings along the axis by points round it, the same for every instance of a level of detail; the
 // instance's shape (shaders/formation.glsl) places each point, so every stalactite, stalagmite,
-// soda straw and column is smooth and its own. Shaded by room.frag: its outputs are room.tese's,
+// soda straw, column and drapery is smooth and its own. Shaded by room.frag: its outputs are room.tese's,
 // a formation being calcite (t_spike: ochre at the root, cream towards the growing tip) with no
 // rock detail of its own (t_rock 0).
 #version 410 core
@@ -57,24 +57,20 @@ void main() {
   float ds = max(0.002, 0.004 * (end - start));
   vec3 along = formation_point(f, s + ds, theta) - formation_point(f, s - ds, theta);
   vec3 round = formation_point(f, s, theta + 0.02) - formation_point(f, s, theta - 0.02);
-  vec3 axis = vec3(0.0, formation_direction(f), 0.0);
   vec3 n = cross(along, round);
   float nl = length(n);
-  n = nl > 1e-9 ? n / nl : axis;
-  vec3 out_dir = p - (f.root + axis * s);
-  if (dot(n, out_dir) < 0.0) n = -n;
-  if (dot(out_dir, out_dir) < 1e-12) n = axis;
+  vec3 outward = formation_outward(f, s, theta, p);
+  n = nl > 1e-9 ? n / nl : normalize(outward);
+  if (dot(n, outward) < 0.0) n = -n;
   t_position = p;
   t_normal = n;
   t_mineral = 0.0;
   t_cavity = 0.6;
-  float u = clamp(s / max(f.length, 1e-3), 0.0, 1.0);
-  // A column's calcite is old at both ends; a stalactite's and stalagmite's youngest at the tip.
-  t_spike = f.kind == kFormationColumn      ? 0.35 + 0.15 * sin(3.14159 * u)
-            : f.kind == kFormationStalagmite ? 0.2 + 0.45 * u * u
-                                             : 0.3 + 0.7 * u;
+  t_spike = formation_age(f, s, theta);
   // The crease where the root's flare meets the rock holds a little less of the sky.
-  t_occlusion = mix(0.8, 1.0, smoothstep(-0.02, 0.5 * (f.radius + 0.05), s));
+  t_occlusion = f.kind == kFormationDrapery
+                    ? mix(0.8, 1.0, smoothstep(-0.02, 0.1, -(p.y - f.root.y)))
+                    : mix(0.8, 1.0, smoothstep(-0.02, 0.5 * (f.radius + 0.05), s));
   t_warp = vec3(0.0);
   t_rock = 0.0;
   t_spacing = 0.0;

@@ -31,6 +31,10 @@ constexpr float kStrawShare = 0.6f;
 // A floor's drip point whose ceiling is no ceiling (a wall's overhang, the rock of a room above)
 // still grows a stalagmite with this chance.
 constexpr float kLoneStalagmite = 0.1f;
+// On a ceiling inclined more than 30 degrees (its normal's y above this), water trickles down
+// along a line and deposits a drapery instead of a stalactite with this chance.
+constexpr float kDraperyCeiling = -0.87f;
+constexpr float kDraperyShare = 0.45f;
 
 // The lattice's own hash of cell c with salt k (relief_hash), 0-1.
 float cell_hash(ivec2 c, int salt) {
@@ -118,6 +122,7 @@ class Placer {
   // that would take more than kMaxEmbed (a root on a fold or a pocket's rim) or where the flare
   // reaches over a portal's opening: no formation there.
   bool fit_embed(FormationShape& f) const {
+    if (f.kind == kFormationDrapery) return fit_drapery(f);
     const float reach = formation_bound_radius(f);
     const float dir = formation_direction(f);
     float need = f.embed;
@@ -132,6 +137,31 @@ class Placer {
         const float y = height_near(at, y0);
         if (std::isnan(y)) return false;  // beyond the mesh's edge: a portal's opening
         need = std::max(need, into * (y - y0) + 0.05f);
+      }
+    }
+    if (need > kMaxEmbed) return false;
+    f.embed = need;
+    return true;
+  }
+
+  // A drapery's line follows its ceiling (the slope between the ceiling's heights half its
+  // width either side of the root), and its top edge, all along the line and either side of its
+  // folds, lies in the rock.
+  bool fit_drapery(FormationShape& f) const {
+    const vec3 half = drapery_along(f) * (0.5f * f.radius);
+    const float up = height_near(vec2(f.root.x + half.x, f.root.z + half.z), f.root.y);
+    const float down = height_near(vec2(f.root.x - half.x, f.root.z - half.z), f.root.y);
+    if (std::isnan(up) || std::isnan(down)) return false;
+    f.rings = std::clamp((up - down) / f.radius, -1.5f, 1.5f);
+    float need = f.embed;
+    const float side = f.taper + 2.0f * f.tip;
+    for (int k = -4; k <= 4; ++k) {
+      for (int j = -1; j <= 1; j += 2) {
+        const vec3 at = drapery_line(f, f.radius * static_cast<float>(k) / 4.0f) +
+                        drapery_across(f) * (side * static_cast<float>(j));
+        const float y = height_near(vec2(at.x, at.z), at.y);
+        if (std::isnan(y)) return false;
+        need = std::max(need, y - at.y + 0.05f);
       }
     }
     if (need > kMaxEmbed) return false;
@@ -380,6 +410,26 @@ std::vector<FormationShape> place(const Surface& s) {
           if (placer.fit_embed(f)) out.push_back(f);
           continue;
         }
+        if (top.normal.y > kDraperyCeiling && cell_hash(c, 4099) < kDraperyShare) {
+          // A drapery along the slope (the water's way down it: the normal's horizontal part).
+          FormationShape d{};
+          d.kind = kFormationDrapery;
+          d.root = vec3(xz.x, top.position.y, xz.y);
+          d.length = std::min(std::max(1.3f * len, 0.25f), 0.45f * gap);
+          d.radius = std::clamp(0.25f + 0.5f * d.length, 0.25f, 1.2f) *
+                     (0.7f + 0.6f * cell_hash(c, 4111));
+          d.tip = 0.01f + 0.012f * cell_hash(c, 4127);
+          d.taper = std::min({0.08f + 0.14f * cell_hash(c, 4129), 0.3f * d.radius, 0.25f * d.length});
+          // Folds 0.35-0.55 m apart across its width.
+          d.flare = std::max(2.0f, std::floor(2.0f * d.radius / (0.35f + 0.2f * cell_hash(c, 4133))));
+          d.rings = 0.0f;  // its slope: fit_drapery
+          d.bulbs = 0.5f + 0.8f * cell_hash(c, 4139);
+          d.seed = cell_hash(c, 4153);
+          d.yaw = std::atan2(top.normal.z, top.normal.x) + 0.4f * (cell_hash(c, 4157) - 0.5f);
+          d.embed = root_embed() + 0.05f;  // fit_drapery grows it over the slope
+          if (placer.fit_embed(d)) out.push_back(d);
+          continue;
+        }
         len = std::min(len, 0.45f * gap);
         FormationShape f{};
         f.kind = kFormationStalactite;
@@ -431,7 +481,6 @@ void append_mesh(const FormationShape& f, int lod, std::vector<vec3>& positions,
   const int sides = kLodSides[lod], rings = kLodRings[lod];
   const uint32_t base = static_cast<uint32_t>(positions.size());
   const float start = formation_start(f), end = formation_end(f);
-  const vec3 axis(0.0f, formation_direction(f), 0.0f);
   // formation.vert's arithmetic, point for point.
   for (int i = 0; i <= rings; ++i) {
     const float v = static_cast<float>(i) / static_cast<float>(rings);
@@ -446,10 +495,9 @@ void append_mesh(const FormationShape& f, int lod, std::vector<vec3>& positions,
           formation_point(f, s, theta + 0.02f) - formation_point(f, s, theta - 0.02f);
       vec3 n = cross(along, round);
       const float nl = length(n);
-      n = nl > 1e-9f ? n / nl : axis;
-      const vec3 out_dir = p - (f.root + axis * s);
-      if (dot(n, out_dir) < 0.0f) n = -n;
-      if (dot(out_dir, out_dir) < 1e-12f) n = axis;
+      const vec3 outward = formation_outward(f, s, theta, p);
+      n = nl > 1e-9f ? n / nl : normalize(outward);
+      if (dot(n, outward) < 0.0f) n = -n;
       positions.push_back(p);
       normals.push_back(n);
     }
@@ -458,18 +506,50 @@ void append_mesh(const FormationShape& f, int lod, std::vector<vec3>& positions,
   for (uint32_t i = 0; i < static_cast<uint32_t>(rings); ++i)
     for (uint32_t k = 0; k < static_cast<uint32_t>(sides); ++k) {
       const uint32_t a0 = base + i * row + k, a1 = a0 + 1, b0 = a0 + row, b1 = b0 + 1;
-      // Counter-clockwise seen from outside, whichever way the axis runs.
-      if (f.kind == kFormationStalactite)
+      // Counter-clockwise seen from outside, whichever way the axis runs (a drapery's s runs
+      // along its line and theta down its front: as a stalactite's).
+      if (formation_direction(f) < 0.0f)
         indices.insert(indices.end(), {a0, b1, b0, a0, a1, b1});
       else
         indices.insert(indices.end(), {a0, b0, b1, a0, b1, a1});
     }
 }
 
+namespace {
+
+// A drapery's hull: the prism of its outline (the top edge and the lower edge at `sides` points
+// along its line, without the tongues: convex) as thick as its folds reach either side.
+std::vector<vec3> drapery_hull(const FormationShape& f, int sides) {
+  std::vector<vec3> outline;
+  const int n = std::max(sides, 3);
+  for (int i = 0; i <= n; ++i) {
+    const float x = f.radius * (2.0f * static_cast<float>(i) / static_cast<float>(n) - 1.0f);
+    const float e = x / std::max(f.radius, 1e-3f);
+    const float drop = std::max(0.85f * f.length * std::sqrt(std::max(1.0f - e * e, 0.0f)), 0.02f);
+    outline.push_back(drapery_line(f, x) + vec3(0.0f, -drop, 0.0f));
+  }
+  const vec3 side = drapery_across(f) * (f.taper + 3.0f * f.tip);
+  std::vector<vec3> out;
+  for (int i = 0; i < n; ++i) {
+    const vec3 a = outline[static_cast<size_t>(i)], b = outline[static_cast<size_t>(i) + 1];
+    const vec3 ta = drapery_line(f, dot(a - f.root, drapery_along(f)));
+    const vec3 tb = drapery_line(f, dot(b - f.root, drapery_along(f)));
+    // Both faces (fans from the top edge), the lower edge's strip, the top edge's strip.
+    out.insert(out.end(), {ta + side, a + side, b + side, ta + side, b + side, tb + side});
+    out.insert(out.end(), {ta - side, b - side, a - side, ta - side, tb - side, b - side});
+    out.insert(out.end(), {a + side, a - side, b - side, a + side, b - side, b + side});
+    out.insert(out.end(), {ta + side, tb - side, ta - side, ta + side, tb + side, tb - side});
+  }
+  return out;
+}
+
+}  // namespace
+
 std::vector<vec3> collision_hull(const FormationShape& f, int sides, int rings) {
   std::vector<vec3> out;
   sides = std::max(sides, 3);
   rings = std::max(rings, 1);
+  if (f.kind == kFormationDrapery) return drapery_hull(f, 2 * sides);
   // Rings from the root to the far end, each a polygon of the largest radius at its level
   // (irregularity included), so the hull holds what is drawn near the axis.
   const float start = 0.0f, end = formation_end(f) - (f.kind == kFormationColumn ? f.embed : 0.0f);

@@ -1,9 +1,10 @@
 // Speleothems as instanced geometry (issue 43): where a room's stalactites, stalagmites, soda
-// straws and columns are and what shape each has, as a pure function of (world, room): the cells
-// of relief.glsl's speleothem lattice (relief_speleothem: one candidate per 1 m cell, pulled onto
-// the cracks water seeps along, heavy-tailed lengths) that lie under the room's ceilings, each
-// hung plumb from the drawn ceiling with its stalagmite beneath it on the floor the drip falls on,
-// and columns where the two would meet. The shape of one instance is shaders/formation.glsl's,
+// straws, columns and draperies are and what shape each has, as a pure function of (world, room):
+// the cells of relief.glsl's speleothem lattice (relief_speleothem: one candidate per 1 m cell,
+// pulled onto the cracks water seeps along, heavy-tailed lengths) that lie under the room's
+// ceilings, each hung plumb from the drawn ceiling with its stalagmite beneath it on the floor the
+// drip falls on, columns where the two would meet, and draperies along the slope of inclined
+// ceilings. The shape of one instance is shaders/formation.glsl's,
 // compiled here as C++ over GLM (as relief.hpp does), so the renderer, collision, the glb export
 // and engines see the same formations.
 //

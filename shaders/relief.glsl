@@ -13,7 +13,7 @@
 //                down the wall (a noise stretched 2.5x vertically), fluted by vertical curtains
 //                (anisotropic ridged noise, 2.6 m tall, 0.4 m wide), the rock's relief drowned
 //                beneath them (a sheet smooths what it covers);
-//   formations:  stalactites, stalagmites, soda straws and columns are no longer relief but
+//   formations:  stalactites, stalagmites, soda straws, columns and draperies are no relief but
 //                instanced geometry (shaders/formation.glsl, shaders/formations.hpp: issue 43);
 //                their candidates stay here (relief_speleothem: one per 1 m cell of a lattice
 //                turned off the world axes, pulled onto the nearest crack, heavy-tailed lengths

@@ -187,6 +187,9 @@ void CollisionWorld::set_formations(cave::RoomId id,
           hull.lo[a] = std::min(hull.lo[a], (*corner[k])[a]),
           hull.hi[a] = std::max(hull.hi[a], (*corner[k])[a]);
       }
+      // A triangle without area (a hull's edge that closes to a point, as a drapery's ends do)
+      // has no side to push a walker out of: its closest point divides by zero.
+      if (length_squared(cross(t.b - t.a, t.c - t.a)) < 1e-16) continue;
       hull.triangles.push_back(t);
     }
     r.formations.push_back(std::move(hull));

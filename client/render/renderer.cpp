@@ -253,11 +253,8 @@ void Renderer::draw_formations(const std::vector<const GpuRoom*>& rooms, Vec3 an
     const glm::vec3 offset = to_vec3(room->origin - anchor);  // exact: grid values
     for (const formations::FormationShape& f : room->formations) {
       const glm::vec3 root = f.root + offset;
-      const float dir = formations::formation_direction(f);
-      const float half = 0.5f * formations::formation_end(f);
-      const glm::vec3 centre = root + glm::vec3(0.0f, dir * half, 0.0f);
-      const float bound = formations::formation_bound_radius(f);
-      const float reach = half + bound;
+      const glm::vec3 centre = formations::formation_centre(f) + offset;
+      const float reach = formations::formation_reach(f);
       bool outside = false;
       for (const glm::vec4& p : planes)
         outside = outside || glm::dot(glm::vec3(p), centre) + p.w < -reach;

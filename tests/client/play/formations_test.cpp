@@ -69,6 +69,7 @@ TEST(Formations, every_root_meets_the_rock_it_grows_from) {
                          [&](const Triangle& t) { return segment_crosses(t, a, b); });
     };
     for (const fm::FormationShape& f : place(room)) {
+      if (f.kind == fm::kFormationDrapery) continue;  // its own test below
       const float dir = fm::formation_direction(f);
       const glm::vec3 end = glm::vec3(0.0f, -dir * f.embed, 0.0f);
       for (int k = 0; k <= 8; ++k) {
@@ -113,6 +114,7 @@ TEST(Formations, each_hangs_or_stands_within_3_degrees_of_plumb) {
   ASSERT_FALSE(all.empty());
   double worst = 0;
   for (const fm::FormationShape& f : all) {
+    if (f.kind == fm::kFormationDrapery) continue;  // a sheet: its s runs across it
     auto centroid = [&](float s) {
       glm::vec3 c(0.0f);
       for (int k = 0; k < 64; ++k)
@@ -215,7 +217,7 @@ TEST(Formations, placement_is_the_same_whatever_the_order_of_the_triangles) {
 }
 
 // Walkers and flares collide with formations: a segment from beside a formation's body to its
-// axis, at half its length, meets its hull.
+// axis, at half its length, meets its hull (a drapery's: from beside its face to its middle).
 TEST(Formations, walkers_collide_with_them) {
   const client::ReadyRoom& room = hall();
   CollisionWorld with(1.0f, true);
@@ -226,17 +228,116 @@ TEST(Formations, walkers_collide_with_them) {
     if (f.kind == fm::kFormationStalactite || f.radius < 0.1f) continue;
     const float s = 0.5f * f.length;
     const glm::vec3 mid = f.root + glm::vec3(0.0f, fm::formation_direction(f) * s, 0.0f);
-    const float r = fm::formation_radius(f, s, 0.0f);
-    const Vec3 a = world(room, mid + glm::vec3(1.5f * r + 0.05f, 0.0f, 0.0f));
+    // A drapery is met face on, from beside its folds; the rest from beside their body.
+    const glm::vec3 beside =
+        f.kind == fm::kFormationDrapery
+            ? fm::drapery_across(f) * (f.taper + 3.0f * f.tip + 0.3f)
+            : glm::vec3(1.5f * fm::formation_radius(f, s, 0.0f) + 0.05f, 0.0f, 0.0f);
+    const Vec3 a = world(room, mid + beside);
     const Vec3 b = world(room, mid);
     ++tested;
-    with.gather(a - Vec3{0.1, 0.1, 0.1}, b + Vec3{0.1, 0.1, 0.1}, near);
+    const Vec3 lo{std::min(a.x, b.x), std::min(a.y, b.y), std::min(a.z, b.z)};
+    const Vec3 hi{std::max(a.x, b.x), std::max(a.y, b.y), std::max(a.z, b.z)};
+    with.gather(lo - Vec3{0.1, 0.1, 0.1}, hi + Vec3{0.1, 0.1, 0.1}, near);
     const bool meets = std::any_of(near.triangles.begin(), near.triangles.end(),
                                    [&](const Triangle& t) { return segment_crosses(t, a, b); });
     hit += meets;
+    if (!meets) ADD_FAILURE() << "kind " << f.kind << " at " << f.root.x << "," << f.root.z;
   }
   ASSERT_GT(tested, 5);
   EXPECT_EQ(hit, tested);
+}
+
+// Draperies hang from inclined ceilings: sector 0 has some, each along its ceiling's slope, and
+// all along its line the sheet meets the rock: from its top edge (embedded) down to its lower
+// edge, a segment crosses the rock the client draws, or lies in it whole (where the ceiling is
+// lower than the root): no part of the top edge hangs in the air. Its drop varies along the
+// line (tongues), its folds deepen towards the lower edge.
+TEST(Formations, draperies_hang_from_inclined_ceilings_and_meet_the_rock_all_along) {
+  size_t draperies = 0, samples = 0, gaps = 0;
+  double widest = 0, longest = 0;
+  for (const auto& [id, room] : test::sector_zero().rooms) {
+    CollisionWorld rock(1.0f, /*formations=*/false);
+    rock.add(room);
+    Neighbourhood near;
+    auto crosses = [&](Vec3 a, Vec3 b) {
+      const Vec3 lo{std::min(a.x, b.x), std::min(a.y, b.y), std::min(a.z, b.z)};
+      const Vec3 hi{std::max(a.x, b.x), std::max(a.y, b.y), std::max(a.z, b.z)};
+      rock.gather(lo, hi, near);
+      return std::any_of(near.triangles.begin(), near.triangles.end(),
+                         [&](const Triangle& t) { return segment_crosses(t, a, b); });
+    };
+    for (const fm::FormationShape& f : place(room)) {
+      if (f.kind != fm::kFormationDrapery) continue;
+      ++draperies;
+      widest = std::max(widest, 2.0 * f.radius);
+      longest = std::max(longest, static_cast<double>(f.length));
+      EXPECT_GT(f.radius, 0.2f);
+      EXPECT_LT(f.tip, 0.05f) << "a sheet, not a slab";
+      for (int k = -4; k <= 4; ++k) {
+        const float x = 0.95f * f.radius * static_cast<float>(k) / 4.0f;
+        const glm::vec3 line = fm::drapery_line(f, x);
+        const glm::vec3 top = line + glm::vec3(0.0f, f.embed, 0.0f);
+        const glm::vec3 bottom = line - glm::vec3(0.0f, fm::drapery_drop(f, x), 0.0f);
+        ++samples;
+        const bool meets = crosses(world(room, top), world(room, bottom)) ||
+                           (in_rock(rock, world(room, top), near) &&
+                            in_rock(rock, world(room, bottom), near));
+        if (!meets) {
+          ++gaps;
+          ADD_FAILURE() << "room " << id.to_string() << " drapery at " << f.root.x << ","
+                        << f.root.y << "," << f.root.z << " x " << x
+                        << ": its top edge hangs in the air (embed " << f.embed << ")";
+          if (gaps > 5) return;
+        }
+      }
+      // Tongues: the drop at a quarter either side of the middle differs from an ellipse's.
+      const float a = fm::drapery_drop(f, -0.5f * f.radius), b = fm::drapery_drop(f, 0.5f * f.radius);
+      EXPECT_GT(std::abs(a - b), 1e-3f * f.length);
+      // The folds deepen: across the width, the sheet's middle surface (halfway between its
+      // faces) strays further off its line near the lower edge than near the top.
+      const auto fold = [&](float theta) {
+        float most = 0;
+        for (int i = -20; i <= 20; ++i) {
+          const float x = f.radius * static_cast<float>(i) / 21.0f;
+          const glm::vec3 mid = 0.5f * (fm::drapery_point(f, x, theta) +
+                                        fm::drapery_point(f, x, 6.2831853f - theta));
+          most = std::max(most, std::abs(glm::dot(mid - f.root, fm::drapery_across(f))));
+        }
+        return most;
+      };
+      EXPECT_GT(fold(0.95f * 3.14159265f), 1.5f * fold(0.05f * 3.14159265f));
+    }
+  }
+  std::printf("%zu draperies (widest %.2f m, longest drop %.2f m), %zu samples of their top edge, "
+              "%zu gaps\n",
+              draperies, widest, longest, samples, gaps);
+  EXPECT_GE(draperies, 5u) << "sector 0's inclined ceilings hold a few draperies";
+}
+
+// Every triangle of a formation's mesh faces the way its vertices' normals do (outwards), for
+// every kind: a drapery's loop runs the other way round from a stalagmite's.
+TEST(Formations, meshes_wind_counter_clockwise_seen_from_outside) {
+  std::map<int, int> kinds;
+  for (const fm::FormationShape& f : place(hall())) {
+    if (kinds[f.kind]++ > 20) continue;
+    std::vector<glm::vec3> positions, normals;
+    std::vector<uint32_t> indices;
+    fm::append_mesh(f, 0, positions, normals, indices);
+    size_t agree = 0, faces = 0;
+    for (size_t i = 0; i + 2 < indices.size(); i += 3) {
+      const glm::vec3 a = positions[indices[i]], b = positions[indices[i + 1]],
+                      c = positions[indices[i + 2]];
+      const glm::vec3 n = glm::cross(b - a, c - a);
+      if (glm::length(n) < 1e-10f) continue;  // collapsed at a tip or an end
+      ++faces;
+      agree += glm::dot(n, normals[indices[i]] + normals[indices[i + 1]] + normals[indices[i + 2]]) > 0;
+    }
+    ASSERT_GT(faces, 0u);
+    EXPECT_GT(static_cast<double>(agree), 0.95 * static_cast<double>(faces))
+        << "kind " << f.kind << ": " << agree << " of " << faces << " faces outwards";
+  }
+  EXPECT_GT(kinds[fm::kFormationDrapery], 0) << "the hall has a drapery";
 }
 
 // What the renderer draws at 1080p (70 degrees of view: 771 pixels a metre at 1 m): a 1 m
