@@ -24,8 +24,10 @@
 #define GLOW_SEAM 1
 #define GLOW_CRYSTALS 2
 #define GLOW_FLARE 3
-// Metres past its bound that a light still reaches in the rooms next to its own, fading to nothing.
+// Metres past its bound that a light still reaches in the rooms next to its own, fading to nothing,
+// and the share of it that lights there whichever way the rock faces (bounced light).
 const float kLightSpill = 7.0;
+const float kLightBounce = 0.3;
 
 uniform int u_light_count;                         // lights that can reach this room's rock
 uniform int u_light_index[GROTTO_MAX_LIGHTS];      // which of the arrays' lights they are
@@ -141,8 +143,8 @@ vec3 lights_shade(vec3 p, ReliefPos world, vec3 s, vec3 v, vec3 albedo, float wr
     if (d >= range) continue;
     float bound = u_light_bound[i].w;
     float reach = bound + kLightSpill * u_light_next_door[k];
-    float inside =
-        bound > 0.0 ? 1.0 - smoothstep(0.9 * bound, reach, length(p - u_light_bound[i].xyz)) : 1.0;
+    float from_centre = length(p - u_light_bound[i].xyz);
+    float inside = bound > 0.0 ? 1.0 - smoothstep(0.9 * bound, reach, from_centre) : 1.0;
     if (inside <= 0.0) continue;
     vec3 l = to_light / max(d, 1e-4);
     int kind = int(u_light_glow[i].y + 0.5);
@@ -151,6 +153,13 @@ vec3 lights_shade(vec3 p, ReliefPos world, vec3 s, vec3 v, vec3 albedo, float wr
     float self_lit = kind == GLOW_WORMS ? smoothstep(0.5, 1.5, d / soft) : 1.0;
     vec3 radiance = u_light_color[i].rgb * (light_falloff(d, range, soft) * inside * self_lit);
     float lambert = max((dot(s, l) + wrap) / (1.0 + wrap), 0.0);
+    // Past its room's wall, in a passage off it, the light arrives bounced off the passage's
+    // walls as much as straight: a share of it lights every side (a mouth's inner walls that face
+    // away from the source show, dimming inwards with the spill, instead of black).
+    float bounced = bound > 0.0 ? kLightBounce * u_light_next_door[k] *
+                                      smoothstep(0.85 * bound, bound, from_centre)
+                                : 0.0;
+    lambert = max(lambert, bounced);
     vec3 h = normalize(l + v);
     // pow(x, 24) as five multiplications (two transcendental ops a light, a pixel, saved).
     float x1 = max(dot(s, h), 0.0), x2 = x1 * x1, x4 = x2 * x2, x8 = x4 * x4;

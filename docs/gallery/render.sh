@@ -101,3 +101,6 @@ OFF=--no-fine-detail shoot detail-wall-7 7 --pose 64.00,54.44,50.40,120.0,0.0
 # Ambient occlusion (the -off picture without it, --no-ao): stalagmites' feet on the floor of
 # seed 7's hall, the fluted wall behind.
 OFF=--no-ao shoot ao-stalagmites-7 7 --pose 52.00,54.44,31.00,60.0,-25.0
+# Draperies (issue 43): sheets hanging from seed 7's hall roof where it slopes down towards the
+# wall, 3.5 m from the widest (2.5 m across, 1.5 m drop: its extras from /extras/), across it.
+shoot draperies-7 7 --pose 53.49,65.97,17.84,117.9,1.7
