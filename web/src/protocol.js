@@ -383,3 +383,23 @@ export function parsePose(text) {
   if (v.slice(0, 3).some((x) => Math.abs(x) > 16777216)) return null;
   return { x: v[0], y: v[1], z: v[2], yaw: (v[3] ?? 0) * DEG, pitch: (v[4] ?? 0) * DEG };
 }
+
+// The formation kinds this viewer draws (PROTOCOL "Room extras over HTTP": 0 stalactite,
+// 1 stalagmite, 2 column, 3 drapery; a client ignores a kind it does not know).
+export const FORMATION_KINDS = 4;
+
+// An extras resource's formations.data (16 numbers an instance) as a Float32Array of the
+// instances whose kind is known, or null when the field is malformed or holds none.
+export function knownFormations(formations) {
+  const f = formations;
+  if (!f || !Number.isInteger(f.count) || f.count <= 0 || !Array.isArray(f.data) || f.data.length < 16 * f.count) return null;
+  const kept = [];
+  for (let i = 0; i < f.count; ++i) {
+    const one = f.data.slice(16 * i, 16 * i + 16);
+    const kind = one[7];
+    if (!one.every((v) => typeof v === "number" && Number.isFinite(v))) continue;
+    if (!Number.isInteger(kind) || kind < 0 || kind >= FORMATION_KINDS) continue;
+    kept.push(...one);
+  }
+  return kept.length ? Float32Array.from(kept) : null;
+}

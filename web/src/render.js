@@ -8,6 +8,7 @@
 // instances drawn with formation.vert and room.frag.
 import * as THREE from "three";
 import { roomVert, roomFrag, formationVert } from "./shaders.js";
+import { knownFormations } from "./protocol.js";
 
 export const ANCHOR_STEP = 1024; // = relief.glsl's kReliefBlock
 export const MAX_LIGHTS = 16;
@@ -173,9 +174,9 @@ export class Renderer {
       source_radius: l.source_radius, glow: typeof l.glow === "number" ? l.glow : GLOW[l.kind] ?? 0,
       seed: l.seed ?? 0, bound_centre: l.bound_centre || l.position, bound_radius: l.bound_radius ?? 0, kind: l.kind,
     }));
-    const f = extras.formations;
-    if (f && f.count > 0 && Array.isArray(f.data) && f.data.length >= 16 * f.count) {
-      room.formationData = Float32Array.from(f.data.slice(0, 16 * f.count));
+    const data = knownFormations(extras.formations);
+    if (data) {
+      room.formationData = data;
       room.anchorKey = null; // rebuilt at the next frame
     }
   }

@@ -5,7 +5,7 @@ import fs from "node:fs";
 import {
   parseRoomFrame, roomIdToBinary, roomIdFromBinary, parseRoomId, helloMessage, requestMessage,
   cancelMessage, pingMessage, locateMessage, spawnMessage, parseServerMessage, reconnectDelay,
-  shouldStop, parsePose, formatPose,
+  shouldStop, parsePose, formatPose, knownFormations,
 } from "../src/protocol.js";
 
 const fixture = new Uint8Array(fs.readFileSync(new URL("./fixtures/room_v2_7_0.0.0.r0.bin", import.meta.url)));
@@ -290,4 +290,17 @@ test("place links", () => {
   assert.equal(parsePose("1,2,x,0,0"), null);
   assert.equal(parsePose("1,2,,0,0"), null);
   assert.equal(parsePose("1e30,0,0,0,0"), null);
+});
+
+test("extras' formations: the known kinds kept, an unknown kind or a malformed instance dropped", () => {
+  const one = (kind, x = 1) => [x, 2, 3, 1.5, 0.4, 0.01, 0.3, kind, 0.1, 3, 0.2, 0.8, 0.5, 1.2, 0, 0];
+  const data = [...one(0), ...one(3, 7), ...one(9), ...one(2.5), ...one(1).map((v, i) => (i === 4 ? null : v)), ...one(1, 11)];
+  const kept = knownFormations({ count: 6, data });
+  assert.ok(kept instanceof Float32Array);
+  assert.equal(kept.length, 3 * 16);
+  assert.deepEqual([kept[0], kept[16], kept[32]], [1, 7, 11]);
+  assert.deepEqual([kept[7], kept[23], kept[39]], [0, 3, 1]);
+  assert.equal(knownFormations({ count: 2, data: one(0) }), null, "fewer numbers than count says");
+  assert.equal(knownFormations({ count: 1, data: one(4) }), null, "no known kind: nothing to draw");
+  assert.equal(knownFormations(undefined), null);
 });
