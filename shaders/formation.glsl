@@ -178,15 +178,14 @@ RELIEF_FN vec3 formation_outward(FormationShape f, float s, float theta, vec3 p)
 }
 
 // How old the calcite is at (s, theta), 0-1 (t_spike: ochre at 0, cream towards 1): youngest at
-// a stalactite's or stalagmite's tip, old at both ends of a column; a drapery in bands along its
-// lower edge (the "bacon" of iron-stained and clean calcite).
+// a stalactite's or stalagmite's tip, old at both ends of a column. A drapery's is 1 + u, u the
+// share of its drop (0 at its top, 1 at its lower edge): linear between the mesh's points, so
+// room.frag draws its bands parallel to the lower edge per pixel (the "bacon" of iron-stained and
+// clean calcite), finer than the mesh's 8 points down a face could carry.
 RELIEF_FN float formation_age(FormationShape f, float s, float theta) {
   if (f.kind == kFormationDrapery) {
     float drop = drapery_drop(f, s);
-    float u = clamp(drapery_depth(f, drop, theta) / max(drop, 1e-3f), 0.0f, 1.0f);
-    float e = s / max(f.radius, 1e-3f);
-    float band = sin(u * 11.0f + 6.2831853f * f.seed + 1.5f * sin(2.5f * e));
-    return 0.45f * smoothstep(-0.5f, 0.5f, band) + 0.2f * u;
+    return 1.0f + clamp(drapery_depth(f, drop, theta) / max(drop, 1e-3f), 0.0f, 1.0f);
   }
   float u = clamp(s / max(f.length, 1e-3f), 0.0f, 1.0f);
   if (f.kind == kFormationColumn) return 0.35f + 0.15f * sin(3.14159f * u);

@@ -112,9 +112,21 @@ void main() {
                                                     : ivec3(20480, 2048, 20480),
                                           vec3(0.0)).x
                     : 0.0;
+  float age = t_spike, stain = 0.0;
+  if (t_spike > 1.0) {
+    // A drapery (formation_age: 1 + the share u of its drop): bands of iron-stained and clean
+    // calcite along its lower edge, 2-15 cm wide and uneven, wandering with the mottling; their
+    // contrast fades where a pixel covers a band (no shimmer far off).
+    float u = t_spike - 1.0;
+    float b = sin(u * 31.0 + 3.0 * m1.x) + 0.6 * sin(u * 67.0 + 2.0 * m2.x + 1.0);
+    float keep = relief_fine_fade(0.06, footprint);
+    stain = keep * smoothstep(0.1, 0.5, b) + (1.0 - keep) * 0.35;
+    age = 0.9 - 0.6 * stain + 0.1 * u;
+  }
   vec3 dripstone =
-      mix(vec3(0.55, 0.47, 0.36), vec3(0.78, 0.74, 0.66), smoothstep(0.2, 1.0, t_spike)) *
+      mix(vec3(0.55, 0.47, 0.36), vec3(0.78, 0.74, 0.66), smoothstep(0.2, 1.0, age)) *
       (0.9 + 0.1 * rings);
+  dripstone = mix(dripstone, vec3(0.50, 0.30, 0.16), 0.7 * stain);
   albedo = mix(albedo, dripstone, 0.9 * calcite);
   // Calcite veins where the rock is rich in minerals (not in the floors' sediment): the traces of
   // two sets of steep joints (fractures 2-3 m apart that water filled), long and nearly straight
