@@ -47,6 +47,16 @@ bool in_rock(const CollisionWorld& rock, Vec3 p, Neighbourhood& near) {
   return inside;
 }
 
+// Whether the segment from a to b crosses the rock's surface (or a formation's hull, where the
+// world holds them).
+bool crosses(const CollisionWorld& rock, Vec3 a, Vec3 b, Neighbourhood& near) {
+  const Vec3 lo{std::min(a.x, b.x), std::min(a.y, b.y), std::min(a.z, b.z)};
+  const Vec3 hi{std::max(a.x, b.x), std::max(a.y, b.y), std::max(a.z, b.z)};
+  rock.gather(lo, hi, near);
+  return std::any_of(near.triangles.begin(), near.triangles.end(),
+                     [&](const Triangle& t) { return segment_crosses(t, a, b); });
+}
+
 // No root floats. On the axis, the rock the client draws (collision's surface: the PN patch with
 // the relief at full strength, no formations) lies between the mesh's end inside the rock
 // (-embed) and the tip; round the root, where the flare is widest (eight sides), every point at
@@ -61,13 +71,6 @@ TEST(Formations, every_root_meets_the_rock_it_grows_from) {
     CollisionWorld rock(1.0f, /*formations=*/false);
     rock.add(room);
     Neighbourhood near;
-    auto crosses = [&](Vec3 a, Vec3 b) {
-      const Vec3 lo{std::min(a.x, b.x), std::min(a.y, b.y), std::min(a.z, b.z)};
-      const Vec3 hi{std::max(a.x, b.x), std::max(a.y, b.y), std::max(a.z, b.z)};
-      rock.gather(lo, hi, near);
-      return std::any_of(near.triangles.begin(), near.triangles.end(),
-                         [&](const Triangle& t) { return segment_crosses(t, a, b); });
-    };
     for (const fm::FormationShape& f : place(room)) {
       if (f.kind == fm::kFormationDrapery) continue;  // its own test below
       const float dir = fm::formation_direction(f);
@@ -78,18 +81,19 @@ TEST(Formations, every_root_meets_the_rock_it_grows_from) {
         if (k == 8) {
           // Rock anywhere past the mesh's end: none floats. Past the tip (and collision's
           // interpolation): buried, counted.
-          meets = crosses(world(room, f.root + end),
-                          world(room, f.root + glm::vec3(0.0f, dir * (f.length + 1.0f), 0.0f)));
+          meets =
+              crosses(rock, world(room, f.root + end),
+                      world(room, f.root + glm::vec3(0.0f, dir * (f.length + 1.0f), 0.0f)), near);
           buried += !crosses(
-              world(room, f.root + end),
-              world(room, f.root + glm::vec3(0.0f, dir * (f.length + kInterpolation), 0.0f)));
+              rock, world(room, f.root + end),
+              world(room, f.root + glm::vec3(0.0f, dir * (f.length + kInterpolation), 0.0f)), near);
         } else {
           const float theta = 6.2831853f * static_cast<float>(k) / 8.0f;
           const float r = 0.95f * fm::formation_radius(f, 0.0f, theta);
           const glm::vec3 at =
               f.root + glm::vec3(r * std::cos(theta + f.yaw), 0.0f, r * std::sin(theta + f.yaw));
           if (!in_rock(rock, world(room, at), near))
-            meets = crosses(world(room, at + end), world(room, at));
+            meets = crosses(rock, world(room, at + end), world(room, at), near);
         }
         if (!meets) {
           ++gaps;
@@ -236,11 +240,7 @@ TEST(Formations, walkers_collide_with_them) {
     const Vec3 a = world(room, mid + beside);
     const Vec3 b = world(room, mid);
     ++tested;
-    const Vec3 lo{std::min(a.x, b.x), std::min(a.y, b.y), std::min(a.z, b.z)};
-    const Vec3 hi{std::max(a.x, b.x), std::max(a.y, b.y), std::max(a.z, b.z)};
-    with.gather(lo - Vec3{0.1, 0.1, 0.1}, hi + Vec3{0.1, 0.1, 0.1}, near);
-    const bool meets = std::any_of(near.triangles.begin(), near.triangles.end(),
-                                   [&](const Triangle& t) { return segment_crosses(t, a, b); });
+    const bool meets = crosses(with, a, b, near);
     hit += meets;
     if (!meets) ADD_FAILURE() << "kind " << f.kind << " at " << f.root.x << "," << f.root.z;
   }
@@ -260,13 +260,6 @@ TEST(Formations, draperies_hang_from_inclined_ceilings_and_meet_the_rock_all_alo
     CollisionWorld rock(1.0f, /*formations=*/false);
     rock.add(room);
     Neighbourhood near;
-    auto crosses = [&](Vec3 a, Vec3 b) {
-      const Vec3 lo{std::min(a.x, b.x), std::min(a.y, b.y), std::min(a.z, b.z)};
-      const Vec3 hi{std::max(a.x, b.x), std::max(a.y, b.y), std::max(a.z, b.z)};
-      rock.gather(lo, hi, near);
-      return std::any_of(near.triangles.begin(), near.triangles.end(),
-                         [&](const Triangle& t) { return segment_crosses(t, a, b); });
-    };
     for (const fm::FormationShape& f : place(room)) {
       if (f.kind != fm::kFormationDrapery) continue;
       ++draperies;
@@ -280,9 +273,9 @@ TEST(Formations, draperies_hang_from_inclined_ceilings_and_meet_the_rock_all_alo
         const glm::vec3 top = line + glm::vec3(0.0f, f.embed, 0.0f);
         const glm::vec3 bottom = line - glm::vec3(0.0f, fm::drapery_drop(f, x), 0.0f);
         ++samples;
-        const bool meets = crosses(world(room, top), world(room, bottom)) ||
-                           (in_rock(rock, world(room, top), near) &&
-                            in_rock(rock, world(room, bottom), near));
+        const bool meets =
+            crosses(rock, world(room, top), world(room, bottom), near) ||
+            (in_rock(rock, world(room, top), near) && in_rock(rock, world(room, bottom), near));
         if (!meets) {
           ++gaps;
           ADD_FAILURE() << "room " << id.to_string() << " drapery at " << f.root.x << ","
@@ -292,7 +285,8 @@ TEST(Formations, draperies_hang_from_inclined_ceilings_and_meet_the_rock_all_alo
         }
       }
       // Tongues: the drop at a quarter either side of the middle differs from an ellipse's.
-      const float a = fm::drapery_drop(f, -0.5f * f.radius), b = fm::drapery_drop(f, 0.5f * f.radius);
+      const float a = fm::drapery_drop(f, -0.5f * f.radius),
+                  b = fm::drapery_drop(f, 0.5f * f.radius);
       EXPECT_GT(std::abs(a - b), 1e-3f * f.length);
       // The folds deepen: across the width, the sheet's middle surface (halfway between its
       // faces) strays further off its line near the lower edge than near the top.
@@ -300,8 +294,8 @@ TEST(Formations, draperies_hang_from_inclined_ceilings_and_meet_the_rock_all_alo
         float most = 0;
         for (int i = -20; i <= 20; ++i) {
           const float x = f.radius * static_cast<float>(i) / 21.0f;
-          const glm::vec3 mid = 0.5f * (fm::drapery_point(f, x, theta) +
-                                        fm::drapery_point(f, x, 6.2831853f - theta));
+          const glm::vec3 mid =
+              0.5f * (fm::drapery_point(f, x, theta) + fm::drapery_point(f, x, 6.2831853f - theta));
           most = std::max(most, std::abs(glm::dot(mid - f.root, fm::drapery_across(f))));
         }
         return most;
@@ -309,9 +303,10 @@ TEST(Formations, draperies_hang_from_inclined_ceilings_and_meet_the_rock_all_alo
       EXPECT_GT(fold(0.95f * 3.14159265f), 1.5f * fold(0.05f * 3.14159265f));
     }
   }
-  std::printf("%zu draperies (widest %.2f m, longest drop %.2f m), %zu samples of their top edge, "
-              "%zu gaps\n",
-              draperies, widest, longest, samples, gaps);
+  std::printf(
+      "%zu draperies (widest %.2f m, longest drop %.2f m), %zu samples of their top edge, "
+      "%zu gaps\n",
+      draperies, widest, longest, samples, gaps);
   EXPECT_GE(draperies, 5u) << "sector 0's inclined ceilings hold a few draperies";
 }
 
@@ -331,7 +326,8 @@ TEST(Formations, meshes_wind_counter_clockwise_seen_from_outside) {
       const glm::vec3 n = glm::cross(b - a, c - a);
       if (glm::length(n) < 1e-10f) continue;  // collapsed at a tip or an end
       ++faces;
-      agree += glm::dot(n, normals[indices[i]] + normals[indices[i + 1]] + normals[indices[i + 2]]) > 0;
+      agree +=
+          glm::dot(n, normals[indices[i]] + normals[indices[i + 1]] + normals[indices[i + 2]]) > 0;
     }
     ASSERT_GT(faces, 0u);
     EXPECT_GT(static_cast<double>(agree), 0.95 * static_cast<double>(faces))
