@@ -416,12 +416,14 @@ std::vector<FormationShape> place(const Surface& s) {
           d.kind = kFormationDrapery;
           d.root = vec3(xz.x, top.position.y, xz.y);
           d.length = std::min(std::max(1.3f * len, 0.25f), 0.45f * gap);
-          d.radius = std::clamp(0.25f + 0.5f * d.length, 0.25f, 1.2f) *
-                     (0.7f + 0.6f * cell_hash(c, 4111));
+          d.radius =
+              std::clamp(0.25f + 0.5f * d.length, 0.25f, 1.2f) * (0.7f + 0.6f * cell_hash(c, 4111));
           d.tip = 0.01f + 0.012f * cell_hash(c, 4127);
-          d.taper = std::min({0.08f + 0.14f * cell_hash(c, 4129), 0.3f * d.radius, 0.25f * d.length});
+          d.taper =
+              std::min({0.08f + 0.14f * cell_hash(c, 4129), 0.3f * d.radius, 0.25f * d.length});
           // Folds 0.35-0.55 m apart across its width.
-          d.flare = std::max(2.0f, std::floor(2.0f * d.radius / (0.35f + 0.2f * cell_hash(c, 4133))));
+          d.flare =
+              std::max(2.0f, std::floor(2.0f * d.radius / (0.35f + 0.2f * cell_hash(c, 4133))));
           d.rings = 0.0f;  // its slope: fit_drapery
           d.bulbs = 0.5f + 0.8f * cell_hash(c, 4139);
           d.seed = cell_hash(c, 4153);

@@ -229,19 +229,20 @@ std::map<cave::RoomId, ScreenRect> reach_through_portals(const GpuRoomCache& cac
 }  // namespace
 
 Renderer::RoomUniforms Renderer::locate(const Program& p) {
-  return {p.uniform("u_room_offset"),  p.uniform("u_relief_margin"), p.uniform("u_camera"),
-          p.uniform("u_max_tess"),     p.uniform("u_max_dist"),      p.uniform("u_view_proj"),
-          p.uniform("u_block"),        p.uniform("u_surface"),       p.uniform("u_phong_alpha"),
-          p.uniform("u_displacement"), p.uniform("u_fog_color"),     p.uniform("u_fog_start"),
-          p.uniform("u_fog_end"),      p.uniform("u_lamp_range"),    p.uniform("u_lod"),
-          p.uniform("u_pixel_scale"),  p.uniform("u_target_pixels"), p.uniform("u_patch_culling"),
-          p.uniform("u_frustum"),      p.uniform("u_fine_detail"),   p.uniform("u_ao"),
-          p.uniform("u_lamp"),         p.uniform("u_forward"),       p.uniform("u_exposure"),
-          p.uniform("u_glow"),         p.uniform("u_light_count"),   p.uniform("u_light_position"),
-          p.uniform("u_light_color"),  p.uniform("u_light_glow"),    p.uniform("u_light_bound"),
-          p.uniform("u_light_index"),  p.uniform("u_headlamp"),      p.uniform("u_haze"),
-          p.uniform("u_patch_edge"),   p.uniform("u_haze_count"),    p.uniform("u_haze_index"),
-          p.uniform("u_light_next_door")};
+  return {
+      p.uniform("u_room_offset"),    p.uniform("u_relief_margin"), p.uniform("u_camera"),
+      p.uniform("u_max_tess"),       p.uniform("u_max_dist"),      p.uniform("u_view_proj"),
+      p.uniform("u_block"),          p.uniform("u_surface"),       p.uniform("u_phong_alpha"),
+      p.uniform("u_displacement"),   p.uniform("u_fog_color"),     p.uniform("u_fog_start"),
+      p.uniform("u_fog_end"),        p.uniform("u_lamp_range"),    p.uniform("u_lod"),
+      p.uniform("u_pixel_scale"),    p.uniform("u_target_pixels"), p.uniform("u_patch_culling"),
+      p.uniform("u_frustum"),        p.uniform("u_fine_detail"),   p.uniform("u_ao"),
+      p.uniform("u_lamp"),           p.uniform("u_forward"),       p.uniform("u_exposure"),
+      p.uniform("u_glow"),           p.uniform("u_light_count"),   p.uniform("u_light_position"),
+      p.uniform("u_light_color"),    p.uniform("u_light_glow"),    p.uniform("u_light_bound"),
+      p.uniform("u_light_index"),    p.uniform("u_headlamp"),      p.uniform("u_haze"),
+      p.uniform("u_patch_edge"),     p.uniform("u_haze_count"),    p.uniform("u_haze_index"),
+      p.uniform("u_light_next_door")};
 }
 
 void Renderer::draw_formations(const std::vector<const GpuRoom*>& rooms, Vec3 anchor, glm::vec3 eye,

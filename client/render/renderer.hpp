@@ -8,8 +8,8 @@
 #pragma once
 
 #include <array>
-#include <optional>
 #include <glm/glm.hpp>
+#include <optional>
 #include <span>
 #include <string>
 #include <vector>
