@@ -128,9 +128,10 @@ float glow_worms(ReliefPos world, vec3 n, float footprint) {
 // What the lights add to a surface point p (anchor-relative; `world` the same point in world
 // space) with shading normal s, unit vector v towards the eye and albedo (occlusion applied);
 // footprint: the pixel's size on the surface (metres). wrap: translucency (calcite lets light
-// wrap round). glow: the emissive mask for bloom.
-vec3 lights_shade(vec3 p, ReliefPos world, vec3 s, vec3 v, vec3 albedo, float wrap, float footprint,
-                  out float glow) {
+// wrap round); through: the share of the light from behind that a thin sheet lets through, by
+// colour (0: opaque). glow: the emissive mask for bloom.
+vec3 lights_shade(vec3 p, ReliefPos world, vec3 s, vec3 v, vec3 albedo, float wrap, vec3 through,
+                  float footprint, out float glow) {
   vec3 sum = vec3(0.0);
   glow = 0.0;
   int glow_light = -1;     // the light whose glowing patch is nearest its full strength here
@@ -164,7 +165,7 @@ vec3 lights_shade(vec3 p, ReliefPos world, vec3 s, vec3 v, vec3 albedo, float wr
     // pow(x, 24) as five multiplications (two transcendental ops a light, a pixel, saved).
     float x1 = max(dot(s, h), 0.0), x2 = x1 * x1, x4 = x2 * x2, x8 = x4 * x4;
     float sheen = x8 * x8 * x8 * 0.08;
-    sum += radiance * (albedo * lambert + sheen * lambert);
+    sum += radiance * (albedo * lambert + sheen * lambert + through * max(-dot(s, l), 0.0));
 
     // The source itself: its rock glows within `size` metres. Only the nearest source's patch
     // is drawn (below): patches seldom overlap, and evaluated in the loop every pattern's noise

@@ -112,21 +112,27 @@ void main() {
                                                     : ivec3(20480, 2048, 20480),
                                           vec3(0.0)).x
                     : 0.0;
-  float age = t_spike, stain = 0.0;
+  float age = t_spike, stain = 0.0, ochre = 0.0;
   if (t_spike > 1.0) {
-    // A drapery (formation_age: 1 + the share u of its drop): bands of iron-stained and clean
-    // calcite along its lower edge, 2-15 cm wide and uneven, wandering with the mottling; their
-    // contrast fades where a pixel covers a band (no shimmer far off).
+    // A drapery (formation_age: 1 + the share u of its drop), a "bacon" curtain: the layers
+    // its lower edge laid down, as bands along that edge. Thin dark iron-stained lines, a few
+    // millimetres to centimetres wide and unevenly spaced (where three waves of different lengths
+    // crest together), in broad zones of tan and clean calcite, all wandering with the mottling;
+    // their contrast fades where a pixel covers a line (no shimmer far off).
     float u = t_spike - 1.0;
-    float b = sin(u * 31.0 + 3.0 * m1.x) + 0.6 * sin(u * 67.0 + 2.0 * m2.x + 1.0);
-    float keep = relief_fine_fade(0.06, footprint);
-    stain = keep * smoothstep(0.1, 0.5, b) + (1.0 - keep) * 0.35;
-    age = 0.9 - 0.6 * stain + 0.1 * u;
+    float zone = sin(u * 19.0 + 2.0 * m1.x + 0.4);
+    float b = 0.45 * sin(u * 53.0 + 4.0 * m1.x) + 0.35 * sin(u * 97.0 + 3.0 * m2.x + 1.3) +
+              0.3 * zone;
+    float keep = relief_fine_fade(0.03, footprint);
+    stain = keep * smoothstep(0.4, 0.8, b) + (1.0 - keep) * 0.18;
+    ochre = smoothstep(-0.2, 0.7, zone);
+    age = 0.9 - 0.3 * ochre + 0.1 * u;
   }
   vec3 dripstone =
       mix(vec3(0.55, 0.47, 0.36), vec3(0.78, 0.74, 0.66), smoothstep(0.2, 1.0, age)) *
       (0.9 + 0.1 * rings);
-  dripstone = mix(dripstone, vec3(0.50, 0.30, 0.16), 0.7 * stain);
+  dripstone = mix(dripstone, vec3(0.66, 0.44, 0.24), 0.6 * ochre);
+  dripstone = mix(dripstone, vec3(0.34, 0.16, 0.07), 0.85 * stain);
   albedo = mix(albedo, dripstone, 0.9 * calcite);
   // Calcite veins where the rock is rich in minerals (not in the floors' sediment): the traces of
   // two sets of steep joints (fractures 2-3 m apart that water filled), long and nearly straight
@@ -158,8 +164,13 @@ void main() {
   float k = lamp_dist / (0.3 * u_lamp_range);
   float attenuation = 1.0 / (1.0 + k * k);
   float beam = mix(0.3, 1.0, smoothstep(0.72, 0.95, dot(-v, u_forward)));
-  // Calcite is translucent: light wraps a little round a stalactite.
+  // Calcite is translucent: light wraps a little round a stalactite, and a drapery's sheet, a
+  // few centimetres thick, lets light from behind through, amber (iron), less through its dark
+  // bands: a backlit curtain glows and its bands show dark against it.
   float wrap = 0.25 * calcite;
+  vec3 through = t_spike > 1.0 ? 0.35 * (1.0 - 0.8 * stain) * (1.0 - 0.3 * ochre) *
+                                     vec3(1.0, 0.62, 0.3)
+                               : vec3(0.0);
   float lambert = max((dot(s, l) + wrap) / (1.0 + wrap), 0.0);
   vec3 h = normalize(l + v);
   float shininess = mix(mix(12.0, 90.0, wet), 16.0, calcite);
@@ -174,7 +185,8 @@ void main() {
   color += glow * vec3(0.2, 0.85, 0.7) * 0.9;
   // The world's lights and flares (lights.glsl), and the haze they light.
   float source_glow;
-  color += lights_shade(t_position, world, s, v, albedo * occlusion, wrap, footprint, source_glow);
+  color += lights_shade(t_position, world, s, v, albedo * occlusion, wrap, through, footprint,
+                        source_glow);
   glow = max(glow, source_glow);
   // The haze's light, tone-mapped but not gamma-encoded before it is screened over the picture:
   // encoded, a faint veil (0.05 linear) read as a quarter of the way to white, and within a few

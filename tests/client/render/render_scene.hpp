@@ -14,6 +14,7 @@
 #include <cstdlib>
 #include <map>
 #include <memory>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -133,14 +134,15 @@ class Scene {
   // tessellator emitted (GL_PRIMITIVES_GENERATED).
   // Frames are single pictures here: no motion blur (it would smear one pose's picture by the
   // jump from the pose drawn before it).
+  // lights: the scene's lights and flares besides the headlamp (Renderer::draw's scene_lights).
   Image draw(const Camera& camera, RenderOptions options, FrameStats* stats = nullptr,
-             GLuint* primitives = nullptr) {
+             GLuint* primitives = nullptr, std::span<const Light> lights = {}) {
     options.motion_blur = false;
     framebuffer_->bind();
     GLuint query = 0;
     glGenQueries(1, &query);
     glBeginQuery(GL_PRIMITIVES_GENERATED, query);
-    FrameStats s = renderer_->draw(cache_, camera, kWidth, kHeight, options);
+    FrameStats s = renderer_->draw(cache_, camera, kWidth, kHeight, options, lights);
     glEndQuery(GL_PRIMITIVES_GENERATED);
     glFinish();
     if (stats != nullptr) *stats = s;

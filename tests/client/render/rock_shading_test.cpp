@@ -1,6 +1,7 @@
 // The rock's shading up close (issue 27, items 4 and 5) on llvmpipe under Xvfb: the fine detail
 // (shaders/relief.glsl's relief_fine: grain, pits, joints) shows on a wall 1.5 m away and fades
-// out far away, and the ambient occlusion darkens the crease at a stalagmite's root. Poses in
+// out far away, the ambient occlusion darkens the crease at a stalagmite's root, and a drapery lit
+// from behind lets the light through. Poses in
 // seed 7's hall 0.0.0.r0, found from its patch mesh, the relief's C++ face (shaders/relief.hpp)
 // and the formations' placement (shaders/formations.hpp), not hard-coded.
 #include <gtest/gtest.h>
@@ -204,6 +205,62 @@ TEST(RockShading, ambient_occlusion_darkens_the_crease_at_a_stalagmites_root) {
               found->length, lit_with, lit_without);
   EXPECT_GT(lit_without, 10.0) << "the root is not lit: the pose misses it";
   EXPECT_LT(lit_with, 0.95 * lit_without) << "the occlusion does not darken the root";
+}
+
+// A drapery's sheet is a few centimetres of calcite: a light behind it shows through (room.frag's
+// `through`, lights.glsl): seen from 1.5 m in front of the hall's biggest drapery, the headlamp
+// off and no haze, the sheet's middle is lit with a flare 0.8 m behind it and stays dark without.
+// Fails with the sheet opaque (through 0: the face towards the eye faces away from the flare and
+// gets nothing of it: centre luma 16.3 with the flare and without; 204 with the light through).
+TEST(RockShading, a_drapery_lit_from_behind_lets_the_light_through) {
+  REQUIRE_GL();
+  const client::ReadyRoom& room = hall();
+  const std::vector<formations::FormationShape> all =
+      formations::place(formations::surface_of(room.mesh, room.origin, room.room.sphere.radius));
+  const formations::FormationShape* found = nullptr;
+  for (const formations::FormationShape& f : all)
+    if (f.kind == formations::kFormationDrapery &&
+        (!found || f.radius * f.length > found->radius * found->length))
+      found = &f;
+  ASSERT_NE(found, nullptr) << "no drapery in the hall";
+  const formations::FormationShape& f = *found;
+  auto world = [&](glm::vec3 p) { return room.origin + Vec3{p.x, p.y, p.z}; };
+  const glm::vec3 across = formations::drapery_across(f);
+  // The middle of its drop, on each face (theta pi/2: the +across face).
+  const float half_pi = 1.5707963f;
+  const Vec3 face[2] = {world(formations::drapery_point(f, 0.0f, half_pi)),
+                        world(formations::drapery_point(f, 0.0f, 3.0f * half_pi))};
+  const Vec3 out[2] = {Vec3{across.x, 0, across.z}, Vec3{-across.x, 0, -across.z}};
+  // The eye on a side with 1.6 m of air before the rock, the flare on the other with 1 m.
+  auto air = [&](Vec3 from, Vec3 dir, double need) {
+    const auto hit = cast(room, from, dir);
+    return !hit || hit->t > need;
+  };
+  int side = -1;
+  for (int k = 0; k < 2 && side < 0; ++k)
+    if (air(face[k], out[k], 1.6) && air(face[1 - k], out[1 - k], 1.0)) side = k;
+  ASSERT_GE(side, 0) << "no side of the drapery has air for the eye and the other for the flare";
+  const Camera camera = aim(face[side] + out[side] * 1.5, face[side]);
+  Light flare;
+  flare.kind = "flare";
+  flare.position = face[1 - side] + out[1 - side] * 0.8;
+  flare.colour = glm::vec3(3.0f, 2.4f, 1.8f);
+  flare.range = 6;
+  flare.source_radius = 0.3f;
+  flare.glow = 3;
+  Scene scene(7);
+  ASSERT_TRUE(scene.ok());
+  RenderOptions options;
+  options.max_tess = 8;
+  options.bloom = false;
+  options.headlamp = false;
+  options.haze = 0;
+  const double behind = centre_luma(scene.draw(camera, options, nullptr, nullptr, {&flare, 1}), 3);
+  const double dark = centre_luma(scene.draw(camera, options), 3);
+  std::printf("a %.2f m wide, %.2f m drapery: centre luma %.1f with a flare behind, %.1f without\n",
+              2 * f.radius, f.length, behind, dark);
+  EXPECT_GT(behind, 20.0) << "no light through the sheet";
+  EXPECT_GT(behind, 3.0 * dark + 10.0) << "the flare behind barely lights the sheet";
 }
 
 }  // namespace
