@@ -387,6 +387,7 @@ export function parsePose(text) {
 // The formation kinds this viewer draws (PROTOCOL "Room extras over HTTP": 0 stalactite,
 // 1 stalagmite, 2 column, 3 drapery; a client ignores a kind it does not know).
 export const FORMATION_KINDS = 4;
+export const FORMATION_DRAPERY = 3;
 
 // An extras resource's formations.data (16 numbers an instance) as a Float32Array of the
 // instances whose kind is known, or null when the field is malformed or holds none.

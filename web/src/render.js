@@ -8,7 +8,7 @@
 // instances drawn with formation.vert and room.frag.
 import * as THREE from "three";
 import { roomVert, roomFrag, formationVert } from "./shaders.js";
-import { knownFormations } from "./protocol.js";
+import { knownFormations, FORMATION_DRAPERY as DRAPERY } from "./protocol.js";
 
 export const ANCHOR_STEP = 1024; // = relief.glsl's kReliefBlock
 export const MAX_LIGHTS = 16;
@@ -28,9 +28,13 @@ export const OPTIONS = {
   glow: 1,
   displacement: 1,
   fogColor: [0.01, 0.011, 0.013],
-  // formations.hpp's kLodSides[1] x kLodRings[1]: one level of detail for every instance.
+  // formations.hpp's kLodSides[1] x kLodRings[1]: one level of detail for every instance but the
+  // draperies, which take kLodSides[0] x kLodRings[0]: their sides run down the sheet's faces
+  // (8 points down a face, not 5) and there are few of them.
   formationSides: 10,
   formationRings: 16,
+  draperySides: 16,
+  draperyRings: 32,
 };
 
 const GLOW = { glow_worms: 0, seam: 1, crystals: 2, flare: 3 };
@@ -48,6 +52,21 @@ export function renderAnchor(p) {
 function stripVersion(src) {
   // three adds `#version 300 es` itself for GLSL3 materials.
   return src.replace(/^#version 300 es\s*\n/, "");
+}
+
+// The (s, theta) grid of one formation instance's mesh (formation.vert): `rings` along it,
+// `sides` round it.
+function makeFormationGrid(sides, rings) {
+  const grid = [];
+  for (let i = 0; i <= rings; ++i) for (let k = 0; k <= sides; ++k) grid.push(i / rings, (2 * Math.PI * k) / sides);
+  const idx = [];
+  const row = sides + 1;
+  for (let i = 0; i < rings; ++i)
+    for (let k = 0; k < sides; ++k) {
+      const a0 = i * row + k, a1 = a0 + 1, b0 = a0 + row, b1 = b0 + 1;
+      idx.push(a0, b0, b1, a0, b1, a1);
+    }
+  return { grid: new Float32Array(grid), index: new Uint16Array(idx) };
 }
 
 function len3(a, b) {
@@ -94,7 +113,8 @@ export class Renderer {
       u_light_bound: f(new Float32Array(4 * MAX_LIGHTS)),
     };
     this.points = []; // this frame's lights (world coordinates)
-    this.formationGrid = this.makeFormationGrid();
+    this.formationGrid = makeFormationGrid(this.o.formationSides, this.o.formationRings);
+    this.draperyGrid = makeFormationGrid(this.o.draperySides, this.o.draperyRings);
     this.shaderErrors = [];
     this.three.debug.onShaderError = (gl, program, vs, fs) => {
       const log = (s) => gl.getShaderInfoLog(s) || "";
@@ -102,20 +122,6 @@ export class Renderer {
       this.shaderErrors.push(msg);
       if (this.onError) this.onError(msg);
     };
-  }
-
-  makeFormationGrid() {
-    const sides = this.o.formationSides, rings = this.o.formationRings;
-    const grid = [];
-    for (let i = 0; i <= rings; ++i) for (let k = 0; k <= sides; ++k) grid.push(i / rings, (2 * Math.PI * k) / sides);
-    const idx = [];
-    const row = sides + 1;
-    for (let i = 0; i < rings; ++i)
-      for (let k = 0; k < sides; ++k) {
-        const a0 = i * row + k, a1 = a0 + 1, b0 = a0 + row, b1 = b0 + 1;
-        idx.push(a0, b0, b1, a0, b1, a1);
-      }
-    return { grid: new Float32Array(grid), index: new Uint16Array(idx) };
   }
 
   roomUniforms() {
@@ -181,33 +187,51 @@ export class Renderer {
     }
   }
 
+  // A room's formations as instances, anchor-relative: the draperies on their own finer grid, the
+  // rest on the shared one; one group, one set of uniforms.
   buildFormations(room, anchor) {
-    if (room.formations) {
-      this.scene.remove(room.formations);
-      room.formations.geometry.dispose();
-      room.formations.material.dispose();
-      room.formations = null;
-    }
+    this.dropFormations(room);
     if (!room.formationData) return;
-    const n = room.formationData.length / 16;
-    const data = room.formationData.slice();
+    const all = room.formationData;
     const off = [0, 1, 2].map((k) => Math.fround(room.origin[k] - anchor[k])); // exact: grid values
-    for (let i = 0; i < n; ++i) for (let k = 0; k < 3; ++k) data[16 * i + k] = Math.fround(data[16 * i + k] + off[k]);
-    const g = new THREE.InstancedBufferGeometry();
-    g.setAttribute("a_grid", new THREE.BufferAttribute(this.formationGrid.grid, 2));
-    g.setIndex(new THREE.BufferAttribute(this.formationGrid.index, 1));
-    const buf = new THREE.InstancedInterleavedBuffer(data, 16, 1);
-    g.setAttribute("i_root", new THREE.InterleavedBufferAttribute(buf, 4, 0));
-    g.setAttribute("i_size", new THREE.InterleavedBufferAttribute(buf, 4, 4));
-    g.setAttribute("i_form", new THREE.InterleavedBufferAttribute(buf, 4, 8));
-    g.setAttribute("i_turn", new THREE.InterleavedBufferAttribute(buf, 4, 12));
-    g.instanceCount = n;
+    const parts = [[], []]; // instance numbers: other kinds, draperies
+    for (let i = 0; i < all.length / 16; ++i) parts[all[16 * i + 7] === DRAPERY ? 1 : 0].push(i);
     const uniforms = this.roomUniforms();
-    const mesh = new THREE.Mesh(g, this.material(formationVert, uniforms));
-    mesh.frustumCulled = false;
-    room.formations = mesh;
+    const group = new THREE.Group();
+    parts.forEach((ids, p) => {
+      if (ids.length === 0) return;
+      const data = new Float32Array(16 * ids.length);
+      ids.forEach((i, j) => {
+        data.set(all.subarray(16 * i, 16 * i + 16), 16 * j);
+        for (let k = 0; k < 3; ++k) data[16 * j + k] = Math.fround(data[16 * j + k] + off[k]);
+      });
+      const grid = p === 1 ? this.draperyGrid : this.formationGrid;
+      const g = new THREE.InstancedBufferGeometry();
+      g.setAttribute("a_grid", new THREE.BufferAttribute(grid.grid, 2));
+      g.setIndex(new THREE.BufferAttribute(grid.index, 1));
+      const buf = new THREE.InstancedInterleavedBuffer(data, 16, 1);
+      g.setAttribute("i_root", new THREE.InterleavedBufferAttribute(buf, 4, 0));
+      g.setAttribute("i_size", new THREE.InterleavedBufferAttribute(buf, 4, 4));
+      g.setAttribute("i_form", new THREE.InterleavedBufferAttribute(buf, 4, 8));
+      g.setAttribute("i_turn", new THREE.InterleavedBufferAttribute(buf, 4, 12));
+      g.instanceCount = ids.length;
+      const mesh = new THREE.Mesh(g, this.material(formationVert, uniforms));
+      mesh.frustumCulled = false;
+      group.add(mesh);
+    });
+    room.formations = group;
     room.formationUniforms = uniforms;
-    this.scene.add(mesh);
+    this.scene.add(group);
+  }
+
+  dropFormations(room) {
+    if (!room.formations) return;
+    this.scene.remove(room.formations);
+    for (const mesh of room.formations.children) {
+      mesh.geometry.dispose();
+      mesh.material.dispose();
+    }
+    room.formations = null;
   }
 
   removeRoom(id) {
@@ -216,11 +240,7 @@ export class Renderer {
     this.scene.remove(room.mesh);
     room.mesh.geometry.dispose();
     room.mesh.material.dispose();
-    if (room.formations) {
-      this.scene.remove(room.formations);
-      room.formations.geometry.dispose();
-      room.formations.material.dispose();
-    }
+    this.dropFormations(room);
     this.rooms.delete(id);
   }
 
@@ -327,7 +347,7 @@ export class Renderer {
     order.sort((a, b) => a.dist - b.dist);
     order.forEach(({ room }, i) => {
       room.mesh.renderOrder = i;
-      if (room.formations) room.formations.renderOrder = order.length + i;
+      if (room.formations) for (const mesh of room.formations.children) mesh.renderOrder = order.length + i;
     });
     this.anchor = anchor;
     this.three.render(this.scene, cam);
