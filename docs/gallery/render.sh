@@ -104,3 +104,6 @@ OFF=--no-ao shoot ao-stalagmites-7 7 --pose 52.00,54.44,31.00,60.0,-25.0
 # Draperies (issue 43): sheets hanging from seed 7's hall roof where it slopes down towards the
 # wall, 3.5 m from the widest (2.5 m across, 1.5 m drop: its extras from /extras/), across it.
 shoot draperies-7 7 --pose 53.49,65.97,17.84,117.9,1.7
+# The biggest of them from its other side, the headlamp off: the hall's glow-worm colony 13 m
+# behind it shows through the sheet, amber, its bands dark against it.
+shoot draperies-back-7 7 --pose 59.67,65.30,21.13,298.1,8.0 --no-headlamp
