@@ -153,7 +153,8 @@ vec3 lights_shade(vec3 p, ReliefPos world, vec3 s, vec3 v, vec3 albedo, float wr
     // A colony's larvae shine down and out, not along their own rock: its patch is unlit by it.
     float self_lit = kind == GLOW_WORMS ? smoothstep(0.5, 1.5, d / soft) : 1.0;
     vec3 radiance = u_light_color[i].rgb * (light_falloff(d, range, soft) * inside * self_lit);
-    float lambert = max((dot(s, l) + wrap) / (1.0 + wrap), 0.0);
+    float facing = dot(s, l);
+    float lambert = max((facing + wrap) / (1.0 + wrap), 0.0);
     // Past its room's wall, in a passage off it, the light arrives bounced off the passage's
     // walls as much as straight: a share of it lights every side (a mouth's inner walls that face
     // away from the source show, dimming inwards with the spill, instead of black).
@@ -165,7 +166,7 @@ vec3 lights_shade(vec3 p, ReliefPos world, vec3 s, vec3 v, vec3 albedo, float wr
     // pow(x, 24) as five multiplications (two transcendental ops a light, a pixel, saved).
     float x1 = max(dot(s, h), 0.0), x2 = x1 * x1, x4 = x2 * x2, x8 = x4 * x4;
     float sheen = x8 * x8 * x8 * 0.08;
-    sum += radiance * (albedo * lambert + sheen * lambert + through * max(-dot(s, l), 0.0));
+    sum += radiance * (albedo * lambert + sheen * lambert + through * max(-facing, 0.0));
 
     // The source itself: its rock glows within `size` metres. Only the nearest source's patch
     // is drawn (below): patches seldom overlap, and evaluated in the loop every pattern's noise

@@ -30,6 +30,16 @@ const client::ReadyRoom& hall() {
   return *best;
 }
 
+// The hall's formations as every client places them (shaders/formations.hpp), and a point of
+// the hall's frame in world metres.
+std::vector<formations::FormationShape> hall_formations() {
+  const client::ReadyRoom& room = hall();
+  return formations::place(formations::surface_of(room.mesh, room.origin, room.room.sphere.radius));
+}
+Vec3 in_world(glm::vec3 p) {
+  return hall().origin + Vec3{p.x, p.y, p.z};
+}
+
 struct Hit {
   double t = 0;         // metres along the ray
   glm::vec3 normal{0};  // the triangle's interpolated vertex normal
@@ -169,19 +179,18 @@ TEST(RockShading, fine_detail_shows_up_close_and_fades_out_far_away) {
 TEST(RockShading, ambient_occlusion_darkens_the_crease_at_a_stalagmites_root) {
   REQUIRE_GL();
   const client::ReadyRoom& room = hall();
-  const std::vector<formations::FormationShape> all =
-      formations::place(formations::surface_of(room.mesh, room.origin, room.room.sphere.radius));
+  const std::vector<formations::FormationShape> all = hall_formations();
   const Vec3 centre = room.room.sphere.centre;
   const formations::FormationShape* found = nullptr;
   double nearest = 1e300;
   for (const formations::FormationShape& f : all) {
     if (f.kind != formations::kFormationStalagmite || f.length < 0.3f || f.length > 1.5f) continue;
-    const Vec3 at = room.origin + Vec3{f.root.x, f.root.y, f.root.z};
+    const Vec3 at = in_world(f.root);
     const double d = std::hypot(at.x - centre.x, at.z - centre.z);
     if (d < nearest) nearest = d, found = &f;
   }
   ASSERT_NE(found, nullptr) << "no stalagmite of 0.3-1.5 m in the hall";
-  const Vec3 root = room.origin + Vec3{found->root.x, found->root.y, found->root.z};
+  const Vec3 root = in_world(found->root);
   // From the hall's centre's side.
   Vec3 out{centre.x - root.x, 0, centre.z - root.z};
   const double l = std::hypot(out.x, out.z);
@@ -215,8 +224,7 @@ TEST(RockShading, ambient_occlusion_darkens_the_crease_at_a_stalagmites_root) {
 TEST(RockShading, a_drapery_lit_from_behind_lets_the_light_through) {
   REQUIRE_GL();
   const client::ReadyRoom& room = hall();
-  const std::vector<formations::FormationShape> all =
-      formations::place(formations::surface_of(room.mesh, room.origin, room.room.sphere.radius));
+  const std::vector<formations::FormationShape> all = hall_formations();
   const formations::FormationShape* found = nullptr;
   for (const formations::FormationShape& f : all)
     if (f.kind == formations::kFormationDrapery &&
@@ -224,12 +232,11 @@ TEST(RockShading, a_drapery_lit_from_behind_lets_the_light_through) {
       found = &f;
   ASSERT_NE(found, nullptr) << "no drapery in the hall";
   const formations::FormationShape& f = *found;
-  auto world = [&](glm::vec3 p) { return room.origin + Vec3{p.x, p.y, p.z}; };
   const glm::vec3 across = formations::drapery_across(f);
   // The middle of its drop, on each face (theta pi/2: the +across face).
   const float half_pi = 1.5707963f;
-  const Vec3 face[2] = {world(formations::drapery_point(f, 0.0f, half_pi)),
-                        world(formations::drapery_point(f, 0.0f, 3.0f * half_pi))};
+  const Vec3 face[2] = {in_world(formations::drapery_point(f, 0.0f, half_pi)),
+                        in_world(formations::drapery_point(f, 0.0f, 3.0f * half_pi))};
   const Vec3 out[2] = {Vec3{across.x, 0, across.z}, Vec3{-across.x, 0, -across.z}};
   // The eye on a side with 1.6 m of air before the rock, the flare on the other with 1 m.
   auto air = [&](Vec3 from, Vec3 dir, double need) {
