@@ -226,7 +226,48 @@ std::map<cave::RoomId, ScreenRect> reach_through_portals(const GpuRoomCache& cac
   return reached;
 }
 
+// Points the bound vertex array's instance attributes (formation.vert's i_root, i_size, i_form,
+// i_turn: 16 floats an instance) at instance `first` of the bound GL_ARRAY_BUFFER. (GL 4.1 has no
+// base instance for instanced draws.)
+void bind_instances(size_t first) {
+  const size_t stride = 16 * sizeof(float);
+  for (GLuint k = 0; k < 4; ++k)
+    glVertexAttribPointer(1 + k, 4, GL_FLOAT, GL_FALSE, static_cast<GLsizei>(stride),
+                          reinterpret_cast<const void*>(first * stride + k * 4 * sizeof(float)));
+}
+
 }  // namespace
+
+Renderer::RoomLights Renderer::lights_reaching(std::span<const Light* const> points,
+                                               const cave::Room& room, Vec3 camera, double reach) {
+  RoomLights r;
+  for (size_t i = 0; i < points.size(); ++i) {
+    const Light& l = *points[i];
+    const bool bounded = l.bound_radius > 0;
+    const bool shades =
+        length(l.position - room.sphere.centre) < l.range + reach &&
+        (!bounded || length(l.bound_centre - room.sphere.centre) < l.bound_radius + reach);
+    const bool hazes = !bounded || length(l.bound_centre - camera) < l.bound_radius;
+    if (shades) {
+      // Through a portal of the light's room: its light reaches the first metres in.
+      const bool through =
+          l.room && std::any_of(room.portals.begin(), room.portals.end(),
+                                [&](const cave::Portal& p) { return p.neighbour == *l.room; });
+      r.next_door[static_cast<size_t>(r.shade_count)] = through ? 1.0f : 0.0f;
+      r.shading[static_cast<size_t>(r.shade_count++)] = static_cast<GLint>(i);
+    }
+    if (shades || hazes) r.hazing[static_cast<size_t>(r.haze_count++)] = static_cast<GLint>(i);
+  }
+  return r;
+}
+
+void Renderer::set_room_lights(const RoomUniforms& u, const RoomLights& lights) {
+  glUniform1i(u.light_count, lights.shade_count);
+  glUniform1iv(u.light_index, static_cast<GLsizei>(kMaxFrameLights), lights.shading.data());
+  glUniform1fv(u.light_next_door, static_cast<GLsizei>(kMaxFrameLights), lights.next_door.data());
+  glUniform1i(u.haze_count, lights.haze_count);
+  glUniform1iv(u.haze_index, static_cast<GLsizei>(kMaxFrameLights), lights.hazing.data());
+}
 
 Renderer::RoomUniforms Renderer::locate(const Program& p) {
   return {
@@ -245,14 +286,26 @@ Renderer::RoomUniforms Renderer::locate(const Program& p) {
       p.uniform("u_light_next_door")};
 }
 
-void Renderer::draw_formations(const std::vector<const GpuRoom*>& rooms, Vec3 anchor, glm::vec3 eye,
+void Renderer::draw_formations(const std::vector<DrawnRoom>& rooms, Vec3 anchor, glm::vec3 eye,
                                const std::array<glm::vec4, 6>& planes, float pixel_scale,
                                FrameStats& stats) {
-  // Per instance: 16 floats (formation.vert's i_root, i_size, i_form, i_turn), anchor-relative.
+  // Per instance: 16 floats (formation.vert's i_root, i_size, i_form, i_turn), anchor-relative,
+  // grouped by room and, in a room, by level of detail: one draw a group, lit by its room's lights.
+  struct Batch {
+    size_t room;
+    int lod;
+    size_t first;  // instance
+    GLsizei count;
+  };
+  std::vector<float> data;
+  std::vector<Batch> batches;
   std::array<std::vector<float>, kFormationLods> lods;
-  for (const GpuRoom* room : rooms) {
-    const glm::vec3 offset = to_vec3(room->origin - anchor);  // exact: grid values
-    for (const formations::FormationShape& f : room->formations) {
+  for (size_t r = 0; r < rooms.size(); ++r) {
+    const GpuRoom& room = *rooms[r].room;
+    const glm::vec3 offset = to_vec3(room.origin - anchor);  // exact: grid values
+    for (std::vector<float>& lod : lods)
+      lod.clear();
+    for (const formations::FormationShape& f : room.formations) {
       const glm::vec3 root = f.root + offset;
       const glm::vec3 centre = formations::formation_centre(f) + offset;
       const float reach = formations::formation_reach(f);
@@ -267,20 +320,30 @@ void Renderer::draw_formations(const std::vector<const GpuRoom*>& rooms, Vec3 an
           {root.x, root.y, root.z, f.length, f.radius, f.tip, f.embed, static_cast<float>(f.kind),
            f.taper, f.flare, f.rings, f.bulbs, f.seed, f.yaw, 0.0f, 0.0f});
     }
+    for (int l = 0; l < kFormationLods; ++l) {
+      const std::vector<float>& lod = lods[static_cast<size_t>(l)];
+      if (lod.empty()) continue;
+      batches.push_back({r, l, data.size() / 16, static_cast<GLsizei>(lod.size() / 16)});
+      data.insert(data.end(), lod.begin(), lod.end());
+    }
   }
+  if (batches.empty()) return;
   glBindBuffer(GL_ARRAY_BUFFER, formation_instances_.get());
-  for (int l = 0; l < kFormationLods; ++l) {
-    const std::vector<float>& data = lods[static_cast<size_t>(l)];
-    if (data.empty()) continue;
-    const GLsizei count = static_cast<GLsizei>(data.size() / 16);
-    glBufferData(GL_ARRAY_BUFFER, static_cast<GLsizeiptr>(data.size() * sizeof(float)), data.data(),
-                 GL_STREAM_DRAW);
-    glBindVertexArray(formation_lods_[l].vertex_array.get());
-    glDrawElementsInstanced(GL_TRIANGLES, formation_lods_[l].index_count, GL_UNSIGNED_INT, nullptr,
-                            count);
-    stats.formations += count;
+  glBufferData(GL_ARRAY_BUFFER, static_cast<GLsizeiptr>(data.size() * sizeof(float)), data.data(),
+               GL_STREAM_DRAW);
+  size_t lit = rooms.size();  // the room whose lights are set
+  for (const Batch& b : batches) {
+    if (b.room != lit) {
+      set_room_lights(uf_, rooms[b.room].lights);
+      lit = b.room;
+    }
+    const FormationLod& lod = formation_lods_[b.lod];
+    glBindVertexArray(lod.vertex_array.get());
+    bind_instances(b.first);
+    glDrawElementsInstanced(GL_TRIANGLES, lod.index_count, GL_UNSIGNED_INT, nullptr, b.count);
+    stats.formations += static_cast<size_t>(b.count);
     stats.formation_triangles +=
-        static_cast<size_t>(count) * static_cast<size_t>(formation_lods_[l].index_count / 3);
+        static_cast<size_t>(b.count) * static_cast<size_t>(lod.index_count / 3);
   }
   glBindVertexArray(0);
 }
@@ -349,10 +412,9 @@ Result<Renderer> Renderer::create() {
     glBindBuffer(GL_ARRAY_BUFFER, r.formation_instances_.get());
     for (GLuint k = 0; k < 4; ++k) {
       glEnableVertexAttribArray(1 + k);
-      glVertexAttribPointer(1 + k, 4, GL_FLOAT, GL_FALSE, 16 * sizeof(float),
-                            reinterpret_cast<const void*>(k * 4 * sizeof(float)));
       glVertexAttribDivisor(1 + k, 1);
     }
+    bind_instances(0);
     glBindVertexArray(0);
   }
   for (Query& q : r.queries_) {
@@ -530,7 +592,7 @@ FrameStats Renderer::draw(const GpuRoomCache& cache, const Camera& camera, int w
     stats.camera_located = !reached.empty();
   }
   std::vector<float> caps;
-  std::vector<const GpuRoom*> drawn;
+  std::vector<DrawnRoom> drawn;
   // Nearest first (by the distance to the room's sphere): the rock in front fills the depth buffer
   // before the rock behind it is shaded, so early depth testing skips most hidden fragments (the
   // rooms reached through portals overlap on screen).
@@ -576,43 +638,14 @@ FrameStats Renderer::draw(const GpuRoomCache& cache, const Camera& camera, int w
     glUniform3fv(u_.room_offset, 1, glm::value_ptr(to_vec3(room.origin - anchor)));
     glUniform1f(u_.relief_margin, relief::relief_bound(relief));
     glUniform1f(u_.patch_edge, room.patch_edge);
-    {
-      // Only the lights that can reach this room's rock shade it (room.frag loops over them per
-      // pixel: on llvmpipe every one costs, and most rooms are lit by none or one room's few);
-      // the haze (room.tese, per vertex) also takes those whose bound holds the camera, since the
-      // view ray to this room's rock crosses it.
-      std::array<GLint, kMaxFrameLights> shading{}, hazing{};
-      std::array<GLfloat, kMaxFrameLights> next_door{};
-      int shade_count = 0, haze_count = 0;
-      const double reach = radius + margin;
-      for (size_t i = 0; i < points.size(); ++i) {
-        const Light& l = *points[i];
-        const bool bounded = l.bound_radius > 0;
-        const bool shades =
-            length(l.position - room.room.sphere.centre) < l.range + reach &&
-            (!bounded || length(l.bound_centre - room.room.sphere.centre) < l.bound_radius + reach);
-        const bool hazes = !bounded || length(l.bound_centre - camera.position) < l.bound_radius;
-        if (shades) {
-          // Through a portal of the light's room: its light reaches the first metres in.
-          const bool through =
-              l.room && std::any_of(room.room.portals.begin(), room.room.portals.end(),
-                                    [&](const cave::Portal& p) { return p.neighbour == *l.room; });
-          next_door[static_cast<size_t>(shade_count)] = through ? 1.0f : 0.0f;
-          shading[static_cast<size_t>(shade_count++)] = static_cast<GLint>(i);
-        }
-        if (shades || hazes) hazing[static_cast<size_t>(haze_count++)] = static_cast<GLint>(i);
-      }
-      glUniform1i(u_.light_count, shade_count);
-      glUniform1iv(u_.light_index, static_cast<GLsizei>(kMaxFrameLights), shading.data());
-      glUniform1fv(u_.light_next_door, static_cast<GLsizei>(kMaxFrameLights), next_door.data());
-      glUniform1i(u_.haze_count, haze_count);
-      glUniform1iv(u_.haze_index, static_cast<GLsizei>(kMaxFrameLights), hazing.data());
-    }
+    const RoomLights room_lights =
+        lights_reaching(points, room.room, camera.position, radius + margin);
+    set_room_lights(u_, room_lights);
     glBindVertexArray(room.vertex_array.get());
     glDrawElements(GL_PATCHES, room.index_count, GL_UNSIGNED_INT, nullptr);
     ++stats.rooms_drawn;
     stats.patches += static_cast<size_t>(room.index_count) / 3;
-    if (o.formations) drawn.push_back(&room);
+    if (o.formations) drawn.push_back({&room, room_lights});
   }
   end_pass();
 
@@ -622,11 +655,6 @@ FrameStats Renderer::draw(const GpuRoomCache& cache, const Camera& camera, int w
   if (!drawn.empty()) {
     formation_.use();
     set_frame(uf_);
-    glUniform1i(uf_.light_count, static_cast<GLint>(points.size()));
-    std::array<GLint, kMaxFrameLights> identity{};
-    for (size_t i = 0; i < kMaxFrameLights; ++i)
-      identity[i] = static_cast<GLint>(i);
-    glUniform1iv(uf_.light_index, static_cast<GLsizei>(kMaxFrameLights), identity.data());
     draw_formations(drawn, anchor, eye, unit_planes, pixel_scale, stats);
   }
   end_pass();

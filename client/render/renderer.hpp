@@ -183,9 +183,27 @@ class Renderer {
     Texture bloom_color[2];
   };
   Status ensure_post_targets(int width, int height);
+  // The lights of the frame (the headlamp aside) that reach one room, by their index in the
+  // frame's arrays. Only those whose light can reach the room's rock and formations shade it
+  // (room.frag loops over them per pixel: on llvmpipe every one costs, and most rooms are lit by
+  // none or one room's few); the haze (per vertex) also takes those whose bound holds the camera,
+  // since the view ray to this room's surfaces crosses it.
+  struct RoomLights {
+    std::array<GLint, kMaxFrameLights> shading{}, hazing{};
+    std::array<GLfloat, kMaxFrameLights> next_door{};  // by k, as shading: room.frag's
+                                                       // u_light_next_door
+    int shade_count = 0, haze_count = 0;
+  };
+  struct DrawnRoom {
+    const GpuRoom* room;
+    RoomLights lights;
+  };
+  // reach: how far past the room's sphere centre its surfaces lie (radius and margins).
+  static RoomLights lights_reaching(std::span<const Light* const> points, const cave::Room& room,
+                                    Vec3 camera, double reach);
   // The formations of `rooms` inside the frustum (unit planes, anchor-relative), each at the
-  // level of detail its size on screen asks for; none under a pixel.
-  void draw_formations(const std::vector<const GpuRoom*>& rooms, Vec3 anchor, glm::vec3 eye,
+  // level of detail its size on screen asks for, none under a pixel; lit by its room's lights.
+  void draw_formations(const std::vector<DrawnRoom>& rooms, Vec3 anchor, glm::vec3 eye,
                        const std::array<glm::vec4, 6>& planes, float pixel_scale,
                        FrameStats& stats);
   void post_process(GLint target, int width, int height, const glm::mat4& view_proj,
@@ -200,6 +218,7 @@ class Renderer {
         haze, patch_edge, haze_count, haze_index, light_next_door;
   };
   static RoomUniforms locate(const Program& p);
+  static void set_room_lights(const RoomUniforms& u, const RoomLights& lights);
   // One formation mesh: rings x sides, drawn instanced.
   struct FormationLod {
     VertexArray vertex_array;

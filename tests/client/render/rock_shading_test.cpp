@@ -1,9 +1,9 @@
 // The rock's shading up close (issue 27, items 4 and 5) on llvmpipe under Xvfb: the fine detail
 // (shaders/relief.glsl's relief_fine: grain, pits, joints) shows on a wall 1.5 m away and fades
-// out far away, the ambient occlusion darkens the crease at a stalagmite's root, and a drapery lit
-// from behind lets the light through. Poses in
-// seed 7's hall 0.0.0.r0, found from its patch mesh, the relief's C++ face (shaders/relief.hpp)
-// and the formations' placement (shaders/formations.hpp), not hard-coded.
+// out far away, the ambient occlusion darkens the crease at a stalagmite's root, a drapery lit
+// from behind lets the light through, and a stalagmite in front of a flare is veiled by its haze.
+// Poses in seed 7's hall 0.0.0.r0, found from its patch mesh, the relief's C++ face
+// (shaders/relief.hpp) and the formations' placement (shaders/formations.hpp), not hard-coded.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -268,6 +268,147 @@ TEST(RockShading, a_drapery_lit_from_behind_lets_the_light_through) {
               2 * f.radius, f.length, behind, dark);
   EXPECT_GT(behind, 20.0) << "no light through the sheet";
   EXPECT_GT(behind, 3.0 * dark + 10.0) << "the flare behind barely lights the sheet";
+}
+
+// A formation stands in the lit haze as the rock does (lights.glsl's lights_haze, per vertex in
+// formation.vert with its room's hazing lights): a flare hanging between the eye and a
+// stalagmite of the hall, 0.3 m above the line of sight, veils the stalagmite's middle with the
+// light its haze scatters, so the middle is brighter with the haze than without (158 against 133
+// with a haze of 0.1 a metre). Fails with the formations given no hazing lights (the formation
+// pass's u_haze_count 0, as before the formations were lit room by room: 133 with the haze and
+// without).
+TEST(RockShading, a_formation_in_front_of_a_flare_is_veiled_by_its_haze) {
+  REQUIRE_GL();
+  const client::ReadyRoom& room = hall();
+  const Vec3 centre = room.room.sphere.centre;
+  const formations::FormationShape* found = nullptr;
+  double nearest = 1e300;
+  const std::vector<formations::FormationShape> all = hall_formations();
+  for (const formations::FormationShape& f : all) {
+    if (f.kind != formations::kFormationStalagmite || f.length < 0.5f || f.length > 2.0f) continue;
+    const Vec3 at = in_world(f.root);
+    const double d = std::hypot(at.x - centre.x, at.z - centre.z);
+    if (d < nearest) nearest = d, found = &f;
+  }
+  ASSERT_NE(found, nullptr) << "no stalagmite of 0.5-2 m in the hall";
+  const formations::FormationShape& f = *found;
+  const Vec3 root = in_world(f.root);
+  Vec3 out{centre.x - root.x, 0, centre.z - root.z};
+  const double l = std::hypot(out.x, out.z);
+  out = l > 1e-3 ? Vec3{out.x / l, 0, out.z / l} : Vec3{1, 0, 0};
+  // Its middle, on the side towards the hall's centre; the eye 2 m out and 1.2 m above it, the
+  // flare 0.3 m above the line of sight, 0.9 m from the eye.
+  const double r = formations::formation_radius(f, 0.5f * f.length, 0.0f);
+  const Vec3 target = root + out * r + Vec3{0, 0.5 * f.length, 0};
+  const Vec3 eye = target + out * 2.0 + Vec3{0, 1.2, 0};
+  const Vec3 to_target = target - eye;
+  const auto hit = cast(room, eye, to_target * (1.0 / length(to_target)));
+  ASSERT_FALSE(hit && hit->t < length(to_target)) << "rock between the eye and the stalagmite";
+  const Camera camera = aim(eye, target);
+  Light flare;
+  flare.kind = "flare";
+  flare.position = eye + to_target * 0.4 + Vec3{0, 0.3, 0};
+  flare.colour = glm::vec3(3.0f, 2.4f, 1.8f);
+  flare.range = 8;
+  flare.source_radius = 0.3f;
+  flare.glow = 3;
+  Scene scene(7);
+  ASSERT_TRUE(scene.ok());
+  RenderOptions with;
+  with.max_tess = 8;
+  with.bloom = false;
+  with.headlamp = false;
+  with.exposure = 0.5f;  // below the tone curve's shoulder
+  with.haze = 0.1f;      // thicker than the default 0.03: the veil well above the picture's noise
+  RenderOptions without = with;
+  without.haze = 0;
+  RenderOptions bare = without;
+  bare.formations = false;
+  const double hazed = centre_luma(scene.draw(camera, with, nullptr, nullptr, {&flare, 1}), 2);
+  const double clear = centre_luma(scene.draw(camera, without, nullptr, nullptr, {&flare, 1}), 2);
+  const double rock = centre_luma(scene.draw(camera, bare, nullptr, nullptr, {&flare, 1}), 2);
+  std::printf(
+      "a %.2f m stalagmite behind a flare: centre luma %.1f with the haze, %.1f without, "
+      "%.1f without the formations\n",
+      f.length, hazed, clear, rock);
+  EXPECT_GT(std::abs(clear - rock), 5.0) << "the pose misses the stalagmite";
+  EXPECT_GT(hazed, clear + 3.0) << "the flare's haze does not veil the stalagmite";
+}
+
+// A light's spill (lights.glsl's kLightSpill) reaches the formations of the rooms through its
+// room's portals as it reaches their rock: a formation a few metres past the hall's wall, in a
+// passage off it, is lit by a light hung inside the hall's mouth to that passage (bounded by the
+// hall's sphere, the hall its room), seen from 1.5 m on the side facing it, the headlamp off.
+// Fails with the formations lit as if in the light's own room (u_light_next_door 0, as before the
+// formations were lit room by room: its bound stops the light at the hall's wall and the
+// formation stays as dark as without the light, a black shard against the lit rock: luma 17
+// against 182).
+TEST(RockShading, a_formation_through_a_lit_halls_portal_gets_its_spill) {
+  REQUIRE_GL();
+  const client::ReadyRoom& lit = hall();
+  const Vec3 centre = lit.room.sphere.centre;
+  const double bound = lit.room.sphere.radius;
+  struct Pick {
+    Vec3 middle, light, eye;
+    float length = 0;
+    double past = 0;  // metres past the bound
+  };
+  std::optional<Pick> pick;
+  for (const cave::Portal& portal : lit.room.portals) {
+    const client::ReadyRoom* next = nullptr;
+    for (const client::ReadyRoom& r : sector_rooms(7))
+      if (r.room.id == portal.neighbour) next = &r;
+    if (next == nullptr) continue;
+    for (const formations::FormationShape& f : formations::place(
+             formations::surface_of(next->mesh, next->origin, next->room.sphere.radius))) {
+      if (f.kind == formations::kFormationDrapery || f.length < 0.3f) continue;
+      const float half = 0.5f * f.length;
+      const Vec3 middle =
+          next->origin +
+          Vec3{f.root.x, f.root.y + formations::formation_direction(f) * half, f.root.z};
+      const double past = length(middle - centre) - bound;
+      if (past < 0.5 || past > 4.0 || (pick && past >= pick->past)) continue;
+      const Vec3 light = portal.centre - portal.normal * 1.5;  // in the hall, before its mouth
+      Vec3 dir{light.x - middle.x, 0, light.z - middle.z};
+      const double l = std::hypot(dir.x, dir.z);
+      if (l < 0.5) continue;
+      dir = dir * (1.0 / l);
+      const Vec3 surface = middle + dir * formations::formation_radius(f, half, 0.0f);
+      const auto hit = cast(*next, surface, dir);
+      if (hit && hit->t < 1.6) continue;  // no air before it on that side
+      pick = Pick{surface, light, surface + dir * 1.5, f.length, past};
+    }
+  }
+  ASSERT_TRUE(pick.has_value()) << "no formation 0.5-4 m past the hall's wall with air before it";
+  const Camera camera = aim(pick->eye, pick->middle);
+  Light glow;
+  glow.kind = "seam";
+  glow.position = pick->light;
+  glow.colour = glm::vec3(20.0f, 16.0f, 10.0f);
+  glow.range = 25;
+  glow.source_radius = 1.0f;
+  glow.glow = 1;
+  glow.bound_centre = centre;
+  glow.bound_radius = static_cast<float>(bound);
+  glow.room = lit.room.id;
+  Scene scene(7);
+  ASSERT_TRUE(scene.ok());
+  RenderOptions options;
+  options.max_tess = 8;
+  options.bloom = false;
+  options.headlamp = false;
+  options.haze = 0;
+  RenderOptions bare = options;
+  bare.formations = false;
+  const double spilt = centre_luma(scene.draw(camera, options, nullptr, nullptr, {&glow, 1}), 2);
+  const double dark = centre_luma(scene.draw(camera, options), 2);
+  const double rock = centre_luma(scene.draw(camera, bare, nullptr, nullptr, {&glow, 1}), 2);
+  std::printf(
+      "a %.2f m formation %.1f m past the hall's wall: centre luma %.1f with the hall's "
+      "light, %.1f without, %.1f without the formations\n",
+      pick->length, pick->past, spilt, dark, rock);
+  EXPECT_GT(std::abs(spilt - rock), 3.0) << "the pose misses the formation";
+  EXPECT_GT(spilt, dark + 10.0) << "the hall's light does not spill onto the formation";
 }
 
 }  // namespace
