@@ -93,6 +93,19 @@ test("walking forward asks for more rooms", async () => {
   await page.close();
 });
 
+test("a room's formations are lit by the lights its rock is lit by", async () => {
+  // Seed 7's hall, lit by its glow-worms: the haze of its lights lies before its formations as
+  // before its rock, and a passage's formations get the spill of the hall's lights as its rock does.
+  const [x, y, z] = layoutRoom("0.0.0.r0").centre;
+  const page = await open(`${server.url}/?seed=7&pose=${x},${y},${z},270,5&fly=1`);
+  await waitFor(page, () => window.grotto && window.grotto.rooms_loaded >= 5 && window.grotto.lit().length >= 3);
+  await page.waitForTimeout(1000);
+  const lit = await page.evaluate(() => window.grotto.lit());
+  assert.ok(lit.some((r) => r.rock.count > 0 && r.rock.haze_count > 0), `no lit room with formations: ${JSON.stringify(lit)}`);
+  for (const r of lit) assert.deepEqual(r.formations, r.rock, `room ${r.id}: its formations' lights differ from its rock's`);
+  await page.close();
+});
+
 test("a link opens its place and the page gives the link of where it is", async () => {
   const room = layoutRoom("1.0.0.r0");
   const [x, y, z] = room.centre;

@@ -379,6 +379,19 @@ window.grotto = {
   get session() {
     return session;
   },
+  // The lights each drawn room's rock and formations were last lit with (render.js: the lights
+  // that reach the room, those whose haze its view rays cross, and which are next door), for the
+  // rooms whose formations are built.
+  lit() {
+    if (!renderer) return [];
+    const lists = (u) => ({
+      count: u.u_light_count.value, index: [...u.u_light_index.value], next_door: [...u.u_light_next_door.value],
+      haze_count: u.u_haze_count.value, haze_index: [...u.u_haze_index.value],
+    });
+    return [...renderer.rooms.entries()]
+      .filter(([, r]) => r.formations && r.formations.visible && r.formations.children.length)
+      .map(([id, r]) => ({ id, rock: lists(r.uniforms), formations: lists(r.formations.children[0].material.uniforms) }));
+  },
 };
 
 // ---- the loop ----

@@ -188,7 +188,7 @@ export class Renderer {
   }
 
   // A room's formations as instances, anchor-relative: the draperies on their own finer grid, the
-  // rest on the shared one; one group, one set of uniforms.
+  // rest on the shared one; one group, one set of uniforms (its lights the room's).
   buildFormations(room, anchor) {
     this.dropFormations(room);
     if (!room.formationData) return;
@@ -197,6 +197,10 @@ export class Renderer {
     const parts = [[], []]; // instance numbers: other kinds, draperies
     for (let i = 0; i < all.length / 16; ++i) parts[all[16 * i + 7] === DRAPERY ? 1 : 0].push(i);
     const uniforms = this.roomUniforms();
+    // Lit as the room's rock is: the same lists of lights (render fills them room by room), so
+    // its formations get the haze before them and the spill from a lit room next door.
+    for (const k of ["u_light_count", "u_light_index", "u_haze_count", "u_haze_index", "u_light_next_door"])
+      uniforms[k] = room.uniforms[k];
     const group = new THREE.Group();
     parts.forEach((ids, p) => {
       if (ids.length === 0) return;
@@ -220,7 +224,6 @@ export class Renderer {
       group.add(mesh);
     });
     room.formations = group;
-    room.formationUniforms = uniforms;
     this.scene.add(group);
   }
 
@@ -338,11 +341,6 @@ export class Renderer {
       });
       room.uniforms.u_light_count.value = shade;
       room.uniforms.u_haze_count.value = haze;
-      if (room.formations) {
-        const u = room.formationUniforms;
-        u.u_light_count.value = points.length;
-        for (let i = 0; i < MAX_LIGHTS; ++i) u.u_light_index.value[i] = i;
-      }
     }
     order.sort((a, b) => a.dist - b.dist);
     order.forEach(({ room }, i) => {
