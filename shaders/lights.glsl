@@ -116,10 +116,14 @@ float glow_worms(ReliefPos world, vec3 n, float footprint) {
                              relief_hash(c + ivec3(0, 0, 17)));
   vec3 off = (x - whole - at) * cell;
   off -= n * dot(off, n);
+  // A larva's light spread over at least a pixel by a compact kernel (1 - r^2/s^2)^2, whose
+  // integral, pi s^2 / 3, the 3 below undoes (a larva's light the same at every distance): it
+  // reaches no further than the pixel's own footprint, so a far larva lights the one to four
+  // pixels round its point, a dot, not a Gaussian's cross of five saturated pixels.
   float spread = max(larva, footprint);
   float bright = relief_hash(c) < occupied ? 0.4 + 0.6 * relief_hash(c + ivec3(5, 7, 3)) : 0.0;
-  float dots = bright * (larva * larva) / (spread * spread) *
-               exp(-dot(off, off) / (spread * spread));
+  float q = max(1.0 - dot(off, off) / (spread * spread), 0.0);
+  float dots = bright * 3.0 * (larva * larva) / (spread * spread) * q * q;
   // The mean over many cells: occupied x mean brightness x a larva's light over a cell's area.
   float mean = occupied * 0.7 * 3.14159 * larva * larva / (cell * cell);
   return mix(min(dots, 0.05), mean, smoothstep(0.5 * cell, cell, footprint));

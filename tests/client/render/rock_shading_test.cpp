@@ -1,14 +1,17 @@
 // The rock's shading up close (issue 27, items 4 and 5) on llvmpipe under Xvfb: the fine detail
 // (shaders/relief.glsl's relief_fine: grain, pits, joints) shows on a wall 1.5 m away and fades
 // out far away, the ambient occlusion darkens the crease at a stalagmite's root, a drapery lit
-// from behind lets the light through, and a stalagmite in front of a flare is veiled by its haze.
-// Poses in seed 7's hall 0.0.0.r0, found from its patch mesh, the relief's C++ face
+// from behind lets the light through, a stalagmite in front of a flare is veiled by its haze, a
+// stalactite in a lit hall's passage gets the hall's spill, and glow-worms seen from metres away
+// are dots. Poses in seed 7's hall 0.0.0.r0, found from its patch mesh, the relief's C++ face
 // (shaders/relief.hpp) and the formations' placement (shaders/formations.hpp), not hard-coded.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <optional>
+#include <vector>
 
 #include "render_scene.hpp"
 #include "shaders/formations.hpp"
@@ -409,6 +412,79 @@ TEST(RockShading, a_formation_through_a_lit_halls_portal_gets_its_spill) {
       pick->length, pick->past, spilt, dark, rock);
   EXPECT_GT(std::abs(spilt - rock), 3.0) << "the pose misses the formation";
   EXPECT_GT(spilt, dark + 10.0) << "the hall's light does not spill onto the formation";
+}
+
+// A glow-worm colony seen from a few metres is a field of separate points of light, each a dot of
+// one to four pixels (lights.glsl's glow_worms: a larva's light spread over at most the pixel's
+// footprint), not a cross of five: a colony on the hall's roof 3 m above the eye (1.4 cm pixels,
+// the larvae 7 cm apart), the headlamp off, bloom off: of the lit spots (4-connected pixels of
+// luma over 160) in the middle third of the picture, at most 15 % are wider than 2 pixels (12 of
+// 215: two larvae in neighbouring cells can touch). Fails with the larvae as Gaussians a footprint
+// wide (exp(-d^2 / s^2), their peak clipped: 158 of 182 spots wider, crosses and blocks up to 12
+// pixels).
+TEST(RockShading, far_glow_worms_are_dots_not_crosses) {
+  REQUIRE_GL();
+  const client::ReadyRoom& room = hall();
+  const Vec3 centre = room.room.sphere.centre;
+  const auto roof = cast(room, centre, Vec3{0, 1, 0});
+  ASSERT_TRUE(roof.has_value()) << "no roof above the hall's centre";
+  const Vec3 top = centre + Vec3{0, roof->t, 0};
+  Light colony;
+  colony.kind = "glow_worms";
+  colony.position = top - Vec3{0, 0.3, 0};
+  colony.colour = glm::vec3(0.4f, 1.6f, 1.4f);
+  colony.range = 20;
+  colony.size = 4;
+  colony.source_radius = 1.5f;
+  colony.glow = 0;
+  const Camera camera = aim(top - Vec3{0.3, 3.0, 0}, top);
+  Scene scene(7);
+  ASSERT_TRUE(scene.ok());
+  RenderOptions options;
+  options.max_tess = 8;
+  options.bloom = false;
+  options.headlamp = false;
+  options.haze = 0;
+  options.formations = false;  // the roof alone (larvae on a stalactite's flank crowd together)
+  const Image image = scene.draw(camera, options, nullptr, nullptr, {&colony, 1});
+  // The middle third of the picture, where the roof faces the eye (at a grazing angle the larvae
+  // crowd together on screen).
+  std::vector<bool> lit(static_cast<size_t>(kWidth * kHeight));
+  for (int y = kHeight / 3; y < 2 * kHeight / 3; ++y)
+    for (int x = kWidth / 3; x < 2 * kWidth / 3; ++x) {
+      const size_t i = static_cast<size_t>(y) * kWidth + static_cast<size_t>(x);
+      lit[i] = 0.2126 * image.rgb[3 * i] + 0.7152 * image.rgb[3 * i + 1] +
+                   0.0722 * image.rgb[3 * i + 2] >
+               160;
+    }
+  int spots = 0, big = 0, widest = 0;
+  std::vector<bool> seen(lit.size());
+  for (size_t start = 0; start < lit.size(); ++start) {
+    if (!lit[start] || seen[start]) continue;
+    int x0 = kWidth, x1 = -1, y0 = kHeight, y1 = -1;
+    std::vector<size_t> todo{start};
+    seen[start] = true;
+    while (!todo.empty()) {
+      const size_t i = todo.back();
+      todo.pop_back();
+      const int x = static_cast<int>(i % kWidth), y = static_cast<int>(i / kWidth);
+      x0 = std::min(x0, x), x1 = std::max(x1, x), y0 = std::min(y0, y), y1 = std::max(y1, y);
+      const int near[4][2] = {{x - 1, y}, {x + 1, y}, {x, y - 1}, {x, y + 1}};
+      for (const auto& [nx, ny] : near) {
+        if (nx < 0 || ny < 0 || nx >= kWidth || ny >= kHeight) continue;
+        const size_t k = static_cast<size_t>(ny) * kWidth + static_cast<size_t>(nx);
+        if (lit[k] && !seen[k]) seen[k] = true, todo.push_back(k);
+      }
+    }
+    ++spots;
+    const int extent = std::max(x1 - x0, y1 - y0) + 1;
+    widest = std::max(widest, extent);
+    big += extent > 2;
+  }
+  std::printf("glow-worms 3 m away: %d lit spots, %d wider than 2 pixels (the widest %d)\n", spots,
+              big, widest);
+  EXPECT_GT(spots, 20) << "the colony's larvae are not drawn";
+  EXPECT_LE(big, 0.15 * spots) << "larvae drawn as crosses or blocks, not dots";
 }
 
 }  // namespace
