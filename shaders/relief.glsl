@@ -155,8 +155,15 @@ const ivec3 kReliefCurtainK = ivec3(2458, 389, 2458);   // (2.4, 0.38, 2.4)
 const ivec3 kReliefGrainCoarseK = ivec3(29257);         // 1 / 3.5 cm
 const ivec3 kReliefGrainFineK = ivec3(64000);           // 1 / 1.6 cm
 const ivec3 kReliefPitK = ivec3(14629);                 // 1 / 7 cm
-const ivec3 kReliefJointK = ivec3(1862, 620, 1862);     // (1, 0.333, 1) / 0.55 m
-const ivec3 kReliefJointRunK = ivec3(931);              // 0.5 / 0.55 m
+const ivec3 kReliefJointBendK = ivec3(655);             // 0.64: a joint plane's wander
+const ivec3 kReliefJointRunK = ivec3(931);              // 0.91: where a joint is open
+// The rock's two joint sets (issue 43, item 4): planes across which each set's cycles count
+// (relief_frequency: cycles per metre) goes up by one, so 1 / |k / kReliefBlock| metres apart.
+// Steep (a small vertical part) and nearly square to each other, as in bedded limestone; whole
+// cycles per block, so a block's corner is on a plane of each set and 6,000 km out the planes
+// are as sharp as at the origin.
+const ivec3 kReliefJointSetA = ivec3(1402, 90, 620);    // (1.37, 0.09, 0.61): 0.67 m apart
+const ivec3 kReliefJointSetB = ivec3(-410, 60, 905);    // (-0.40, 0.06, 0.88): 1.03 m apart
 const int kReliefCrackK = 164;  // 0.16: the speleothems' crack field (cracks ~6 m apart)
 
 RELIEF_FN vec3 relief_gradient(vec4 n) {
@@ -468,8 +475,8 @@ const float kReliefGrainFine = 0.016f;    // metres: the finest grain's
 const float kReliefPitCell = 0.07f;       // metres: one pit at most per cell, 1-3.5 cm across
 const float kReliefPitShare = 0.35f;      // of the cells of pitted rock that hold a pit
 const float kReliefPitDepth = 0.004f;     // metres
-const float kReliefJointCell = 0.55f;     // metres: the joint field's lattice cell (horizontal;
-                                          // 3x that vertically: joints run down a wall)
+const float kReliefJointCell = 0.55f;     // metres: about the closer joint set's spacing (its
+                                          // lines fade by it as they crowd on screen)
 const float kReliefJointWidth = 0.0025f;  // metres: half a joint's width
 
 struct ReliefFine {
@@ -509,10 +516,37 @@ RELIEF_FN vec3 relief_rock_detail(ReliefPos p, vec3 warp, float rock, float spac
   return rock * g;
 }
 
-// The fine detail at world point p for a pixel covering `footprint` metres of the surface.
-// grain, pits and joints (0-1) weigh the three (room.frag: rock has all three, sediment grain,
-// calcite a finer grain); a weight of 0, or a footprint too coarse for an octave, skips its noise.
-RELIEF_FN ReliefFine relief_fine(ReliefPos p, float footprint, float grain, float pits,
+// How much of a pixel a crack of joint set k covers at world point p on a surface with unit
+// normal n (0-1): the set's nearest plane (each plane set off within its slab by a hash, bent by
+// `bend` so it is not ruled straight; about half the planes never crack) crossed with the
+// surface, `open` (0-1) as wide as it gapes there, box-filtered over the footprint measured
+// across the plane. A plane that meets the surface at a glancing angle would smear its crack into
+// a band: those fade out.
+RELIEF_FN float relief_joint_cover(ReliefPos p, vec3 n, ivec3 k, vec4 bend, float open,
+                                   float edge, float footprint) {
+  vec3 f = relief_frequency(k);
+  // Whole cycles per block: the block's own count is a whole number of planes, left out of t
+  // but not of the planes' numbering.
+  float t = dot(p.local, f) + 0.12f * bend.x;
+  vec3 across = f + 0.12f * relief_gradient(bend) * relief_frequency(kReliefJointBendK);
+  float rate = length(across);  // planes per metre along the plane's normal
+  float slab = floor(t);
+  int plane = int(slab) + p.block.x * k.x + p.block.y * k.y + p.block.z * k.z;
+  if (relief_hash(ivec3(k.z, plane, k.x)) > 0.55f) return 0.0f;  // a sound plane
+  float at = 0.5f + 0.6f * (relief_hash(ivec3(plane, k.x, k.z)) - 0.5f);
+  float d = max(abs(t - slab - at) / rate + edge, 0.0f);  // metres from the plane
+  float glancing = length(cross(n, across / rate));       // sine of the plane to the surface
+  float wide = footprint * max(glancing, 0.05f);
+  float w = kReliefJointWidth * (0.3f + 1.2f * open);
+  float lo = max(d - 0.5f * wide, -w), hi = min(d + 0.5f * wide, w);
+  return min(max(hi - lo, 0.0f) / max(wide, 1e-6f), 1.0f) * smoothstep(0.25f, 0.5f, glancing);
+}
+
+// The fine detail at world point p, unit surface normal n, for a pixel covering `footprint`
+// metres of the surface. grain, pits and joints (0-1) weigh the three (room.frag: rock has all
+// three, sediment grain, calcite a finer grain); a weight of 0, or a footprint too coarse for an
+// octave, skips its noise.
+RELIEF_FN ReliefFine relief_fine(ReliefPos p, vec3 n, float footprint, float grain, float pits,
                                  float joints) {
   ReliefFine f;
   f.gradient = vec3(0.0f);
@@ -556,23 +590,26 @@ RELIEF_FN ReliefFine relief_fine(ReliefPos p, float footprint, float grain, floa
       }
     }
   }
-  // Joints: hairline cracks along the zero lines of a noise stretched 3x vertically (joints run
-  // down a wall more than across it), kept where a second noise allows (runs, not a net), their
-  // edges roughened by the coarse grain where it shows. The distance to the line is the noise
-  // over its gradient's length; the pixel darkens by the share of its footprint the joint
-  // covers (a box filter), so a joint never flickers however thin it is on screen. The lines
-  // themselves fade once they crowd closer than ~4 pixels.
+  // Joints: hairline cracks where the planes of the rock's two joint sets cross the surface
+  // (relief_joint_cover): straight over metres, wandering a few centimetres, on any surface a
+  // line, never a loop; each open in runs where a slow noise allows (one noise, the two sets at
+  // its opposite signs), widest in the middle of a run and closing to a hair at its ends, their
+  // edges roughened by the coarse grain where it shows. The lines fade once they crowd closer
+  // than ~4 pixels.
   float gj = joints * relief_fine_fade(0.5f * kReliefJointCell, footprint);
   if (gj > 0.0f) {
-    vec3 stretch = relief_frequency(kReliefJointK);
-    vec4 c = relief_noise_at(p, kReliefJointK, vec3(19.0f, -5.0f, 37.0f));
-    float slope = length(relief_gradient(c) * stretch) + 1e-4f;
-    float d = max(abs(c.x) / slope + 0.0025f * jag, 0.0f);
-    float w = kReliefJointWidth;
-    float lo = max(d - 0.5f * footprint, -w), hi = min(d + 0.5f * footprint, w);
-    float covered = max(hi - lo, 0.0f) / max(footprint, 1e-6f);
+    vec4 bend = relief_noise_at(p, kReliefJointBendK, vec3(19.0f, -5.0f, 37.0f));
     float run = relief_noise_at(p, kReliefJointRunK, vec3(-29.0f, 3.0f, 11.0f)).x;
-    f.cavity *= 1.0f - 0.7f * gj * smoothstep(0.0f, 0.25f, run) * min(covered, 1.0f);
+    float edge = 0.0025f * jag;
+    // Set A where the run noise is positive, set B where negative: one set at a point, so one
+    // plane's distance to evaluate.
+    bool first = run > 0.0f;
+    float open = abs(run);
+    float crack = smoothstep(0.0f, 0.15f, open) *
+                  relief_joint_cover(p, n, first ? kReliefJointSetA : kReliefJointSetB,
+                                     first ? bend : -bend, smoothstep(0.0f, 0.6f, open), edge,
+                                     footprint);
+    f.cavity *= 1.0f - 0.7f * gj * crack;
   }
   return f;
 }

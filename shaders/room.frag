@@ -78,7 +78,7 @@ void main() {
   // Fine detail: bare rock is grained, pitted in patches and jointed in runs; sediment grained;
   // calcite only finely grained (its wet film smooths it).
   float bare = (1.0 - ground) * (1.0 - calcite);
-  ReliefFine fine = relief_fine(world, footprint, u_fine_detail * mix(1.0, 0.5, calcite),
+  ReliefFine fine = relief_fine(world, n, footprint, u_fine_detail * mix(1.0, 0.5, calcite),
                                 u_fine_detail * bare * smoothstep(-0.2, 0.3, m1.x),
                                 u_fine_detail * bare);
   // The rock's octaves the tessellated mesh was too coarse to carry, as shading (room.tese).
