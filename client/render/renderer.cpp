@@ -341,7 +341,7 @@ void Renderer::draw_formations(const std::vector<DrawnRoom>& rooms, Vec3 anchor,
     glBindVertexArray(lod.vertex_array.get());
     bind_instances(b.first);
     glDrawElementsInstanced(GL_TRIANGLES, lod.index_count, GL_UNSIGNED_INT, nullptr, b.count);
-    stats.formations += static_cast<size_t>(b.count);
+    stats.formations += b.count;
     stats.formation_triangles +=
         static_cast<size_t>(b.count) * static_cast<size_t>(lod.index_count / 3);
   }
