@@ -43,6 +43,53 @@ Vec3 in_world(glm::vec3 p) {
   return hall().origin + Vec3{p.x, p.y, p.z};
 }
 
+// Of `all`, the stalagmite `shortest` to `longest` metres tall whose root is nearest the hall's
+// centre (horizontally), or none.
+const formations::FormationShape* stalagmite_near_centre(
+    const std::vector<formations::FormationShape>& all, float shortest, float longest) {
+  const Vec3 centre = hall().room.sphere.centre;
+  const formations::FormationShape* found = nullptr;
+  double nearest = 1e300;
+  for (const formations::FormationShape& f : all) {
+    if (f.kind != formations::kFormationStalagmite || f.length < shortest || f.length > longest)
+      continue;
+    const Vec3 at = in_world(f.root);
+    const double d = std::hypot(at.x - centre.x, at.z - centre.z);
+    if (d < nearest) nearest = d, found = &f;
+  }
+  return found;
+}
+
+// The level unit vector from `at` towards the hall's centre (any level one at the centre).
+Vec3 towards_centre(Vec3 at) {
+  const Vec3 centre = hall().room.sphere.centre;
+  const Vec3 out{centre.x - at.x, 0, centre.z - at.z};
+  const double l = std::hypot(out.x, out.z);
+  return l > 1e-3 ? Vec3{out.x / l, 0, out.z / l} : Vec3{1, 0, 0};
+}
+
+// A player's flare (grotto-client's colour, a 0.3 m source) at `position`, reaching `range` m.
+Light flare_at(Vec3 position, float range) {
+  Light flare;
+  flare.kind = "flare";
+  flare.position = position;
+  flare.colour = glm::vec3(3.0f, 2.4f, 1.8f);
+  flare.range = range;
+  flare.source_radius = 0.3f;
+  flare.glow = 3;
+  return flare;
+}
+
+// Frames lit by the test's own lights alone: no headlamp, no haze, no bloom; MaxTess 8.
+RenderOptions own_lights_only() {
+  RenderOptions o;
+  o.max_tess = 8;
+  o.bloom = false;
+  o.headlamp = false;
+  o.haze = 0;
+  return o;
+}
+
 struct Hit {
   double t = 0;         // metres along the ray
   glm::vec3 normal{0};  // the triangle's interpolated vertex normal
@@ -181,23 +228,11 @@ TEST(RockShading, fine_detail_shows_up_close_and_fades_out_far_away) {
 // with the occlusion off (room.frag ignoring t_occlusion: the same pictures).
 TEST(RockShading, ambient_occlusion_darkens_the_crease_at_a_stalagmites_root) {
   REQUIRE_GL();
-  const client::ReadyRoom& room = hall();
   const std::vector<formations::FormationShape> all = hall_formations();
-  const Vec3 centre = room.room.sphere.centre;
-  const formations::FormationShape* found = nullptr;
-  double nearest = 1e300;
-  for (const formations::FormationShape& f : all) {
-    if (f.kind != formations::kFormationStalagmite || f.length < 0.3f || f.length > 1.5f) continue;
-    const Vec3 at = in_world(f.root);
-    const double d = std::hypot(at.x - centre.x, at.z - centre.z);
-    if (d < nearest) nearest = d, found = &f;
-  }
+  const formations::FormationShape* found = stalagmite_near_centre(all, 0.3f, 1.5f);
   ASSERT_NE(found, nullptr) << "no stalagmite of 0.3-1.5 m in the hall";
   const Vec3 root = in_world(found->root);
-  // From the hall's centre's side.
-  Vec3 out{centre.x - root.x, 0, centre.z - root.z};
-  const double l = std::hypot(out.x, out.z);
-  out = l > 1e-3 ? Vec3{out.x / l, 0, out.z / l} : Vec3{1, 0, 0};
+  const Vec3 out = towards_centre(root);  // from the hall's centre's side
   const double r = formations::formation_radius(*found, 0.02f, 0.0f);
   const Vec3 target = root + out * r + Vec3{0, 0.02, 0};
   const Vec3 eye = root + out * 1.5 + Vec3{0, 0.9, 0};
@@ -251,20 +286,10 @@ TEST(RockShading, a_drapery_lit_from_behind_lets_the_light_through) {
     if (air(face[k], out[k], 1.6) && air(face[1 - k], out[1 - k], 1.0)) side = k;
   ASSERT_GE(side, 0) << "no side of the drapery has air for the eye and the other for the flare";
   const Camera camera = aim(face[side] + out[side] * 1.5, face[side]);
-  Light flare;
-  flare.kind = "flare";
-  flare.position = face[1 - side] + out[1 - side] * 0.8;
-  flare.colour = glm::vec3(3.0f, 2.4f, 1.8f);
-  flare.range = 6;
-  flare.source_radius = 0.3f;
-  flare.glow = 3;
+  const Light flare = flare_at(face[1 - side] + out[1 - side] * 0.8, 6);
   Scene scene(7);
   ASSERT_TRUE(scene.ok());
-  RenderOptions options;
-  options.max_tess = 8;
-  options.bloom = false;
-  options.headlamp = false;
-  options.haze = 0;
+  const RenderOptions options = own_lights_only();
   const double behind = centre_luma(scene.draw(camera, options, nullptr, nullptr, {&flare, 1}), 3);
   const double dark = centre_luma(scene.draw(camera, options), 3);
   std::printf("a %.2f m wide, %.2f m drapery: centre luma %.1f with a flare behind, %.1f without\n",
@@ -283,22 +308,12 @@ TEST(RockShading, a_drapery_lit_from_behind_lets_the_light_through) {
 TEST(RockShading, a_formation_in_front_of_a_flare_is_veiled_by_its_haze) {
   REQUIRE_GL();
   const client::ReadyRoom& room = hall();
-  const Vec3 centre = room.room.sphere.centre;
-  const formations::FormationShape* found = nullptr;
-  double nearest = 1e300;
   const std::vector<formations::FormationShape> all = hall_formations();
-  for (const formations::FormationShape& f : all) {
-    if (f.kind != formations::kFormationStalagmite || f.length < 0.5f || f.length > 2.0f) continue;
-    const Vec3 at = in_world(f.root);
-    const double d = std::hypot(at.x - centre.x, at.z - centre.z);
-    if (d < nearest) nearest = d, found = &f;
-  }
+  const formations::FormationShape* found = stalagmite_near_centre(all, 0.5f, 2.0f);
   ASSERT_NE(found, nullptr) << "no stalagmite of 0.5-2 m in the hall";
   const formations::FormationShape& f = *found;
   const Vec3 root = in_world(f.root);
-  Vec3 out{centre.x - root.x, 0, centre.z - root.z};
-  const double l = std::hypot(out.x, out.z);
-  out = l > 1e-3 ? Vec3{out.x / l, 0, out.z / l} : Vec3{1, 0, 0};
+  const Vec3 out = towards_centre(root);
   // Its middle, on the side towards the hall's centre; the eye 2 m out and 1.2 m above it, the
   // flare 0.3 m above the line of sight, 0.9 m from the eye.
   const double r = formations::formation_radius(f, 0.5f * f.length, 0.0f);
@@ -308,19 +323,10 @@ TEST(RockShading, a_formation_in_front_of_a_flare_is_veiled_by_its_haze) {
   const auto hit = cast(room, eye, to_target * (1.0 / length(to_target)));
   ASSERT_FALSE(hit && hit->t < length(to_target)) << "rock between the eye and the stalagmite";
   const Camera camera = aim(eye, target);
-  Light flare;
-  flare.kind = "flare";
-  flare.position = eye + to_target * 0.4 + Vec3{0, 0.3, 0};
-  flare.colour = glm::vec3(3.0f, 2.4f, 1.8f);
-  flare.range = 8;
-  flare.source_radius = 0.3f;
-  flare.glow = 3;
+  const Light flare = flare_at(eye + to_target * 0.4 + Vec3{0, 0.3, 0}, 8);
   Scene scene(7);
   ASSERT_TRUE(scene.ok());
-  RenderOptions with;
-  with.max_tess = 8;
-  with.bloom = false;
-  with.headlamp = false;
+  RenderOptions with = own_lights_only();
   with.exposure = 0.5f;  // below the tone curve's shoulder
   with.haze = 0.1f;      // thicker than the default 0.03: the veil well above the picture's noise
   RenderOptions without = with;
@@ -396,11 +402,7 @@ TEST(RockShading, a_formation_through_a_lit_halls_portal_gets_its_spill) {
   glow.room = lit.room.id;
   Scene scene(7);
   ASSERT_TRUE(scene.ok());
-  RenderOptions options;
-  options.max_tess = 8;
-  options.bloom = false;
-  options.headlamp = false;
-  options.haze = 0;
+  const RenderOptions options = own_lights_only();
   RenderOptions bare = options;
   bare.formations = false;
   const double spilt = centre_luma(scene.draw(camera, options, nullptr, nullptr, {&glow, 1}), 2);
@@ -440,11 +442,7 @@ TEST(RockShading, far_glow_worms_are_dots_not_crosses) {
   const Camera camera = aim(top - Vec3{0.3, 3.0, 0}, top);
   Scene scene(7);
   ASSERT_TRUE(scene.ok());
-  RenderOptions options;
-  options.max_tess = 8;
-  options.bloom = false;
-  options.headlamp = false;
-  options.haze = 0;
+  RenderOptions options = own_lights_only();
   options.formations = false;  // the roof alone (larvae on a stalactite's flank crowd together)
   const Image image = scene.draw(camera, options, nullptr, nullptr, {&colony, 1});
   // The middle third of the picture, where the roof faces the eye (at a grazing angle the larvae
