@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Every capacity figure of docs/BENCHMARKS.md ("Capacity"), from one command (issue 28): builds
+# Every capacity figure of docs/BENCHMARKS.md ("Capacity"), from one command: builds
 # grotto-server and grotto-load (Release, in build-capacity/ unless --build-dir says otherwise),
 # runs each row of the capacity table RUNS times (spread players, each in a sector of its own, so
 # every room is really built; a fresh server for each run; grotto-load on the same machine), and
@@ -20,7 +20,7 @@
 # "--min-horizon 1.0"); the table then says so in its first line.
 #
 # Rows (--rows takes their names, comma-separated; default: all of them, in this order):
-#   embedded-300-once       300 players at once, embedded server, defaults (the issue's check)
+#   embedded-300-once       300 players at once, embedded server, defaults (the target's check)
 #   embedded-300-once-fixed the same with the fixed 4 s horizon (--min-horizon 0)
 #   server-300-ramp2        300 players joining over 2 s, separate grotto-server, defaults
 #   server-300-ramp2-fixed  the same with the fixed horizon
@@ -32,7 +32,7 @@
 #   server-1000-ramp30      1,000 players joining over 30 s
 #   server-300-ramp10-w1    300 players joining over 10 s, grotto-server --workers 1
 #   server-300-ramp10-w2    the same with --workers 2: the server's CPU per room against one worker
-# Only with --rows, for a machine of 16 cores (the issue's scaling set-up, CPU reference path):
+# Only with --rows, for a machine of 16 cores (the scaling set-up, CPU reference path):
 #   cores16-w2              1,000 players over 10 s; grotto-server --opencl-device none --workers 2
 #   cores16-w10             4,000 players over 20 s; --workers 10 --io-threads 4
 # Every row is 10 m/s unless its name ends in -30. Exit: 0 when every run ran (whatever its

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# One world across replicas (issue 29): deploy/local-cluster.sh with N replicas on this machine,
+# One world across replicas: deploy/local-cluster.sh with N replicas on this machine,
 # grotto-load through its nginx, and one line of figures per run: sessions per replica, rooms the
 # replicas built against the distinct rooms the players received, the room tier's cache hits,
 # stalls, errors, latency, and the load average and CPU flags beside them.

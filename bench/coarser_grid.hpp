@@ -15,8 +15,8 @@
 #include <cassert>
 #include <cmath>
 
-#include "core/grid.hpp"
-#include "mesh/room_mesh.hpp"
+#include "common/core/grid.hpp"
+#include "common/mesh/room_mesh.hpp"
 
 namespace grotto::bench {
 

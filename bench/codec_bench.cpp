@@ -21,12 +21,12 @@
 #include <functional>
 #include <nlohmann/json.hpp>
 
-#include "coarser_grid.hpp"
-#include "codec/room_codec.hpp"
-#include "core/grid.hpp"
-#include "flags.hpp"
-#include "mesh/room_mesh.hpp"
-#include "timing.hpp"
+#include "bench/coarser_grid.hpp"
+#include "bench/flags.hpp"
+#include "bench/timing.hpp"
+#include "common/codec/room_codec.hpp"
+#include "common/core/grid.hpp"
+#include "common/mesh/room_mesh.hpp"
 
 namespace {
 

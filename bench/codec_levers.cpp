@@ -1,8 +1,8 @@
-// The room codec's Draco levers one at a time (issue 18), on the rooms codec_bench measures: a
-// copy of encode_room's Draco set-up with switches (grid step, attributes present, one
-// connectivity, edgebreaker coder, prediction schemes, quantization, separate encoding and
-// decoding speeds), timed encode and draco::Decoder decode, so that every lever and the settings
-// before issue 18 are compared within one run. Measuring only: the codec is common/codec, and
+// The room codec's Draco levers one at a time, on the rooms codec_bench measures: a copy of
+// encode_room's Draco set-up with switches (grid step, attributes present, one connectivity,
+// edgebreaker coder, prediction schemes, quantization, separate encoding and decoding speeds),
+// timed encode and draco::Decoder decode, so that every lever and the old defaults (1/256 m grid,
+// 7-bit channels) are compared within one run. Measuring only: the codec is common/codec, and
 // nothing here is validated as encode_room validates. Usage: codec_levers --help.
 // Results: docs/BENCHMARKS.md ("Room codec").
 #include <draco/compression/decode.h>
@@ -13,10 +13,10 @@
 #include <cstdio>
 #include <string>
 
-#include "codec/room_codec.hpp"
-#include "flags.hpp"
-#include "mesh/room_mesh.hpp"
-#include "timing.hpp"
+#include "bench/flags.hpp"
+#include "bench/timing.hpp"
+#include "common/codec/room_codec.hpp"
+#include "common/mesh/room_mesh.hpp"
 
 using namespace grotto;
 using bench::median;
@@ -225,7 +225,7 @@ int main(int argc, char** argv) {
   std::vector<Config> cs;
   auto add = [&](Config c) { cs.push_back(c); };
   Config old{
-      "before issue 18: 1/256 m grid, seam tables, Draco's edgebreaker choice, 7-bit channels"};
+      "the old defaults: 1/256 m grid, seam tables, Draco's edgebreaker choice, 7-bit channels"};
   old.channel_bits = 7;
   add(old);
   Config c = old;

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The thesis's CPU-versus-GPU question on whatever this machine has (issue 30): builds mesh_bench,
+# The thesis's CPU-versus-GPU question on whatever this machine has: builds mesh_bench,
 # server_bench and grotto-client (Release, in build-gpu/ unless --build-dir says otherwise), then
 # runs
 #   - mesh_bench (seed 42's 100-room detail cave) on each OpenCL device it finds (the keywords gpu,
@@ -88,7 +88,7 @@ if [[ -x "$bin/kernels_tests" ]]; then
 fi
 
 # mesh_bench on each device keyword; the first keyword that reaches a device names it. Seed 42's
-# cave, the one issue 30's figures and BENCHMARKS' history measured (every binary's default is 7).
+# cave, the one BENCHMARKS' figures and history measured (every binary's default is 7).
 found=()
 for d in ${devices//,/ }; do
   echo "gpu.sh: mesh_bench --seed 42 --device $d" >&2
@@ -107,7 +107,7 @@ timeout "$step_timeout" "$bin/server_bench" --rooms "$rooms" --repetitions "$rep
   --queues shared per-worker --json "$out/server.json" >"$out/server.log" 2>&1
 echo $? >"$out/server.rc"
 
-# Where a GPU was found, the server's share of it against the CPU (issue 30's 1.4x) with fewer
+# Where a GPU was found, the server's share of it against the CPU (the target: 1.4x) with fewer
 # workers and bigger batches, the device shared (batches merged into launches) and a context a
 # worker: whether the contexts' time slicing or the launches' size holds the GPU back.
 sweep=()
@@ -141,7 +141,7 @@ for gl in "${renderers[@]}"; do
   done
 done
 
-# The gallery's three halls held still (issue 43): seed 95's hall from its entrance, seed 7's
+# The gallery's three halls held still: seed 95's hall from its entrance, seed 7's
 # across, seed 95's stalactites overhead; the defaults, EGL.
 halls=("hall-entrance-95 95 163.91,46.33,123.21,-136.6,5.2"
        "hall-across-7 7 61.20,57.79,40.01,270.0,5.0"

@@ -28,11 +28,11 @@
 #include <tuple>
 #include <vector>
 
-#include "coarser_grid.hpp"
-#include "codec/room_codec.hpp"
-#include "core/grid.hpp"
-#include "flags.hpp"
-#include "mesh/room_mesh.hpp"
+#include "bench/coarser_grid.hpp"
+#include "bench/flags.hpp"
+#include "common/codec/room_codec.hpp"
+#include "common/core/grid.hpp"
+#include "common/mesh/room_mesh.hpp"
 
 namespace {
 

@@ -1,16 +1,16 @@
 #!/usr/bin/env bash
-# Issue 27's check of space: for each seed, in the largest room of sectors 0,0,0..1,0,1, four
+# A check of space in halls: for each seed, in the largest room of sectors 0,0,0..1,0,1, four
 # pictures from its centre (--mode fly, pitch 0, yaws 0, 90, 180 and 270) and four across it
 # (from 0.6 radii behind the centre, looking the same ways: docs/gallery/render.sh's "across"),
 # with their reports' view depth (depth_m: median over the pixels that show rock) and lights (the
 # light sources that light the frame). Prints one Markdown table, a row per picture, and per seed
 # how many yaws from the centre see a median depth of at least 12 m, the largest median and the
-# most lights (the issue: 3 of 4 yaws >= 12 m and a shot with >= 3 lights in seed 95; a hall of
+# most lights (the targets: 3 of 4 yaws >= 12 m and a shot with >= 3 lights in seed 95; a hall of
 # median >= 15 m in two of seeds 3, 7 and 95).
 #
 #   bash bench/hall_views.sh [--build-dir DIR] [--seeds "3 7 95"] [--size WxH] [--out DIR] [--check]
 #
-# --check: also exit 3 unless every seed given passes the issue's first checks (3 of 4 yaws from
+# --check: also exit 3 unless every seed given passes the first two targets (3 of 4 yaws from
 # the centre at >= 12 m, a shot with >= 3 lights): ctest world.hall_views runs it for seed 95.
 # Defaults: build, seeds 3 7 95, 480x270 (depth and lights do not depend on the size; the
 # pictures are for looking at), pictures and reports in DIR (default build/hall-views). The

@@ -11,7 +11,7 @@
 #include <string>
 #include <vector>
 
-#include "cave/room_id.hpp"
+#include "common/cave/room_id.hpp"
 #include "proto/messages.hpp"
 #include "server/server.hpp"
 

@@ -1,8 +1,8 @@
-// Layout generation rate: sectors/s and rooms/s (issue: foundation and layout).
+// Layout generation rate: sectors/s and rooms/s.
 // Command and results: docs/BENCHMARKS.md.
 #include <benchmark/benchmark.h>
 
-#include "cave/layout.hpp"
+#include "common/cave/layout.hpp"
 
 namespace grotto::cave {
 namespace {

@@ -1,4 +1,4 @@
-// load_bench: issue 6's benchmark, what players get from a server, measured with grotto-load's
+// load_bench: what players get from a server, measured with grotto-load's
 // engine (client/load) over real loopback WebSockets, in one run:
 //   1. throughput: rooms/s delivered to N players (burst mode, spread over distinct sectors, so
 //      every room is built once) against the same rooms through the generation service driven
@@ -22,13 +22,13 @@
 #include <set>
 #include <thread>
 
+#include "bench/flags.hpp"
 #include "bench/inprocess.hpp"
 #include "bench/timing.hpp"
-#include "cave/layout.hpp"
 #include "client/load/load.hpp"
 #include "client/stream/portal_graph.hpp"
-#include "codec/room_codec.hpp"
-#include "flags.hpp"
+#include "common/cave/layout.hpp"
+#include "common/codec/room_codec.hpp"
 #include "proto/room_frame.hpp"
 
 namespace {
@@ -36,9 +36,9 @@ namespace {
 using grotto::bench::Clock;
 using grotto::bench::in_process;
 using grotto::bench::PhaseResult;
-using grotto::client::load::LoadOptions;
-using grotto::client::load::LoadReport;
-using grotto::client::load::Mode;
+using grotto::load::LoadOptions;
+using grotto::load::LoadReport;
+using grotto::load::Mode;
 using grotto::server::Server;
 using grotto::server::ServerConfig;
 
@@ -50,7 +50,7 @@ std::vector<grotto::cave::RoomId> burst_rooms(uint64_t seed, int players, double
   auto world = grotto::cave::World::create(seed, {});
   std::set<grotto::cave::RoomId> ids;
   for (int i = 0; i < players; ++i) {
-    grotto::client::PortalGraph graph;
+    grotto::stream::PortalGraph graph;
     std::vector<grotto::cave::Room> rooms;
     for (int x = 3 * i - 1; x <= 3 * i + 1; ++x) {
       for (int y = -1; y <= 1; ++y) {
@@ -66,12 +66,12 @@ std::vector<grotto::cave::RoomId> burst_rooms(uint64_t seed, int players, double
       (void)graph.add(r);  // rooms refused before their neighbours
     auto start = grotto::cave::RoomId::interior({3 * i, 0, 0}, 0);
     if (!graph.find(start)) continue;  // grotto-load refuses such a start
-    grotto::client::Pose pose;
+    grotto::stream::Pose pose;
     pose.room = start;
     pose.position = graph.find(start)->sphere.centre;
     pose.forward = {};
     pose.speed = 1.0;
-    grotto::client::PlanOptions plan;
+    grotto::stream::PlanOptions plan;
     plan.horizon_s = radius_m;
     for (const auto& p : graph.plan(start, pose, plan))
       ids.insert(p.id);
@@ -158,7 +158,7 @@ PhaseResult in_process_decoded(const ServerConfig& config,
 }
 
 LoadReport run(const LoadOptions& options) {
-  auto report = grotto::client::load::run_load(options);
+  auto report = grotto::load::run_load(options);
   if (!report) {
     spdlog::error("{}", report.error().message);
     std::exit(1);
@@ -166,7 +166,7 @@ LoadReport run(const LoadOptions& options) {
   return std::move(report).value();
 }
 
-nlohmann::json distribution(const grotto::client::load::Distribution& d) {
+nlohmann::json distribution(const grotto::load::Distribution& d) {
   return {{"count", d.count}, {"mean", d.mean}, {"p50", d.p50},
           {"p90", d.p90},     {"p99", d.p99},   {"max", d.max}};
 }

@@ -15,11 +15,11 @@
 #include <thread>
 #include <vector>
 
-#include "flags.hpp"
-#include "kernels/deform.hpp"
-#include "kernels/room_builder.hpp"
-#include "mesh/room_mesh.hpp"
-#include "timing.hpp"
+#include "bench/flags.hpp"
+#include "bench/timing.hpp"
+#include "common/kernels/deform.hpp"
+#include "common/kernels/room_builder.hpp"
+#include "common/mesh/room_mesh.hpp"
 
 namespace {
 
@@ -192,11 +192,11 @@ int main(int argc, char** argv) {
   }
 
   // The whole cave as a caller builds it (kernels::RoomBuilder: prepare, deform on the device or
-  // in the CPU's lanes, assemble) on 1 and 2 threads, plus the layout: the issue's "whole cave".
+  // in the CPU's lanes, assemble) on 1 and 2 threads, plus the layout: the report's "whole cave".
   nlohmann::json whole = nlohmann::json::array();
   spdlog::set_level(spdlog::level::warn);
-  // 1 and 2 threads, and every hardware thread where there are more (issue 30: the CPU stages
-  // use every core).
+  // 1 and 2 threads, and every hardware thread where there are more (the CPU stages
+  // must use every core).
   std::vector<int> thread_counts = {1, 2};
   if (const int hw = static_cast<int>(std::thread::hardware_concurrency()); hw > 2) {
     thread_counts.push_back(hw);
@@ -324,7 +324,7 @@ int main(int argc, char** argv) {
         },
         &deform_cl_cpu_ms);
     const kernels::LaunchStats& stats = runs.front();
-    // Issue 30: where the batched launch's time goes, each part the median over the runs above.
+    // Where the batched launch's time goes, each part the median over the runs above.
     // What one work item does per vertex (grotto_deform_vertex in common/mesh/deform_core.h):
     // loops over its room's n portals (rim noise, collars, the noise fade, the clearance), over the
     // n(n-1)/2 portal pairs in small rooms (two Hermite splines each), and 3D noise evaluations:

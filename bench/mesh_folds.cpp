@@ -29,9 +29,9 @@
 #include <thread>
 #include <unordered_map>
 
-#include "flags.hpp"
-#include "mesh/room_mesh.hpp"
-#include "sector_sample.hpp"
+#include "bench/flags.hpp"
+#include "bench/sector_sample.hpp"
+#include "common/mesh/room_mesh.hpp"
 
 namespace {
 

@@ -14,10 +14,10 @@
 #include <nlohmann/json.hpp>
 #include <thread>
 
-#include "flags.hpp"
-#include "mesh/room_mesh.hpp"
-#include "sector_sample.hpp"
-#include "timing.hpp"
+#include "bench/flags.hpp"
+#include "bench/sector_sample.hpp"
+#include "bench/timing.hpp"
+#include "common/mesh/room_mesh.hpp"
 
 namespace {
 

@@ -1,4 +1,4 @@
-// client/render's benchmark (issue 7), on whatever GL 4.1 core context the display gives (Mesa
+// client/render's benchmark, on whatever GL 4.1 core context the display gives (Mesa
 // llvmpipe under xvfb-run on the CI machines): along a path through a fully loaded block of
 // sectors, frame times of
 //   (a) the tessellated patch mesh against the untessellated detail mesh (Lod::kDetail rooms built
@@ -24,14 +24,14 @@
 #include <string>
 #include <vector>
 
-#include "cave/layout.hpp"
+#include "bench/flags.hpp"
+#include "bench/timing.hpp"
 #include "client/render/gl.hpp"
 #include "client/render/renderer.hpp"
 #include "client/render/room_cache.hpp"
-#include "codec/room_codec.hpp"
-#include "flags.hpp"
-#include "mesh/room_mesh.hpp"
-#include "timing.hpp"
+#include "common/cave/layout.hpp"
+#include "common/codec/room_codec.hpp"
+#include "common/mesh/room_mesh.hpp"
 
 namespace {
 
@@ -40,8 +40,8 @@ using bench::median;
 
 // A room as the renderer holds it, without the codec (the detail level is larger than a wire
 // frame needs to be for this comparison, and both levels should pay the same: nothing).
-client::ReadyRoom ready_room(const mesh::RoomMesh& m, const cave::Room& r) {
-  client::ReadyRoom out;
+stream::ReadyRoom ready_room(const mesh::RoomMesh& m, const cave::Room& r) {
+  stream::ReadyRoom out;
   out.room = r;
   out.origin = m.origin;
   out.mesh.positions = m.positions;
@@ -335,8 +335,8 @@ int main(int argc, char** argv) {
       report["configs"][m.name] = to_json(m);
     report["ratios"] = {
         {"tessellated_patch_over_flat_detail", ratio("patch_tessellated", "detail_flat")},
-        // The client's default LOD (screen space) against the flat detail mesh: the bound of
-        // issue 27 (<= 1.25).
+        // The client's default LOD (screen space) against the flat detail mesh: held to
+        // at most 1.25.
         {"screen_space_patch_over_flat_detail", ratio("lod_screen-space", "detail_flat")},
         {"portal_culling_speedup", ratio("portal_culling_off", "patch_tessellated")},
         {"portal_culling_speedup_without_patch_culling",

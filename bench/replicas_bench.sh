@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Replicas behind nginx (issue 8): rooms/s and request->room latency that players get through
+# Replicas behind nginx: rooms/s and request->room latency that players get through
 # nginx with 1, 2 and 3 grotto-server replicas, and from 1 replica without nginx. grotto-load in
 # burst mode with --spread: every player stands in a sector of its own and wants everything
 # within --radius, so every room is really built (fresh replicas, cold caches, for each

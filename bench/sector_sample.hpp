@@ -7,8 +7,8 @@
 #include <span>
 #include <vector>
 
-#include "cave/layout.hpp"
-#include "core/random.hpp"
+#include "common/cave/layout.hpp"
+#include "common/core/random.hpp"
 
 namespace grotto::bench {
 

@@ -1,5 +1,5 @@
 // serve_bench: rooms per second through the whole server over loopback WebSocket, against the
-// same generation service driven in-process, in one run (issue 5's benchmark). Each phase starts
+// same generation service driven in-process, in one run. Each phase starts
 // a fresh grotto::server::Server (empty caches) and asks for the same distinct rooms; the ratio
 // says what the network half costs. Build and encode time per room come from the server's own
 // histograms. Writes a JSON report (--json FILE).
@@ -19,9 +19,9 @@
 #include <nlohmann/json.hpp>
 #include <thread>
 
+#include "bench/flags.hpp"
 #include "bench/inprocess.hpp"
-#include "cave/layout.hpp"
-#include "flags.hpp"
+#include "common/cave/layout.hpp"
 #include "proto/messages.hpp"
 #include "server/server.hpp"
 

@@ -13,8 +13,8 @@
 #include <nlohmann/json.hpp>
 #include <thread>
 
-#include "cave/layout.hpp"
-#include "flags.hpp"
+#include "bench/flags.hpp"
+#include "common/cave/layout.hpp"
 #include "proto/messages.hpp"
 #include "server/generator.hpp"
 #include "server/metrics.hpp"

@@ -19,9 +19,9 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 
-#include "codec/room_codec.hpp"
-#include "flags.hpp"
-#include "mesh/room_mesh.hpp"
+#include "bench/flags.hpp"
+#include "common/codec/room_codec.hpp"
+#include "common/mesh/room_mesh.hpp"
 
 namespace {
 

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# One world on many replicas, on this machine (issue 29): N grotto-server replicas on loopback and
+# One world on many replicas, on this machine: N grotto-server replicas on loopback and
 # nginx in front of them (deploy/nginx), in the foreground until SIGTERM or Ctrl-C, which stop
 # them all. Players connect to ws://ADDR:PORT/ws and land on the replica with the fewest
 # players; every replica asks the room tier (nginx's /rooms/, each room to its owner replica

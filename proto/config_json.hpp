@@ -7,7 +7,7 @@
 #include <map>
 #include <string>
 
-#include "core/result.hpp"
+#include "common/core/result.hpp"
 
 namespace grotto::proto {
 

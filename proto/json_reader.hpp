@@ -10,8 +10,8 @@
 
 #include <nlohmann/json.hpp>
 
-#include "core/result.hpp"
-#include "core/vec3.hpp"
+#include "common/core/result.hpp"
+#include "common/core/vec3.hpp"
 
 namespace grotto::proto::detail {
 

@@ -4,7 +4,7 @@
 
 #include <string>
 
-#include "cave/layout.hpp"
+#include "common/cave/layout.hpp"
 
 namespace grotto::proto {
 

@@ -9,7 +9,7 @@
 #include <cstdint>
 #include <optional>
 
-#include "mesh/params.hpp"
+#include "common/mesh/params.hpp"
 
 namespace grotto::proto {
 

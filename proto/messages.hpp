@@ -17,9 +17,9 @@
 #include <variant>
 #include <vector>
 
-#include "cave/room_id.hpp"
-#include "core/result.hpp"
-#include "core/vec3.hpp"
+#include "common/cave/room_id.hpp"
+#include "common/core/result.hpp"
+#include "common/core/vec3.hpp"
 
 namespace grotto::proto {
 

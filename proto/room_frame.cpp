@@ -5,8 +5,8 @@
 #include <cmath>
 #include <string>
 
-#include "core/bytes.hpp"
-#include "core/grid.hpp"
+#include "common/core/bytes.hpp"
+#include "common/core/grid.hpp"
 
 namespace grotto::proto {
 namespace {

@@ -11,9 +11,9 @@
 #include <span>
 #include <vector>
 
-#include "cave/layout.hpp"
-#include "core/result.hpp"
-#include "core/vec3.hpp"
+#include "common/cave/layout.hpp"
+#include "common/core/result.hpp"
+#include "common/core/vec3.hpp"
 #include "proto/messages.hpp"
 
 namespace grotto::proto {

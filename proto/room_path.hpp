@@ -14,8 +14,8 @@
 #include <string>
 #include <string_view>
 
-#include "cave/room_id.hpp"
-#include "core/result.hpp"
+#include "common/cave/room_id.hpp"
+#include "common/core/result.hpp"
 #include "proto/messages.hpp"
 
 namespace grotto::proto {

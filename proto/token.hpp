@@ -7,7 +7,7 @@
 #include <string>
 #include <string_view>
 
-#include "core/result.hpp"
+#include "common/core/result.hpp"
 
 namespace grotto::proto {
 

@@ -3,10 +3,10 @@
 #include <string_view>
 #include <vector>
 
-#include "cave/lights.hpp"
-#include "core/bytes.hpp"
-#include "core/grid.hpp"
-#include "core/random.hpp"
+#include "common/cave/lights.hpp"
+#include "common/core/bytes.hpp"
+#include "common/core/grid.hpp"
+#include "common/core/random.hpp"
 
 namespace grotto::proto {
 namespace {
@@ -111,8 +111,8 @@ uint64_t world_params_digest(const cave::LayoutParams& layout, const mesh::MeshP
                    lights.min_range, lights.intensity_per_range2}) {
     c.f64(v);
   }
-  // The relief and formations the client draws and engines evaluate (shaders/relief.hpp): part
-  // of the world though no room's bytes depend on them.
+  // The relief and formations the client draws and engines evaluate (common/relief/relief.hpp):
+  // part of the world though no room's bytes depend on them.
   c.text(kReliefVersion);
   c.text(kFormationsVersion);
   return fold_digest(layout_params_digest(layout), c.bytes());

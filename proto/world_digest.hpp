@@ -8,8 +8,8 @@
 #include <span>
 #include <string_view>
 
-#include "cave/params.hpp"
-#include "mesh/params.hpp"
+#include "common/cave/params.hpp"
+#include "common/mesh/params.hpp"
 
 namespace grotto::proto {
 
@@ -26,9 +26,9 @@ uint64_t fold_digest(uint64_t digest, std::span<const uint8_t> bytes);
 // this version (tests/client/play/relief_test.cpp): a change of the relief fails it until the
 // version moves on, while a change of how it is drawn (relief_at_sampled's filtering) does not.
 inline constexpr std::string_view kReliefVersion = "grotto.relief.v4";
-// The version of the formations (shaders/formations.hpp: where a room's stalactites, stalagmites,
-// soda straws, columns and draperies stand and what shape each has), folded likewise: what the
-// client draws and collides with, and what engines and the glb export place.
+// The version of the formations (common/formations/formations.hpp: where a room's stalactites,
+// stalagmites, soda straws, columns and draperies stand and what shape each has), folded likewise:
+// what the client draws and collides with, and what engines and the glb export place.
 inline constexpr std::string_view kFormationsVersion = "grotto.formations.v2";
 
 // The digest a server announces in welcome.params: the layout's, folded with every mesh setting

@@ -10,7 +10,7 @@
 #include <variant>
 #include <vector>
 
-#include "cave/layout.hpp"
+#include "common/cave/layout.hpp"
 #include "proto/config_json.hpp"
 #include "proto/token.hpp"
 #include "server/room_tier.hpp"

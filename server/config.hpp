@@ -7,9 +7,9 @@
 #include <cstdint>
 #include <string>
 
-#include "cave/params.hpp"
-#include "core/result.hpp"
-#include "mesh/params.hpp"
+#include "common/cave/params.hpp"
+#include "common/core/result.hpp"
+#include "common/mesh/params.hpp"
 #include "proto/messages.hpp"
 #include "server/generator.hpp"
 
@@ -33,7 +33,7 @@ struct ServerConfig {
   std::chrono::milliseconds http_timeout{10'000};  // a plain HTTP request or a WebSocket upgrade
   std::chrono::milliseconds drain_timeout{5'000};  // stop(): bound on the graceful close
   GeneratorConfig generator{};
-  // The room tier (issue 29, deploy/nginx): http://HOST:PORT where this replica asks for rooms
+  // The room tier (deploy/nginx): http://HOST:PORT where this replica asks for rooms
   // before building them (their owner replica answers, through nginx's cache); empty: none.
   // grotto-server opens it (server/room_tier) into generator.owners.
   std::string room_tier;

@@ -6,7 +6,7 @@
 #include <memory>
 #include <string>
 
-#include "core/result.hpp"
+#include "common/core/result.hpp"
 #include "server/config.hpp"
 #include "server/server.hpp"
 
@@ -19,7 +19,7 @@ ServerConfig embedded_config();
 
 struct EmbeddedServer {
   std::unique_ptr<Server> server;
-  std::string url;  // "ws://127.0.0.1:<port>/ws": what a client::Stream connects to
+  std::string url;  // "ws://127.0.0.1:<port>/ws": what a stream::Stream connects to
 };
 
 // Server::start(config) on loopback: `bind` and `port` are replaced by 127.0.0.1 and an

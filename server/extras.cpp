@@ -4,12 +4,12 @@
 #include <cstdio>
 #include <vector>
 
-#include "cave/lights.hpp"
-#include "codec/room_codec.hpp"
+#include "common/cave/lights.hpp"
+#include "common/codec/room_codec.hpp"
+#include "common/formations/formations.hpp"
 #include "proto/lod.hpp"
 #include "proto/messages.hpp"
 #include "proto/room_frame.hpp"
-#include "shaders/formations.hpp"
 
 namespace grotto::server {
 namespace {

@@ -1,6 +1,6 @@
 // What a client derives from a room besides its mesh, as one JSON document: the resource
 // /extras/v<version>/<seed>/<params>/<lod>/<room id> (proto/PROTOCOL.md, "Room extras over
-// HTTP") that the browser viewer reads beside each room frame (issue 44). The native clients
+// HTTP") that the browser viewer reads beside each room frame. The native clients
 // derive the same things themselves from what they already hold (cave::room_lights from the
 // seed and the room, formations::place from the decoded patch mesh); the viewer asks the server,
 // so the world's rules live once, in C++, and never in JavaScript.
@@ -10,8 +10,8 @@
 #include <span>
 #include <string>
 
-#include "cave/params.hpp"
-#include "core/result.hpp"
+#include "common/cave/params.hpp"
+#include "common/core/result.hpp"
 
 namespace grotto::server {
 

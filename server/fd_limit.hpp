@@ -1,4 +1,4 @@
-// grotto-server's file-descriptor limit (issue 28): at start the soft RLIMIT_NOFILE is raised to
+// grotto-server's file-descriptor limit: at start the soft RLIMIT_NOFILE is raised to
 // the hard limit, and a limit below what the settings need is one warning line with the numbers,
 // instead of players refused later with EMFILE at accept. The arithmetic is pure (tested by a
 // table in tests/server/fd_limit_test.cpp); raise_fd_limit() is the one place that touches the

@@ -18,9 +18,9 @@
 #include <set>
 #include <thread>
 
-#include "codec/room_codec.hpp"
-#include "core/thread_name.hpp"
-#include "mesh/context.hpp"
+#include "common/codec/room_codec.hpp"
+#include "common/core/thread_name.hpp"
+#include "common/mesh/context.hpp"
 #include "proto/lod.hpp"
 #include "proto/room_frame.hpp"
 #include "server/metrics.hpp"

@@ -19,10 +19,10 @@
 #include <string>
 #include <vector>
 
-#include "cave/layout.hpp"
-#include "core/result.hpp"
-#include "kernels/room_builder.hpp"
-#include "mesh/params.hpp"
+#include "common/cave/layout.hpp"
+#include "common/core/result.hpp"
+#include "common/kernels/room_builder.hpp"
+#include "common/mesh/params.hpp"
 #include "proto/lod.hpp"
 #include "server/room_tier.hpp"
 #include "server/rooms.hpp"

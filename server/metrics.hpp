@@ -10,7 +10,7 @@
 #include <string>
 #include <vector>
 
-#include "core/result.hpp"
+#include "common/core/result.hpp"
 
 namespace grotto::server {
 
@@ -91,7 +91,7 @@ class Metrics {
   Counter rooms_cancelled;          // grotto_rooms_cancelled_total (wants cancelled before sent)
   Counter rooms_deduplicated;       // grotto_rooms_deduplicated_total (joined a job in flight)
   Counter rooms_failed;             // grotto_rooms_failed_total
-  Counter rooms_fetched;            // grotto_rooms_fetched_total (from their owner, issue 29)
+  Counter rooms_fetched;            // grotto_rooms_fetched_total (from their owner replica)
   Counter owner_failures;           // grotto_owner_failures_total (fetches built here instead)
   Counter batches;                  // grotto_batches_total (build calls)
   Counter device_launches;          // grotto_device_launches_total (the shared device's)

@@ -22,10 +22,10 @@
 #include <thread>
 #include <vector>
 
-#include "cave/layout.hpp"
-#include "kernels/binary_cache.hpp"
-#include "kernels/room_builder.hpp"
-#include "mesh/context.hpp"
+#include "common/cave/layout.hpp"
+#include "common/kernels/binary_cache.hpp"
+#include "common/kernels/room_builder.hpp"
+#include "common/mesh/context.hpp"
 
 extern char** environ;
 
@@ -161,7 +161,7 @@ void empty_dir(const std::filesystem::path& dir) {
 // and at stop every builder is released, then the shared device.
 // PoCL 5.0 (Ubuntu 24.04's) passed a probe that only built the program, then aborted the server
 // as soon as its 14 workers ran the kernel at once (pocl_release_dlhandle_cache: Assertion
-// 'found->ref_count > 0' failed; issue 28); a child with two builders still passed there, and
+// 'found->ref_count > 0' failed); a child with two builders still passed there, and
 // the server still aborted. So the child does what the server will do, twice: as many builders
 // as the server has workers (at least two) opened one after another, batches of each size in
 // kProbeBatchRooms (up to the server's max_batch_rooms) at each level of detail built on every

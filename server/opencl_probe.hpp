@@ -4,8 +4,8 @@
 // batches of several sizes built on all of them at once, all released, and all of it twice.
 // PoCL's compiler aborts the whole process when its cache volume is full ("LLVM ERROR: IO failure
 // on output stream") and can crash on truncated files in its own cache; PoCL 5.0 passed a probe
-// that only built the kernel and aborted the server once its workers ran side by side (issue
-// 28). A child that dies says so, and at which step, without taking the server down, and the
+// that only built the kernel and aborted the server once its workers ran side by side.
+// A child that dies says so, and at which step, without taking the server down, and the
 // server then runs on the CPU reference path and says why (compute path, /metrics, the log). A
 // child that succeeds leaves PoCL's cache warm, so the server's own build is quick. There is no
 // timeout: a child that hangs holds the start.

@@ -7,7 +7,7 @@
 #include <cstdint>
 #include <functional>
 
-#include "core/result.hpp"
+#include "common/core/result.hpp"
 #include "server/generator.hpp"
 #include "server/rooms.hpp"
 

@@ -15,7 +15,7 @@
 #include <set>
 #include <thread>
 
-#include "core/thread_name.hpp"
+#include "common/core/thread_name.hpp"
 
 namespace grotto::server {
 

@@ -1,4 +1,4 @@
-// Rooms from their owner (issue 29): in a cluster, a replica asks the room tier for a room instead
+// Rooms from their owner: in a cluster, a replica asks the room tier for a room instead
 // of building it. The tier is nginx in front of every replica (deploy/nginx): `hash $uri
 // consistent` sends each room URL to one owner replica, which builds it (or has it cached), and
 // proxy_cache with proxy_cache_lock keeps and collapses what passes, so a room is built once
@@ -17,7 +17,7 @@
 #include <string>
 #include <vector>
 
-#include "core/result.hpp"
+#include "common/core/result.hpp"
 #include "server/rooms.hpp"
 
 namespace grotto::server {

@@ -8,8 +8,8 @@
 #include <optional>
 #include <vector>
 
-#include "cave/room_id.hpp"
-#include "core/result.hpp"
+#include "common/cave/room_id.hpp"
+#include "common/core/result.hpp"
 #include "proto/lod.hpp"
 #include "proto/messages.hpp"
 

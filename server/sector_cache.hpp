@@ -20,8 +20,8 @@
 #include <optional>
 #include <utility>
 
-#include "cave/layout.hpp"
-#include "core/result.hpp"
+#include "common/cave/layout.hpp"
+#include "common/core/result.hpp"
 #include "proto/messages.hpp"
 
 namespace grotto::server {

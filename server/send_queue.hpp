@@ -2,7 +2,7 @@
 // message at a time (Beast allows one async_write in flight); the rest wait here. A room frame
 // waiting here overtakes the room frames due later than it (earliest due first, ties in arrival
 // order), so a room the player is about to walk into never waits behind prefetch frames already
-// queued for the same connection (issue 28: urgent rooms first at every stage). A control message
+// queued for the same connection: urgent rooms go first at every stage. A control message
 // (text) keeps its place and nothing overtakes it: replies, errors and pongs stay in order with
 // what went before them. The message being written is never moved.
 //

@@ -14,7 +14,7 @@
 #include <memory>
 #include <string>
 
-#include "core/result.hpp"
+#include "common/core/result.hpp"
 #include "server/config.hpp"
 #include "server/generator.hpp"
 #include "server/metrics.hpp"

@@ -1,4 +1,4 @@
-// The browser viewer (issue 44, web/): grotto-server serves it at / from its own binary, every
+// The browser viewer (web/): grotto-server serves it at / from its own binary, every
 // file embedded at build time (web/tools/bundle.mjs writes the table), so a server needs nothing
 // beside it and the page works offline, with nothing from a CDN.
 #pragma once

@@ -1,5 +1,5 @@
 // Fog caps: discs over portals whose room is not loaded, so the player sees fog there rather
-// than the void (issue 7). Positions are anchor-relative, built on the CPU each frame.
+// than the void. Positions are anchor-relative, built on the CPU each frame.
 #version 410 core
 
 layout(location = 0) in vec3 a_position;

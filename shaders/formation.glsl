@@ -1,8 +1,8 @@
-// Speleothems as geometry (issue 43; DESIGN "Formations, 1 cm-4 m"): the shape of one formation
+// Speleothems as geometry (formations from 1 cm to 4 m long): the shape of one formation
 // instance, written once in the subset of GLSL 4.10 and C++/GLM that relief.glsl uses, and read by
 //   - shaders/formation.vert: each instance's smooth mesh (a surface of revolution bent by the
 //     instance's own profile, rings, bulbs and irregularity),
-//   - shaders/formations.{hpp,cpp}: placement (the root's flare reaches into the rock) and the
+//   - common/formations/formations.{hpp,cpp}: placement (the root's flare reaches into the rock) and the
 //     simple shapes walkers and flares collide with,
 // so what is drawn, what collides and what the tests measure is one function.
 //

@@ -1,4 +1,4 @@
-// Formation vertex shader (issue 43): one instance of a speleothem mesh. The mesh is a grid of
+// Formation vertex shader: one instance of a speleothem mesh. The mesh is a grid of
 // rings along the axis by points round it, the same for every instance of a level of detail; the
 // instance's shape (shaders/formation.glsl) places each point, so every stalactite, stalagmite,
 // soda straw, column and drapery is smooth and its own. Shaded by room.frag: its outputs are room.tese's,

@@ -1,4 +1,4 @@
-// Light in the dark (issue 27, item 4), spliced into room.frag: the world's lights (cave/lights.hpp:
+// Light in the dark, spliced into room.frag: the world's lights (cave/lights.hpp:
 // glow-worm colonies, glowing mineral seams, crystal clusters) and the player's flares as point
 // lights with falloff, the glowing rock around each source, and the haze they light along the
 // view ray. The renderer fills the arrays from render::frame_lights (the same list

@@ -1,8 +1,8 @@
-// The rock's relief: what the GPU adds to the streamed patch mesh (DESIGN "the detail stage").
+// The rock's relief: what the GPU adds to the streamed patch mesh.
 // Written once, in the subset of GLSL 4.10 and C++/GLM that both read, and used by
 //   - shaders/room.tese (spliced in by client/render/shaders.cpp): displacement and normals,
 //   - shaders/room.frag: the same noise for the rock's texture,
-//   - client/play (through shaders/relief.hpp): collision with the displaced surface,
+//   - client/play (through common/relief/relief.hpp): collision with the displaced surface,
 // so the player walks on what is drawn. Rules of the subset: float literals with an f, no
 // swizzles, no out parameters, functions marked RELIEF_FN (inline in C++).
 //
@@ -14,7 +14,7 @@
 //                (anisotropic ridged noise, 2.6 m tall, 0.4 m wide), the rock's relief drowned
 //                beneath them (a sheet smooths what it covers);
 //   formations:  stalactites, stalagmites, soda straws, columns and draperies are no relief but
-//                instanced geometry (shaders/formation.glsl, shaders/formations.hpp: issue 43);
+//                instanced geometry (shaders/formation.glsl, common/formations/formations.hpp);
 //                their candidates stay here (relief_speleothem: one per 1 m cell of a lattice
 //                turned off the world axes, pulled onto the nearest crack, heavy-tailed lengths
 //                from soda straws to metres in big rooms), so the relief's displacement is the
@@ -106,7 +106,7 @@ RELIEF_FN vec4 relief_noise(vec3 x) {
   return relief_noise_cell(ivec3(cell), x - cell);
 }
 
-// ---- Far from the origin (issue 43, item 5) ----
+// ---- Far from the origin ----
 // Sectors reach 6,291 km from the origin, where a float's step is 0.5 m: noise of world positions
 // in float32 made the rock a mosaic of flat squares there. A world position is therefore a block
 // of kReliefBlock metres held exactly in integers and a float offset from the block's corner that
@@ -157,7 +157,7 @@ const ivec3 kReliefGrainFineK = ivec3(64000);           // 1 / 1.6 cm
 const ivec3 kReliefPitK = ivec3(14629);                 // 1 / 7 cm
 const ivec3 kReliefJointBendK = ivec3(655);             // 0.64: a joint plane's wander
 const ivec3 kReliefJointRunK = ivec3(931);              // 0.91: where a joint is open
-// The rock's two joint sets (issue 43, item 4): planes across which each set's cycles count
+// The rock's two joint sets: planes across which each set's cycles count
 // (relief_frequency: cycles per metre) goes up by one, so 1 / |k / kReliefBlock| metres apart.
 // Steep (a small vertical part) and nearly square to each other, as in bedded limestone; whole
 // cycles per block, so a block's corner is on a plane of each set and 6,000 km out the planes
@@ -460,7 +460,7 @@ RELIEF_FN vec3 relief_pn_point(vec3 p0, vec3 p1, vec3 p2, vec3 n0, vec3 n1, vec3
          b102 * (3.0f * u * t * t) + b012 * (3.0f * vv * t * t) + b111 * (6.0f * u * vv * t);
 }
 
-// ---- Fine detail (issue 27, item 5): shading below the tessellation's reach ----
+// ---- Fine detail: shading below the tessellation's reach ----
 // What a wall 2 m away shows at 1080p (2.6 mm pixels), which the displaced mesh cannot carry: the
 // grain of calcite and sand, solution pits, hairline joints. Shading only: a tilt of the normal, a
 // change of albedo and a darkening of pits and joints; relief_at's displacement (and so collision

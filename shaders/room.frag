@@ -103,7 +103,7 @@ void main() {
   // Speleothems are calcite over their whole length: ochre at the root, cream towards the tip
   // where it still grows, banded by growth rings a few centimetres apart (formations: t_rock 0).
   // Flowstone (calcite on the rock, t_rock > 0) ran down the wall: fine vertical flutes, not
-  // rings (horizontal bands 3 cm apart across a sheet read as streaks: issue 43, item 4).
+  // rings (horizontal bands 3 cm apart across a sheet read as streaks).
   bool formation = !(t_rock > 0.0);
   float rings = calcite > 0.0
                     ? relief_fine_fade(0.028, footprint) *

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The whole test suite, then a check that it left nothing running (issue 45, item 4).
+# The whole test suite, then a check that it left nothing running.
 #   bash tests/run_suite.sh BUILD_DIR [ctest arguments...]
 # Runs ctest in BUILD_DIR with a marker in its environment (GROTTO_SUITE_RUN, a fresh random
 # value) that every process a test starts inherits, unless it clears its environment: nginx does

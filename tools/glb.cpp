@@ -1,4 +1,4 @@
-#include "glb.hpp"
+#include "tools/glb.hpp"
 
 #include <unistd.h>
 #include <algorithm>
@@ -12,11 +12,11 @@
 #include <nlohmann/json.hpp>
 #include <thread>
 
-#include "codec/room_codec.hpp"
-#include "core/bytes.hpp"
-#include "core/parallel.hpp"
+#include "common/codec/room_codec.hpp"
+#include "common/core/bytes.hpp"
+#include "common/core/parallel.hpp"
+#include "common/formations/formations.hpp"
 #include "proto/layout_json.hpp"
-#include "shaders/formations.hpp"
 
 namespace grotto::tools {
 namespace {

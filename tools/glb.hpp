@@ -1,4 +1,4 @@
-// A region's rooms as one glTF 2.0 binary file (grotto-layout --glb, issue 19; docs/INTEGRATION.md,
+// A region's rooms as one glTF 2.0 binary file (grotto-layout --glb; docs/INTEGRATION.md,
 // "Exporting to glTF").
 //
 // Each room is a node (named by its id, translated by its origin minus the file's anchor, portals
@@ -18,10 +18,10 @@
 #include <string>
 #include <vector>
 
-#include "cave/layout.hpp"
-#include "cave/lights.hpp"
-#include "core/result.hpp"
-#include "mesh/room_mesh.hpp"
+#include "common/cave/layout.hpp"
+#include "common/cave/lights.hpp"
+#include "common/core/result.hpp"
+#include "common/mesh/room_mesh.hpp"
 
 namespace grotto::tools {
 
@@ -35,8 +35,8 @@ struct GlbSource {
   // World metres that every node's translation is relative to (the scene's extras say it), so
   // that float32 translations keep the grid's precision.
   Vec3 anchor;
-  // Each room's formations (shaders/formations.hpp) as a child node: one mesh of them all at
-  // kGlbFormationLod, each instance's shape in its extras.
+  // Each room's formations (common/formations/formations.hpp) as a child node: one mesh of them all
+  // at kGlbFormationLod, each instance's shape in its extras.
   bool formations = true;
 };
 

@@ -8,13 +8,13 @@
 #include <fstream>
 #include <thread>
 
-#include "cave/layout.hpp"
-#include "cave/svg.hpp"
-#include "glb.hpp"
-#include "kernels/room_builder.hpp"
-#include "preview.hpp"
+#include "common/cave/layout.hpp"
+#include "common/cave/svg.hpp"
+#include "common/kernels/room_builder.hpp"
+#include "common/relief/relief_bake.hpp"
 #include "proto/layout_json.hpp"
-#include "shaders/relief_bake.hpp"
+#include "tools/glb.hpp"
+#include "tools/preview.hpp"
 
 namespace {
 
@@ -99,7 +99,7 @@ RegionMeshes build_meshes(const grotto::cave::World& world, const grotto::cave::
   return out;
 }
 
-// The relief baked into every built mesh (shaders/relief_bake.hpp).
+// The relief baked into every built mesh (common/relief/relief_bake.hpp).
 void bake_meshes(const grotto::cave::Region& region, RegionMeshes& meshes) {
   size_t next = 0, moved = 0;
   double largest = 0;
@@ -353,7 +353,7 @@ int main(int argc, char** argv) {
     if (!png_path.empty()) {
       grotto::tools::PreviewOptions preview;
       auto image = grotto::tools::render_preview(meshes.built, preview);
-      if (auto s = grotto::tools::write_png(png_path, image, preview.width, preview.height); !s) {
+      if (auto s = grotto::png::write_png(png_path, image, preview.width, preview.height); !s) {
         return fail(s.error().message);
       }
       spdlog::info("event=png_written path={}", png_path);

@@ -1,4 +1,4 @@
-#include "preview.hpp"
+#include "tools/preview.hpp"
 
 #include <algorithm>
 #include <cmath>

@@ -5,9 +5,9 @@
 #include <string>
 #include <vector>
 
-#include "core/result.hpp"
-#include "mesh/room_mesh.hpp"
-#include "tools/png.hpp"  // write_png, which grotto-layout --png uses with this preview
+#include "common/core/result.hpp"
+#include "common/mesh/room_mesh.hpp"
+#include "common/png/png.hpp"  // write_png, which grotto-layout --png uses with this preview
 
 namespace grotto::tools {
 

@@ -14,18 +14,17 @@
 #include <thread>
 #include <vector>
 
-#include "cave/lights.hpp"
 #include "client/app/bench_report.hpp"
 #include "client/app/camera_aim.hpp"
 #include "client/app/screenshot_report.hpp"
-#include "tools/png.hpp"
+#include "common/cave/lights.hpp"
+#include "common/png/png.hpp"
 
 namespace grotto::app {
 namespace {
 
 using namespace std::chrono_literals;
 using Clock = std::chrono::steady_clock;
-namespace client = grotto::client;
 
 constexpr double kPi = 3.14159265358979323846;
 // m/s told to the stream while waiting: 64-128 m of horizon (the fixed 4 s, halved behind the
@@ -116,7 +115,7 @@ bool surroundings_ready(const Session& s, Vec3 p) {
 template <typename Ready>
 bool wait_until(Session& s, Clock::time_point deadline, const char* what, Ready&& ready) {
   while (!ready()) {
-    if (s.stream.state() == client::StreamState::kFailed) return false;  // refused for good
+    if (s.stream.state() == stream::StreamState::kFailed) return false;  // refused for good
     if (Clock::now() > deadline) {
       // A pose in solid rock is located in no room, so nothing streams in.
       const auto id = room_at(s.cache, s.camera.position);
@@ -165,7 +164,7 @@ void follow_path(Session& s, double seconds) {
 }  // namespace
 
 Session::Session(const Options& o, render::Renderer& r, render::Overlay& ov,
-                 render::GpuRoomCache& c, client::Stream& st)
+                 render::GpuRoomCache& c, stream::Stream& st)
     : options(o), renderer(r), overlay(ov), cache(c), stream(st), player(Vec3{}) {
   play::PlayerParams params;
   params.speed = o.speed;
@@ -220,7 +219,7 @@ void place_formations(Session& s) {
   });
   const size_t threads = std::max(1u, std::thread::hardware_concurrency());
   while (!s.to_place.empty() && s.placing.size() + s.retired.size() < threads) {
-    std::shared_ptr<const client::ReadyRoom> room = std::move(s.to_place.front());
+    std::shared_ptr<const stream::ReadyRoom> room = std::move(s.to_place.front());
     s.to_place.pop_front();
     if (!s.cache.contains(room->room.id)) continue;  // evicted before its turn
     if (auto old = s.placing.find(room->room.id); old != s.placing.end()) {
@@ -273,7 +272,7 @@ void pump(Session& s, double speed) {
       spdlog::info("event=pose_room room={} x={} y={} z={}", room->id.to_string(),
                    s.camera.position.x, s.camera.position.y, s.camera.position.z);
     } else {
-      client::Pose pose;
+      stream::Pose pose;
       pose.room = s.pose_room;
       s.stream.set_pose(pose);
     }
@@ -290,7 +289,7 @@ void pump(Session& s, double speed) {
     }
   }
   if (s.placed) {
-    client::Pose pose;
+    stream::Pose pose;
     pose.position = s.stream_focus.value_or(s.camera.position);
     pose.forward = render::camera_forward(s.camera);
     pose.speed = speed;
@@ -316,7 +315,7 @@ render::FrameStats draw_frame(Session& s, int width, int height) {
   const std::vector<render::Light> lights = scene_lights(s);
   render::FrameStats stats =
       s.renderer.draw(s.cache, s.camera, width, height, s.render_options, lights);
-  const client::StreamStats st = s.stream.stats();
+  const stream::StreamStats st = s.stream.stats();
   // The first frame's time would include the wait for rooms: unknown.
   const double frame_ms = s.last_frame == s.began ? 0 : 1000 * seconds_since(s.last_frame);
   s.meter.frame(frame_ms, seconds_since(s.began), st.bytes_received, s.stream.take_samples());
@@ -349,7 +348,7 @@ namespace {
 // Why the stream cannot deliver, when it has stopped for good (the server refused the world,
 // the version or the token); empty while it may still.
 std::string stream_refusal(const Session& s) {
-  if (s.stream.state() != client::StreamState::kFailed) return {};
+  if (s.stream.state() != stream::StreamState::kFailed) return {};
   return "the server refused the stream: " + s.stream.stats().last_error;
 }
 
@@ -420,7 +419,7 @@ std::string screenshot_wait(Session& s, Clock::time_point deadline) {
                  [&] { return s.placed && surroundings_ready(s, s.camera.position); }))
     return {};
   if (auto why = stream_refusal(s); !why.empty()) return why;
-  if (const client::StreamStats st = s.stream.stats(); st.connects == 0)
+  if (const stream::StreamStats st = s.stream.stats(); st.connects == 0)
     return "no connection to the server " + wait +
            (st.last_error.empty() ? std::string() : " (" + st.last_error + ")");
   if (!s.placed)
@@ -475,14 +474,14 @@ int screenshot(Session& s, render::Framebuffer& fb, Clock::time_point deadline) 
   if (!why.empty()) {
     // With the overlay asked for, the picture shows what went wrong: write it, still failing.
     if (s.show_overlay) {
-      if (auto w = tools::write_png(o.screenshot, rgb, o.width, o.height); !w)
+      if (auto w = png::write_png(o.screenshot, rgb, o.width, o.height); !w)
         return fail(w.error().message);
       return fail("--screenshot: " + why + " (wrote the overlay's picture of it to " +
                   o.screenshot + ")");
     }
     return fail("--screenshot: " + why + "; no picture written");
   }
-  if (auto w = tools::write_png(o.screenshot, rgb, o.width, o.height); !w)
+  if (auto w = png::write_png(o.screenshot, rgb, o.width, o.height); !w)
     return fail(w.error().message);
   std::printf("grotto-client: wrote %s (%dx%d, %zu rooms loaded)\n", o.screenshot.c_str(), o.width,
               o.height, s.cache.size());
@@ -718,7 +717,7 @@ int run_window(Session& s, GLFWwindow* window) {
     title_timer += dt;
     if (title_timer > 0.5) {
       title_timer = 0;
-      const client::StreamStats st = s.stream.stats();
+      const stream::StreamStats st = s.stream.stats();
       char title[256];
       std::snprintf(
           title, sizeof title,
@@ -726,7 +725,7 @@ int run_window(Session& s, GLFWwindow* window) {
           dt * 1000, s.cache.size(), fs.rooms_drawn, static_cast<unsigned long long>(st.in_flight),
           ro.tessellation ? (ro.surface == render::Surface::kPhong ? "phong" : "pn") : "flat",
           ro.wireframe ? " wire" : "", following ? "path" : play::mode_name(s.player.mode()),
-          s.player.noclip() ? " noclip" : "", client::state_name(st.state), seconds_since(began));
+          s.player.noclip() ? " noclip" : "", stream::state_name(st.state), seconds_since(began));
       glfwSetWindowTitle(window, title);
     }
   }

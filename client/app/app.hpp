@@ -13,7 +13,6 @@
 #include <optional>
 #include <vector>
 
-#include "cave/room_id.hpp"
 #include "client/app/hud.hpp"
 #include "client/app/options.hpp"
 #include "client/play/collision.hpp"
@@ -24,6 +23,7 @@
 #include "client/render/renderer.hpp"
 #include "client/render/room_cache.hpp"
 #include "client/stream/stream.hpp"
+#include "common/cave/room_id.hpp"
 
 struct GLFWwindow;
 
@@ -31,13 +31,13 @@ namespace grotto::app {
 
 struct Session {
   Session(const Options& options, render::Renderer& renderer, render::Overlay& overlay,
-          render::GpuRoomCache& cache, client::Stream& stream);
+          render::GpuRoomCache& cache, stream::Stream& stream);
 
   const Options& options;
   render::Renderer& renderer;
   render::Overlay& overlay;
   render::GpuRoomCache& cache;
-  client::Stream& stream;
+  stream::Stream& stream;
   play::CollisionWorld world;
   play::Player player;
   render::Camera camera;
@@ -58,7 +58,7 @@ struct Session {
   // milliseconds, two frames of a 120 Hz display), a few at a time; then handed to the cache and
   // the collision world. Rooms wait in `to_place` for a thread; `retired`: placements of rooms
   // evicted meanwhile, dropped once they end.
-  std::deque<std::shared_ptr<const client::ReadyRoom>> to_place;
+  std::deque<std::shared_ptr<const stream::ReadyRoom>> to_place;
   std::map<cave::RoomId, std::future<std::vector<formations::FormationShape>>> placing;
   std::vector<std::future<std::vector<formations::FormationShape>>> retired;
   std::vector<play::Flare> flares;

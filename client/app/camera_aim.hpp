@@ -6,10 +6,10 @@
 
 #include <optional>
 
-#include "cave/room_id.hpp"
 #include "client/play/flythrough.hpp"
 #include "client/render/renderer.hpp"
-#include "core/vec3.hpp"
+#include "common/cave/room_id.hpp"
+#include "common/core/vec3.hpp"
 
 namespace grotto::app {
 

@@ -25,7 +25,7 @@ Error unavailable(std::string message) {
   return {ErrorCode::kUnavailable, std::move(message)};
 }
 
-// The plain sentence issue 7 asks for instead of a raw GLFW error; a hidden window is a
+// A plain sentence a player can act on instead of a raw GLFW error; a hidden window is a
 // headless run that was told to use GLFW.
 Error no_display(const std::string& why, bool visible) {
   if (!visible)

@@ -6,7 +6,7 @@
 
 #include <string>
 
-#include "core/result.hpp"
+#include "common/core/result.hpp"
 
 struct GLFWwindow;
 

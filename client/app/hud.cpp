@@ -22,9 +22,9 @@ const char* on_off(bool on) {
 }  // namespace
 
 void HudMeter::frame(double frame_ms, double now_s, uint64_t bytes_received,
-                     const std::vector<client::RoomSample>& samples) {
+                     const std::vector<stream::RoomSample>& samples) {
   if (frame_ms > 0) frame_ms_ = frame_ms_ == 0 ? frame_ms : frame_ms_ + (frame_ms - frame_ms_) / 30;
-  for (const client::RoomSample& sample : samples) {
+  for (const stream::RoomSample& sample : samples) {
     latencies_.push_back(sample.latency_ms);
     if (latencies_.size() > kLatencyWindow) latencies_.pop_front();
   }
@@ -47,25 +47,25 @@ double HudMeter::latency_ms() const {
 
 std::vector<render::OverlayLine> hud_lines(const HudState& s) {
   std::vector<render::OverlayLine> lines;
-  const client::StreamStats& st = s.stream;
+  const stream::StreamStats& st = s.stream;
   switch (st.state) {
-    case client::StreamState::kReady:
+    case stream::StreamState::kReady:
       break;
-    case client::StreamState::kConnecting:
+    case stream::StreamState::kConnecting:
       lines.push_back(
           {st.connects == 0 ? "CONNECTING TO THE SERVER..." : "SERVER LOST: RECONNECTING...",
            render::kOverlayWarning});
       break;
-    case client::StreamState::kBackoff:
+    case stream::StreamState::kBackoff:
       lines.push_back(
           {st.connects == 0 ? "CANNOT REACH THE SERVER: RETRYING" : "SERVER LOST: RECONNECTING",
            render::kOverlayError});
       if (!st.last_error.empty()) lines.push_back({st.last_error, render::kOverlayError});
       break;
-    case client::StreamState::kFailed:
+    case stream::StreamState::kFailed:
       lines.push_back({"SERVER REFUSED US: " + st.last_error, render::kOverlayError});
       break;
-    case client::StreamState::kStopped:
+    case stream::StreamState::kStopped:
       lines.push_back({"STREAM STOPPED", render::kOverlayWarning});
       break;
   }

@@ -12,7 +12,7 @@
 #include "client/render/overlay.hpp"
 #include "client/render/renderer.hpp"
 #include "client/stream/stream.hpp"
-#include "core/vec3.hpp"
+#include "common/core/vec3.hpp"
 
 namespace grotto::app {
 
@@ -22,7 +22,7 @@ class HudMeter {
   // A frame of `frame_ms` (0: unknown, e.g. the first), and the stream's counters and new samples
   // at `now` (seconds).
   void frame(double frame_ms, double now_s, uint64_t bytes_received,
-             const std::vector<client::RoomSample>& samples);
+             const std::vector<stream::RoomSample>& samples);
   double frame_ms() const { return frame_ms_; }  // exponential average over ~30 frames
   double latency_ms() const;                     // median of the last 64 rooms; -1 before any
   double kbytes_per_s() const { return kbytes_per_s_; }  // over the last whole second
@@ -41,7 +41,7 @@ struct HudState {
   double kbytes_per_s = 0;
   size_t rooms_on_gpu = 0;
   render::FrameStats frame;
-  client::StreamStats stream;
+  stream::StreamStats stream;
   render::RenderOptions render;
   std::string mode;   // "walk", "fly" or "noclip"
   Vec3 position;      // the camera, world metres

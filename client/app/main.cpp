@@ -1,4 +1,4 @@
-// grotto-client: the player's program (issue 7). A GLFW window over client/render, fed by a
+// grotto-client: the player's program. A GLFW window over client/render, fed by a
 // client/stream Stream connected to --server or to a server started in-process; a player that
 // walks or flies and collides with the cave (client/play); headless --screenshot and --bench,
 // through EGL where there is no display. Flags live in options.cpp, the loops in app.cpp, the
@@ -20,7 +20,7 @@
 namespace {
 
 namespace app = grotto::app;
-namespace client = grotto::client;
+namespace stream = grotto::stream;
 namespace render = grotto::render;
 
 int fail(const std::string& message) {
@@ -85,8 +85,8 @@ int main(int argc, char** argv) {
     url = started.value().url;
     server = std::move(started.value().server);
   }
-  client::Runtime runtime(1, 0);
-  client::StreamOptions so;
+  stream::Runtime runtime(1, 0);
+  stream::StreamOptions so;
   so.url = url;
   so.seed = o.seed;
   so.token = o.token;
@@ -98,9 +98,9 @@ int main(int argc, char** argv) {
   // that what a frame shows does not depend on how quickly the server answered (the adaptive
   // horizon, the default for play, follows the server's latency).
   if (headless) so.min_horizon_s = 0;
-  auto stream_or = client::Stream::start(so, runtime);
+  auto stream_or = stream::Stream::start(so, runtime);
   if (!stream_or) return fail(stream_or.error().message);
-  std::unique_ptr<client::Stream> stream = std::move(stream_or).value();
+  std::unique_ptr<stream::Stream> stream = std::move(stream_or).value();
 
   int status = 0;
   {

@@ -1,6 +1,6 @@
 #include "client/app/options.hpp"
 
-#include "cave/room_id.hpp"
+#include "common/cave/room_id.hpp"
 #include "proto/token.hpp"
 
 #include <CLI/CLI.hpp>
@@ -226,7 +226,7 @@ std::optional<int> parse_options(int argc, char** argv, Options& o) {
   auto token = proto::resolve_token(o.token_file, std::getenv(proto::kTokenEnvVariable));
   if (!token) return fail(token.error().message);
   o.token = std::move(token).value();
-  auto net = client::parse_net_profile(o.net_text);
+  auto net = stream::parse_net_profile(o.net_text);
   if (!net) return fail(net.error().message);
   o.net = *net;
   if (o.lod_text == "distance") {

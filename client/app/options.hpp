@@ -6,11 +6,11 @@
 #include <optional>
 #include <string>
 
-#include "cave/room_id.hpp"
 #include "client/play/player.hpp"
 #include "client/render/renderer.hpp"
 #include "client/stream/net_sim.hpp"
-#include "core/vec3.hpp"
+#include "common/cave/room_id.hpp"
+#include "common/core/vec3.hpp"
 
 namespace grotto::app {
 
@@ -48,13 +48,13 @@ struct Options {
   std::string token_file;
   std::string token;            // from token_file or $GROTTO_TOKEN; empty: none
   std::string net_text;         // --net: a simulated network (client/stream/net_sim.hpp)
-  client::NetProfile net;       // parsed from net_text; zero: the real network
+  stream::NetProfile net;       // parsed from net_text; zero: the real network
   std::optional<bool> overlay;  // --overlay / --no-overlay; default: in the window only
   std::string lod_text = "screen";
   render::LodHeuristic lod = render::LodHeuristic::kScreenSpace;
   bool no_portal_culling = false;
   bool no_displacement = false;
-  bool no_formations = false;  // the speleothems' instances (shaders/formations.hpp)
+  bool no_formations = false;  // the speleothems' instances (common/formations/formations.hpp)
   bool no_bloom = false;
   bool no_motion_blur = false;
   double exposure = 1.0;

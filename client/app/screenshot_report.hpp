@@ -13,7 +13,7 @@
 #include <vector>
 
 #include "client/render/renderer.hpp"
-#include "core/vec3.hpp"
+#include "common/core/vec3.hpp"
 
 namespace grotto::app {
 

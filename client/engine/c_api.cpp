@@ -13,8 +13,8 @@
 #include <string>
 #include <vector>
 
-#include "grotto/grotto_stream.h"
-#include "grotto/stream.hpp"
+#include <grotto/grotto_stream.h>
+#include <grotto/stream.hpp>
 
 struct grotto_stream {
   std::unique_ptr<grotto::Stream> stream;

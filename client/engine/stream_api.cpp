@@ -1,5 +1,5 @@
 // include/grotto/stream.hpp over client/stream: the installed library's C++ face. It translates
-// types and nothing else; the protocol, plan, store and threads are client::Stream's. Rooms are
+// types and nothing else; the protocol, plan, store and threads are stream::Stream's. Rooms are
 // handed over without copying their arrays: a grotto::Room's spans point into the decoded room,
 // which the RoomPtr keeps alive (shared_ptr's aliasing constructor).
 #include <spdlog/spdlog.h>
@@ -12,9 +12,9 @@
 #include <utility>
 #include <vector>
 
-#include "cave/room_id.hpp"
+#include <grotto/stream.hpp>
 #include "client/stream/stream.hpp"
-#include "grotto/stream.hpp"
+#include "common/cave/room_id.hpp"
 
 namespace grotto {
 
@@ -32,14 +32,14 @@ Vec3 to_internal(Vec3d v) {
 // A public Room and the decoded room its spans point into.
 struct HeldRoom {
   Room room;
-  std::shared_ptr<const client::ReadyRoom> source;
+  std::shared_ptr<const stream::ReadyRoom> source;
 };
 
-RoomPtr to_public(std::shared_ptr<const client::ReadyRoom> ready) {
+RoomPtr to_public(std::shared_ptr<const stream::ReadyRoom> ready) {
   if (!ready) return nullptr;
   auto held = std::make_shared<HeldRoom>();
   held->source = std::move(ready);
-  const client::ReadyRoom& r = *held->source;
+  const stream::ReadyRoom& r = *held->source;
   Room& out = held->room;
   out.key = r.room.id.packed();
   out.id = r.room.id.to_string();
@@ -65,12 +65,12 @@ RoomPtr to_public(std::shared_ptr<const client::ReadyRoom> ready) {
 // state_name (client/stream/options.hpp) names both.
 static_assert(
     static_cast<int>(StreamState::kConnecting) ==
-        static_cast<int>(client::StreamState::kConnecting) &&
-    static_cast<int>(StreamState::kReady) == static_cast<int>(client::StreamState::kReady) &&
-    static_cast<int>(StreamState::kBackoff) == static_cast<int>(client::StreamState::kBackoff) &&
-    static_cast<int>(StreamState::kFailed) == static_cast<int>(client::StreamState::kFailed) &&
-    static_cast<int>(StreamState::kStopped) == static_cast<int>(client::StreamState::kStopped));
-StreamState to_public(client::StreamState s) {
+        static_cast<int>(stream::StreamState::kConnecting) &&
+    static_cast<int>(StreamState::kReady) == static_cast<int>(stream::StreamState::kReady) &&
+    static_cast<int>(StreamState::kBackoff) == static_cast<int>(stream::StreamState::kBackoff) &&
+    static_cast<int>(StreamState::kFailed) == static_cast<int>(stream::StreamState::kFailed) &&
+    static_cast<int>(StreamState::kStopped) == static_cast<int>(stream::StreamState::kStopped));
+StreamState to_public(stream::StreamState s) {
   return static_cast<StreamState>(s);
 }
 
@@ -78,14 +78,14 @@ StreamState to_public(client::StreamState s) {
 
 // The Runtime is declared first so that it outlives the Stream that runs on it.
 struct Stream::Impl {
-  client::Runtime runtime;
-  std::unique_ptr<client::Stream> stream;
+  stream::Runtime runtime;
+  std::unique_ptr<stream::Stream> stream;
 
   explicit Impl(int decode_threads) : runtime(1, decode_threads > 0 ? decode_threads : 2) {}
 };
 
 std::unique_ptr<Stream> Stream::start(const StreamConfig& config, std::string* error) {
-  client::StreamOptions o;
+  stream::StreamOptions o;
   o.url = config.url;
   o.seed = config.seed;
   o.token = config.token;
@@ -97,7 +97,7 @@ std::unique_ptr<Stream> Stream::start(const StreamConfig& config, std::string* e
   std::string why;
   if (config.decode_threads < 0 || config.decode_threads > 64) {
     why = "decode_threads must be in [0, 64]";
-  } else if (Status valid = client::validate_options(o); !valid) {
+  } else if (Status valid = stream::validate_options(o); !valid) {
     why = valid.error().message;
   }
   if (!why.empty()) {
@@ -105,7 +105,7 @@ std::unique_ptr<Stream> Stream::start(const StreamConfig& config, std::string* e
     return nullptr;
   }
   auto impl = std::make_unique<Impl>(config.decode_threads);
-  auto started = client::Stream::start(o, impl->runtime);
+  auto started = stream::Stream::start(o, impl->runtime);
   if (!started) {
     if (error) *error = started.error().message;
     return nullptr;
@@ -117,12 +117,12 @@ std::unique_ptr<Stream> Stream::start(const StreamConfig& config, std::string* e
 Stream::Stream(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
 
 Stream::~Stream() {
-  // The client::Stream stops and goes before its Runtime (member order in Impl).
+  // The stream::Stream stops and goes before its Runtime (member order in Impl).
   impl_->stream.reset();
 }
 
 void Stream::set_pose(const Pose& pose) {
-  client::Pose p;
+  stream::Pose p;
   p.position = to_internal(pose.position);
   p.forward = to_internal(pose.forward);
   p.speed = pose.speed;
@@ -156,7 +156,7 @@ RoomPtr Stream::room(RoomKey key) const {
 }
 
 StreamStats Stream::stats() const {
-  client::StreamStats s = impl_->stream->stats();
+  stream::StreamStats s = impl_->stream->stats();
   StreamStats out;
   out.state = to_public(s.state);
   out.connects = s.connects;
@@ -194,7 +194,7 @@ std::string room_name(RoomKey key) {
 }
 
 const char* state_name(StreamState state) {
-  return client::state_name(static_cast<client::StreamState>(state));
+  return stream::state_name(static_cast<stream::StreamState>(state));
 }
 
 bool set_log_level(std::string_view level) {

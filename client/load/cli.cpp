@@ -11,7 +11,7 @@
 #include "client/stream/stream.hpp"
 #include "proto/token.hpp"
 
-namespace grotto::client::load {
+namespace grotto::load {
 namespace {
 
 constexpr const char* kDescription =
@@ -244,4 +244,4 @@ CommandLine parse_command_line(int argc, const char* const* argv) {
   return out;
 }
 
-}  // namespace grotto::client::load
+}  // namespace grotto::load

@@ -15,13 +15,13 @@
 #include <tuple>
 #include <vector>
 
-#include "cave/layout.hpp"
 #include "client/load/verifier.hpp"
 #include "client/stream/stream.hpp"
-#include "core/parallel.hpp"
+#include "common/cave/layout.hpp"
+#include "common/core/parallel.hpp"
 #include "server/embedded.hpp"
 
-namespace grotto::client::load {
+namespace grotto::load {
 
 const char* mode_name(Mode mode) {
   switch (mode) {
@@ -496,4 +496,4 @@ Result<LoadReport> run_load(const LoadOptions& options) {
   return report;
 }
 
-}  // namespace grotto::client::load
+}  // namespace grotto::load

@@ -1,5 +1,5 @@
-// grotto-load's engine: N simulated players (walker.hpp), each with its own client::Stream, all
-// sharing one client::Runtime, against a server given by url or an in-process one. One
+// grotto-load's engine: N simulated players (walker.hpp), each with its own stream::Stream, all
+// sharing one stream::Runtime, against a server given by url or an in-process one. One
 // simulation thread ticks every walker in real time and feeds each Stream its pose, exactly as a
 // game client's frame loop would; what the Streams measure becomes a LoadReport (report.hpp).
 #pragma once
@@ -13,9 +13,9 @@
 #include "client/load/report.hpp"
 #include "client/load/walker.hpp"
 #include "client/stream/options.hpp"
-#include "core/result.hpp"
+#include "common/core/result.hpp"
 
-namespace grotto::client::load {
+namespace grotto::load {
 
 enum class Mode {
   kWalk,   // players walk the portal graph for duration_s (default 20 s)
@@ -96,4 +96,4 @@ struct CommandLine {
 };
 CommandLine parse_command_line(int argc, const char* const* argv);
 
-}  // namespace grotto::client::load
+}  // namespace grotto::load

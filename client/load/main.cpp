@@ -11,7 +11,7 @@
 #include "client/load/load.hpp"
 
 int main(int argc, char** argv) {
-  namespace load = grotto::client::load;
+  namespace load = grotto::load;
   auto cli = load::parse_command_line(argc, argv);
   if (!cli.run) {
     std::fprintf(cli.exit_code == 0 ? stdout : stderr, "%s\n", cli.text.c_str());

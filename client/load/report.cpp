@@ -6,7 +6,7 @@
 #include <cstdio>
 #include <nlohmann/json.hpp>
 
-namespace grotto::client::load {
+namespace grotto::load {
 
 double percentile(const std::vector<double>& sorted, double p) {
   if (sorted.empty()) return 0;
@@ -309,4 +309,4 @@ std::string to_json_text(const LoadReport& r) {
   return doc.dump(2);
 }
 
-}  // namespace grotto::client::load
+}  // namespace grotto::load

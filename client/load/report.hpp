@@ -7,7 +7,7 @@
 #include <string>
 #include <vector>
 
-namespace grotto::client::load {
+namespace grotto::load {
 
 // Nearest-rank percentile of ascending `sorted` samples: the smallest sample with at least p% of
 // the samples at or below it (p in (0, 100]). 0 for no samples.
@@ -145,4 +145,4 @@ std::string format_table(const LoadReport& report);
 // The JSON document: every figure of the report, exit_code included.
 std::string to_json_text(const LoadReport& report);
 
-}  // namespace grotto::client::load
+}  // namespace grotto::load

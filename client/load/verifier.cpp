@@ -3,9 +3,9 @@
 #include <spdlog/spdlog.h>
 
 #include "client/stream/verify.hpp"
-#include "core/thread_name.hpp"
+#include "common/core/thread_name.hpp"
 
-namespace grotto::client::load {
+namespace grotto::load {
 namespace {
 
 void note(VerifyReport& report, const std::string& message) {
@@ -108,4 +108,4 @@ void Verifier::run() {
   }
 }
 
-}  // namespace grotto::client::load
+}  // namespace grotto::load

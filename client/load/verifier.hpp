@@ -18,7 +18,7 @@
 #include "client/stream/portal_graph.hpp"
 #include "client/stream/room_store.hpp"
 
-namespace grotto::client::load {
+namespace grotto::load {
 
 // The room `player` holds now, or nullptr. Called on the verifier's thread.
 using RoomLookup = std::function<std::shared_ptr<const ReadyRoom>(int player, cave::RoomId id)>;
@@ -63,4 +63,4 @@ class Verifier {
   std::thread thread_;
 };
 
-}  // namespace grotto::client::load
+}  // namespace grotto::load

@@ -4,7 +4,7 @@
 #include <cassert>
 #include <cmath>
 
-namespace grotto::client::load {
+namespace grotto::load {
 
 const char* walker_state_name(WalkerState state) {
   switch (state) {
@@ -199,4 +199,4 @@ void Walker::advance(double dt) {
   }
 }
 
-}  // namespace grotto::client::load
+}  // namespace grotto::load

@@ -5,7 +5,7 @@
 // the one thing a player of a streamed world must never see.
 //
 // No threads and no network: the Walker sees the world only through a WorldView, so the tests
-// drive it over an in-process layout (common/cave) and grotto-load over a client::Stream. Not
+// drive it over an in-process layout (common/cave) and grotto-load over a stream::Stream. Not
 // thread-safe; deterministic for a given seed, view and sequence of advance() steps.
 #pragma once
 #include <cstdint>
@@ -14,12 +14,12 @@
 #include <random>
 #include <vector>
 
-#include "cave/layout.hpp"
-#include "cave/room_id.hpp"
 #include "client/stream/portal_graph.hpp"
-#include "core/vec3.hpp"
+#include "common/cave/layout.hpp"
+#include "common/cave/room_id.hpp"
+#include "common/core/vec3.hpp"
 
-namespace grotto::client::load {
+namespace grotto::load {
 
 // What a player knows of the world. descriptor: the room's sphere and portals once received
 // (nullopt before); ready: the room can be drawn (decoded and stored). Both are called from
@@ -116,4 +116,4 @@ class Walker {
   WalkerStats stats_;
 };
 
-}  // namespace grotto::client::load
+}  // namespace grotto::load

@@ -3,9 +3,9 @@
 #include <algorithm>
 #include <cmath>
 
-#include "mesh/rim.hpp"
-#include "shaders/formations.hpp"
-#include "shaders/relief.hpp"
+#include "common/formations/formations.hpp"
+#include "common/mesh/rim.hpp"
+#include "common/relief/relief.hpp"
 
 namespace grotto::play {
 namespace {
@@ -87,7 +87,7 @@ bool segment_crosses(const Disc& d, Vec3 p, Vec3 q) {
   return length_squared(x - d.centre) <= d.radius * d.radius;
 }
 
-void CollisionWorld::add(const client::ReadyRoom& ready,
+void CollisionWorld::add(const stream::ReadyRoom& ready,
                          std::span<const formations::FormationShape> placed) {
   evict(ready.room.id);
   Room r;
@@ -157,7 +157,7 @@ void CollisionWorld::add(const client::ReadyRoom& ready,
   set_formations(ready.room.id, placed);
 }
 
-void CollisionWorld::add(const client::ReadyRoom& ready) {
+void CollisionWorld::add(const stream::ReadyRoom& ready) {
   std::vector<formations::FormationShape> placed;
   if (relief_strength_ > 0 && formations_)
     placed = formations::place(

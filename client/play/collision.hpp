@@ -1,11 +1,11 @@
 // What the player collides with: the surface grotto-client draws, i.e. each room's patch mesh as
-// PN triangles with the rock's relief on top (shaders/relief.hpp, the shader's own source: rock
-// and flowstone) and its formations as simple hulls (shaders/formations.hpp: stalactites,
-// stalagmites, columns; six sides round what is drawn), added when client/stream delivers the room
-// and removed when it is evicted, plus a wall over every portal whose neighbour is not loaded, so
-// nobody falls out of the streamed cave. A patch triangle is refined into kRefine x kRefine
-// triangles of that surface the first time a query comes near it (about 14 cm apart), and kept
-// while its room is.
+// PN triangles with the rock's relief on top (common/relief/relief.hpp, the shader's own source:
+// rock and flowstone) and its formations as simple hulls (common/formations/formations.hpp:
+// stalactites, stalagmites, columns; six sides round what is drawn), added when client/stream
+// delivers the room and removed when it is evicted, plus a wall over every portal whose neighbour
+// is not loaded, so nobody falls out of the streamed cave. A patch triangle is refined into kRefine
+// x kRefine triangles of that surface the first time a query comes near it (about 14 cm apart), and
+// kept while its room is.
 //
 // Precision: a room keeps its decoded room-frame floats and its grid origin (as
 // client/render/room_cache does); triangles leave the world in double (origin + float offset), so
@@ -21,10 +21,10 @@
 #include <span>
 #include <vector>
 
-#include "cave/layout.hpp"
 #include "client/stream/room_store.hpp"
-#include "core/vec3.hpp"
-#include "shaders/formations.hpp"
+#include "common/cave/layout.hpp"
+#include "common/core/vec3.hpp"
+#include "common/formations/formations.hpp"
 
 namespace grotto::play {
 
@@ -77,8 +77,8 @@ class CollisionWorld {
       : relief_strength_(relief_strength), formations_(formations) {}
   // Adds the room's patch mesh, replacing a room with the same id, with its formations placed
   // here (formations::place) or given (placed elsewhere, or to come through set_formations).
-  void add(const client::ReadyRoom& room);
-  void add(const client::ReadyRoom& room, std::span<const formations::FormationShape> formations);
+  void add(const stream::ReadyRoom& room);
+  void add(const stream::ReadyRoom& room, std::span<const formations::FormationShape> formations);
   // The room's formations, when they were placed apart from add; nothing when it is gone.
   void set_formations(cave::RoomId id, std::span<const formations::FormationShape> formations);
   void evict(cave::RoomId id);

@@ -1,4 +1,4 @@
-// Flares (issue 27, item 4): the player throws a flare from the eye; it falls under gravity,
+// Flares: the player throws a flare from the eye; it falls under gravity,
 // bounces off the collision surface (CollisionWorld: the rock as drawn, and the walls over
 // portals to rooms not loaded) until it comes to rest, and burns as a bright warm point light for
 // FlareParams::burn_s. A handful burn at once; throwing another puts out the oldest.
@@ -12,7 +12,7 @@
 #include <vector>
 
 #include "client/play/collision.hpp"
-#include "core/vec3.hpp"
+#include "common/core/vec3.hpp"
 
 namespace grotto::play {
 

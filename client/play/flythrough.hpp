@@ -9,8 +9,8 @@
 #include <optional>
 #include <vector>
 
-#include "cave/layout.hpp"
-#include "core/vec3.hpp"
+#include "common/cave/layout.hpp"
+#include "common/core/vec3.hpp"
 
 namespace grotto::play {
 

@@ -22,7 +22,7 @@
 #include <array>
 
 #include "client/play/collision.hpp"
-#include "core/vec3.hpp"
+#include "common/core/vec3.hpp"
 
 namespace grotto::play {
 

@@ -13,7 +13,7 @@
 #include <utility>
 #include <vector>
 
-#include "core/result.hpp"
+#include "common/core/result.hpp"
 
 namespace grotto::render {
 

@@ -8,7 +8,7 @@
 #include <vector>
 
 #include "client/render/gl.hpp"
-#include "core/result.hpp"
+#include "common/core/result.hpp"
 
 namespace grotto::render {
 

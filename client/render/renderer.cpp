@@ -12,12 +12,12 @@
 #include <tuple>
 #include <vector>
 
-#include "cave/lights.hpp"
 #include "client/render/shaders.hpp"
 #include "client/stream/verify.hpp"
-#include "core/random.hpp"
-#include "mesh/rim.hpp"
-#include "shaders/relief.hpp"
+#include "common/cave/lights.hpp"
+#include "common/core/random.hpp"
+#include "common/mesh/rim.hpp"
+#include "common/relief/relief.hpp"
 
 namespace grotto::render {
 namespace {
@@ -172,7 +172,7 @@ std::vector<cave::RoomId> rooms_holding(const GpuRoomCache& cache, Vec3 camera, 
   std::vector<cave::RoomId> out;
   for (const auto& [id, room] : cache.rooms()) {
     const cave::Sphere& s = room.room.sphere;
-    const double reach = s.radius + client::vertex_sphere_margin(s.radius) + tolerance;
+    const double reach = s.radius + stream::vertex_sphere_margin(s.radius) + tolerance;
     const Vec3 d = camera - s.centre;
     if (d.x * d.x + d.y * d.y + d.z * d.z > reach * reach) continue;
     const bool inside =
@@ -629,7 +629,7 @@ FrameStats Renderer::draw(const GpuRoomCache& cache, const Camera& camera, int w
     }
     const glm::vec3 centre = to_vec3(room.room.sphere.centre - anchor);
     const double radius =
-        room.room.sphere.radius + client::vertex_sphere_margin(room.room.sphere.radius);
+        room.room.sphere.radius + stream::vertex_sphere_margin(room.room.sphere.radius);
     if (o.room_culling && sphere_outside(planes, centre, static_cast<float>(radius), margin)) {
       ++stats.rooms_culled;
       continue;

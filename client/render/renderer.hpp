@@ -16,9 +16,9 @@
 
 #include "client/render/gl.hpp"
 #include "client/render/room_cache.hpp"
-#include "core/result.hpp"
-#include "core/vec3.hpp"
-#include "shaders/formations.hpp"
+#include "common/core/result.hpp"
+#include "common/core/vec3.hpp"
+#include "common/formations/formations.hpp"
 
 namespace grotto::render {
 
@@ -63,7 +63,8 @@ struct RenderOptions {
   // Rooms whose rock (sphere, relief and hanging formations) is wholly outside the frustum are
   // not drawn; off only to check and measure that test.
   bool room_culling = true;
-  // The speleothems (shaders/formations.hpp), instanced meshes of their own; off: bare rock.
+  // The speleothems (common/formations/formations.hpp), instanced meshes of their own; off: bare
+  // rock.
   bool formations = true;
   // Time each pass on the GPU (GL timer queries: FrameStats::passes). Each frame then waits for
   // its queries: for benchmarks and reports, not for play.

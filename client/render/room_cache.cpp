@@ -41,7 +41,7 @@ float median_edge_length(const codec::DecodedRoom& mesh) {
   return *mid;
 }
 
-void GpuRoomCache::upload(const client::ReadyRoom& room) {
+void GpuRoomCache::upload(const stream::ReadyRoom& room) {
   upload(room, formations::place(
                    formations::surface_of(room.mesh, room.origin, room.room.sphere.radius)));
 }
@@ -51,7 +51,7 @@ void GpuRoomCache::set_formations(cave::RoomId id,
   if (auto it = rooms_.find(id); it != rooms_.end()) it->second.formations = std::move(formations);
 }
 
-void GpuRoomCache::upload(const client::ReadyRoom& room,
+void GpuRoomCache::upload(const stream::ReadyRoom& room,
                           std::vector<formations::FormationShape> formations) {
   evict(room.room.id);
   GpuRoom g;

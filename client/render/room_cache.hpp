@@ -10,11 +10,11 @@
 #include <map>
 #include <vector>
 
-#include "cave/layout.hpp"
 #include "client/render/gl.hpp"
 #include "client/stream/room_store.hpp"
-#include "core/vec3.hpp"
-#include "shaders/formations.hpp"
+#include "common/cave/layout.hpp"
+#include "common/core/vec3.hpp"
+#include "common/formations/formations.hpp"
 
 namespace grotto::render {
 
@@ -54,8 +54,8 @@ class GpuRoomCache {
   // Uploads the room, replacing one with the same id, with its formations placed here
   // (formations::place: a hall's takes milliseconds) or given (placed elsewhere, or to come
   // through set_formations).
-  void upload(const client::ReadyRoom& room);
-  void upload(const client::ReadyRoom& room, std::vector<formations::FormationShape> formations);
+  void upload(const stream::ReadyRoom& room);
+  void upload(const stream::ReadyRoom& room, std::vector<formations::FormationShape> formations);
   // The room's formations, when they were placed apart from its upload; nothing when it is gone.
   void set_formations(cave::RoomId id, std::vector<formations::FormationShape> formations);
   void evict(cave::RoomId id);

@@ -1,5 +1,5 @@
 // The shader programs of client/render, from the files in shaders/ embedded at build time
-// (client/render/CMakeLists.txt runs kernels/EmbedCl.cmake's generator over them).
+// (client/render/CMakeLists.txt runs common/kernels/EmbedCl.cmake's generator over them).
 #pragma once
 
 #include <vector>

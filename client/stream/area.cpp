@@ -2,7 +2,7 @@
 
 #include <limits>
 
-namespace grotto::client {
+namespace grotto::stream {
 
 std::vector<PlannedRoom> area_rooms(const PortalGraph& graph, cave::RoomId start, Vec3 point,
                                     double radius_m) {
@@ -35,4 +35,4 @@ AreaStatus area_status(const PortalGraph& graph, const RoomStore& store, Vec3 po
   return status;
 }
 
-}  // namespace grotto::client
+}  // namespace grotto::stream

@@ -9,12 +9,12 @@
 #include <optional>
 #include <vector>
 
-#include "cave/room_id.hpp"
 #include "client/stream/portal_graph.hpp"
 #include "client/stream/room_store.hpp"
-#include "core/vec3.hpp"
+#include "common/cave/room_id.hpp"
+#include "common/core/vec3.hpp"
 
-namespace grotto::client {
+namespace grotto::stream {
 
 struct AreaStatus {
   bool ready = false;    // every room of the area is stored at a lod <= max_lod
@@ -41,4 +41,4 @@ std::vector<PlannedRoom> area_rooms(const PortalGraph& graph, cave::RoomId start
 AreaStatus area_status(const PortalGraph& graph, const RoomStore& store, Vec3 point,
                        double radius_m, uint32_t max_lod);
 
-}  // namespace grotto::client
+}  // namespace grotto::stream

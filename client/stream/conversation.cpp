@@ -7,9 +7,9 @@
 #include <utility>
 
 #include "client/stream/area.hpp"
-#include "core/bytes.hpp"
+#include "common/core/bytes.hpp"
 
-namespace grotto::client {
+namespace grotto::stream {
 
 namespace {
 
@@ -480,7 +480,7 @@ double Conversation::horizon_s(SteadyTime now) const {
   std::vector<double> waits;
   for (const auto& [at, ms] : recent_latency_ms_)
     if (now - at <= kLatencyWindowTime) waits.push_back(ms);
-  // The link's round trip (issue 45): no room comes sooner than the quickest of the last ones
+  // The link's round trip: no room comes sooner than the quickest of the last ones
   // (urgent or not) did, a round trip and a frame's time on the link; on a far or thin link
   // (300 ms, 512 kbit/s) that is most of what a room takes, and a plan that changes (a turn, a
   // sprint) costs it again before the first new room can come. The floor keeps six of them
@@ -745,4 +745,4 @@ Result<codec::DecodedRoom> decode_payload(const DecodeRoom& job) {
   return mesh;
 }
 
-}  // namespace grotto::client
+}  // namespace grotto::stream

@@ -37,16 +37,16 @@
 #include <variant>
 #include <vector>
 
-#include "cave/room_id.hpp"
 #include "client/stream/options.hpp"
 #include "client/stream/portal_graph.hpp"
 #include "client/stream/room_store.hpp"
-#include "codec/room_codec.hpp"
-#include "core/result.hpp"
+#include "common/cave/room_id.hpp"
+#include "common/codec/room_codec.hpp"
+#include "common/core/result.hpp"
 #include "proto/messages.hpp"
 #include "proto/room_frame.hpp"
 
-namespace grotto::client {
+namespace grotto::stream {
 
 using SteadyTime = std::chrono::steady_clock::time_point;
 
@@ -278,4 +278,4 @@ class Conversation {
   StreamStats stats_;
 };
 
-}  // namespace grotto::client
+}  // namespace grotto::stream

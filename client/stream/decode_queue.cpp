@@ -1,6 +1,6 @@
 #include "client/stream/decode_queue.hpp"
 
-namespace grotto::client {
+namespace grotto::stream {
 
 void DecodeQueue::push(std::chrono::steady_clock::time_point due, Job job) {
   std::lock_guard lock(mu_);
@@ -20,4 +20,4 @@ size_t DecodeQueue::size() const {
   return jobs_.size();
 }
 
-}  // namespace grotto::client
+}  // namespace grotto::stream

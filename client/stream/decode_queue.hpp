@@ -2,8 +2,8 @@
 // hundreds) hands its frames to the same few decode threads; taken in arrival order, the frame of
 // the room a player is about to walk into waits behind every other player's far prefetch. Here a
 // job carries when its room is due (the request's time + its priority: when the player can reach
-// it) and workers take the earliest due first, ties in arrival order (issue 28: urgent rooms first
-// at every stage).
+// it) and workers take the earliest due first, ties in arrival order: urgent rooms go first at
+// every stage.
 //
 // Thread-safe: any thread pushes, any worker pops.
 #pragma once
@@ -15,7 +15,7 @@
 #include <mutex>
 #include <utility>
 
-namespace grotto::client {
+namespace grotto::stream {
 
 class DecodeQueue {
  public:
@@ -36,4 +36,4 @@ class DecodeQueue {
   uint64_t next_seq_ = 0;
 };
 
-}  // namespace grotto::client
+}  // namespace grotto::stream

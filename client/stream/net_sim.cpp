@@ -6,7 +6,7 @@
 #include <optional>
 #include <vector>
 
-namespace grotto::client {
+namespace grotto::stream {
 namespace {
 
 using std::chrono::microseconds;
@@ -150,4 +150,4 @@ NetLink::Time NetLink::arrival(Time now, size_t bytes) {
   return last_;
 }
 
-}  // namespace grotto::client
+}  // namespace grotto::stream

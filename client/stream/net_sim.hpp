@@ -1,4 +1,4 @@
-// A simulated network between a player and the server (issue 45): latency each way, jitter that
+// A simulated network between a player and the server: latency each way, jitter that
 // never reorders (TCP delivers in order), a bandwidth cap on what the player receives, and the
 // link stalling for a moment now and then. Every figure Grotto had was measured on loopback (0 ms,
 // no cap); players are 20-200 ms away on links of 1-20 Mbit/s. The kernel's netem needs root and a
@@ -15,10 +15,10 @@
 #include <string>
 #include <string_view>
 
-#include "core/random.hpp"
-#include "core/result.hpp"
+#include "common/core/random.hpp"
+#include "common/core/result.hpp"
 
-namespace grotto::client {
+namespace grotto::stream {
 
 struct NetProfile {
   std::chrono::microseconds rtt{0};     // round trip: half of it each way
@@ -68,4 +68,4 @@ class NetLink {
   Rng rng_;
 };
 
-}  // namespace grotto::client
+}  // namespace grotto::stream

@@ -6,7 +6,7 @@
 #include "client/stream/url.hpp"
 #include "proto/token.hpp"
 
-namespace grotto::client {
+namespace grotto::stream {
 
 Status validate_options(const StreamOptions& options) {
   if (auto url = parse_url(options.url); !url) return url.error();
@@ -51,4 +51,4 @@ Status validate_options(const StreamOptions& options) {
   return {};
 }
 
-}  // namespace grotto::client
+}  // namespace grotto::stream

@@ -9,13 +9,13 @@
 #include <optional>
 #include <string>
 
-#include "cave/room_id.hpp"
 #include "client/stream/net_sim.hpp"
 #include "client/stream/portal_graph.hpp"
-#include "core/result.hpp"
+#include "common/cave/room_id.hpp"
+#include "common/core/result.hpp"
 #include "proto/messages.hpp"
 
-namespace grotto::client {
+namespace grotto::stream {
 
 // The adaptive horizon's floor by default (StreamOptions::min_horizon_s): at 10 m/s, 15 m of
 // path, the rooms around and in front of a player (docs/BENCHMARKS.md "Capacity").
@@ -127,4 +127,4 @@ struct RoomSample {
   size_t frame_bytes = 0;
 };
 
-}  // namespace grotto::client
+}  // namespace grotto::stream

@@ -8,7 +8,7 @@
 #include <set>
 #include <utility>
 
-namespace grotto::client {
+namespace grotto::stream {
 namespace {
 
 bool same_bits(double a, double b) {
@@ -180,4 +180,4 @@ std::vector<PlannedRoom> PortalGraph::plan(cave::RoomId start, const Pose& pose,
   return out;
 }
 
-}  // namespace grotto::client
+}  // namespace grotto::stream

@@ -3,7 +3,7 @@
 // functions, no network and no threads: client/stream's Stream calls them on its strand, and
 // grotto-load and the tests call them directly.
 //
-// Prefetch (DESIGN "Streaming model"): a room's cost is the time the player needs to reach it,
+// Prefetch: a room's cost is the time the player needs to reach it,
 // the length of the shortest path from the player's position through portal centres divided by
 // the player's speed, stretched for rooms behind the player (the first portal of the path against
 // the view direction). A room whose descriptor is not known yet is a leaf of the search: its
@@ -17,12 +17,12 @@
 #include <string>
 #include <vector>
 
-#include "cave/layout.hpp"
-#include "cave/room_id.hpp"
-#include "core/result.hpp"
-#include "core/vec3.hpp"
+#include "common/cave/layout.hpp"
+#include "common/cave/room_id.hpp"
+#include "common/core/result.hpp"
+#include "common/core/vec3.hpp"
 
-namespace grotto::client {
+namespace grotto::stream {
 
 // Where the player is and where it looks. Brace-init is a player standing at the origin.
 struct Pose {
@@ -91,4 +91,4 @@ class PortalGraph {
   std::map<cave::RoomId, std::set<cave::RoomId>> referrers_;
 };
 
-}  // namespace grotto::client
+}  // namespace grotto::stream

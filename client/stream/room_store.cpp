@@ -5,7 +5,7 @@
 #include <cmath>
 #include <tuple>
 
-namespace grotto::client {
+namespace grotto::stream {
 namespace {
 
 template <typename T>
@@ -79,4 +79,4 @@ std::vector<cave::RoomId> RoomStore::ids() const {
   return out;
 }
 
-}  // namespace grotto::client
+}  // namespace grotto::stream

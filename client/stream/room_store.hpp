@@ -11,11 +11,11 @@
 #include <set>
 #include <vector>
 
-#include "cave/layout.hpp"
-#include "codec/room_codec.hpp"
-#include "core/vec3.hpp"
+#include "common/cave/layout.hpp"
+#include "common/codec/room_codec.hpp"
+#include "common/core/vec3.hpp"
 
-namespace grotto::client {
+namespace grotto::stream {
 
 // One decoded room: its descriptor from the frame and its mesh. World position of vertex i is
 // origin + mesh.positions[i], computed in double (PROTOCOL.md "World coordinates").
@@ -54,4 +54,4 @@ class RoomStore {
   std::map<cave::RoomId, std::shared_ptr<const ReadyRoom>> rooms_;
 };
 
-}  // namespace grotto::client
+}  // namespace grotto::stream

@@ -35,10 +35,10 @@
 #include "client/stream/conversation.hpp"
 #include "client/stream/decode_queue.hpp"
 #include "client/stream/net_sim.hpp"
-#include "codec/room_codec.hpp"
-#include "core/thread_name.hpp"
+#include "common/codec/room_codec.hpp"
+#include "common/core/thread_name.hpp"
 
-namespace grotto::client {
+namespace grotto::stream {
 
 namespace beast = boost::beast;
 namespace websocket = beast::websocket;
@@ -553,7 +553,7 @@ StreamState Stream::state() const {
 
 AreaStatus Stream::area_status(Vec3 point, double radius_m, uint32_t max_lod) const {
   std::lock_guard lock(impl_->mu);
-  return client::area_status(impl_->conversation.graph(), impl_->conversation.store(), point,
+  return stream::area_status(impl_->conversation.graph(), impl_->conversation.store(), point,
                              radius_m, max_lod);
 }
 
@@ -565,7 +565,7 @@ bool Stream::wait_area_ready(Vec3 point, double radius_m, uint32_t max_lod,
   std::unique_lock lock(impl_->mu);
   Conversation& c = impl_->conversation;
   auto ready = [&] {
-    return client::area_status(c.graph(), c.store(), point, radius_m, max_lod).ready;
+    return stream::area_status(c.graph(), c.store(), point, radius_m, max_lod).ready;
   };
   if (ready()) return true;
   if (timeout <= milliseconds(0)) return false;
@@ -586,4 +586,4 @@ bool Stream::wait_area_ready(Vec3 point, double radius_m, uint32_t max_lod,
   }
 }
 
-}  // namespace grotto::client
+}  // namespace grotto::stream

@@ -19,16 +19,16 @@
 #include <string>
 #include <vector>
 
-#include "cave/room_id.hpp"
 #include "client/stream/area.hpp"
 #include "client/stream/options.hpp"
 #include "client/stream/portal_graph.hpp"
 #include "client/stream/room_store.hpp"
 #include "client/stream/url.hpp"
-#include "core/result.hpp"
+#include "common/cave/room_id.hpp"
+#include "common/core/result.hpp"
 #include "proto/messages.hpp"
 
-namespace grotto::client {
+namespace grotto::stream {
 
 // I/O threads and decode workers, shared by the Streams created with it. Destroy it after them.
 class Runtime {
@@ -101,4 +101,4 @@ class Stream {
   std::shared_ptr<Impl> impl_;
 };
 
-}  // namespace grotto::client
+}  // namespace grotto::stream

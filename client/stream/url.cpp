@@ -5,7 +5,7 @@
 
 #include "proto/messages.hpp"
 
-namespace grotto::client {
+namespace grotto::stream {
 
 Result<Url> parse_url(const std::string& text) {
   auto bad = [&](const std::string& why) {
@@ -37,4 +37,4 @@ Result<Url> parse_url(const std::string& text) {
   return url;
 }
 
-}  // namespace grotto::client
+}  // namespace grotto::stream

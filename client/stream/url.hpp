@@ -3,9 +3,9 @@
 #include <cstdint>
 #include <string>
 
-#include "core/result.hpp"
+#include "common/core/result.hpp"
 
-namespace grotto::client {
+namespace grotto::stream {
 
 struct Url {
   std::string host;
@@ -18,4 +18,4 @@ struct Url {
 // untrusted input.
 Result<Url> parse_url(const std::string& url);
 
-}  // namespace grotto::client
+}  // namespace grotto::stream

@@ -7,9 +7,9 @@
 #include <vector>
 
 #include "client/stream/portal_graph.hpp"
-#include "core/grid.hpp"
+#include "common/core/grid.hpp"
 
-namespace grotto::client {
+namespace grotto::stream {
 namespace {
 
 Error bad_frame(std::string message) {
@@ -193,4 +193,4 @@ Status verify_seam(const ReadyRoom& a, const ReadyRoom& b) {
   return {};
 }
 
-}  // namespace grotto::client
+}  // namespace grotto::stream

@@ -3,10 +3,10 @@
 // shared portal watertight (PROTOCOL.md "Rims": the same loop, bit for bit, in both rooms).
 #pragma once
 #include "client/stream/room_store.hpp"
-#include "core/grid.hpp"
-#include "core/result.hpp"
+#include "common/core/grid.hpp"
+#include "common/core/result.hpp"
 
-namespace grotto::client {
+namespace grotto::stream {
 
 // How far outside its sphere a vertex may lie: kSphereMarginMetres + kSphereMarginFraction x
 // radius. Surface noise pushes walls out by up to the sum of its octave amplitudes (0.78 m patch,
@@ -49,4 +49,4 @@ Status verify_room(const ReadyRoom& room);
 // that differs; kInvalidArgument when neither lists the other, kBadFrame when only one does.
 Status verify_seam(const ReadyRoom& a, const ReadyRoom& b);
 
-}  // namespace grotto::client
+}  // namespace grotto::stream

@@ -1,12 +1,12 @@
-#include "cave/layout.hpp"
+#include "common/cave/layout.hpp"
 
 #include <algorithm>
 #include <cassert>
 #include <cmath>
 
-#include "core/bytes.hpp"
-#include "core/parallel.hpp"
-#include "core/random.hpp"
+#include "common/core/bytes.hpp"
+#include "common/core/parallel.hpp"
+#include "common/core/random.hpp"
 
 namespace grotto::cave {
 

@@ -15,10 +15,10 @@
 #include <optional>
 #include <vector>
 
-#include "cave/params.hpp"
-#include "cave/room_id.hpp"
-#include "core/result.hpp"
-#include "core/vec3.hpp"
+#include "common/cave/params.hpp"
+#include "common/cave/room_id.hpp"
+#include "common/core/result.hpp"
+#include "common/core/vec3.hpp"
 
 namespace grotto::cave {
 

@@ -1,10 +1,10 @@
-#include "cave/lights.hpp"
+#include "common/cave/lights.hpp"
 
 #include <algorithm>
 #include <cmath>
 #include <optional>
 
-#include "core/random.hpp"
+#include "common/core/random.hpp"
 
 namespace grotto::cave {
 namespace {

@@ -1,4 +1,4 @@
-// Light in the dark (issue 27, item 4): the light sources the world places in its rooms, as a pure
+// Light in the dark: the light sources the world places in its rooms, as a pure
 // function of (seed, parameters, room). Glow-worm colonies hang on ceilings; glowing mineral seams
 // and crystal clusters sit on walls and floors. Halls (rooms with a floor) get a few each; other
 // rooms rarely get one, so most passages stay dark and a lit hall reads as a landmark (Deep Rock
@@ -14,9 +14,9 @@
 #include <cstdint>
 #include <vector>
 
-#include "cave/layout.hpp"
-#include "cave/params.hpp"
-#include "core/vec3.hpp"
+#include "common/cave/layout.hpp"
+#include "common/cave/params.hpp"
+#include "common/core/vec3.hpp"
 
 namespace grotto::cave {
 

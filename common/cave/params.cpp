@@ -1,9 +1,9 @@
-#include "cave/params.hpp"
+#include "common/cave/params.hpp"
 
 #include <algorithm>
 #include <cmath>
 
-#include "core/random.hpp"
+#include "common/core/random.hpp"
 
 namespace grotto::cave {
 namespace {

@@ -1,4 +1,4 @@
-#include "cave/room_id.hpp"
+#include "common/cave/room_id.hpp"
 
 #include <cassert>
 #include <charconv>

@@ -5,8 +5,8 @@
 #include <cstdlib>
 #include <optional>
 
-#include "cave/layout.hpp"
-#include "core/random.hpp"
+#include "common/cave/layout.hpp"
+#include "common/core/random.hpp"
 
 namespace grotto::cave {
 namespace {

@@ -1,4 +1,4 @@
-#include "cave/svg.hpp"
+#include "common/cave/svg.hpp"
 
 #include <algorithm>
 #include <cmath>

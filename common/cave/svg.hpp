@@ -5,7 +5,7 @@
 
 #include <string>
 
-#include "cave/layout.hpp"
+#include "common/cave/layout.hpp"
 
 namespace grotto::cave {
 

@@ -1,4 +1,4 @@
-#include "codec/room_codec.hpp"
+#include "common/codec/room_codec.hpp"
 
 #include <draco/compression/config/compression_shared.h>
 #include <draco/compression/expert_encode.h>
@@ -15,7 +15,7 @@
 #include <utility>
 #include <vector>
 
-#include "core/grid.hpp"
+#include "common/core/grid.hpp"
 
 namespace grotto::codec {
 namespace {

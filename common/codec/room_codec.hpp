@@ -1,5 +1,5 @@
 // The room codec: a room's mesh as a Draco payload, quantized on the world-aligned grid
-// (DESIGN decision 2, common/core/grid.hpp), and back.
+// (common/core/grid.hpp), and back.
 //
 // Positions are offsets from the room's grid-snapped origin (the origin itself travels in the room
 // frame, proto/PROTOCOL.md "Room payload (Draco)"). They are quantized with an explicit Draco
@@ -26,10 +26,10 @@
 #include <span>
 #include <vector>
 
-#include "core/grid.hpp"
-#include "core/result.hpp"
-#include "core/vec3.hpp"
-#include "mesh/room_mesh.hpp"
+#include "common/core/grid.hpp"
+#include "common/core/result.hpp"
+#include "common/core/vec3.hpp"
+#include "common/mesh/room_mesh.hpp"
 
 namespace grotto::codec {
 

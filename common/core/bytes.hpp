@@ -10,7 +10,7 @@
 #include <cstdint>
 #include <vector>
 
-#include "core/vec3.hpp"
+#include "common/core/vec3.hpp"
 
 namespace grotto::le {
 

@@ -1,4 +1,4 @@
-// The world-aligned quantization grid every stage agrees on (DESIGN decision 2). Positions that
+// The world-aligned quantization grid every stage agrees on. Positions that
 // two rooms share (portal rims) are snapped to it in the mesh stage, and the Draco codec quantizes
 // on the same grid, so shared vertices decode bit-identically whichever room carried them.
 //
@@ -14,7 +14,7 @@
 
 #include <cmath>
 
-#include "core/vec3.hpp"
+#include "common/core/vec3.hpp"
 
 namespace grotto::grid {
 

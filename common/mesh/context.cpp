@@ -1,9 +1,9 @@
-#include "mesh/context.hpp"
+#include "common/mesh/context.hpp"
 
 #include <cmath>
 #include <cstdint>
 
-#include "core/random.hpp"
+#include "common/core/random.hpp"
 
 namespace grotto::mesh {
 namespace {

@@ -5,9 +5,9 @@
 #include <array>
 #include <cstdint>
 
-#include "cave/layout.hpp"
-#include "core/result.hpp"
-#include "mesh/params.hpp"
+#include "common/cave/layout.hpp"
+#include "common/core/result.hpp"
+#include "common/mesh/params.hpp"
 
 namespace grotto::mesh {
 

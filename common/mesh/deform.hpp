@@ -1,11 +1,11 @@
 // The C++ face of the shared deformation core (deform_core.h): the CPU reference that the OpenCL
-// kernel (kernels/deform.cl) must match bit for bit.
+// kernel (common/kernels/deform.cl) must match bit for bit.
 #pragma once
 
 #include <cmath>
 #include <cstdint>
 
-#include "cave/layout.hpp"
+#include "common/cave/layout.hpp"
 
 namespace grotto::mesh::core {
 
@@ -32,7 +32,7 @@ typedef float3 gfloat3;
 #define GROTTO_CONSTANT
 #define GROTTO_WRAP256(f) static_cast<guint>(static_cast<int>(f) & 255)
 #define GROTTO_SPLAT(x) (x)
-#include "mesh/deform_core.h"
+#include "common/mesh/deform_core.h"
 #undef GROTTO_SPLAT
 #undef GROTTO_WRAP256
 #undef GROTTO_CONSTANT

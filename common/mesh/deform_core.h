@@ -1,7 +1,7 @@
 /* The per-vertex room deformation (thesis §3.1.4-3.1.6), written once in the common subset of
- * C++ and OpenCL C. common/mesh/deform.hpp includes it as the CPU reference; kernels/deform.cl
- * is compiled with it prepended. One text, two compilers, FP contraction off in both and
- * correctly rounded division and sqrt in OpenCL: the results are bit-identical.
+ * C++ and OpenCL C. common/mesh/deform.hpp includes it as the CPU reference;
+ * common/kernels/deform.cl is compiled with it prepended. One text, two compilers, FP contraction
+ * off in both and correctly rounded division and sqrt in OpenCL: the results are bit-identical.
  *
  * Lanes. Per-vertex values have the type gfloat (and guint, and gmask for comparisons), which
  * is float on the CPU and on GPUs and float8 on CPU OpenCL devices: there one work item deforms
@@ -59,7 +59,7 @@ typedef struct {
    * the wall is lowered by ceiling_squash x a ramp that eases in over ceiling_bend metres. */
   float ceiling_y, ceiling_bend, ceiling_squash;
   /* OpenCL only: the room's donor's first group of directions in the device's resident copy
-   * (kernels/deform.cl); the CPU paths read their donor directly. */
+   * (common/kernels/deform.cl); the CPU paths read their donor directly. */
   uint first_direction;
 } GrottoRoom;
 

@@ -9,7 +9,7 @@
 #include <cstdint>
 #include <cstring>
 
-#include "mesh/deform.hpp"
+#include "common/mesh/deform.hpp"
 
 #if defined(__SSE__)
 #include <xmmintrin.h>
@@ -87,7 +87,7 @@ inline __attribute__((always_inline)) gfloat3 grotto_scale(gfloat3 a, float s) {
 #define GROTTO_CONSTANT
 #define GROTTO_WRAP256(f) (reinterpret_cast<guint>(__builtin_convertvector((f), gmask) & 255))
 #define GROTTO_SPLAT(x) splat(x)
-#include "mesh/deform_core.h"
+#include "common/mesh/deform_core.h"
 #undef GROTTO_SPLAT
 #undef GROTTO_WRAP256
 #undef GROTTO_CONSTANT

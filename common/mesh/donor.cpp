@@ -1,4 +1,4 @@
-#include "mesh/donor.hpp"
+#include "common/mesh/donor.hpp"
 
 #include <algorithm>
 #include <array>

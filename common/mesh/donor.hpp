@@ -6,7 +6,7 @@
 #include <memory>
 #include <vector>
 
-#include "mesh/deform.hpp"
+#include "common/mesh/deform.hpp"
 
 namespace grotto::mesh {
 

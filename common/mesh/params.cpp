@@ -1,4 +1,4 @@
-#include "mesh/params.hpp"
+#include "common/mesh/params.hpp"
 
 #include <cmath>
 #include <string>

@@ -4,8 +4,8 @@
 #include <array>
 #include <cstdint>
 
-#include "core/result.hpp"
-#include "mesh/deform.hpp"
+#include "common/core/result.hpp"
+#include "common/mesh/deform.hpp"
 
 namespace grotto::mesh {
 

@@ -1,10 +1,10 @@
-#include "mesh/rim.hpp"
+#include "common/mesh/rim.hpp"
 
 #include <algorithm>
 #include <cmath>
 
-#include "core/detmath.hpp"
-#include "core/grid.hpp"
+#include "common/core/detmath.hpp"
+#include "common/core/grid.hpp"
 
 namespace grotto::mesh {
 

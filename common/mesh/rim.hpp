@@ -1,12 +1,12 @@
-// Canonical portal rims (DESIGN decision 2): the loop of vertices where two rooms meet, computed
+// Canonical portal rims: the loop of vertices where two rooms meet, computed
 // only from the portal, the seed and the level of detail, so that both rooms, built anywhere,
 // stitch to the same vertices in the same cyclic order, bit for bit.
 #pragma once
 
 #include <vector>
 
-#include "cave/layout.hpp"
-#include "mesh/context.hpp"
+#include "common/cave/layout.hpp"
+#include "common/mesh/context.hpp"
 
 namespace grotto::mesh {
 

@@ -1,4 +1,4 @@
-#include "mesh/room_mesh.hpp"
+#include "common/mesh/room_mesh.hpp"
 
 #include <algorithm>
 #include <cassert>
@@ -7,9 +7,9 @@
 #include <map>
 #include <numeric>
 
-#include "core/detmath.hpp"
-#include "core/grid.hpp"
-#include "mesh/deform_lanes.hpp"
+#include "common/core/detmath.hpp"
+#include "common/core/grid.hpp"
+#include "common/mesh/deform_lanes.hpp"
 
 namespace grotto::mesh {
 namespace {

@@ -14,10 +14,10 @@
 #include <span>
 #include <vector>
 
-#include "cave/layout.hpp"
-#include "mesh/context.hpp"
-#include "mesh/donor.hpp"
-#include "mesh/rim.hpp"
+#include "common/cave/layout.hpp"
+#include "common/mesh/context.hpp"
+#include "common/mesh/donor.hpp"
+#include "common/mesh/rim.hpp"
 
 namespace grotto::mesh {
 
@@ -57,7 +57,7 @@ DeformInput prepare_room(const MeshContext& ctx, const cave::Room& room, Lod lod
 
 // The deformation on the CPU: one position and clearance per donor vertex (spans of the donor's
 // size). Runs four vertices at a time in SIMD lanes; every result is bit-identical to
-// deform_reference's, and to the OpenCL kernel's (kernels/deform.hpp).
+// deform_reference's, and to the OpenCL kernel's (common/kernels/deform.hpp).
 void deform_cpu(const MeshContext& ctx, const DeformInput& input, std::span<core::float3> positions,
                 std::span<float> clearance);
 // The scalar reference of the deformation (the core one vertex per call), for tests.

@@ -9,7 +9,7 @@ it. Python alone (zlib), about 10 s a 1080p frame on llvmpipe.
   python3 docs/gallery/flicker.py BUILD_DIR x,y,z,yaw,pitch [client flags...]
       env: SEED (7), SIZE (1920x1080), FRAMES (5), STEP (0.02)
 
-The issue-27 figures: BUILD_DIR build, pose 44.46,63.92,33.41,20,-15 (seed 7's hall floor), with
+GALLERY's figures: BUILD_DIR build, pose 44.46,63.92,33.41,20,-15 (seed 7's hall floor), with
 and without --no-fine-detail."""
 import os
 import subprocess

@@ -5,7 +5,7 @@
 # in-process server (CPU reference). About 4 s a picture at 1920x1080 on llvmpipe.
 # Usage: bash docs/gallery/render.sh [build dir, default build]  (from the repository root)
 # GALLERY_OUT (default docs/images/gallery2; docs/images/gallery holds the 480x270 renders of the
-# world before issue 27) is where the pictures go, as JPEG when cjpeg is installed (Debian's
+# world before it had halls) is where the pictures go, as JPEG when cjpeg is installed (Debian's
 # libjpeg-turbo-progs; a 1080p PNG is ~2 MB, its JPEG a tenth), else PNG; GALLERY_SIZE (default
 # 1920x1080) their size; GALLERY_FLAGS, more client flags for every picture (docs/gallery/
 # protocol.sh passes --protocol 1 or 2); GALLERY_ONLY, a pose name to render alone.
@@ -82,7 +82,7 @@ shoot portal-3 3 --pose room:0.0.0.r86
 shoot ceiling-3 3 --pose "$(pose 3 0.0.0.r0 centre 0.3 30 50)"
 shoot flythrough-95 95 --flythrough 8
 shoot flythrough-7 7 --flythrough 3
-# Halls (issue 27): from an entrance, across from one side, from the floor looking up.
+# Halls: from an entrance, across from one side, from the floor looking up.
 shoot hall-entrance-95 95 --pose "$(pose 95 1.0.1.r0 entrance)"
 shoot hall-across-7 7 --pose "$(pose 7 0.0.0.r0 across 270 5)"
 shoot hall-across-95 95 --pose "$(pose 95 1.0.1.r0 across 0 5)"
@@ -90,7 +90,7 @@ shoot hall-up-7 7 --pose "$(pose 7 0.0.0.r0 floor 60 55)"
 # Light in the dark: the headlamp off, one flare thrown into the hall (it falls, bounces and lies
 # burning), and the world's lights.
 shoot hall-flare-95 95 --pose "$(pose 95 1.0.1.r0 across 0 -5)" --no-headlamp --flares 1
-# Columns (issue 27): where a level floor and ceiling are 2.5-3.5 m apart a column cell's
+# Columns: where a level floor and ceiling are 2.5-3.5 m apart a column cell's
 # stalactite and stalagmite join. Halls never hold one (their ceilings are 10-30 m up and slope
 # where they come down); seed 7's passage room 0.0.1.r59 (r = 3.8 m, floor at y 39.8, ceiling
 # 2.4 m above) holds two, 0.9 m apart, found by scanning the column cells of sectors 0,0,0 to
@@ -101,7 +101,7 @@ OFF=--no-fine-detail shoot detail-wall-7 7 --pose 64.00,54.44,50.40,120.0,0.0
 # Ambient occlusion (the -off picture without it, --no-ao): stalagmites' feet on the floor of
 # seed 7's hall, the fluted wall behind.
 OFF=--no-ao shoot ao-stalagmites-7 7 --pose 52.00,54.44,31.00,60.0,-25.0
-# Draperies (issue 43): sheets hanging from seed 7's hall roof where it slopes down towards the
+# Draperies: sheets hanging from seed 7's hall roof where it slopes down towards the
 # wall, 3.5 m from the widest (2.5 m across, 1.5 m drop: its extras from /extras/), across it.
 shoot draperies-7 7 --pose 53.49,65.97,17.84,117.9,1.7
 # The biggest of them from its other side, the headlamp off: the hall's glow-worm colony 13 m

@@ -7,8 +7,8 @@
 #include <filesystem>
 #include <string>
 
-#include "cave/layout.hpp"
-#include "core/random.hpp"
+#include "common/cave/layout.hpp"
+#include "common/core/random.hpp"
 
 namespace grotto::cave {
 namespace {
@@ -108,7 +108,7 @@ TEST(LayoutDeterminism, two_processes_agree) {
 TEST(LayoutDeterminism, golden_digest_for_seed_42) {
   World world = test_world(42);
   Region region = generate_region(world, {0, 0, 0}, {1, 1, 1});
-  // Changed in issue 27: halls (a sector's hub, from a stream of its own) and floors (no portal
+  // Changed by halls (a sector's hub, from a stream of its own) and floors (no portal
   // of a room with a floor opens below it); then ceilings (no portal above a hall's spring) and
   // halls up to 34 m radius, and the spawn at a hall's entrance instead of in the hall.
   EXPECT_EQ(digest(region.rooms), 0x5b46bd8d588a985bull)

@@ -8,7 +8,7 @@
 #include <map>
 #include <optional>
 
-#include "cave/layout.hpp"
+#include "common/cave/layout.hpp"
 
 namespace grotto::cave {
 namespace {

@@ -5,7 +5,7 @@
 #include <deque>
 #include <map>
 
-#include "cave/layout.hpp"
+#include "common/cave/layout.hpp"
 
 namespace grotto::cave {
 namespace {

@@ -7,8 +7,8 @@
 #include <cstring>
 #include <vector>
 
-#include "cave/layout.hpp"
-#include "cave/lights.hpp"
+#include "common/cave/layout.hpp"
+#include "common/cave/lights.hpp"
 
 namespace grotto::cave {
 namespace {
@@ -29,7 +29,7 @@ std::vector<unsigned char> bytes_of(const std::vector<WorldLight>& lights) {
   return out;
 }
 
-// Sectors 0,0,0..1,0,1 as the issue checks them, for seeds with and without halls.
+// Sectors 0,0,0..1,0,1 (the block bench/hall_views.sh checks), for seeds with and without halls.
 Region sample(uint64_t seed) {
   return generate_region(World::create(seed, LayoutParams{}).value(), {0, 0, 0}, {1, 0, 1});
 }

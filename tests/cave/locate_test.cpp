@@ -6,7 +6,7 @@
 #include <utility>
 #include <vector>
 
-#include "cave/layout.hpp"
+#include "common/cave/layout.hpp"
 
 namespace grotto::cave {
 namespace {

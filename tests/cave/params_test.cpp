@@ -1,4 +1,4 @@
-#include "cave/params.hpp"
+#include "common/cave/params.hpp"
 
 #include <gtest/gtest.h>
 

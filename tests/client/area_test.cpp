@@ -7,10 +7,10 @@
 #include <map>
 #include <memory>
 
-#include "cave/layout.hpp"
 #include "client/stream/area.hpp"
+#include "common/cave/layout.hpp"
 
-namespace grotto::client {
+namespace grotto::stream {
 namespace {
 
 using cave::Room;
@@ -132,4 +132,4 @@ TEST(AreaStatus, a_negative_or_nan_radius_is_the_room_holding_the_point_alone) {
 }
 
 }  // namespace
-}  // namespace grotto::client
+}  // namespace grotto::stream

@@ -23,7 +23,7 @@
 
 #include "proto/room_frame.hpp"
 
-namespace grotto::client {
+namespace grotto::stream {
 namespace {
 
 using cave::Room;
@@ -845,7 +845,7 @@ TEST(Conversation, room_frames_table) {
   });
 }
 
-// The link's round trip raises the adaptive horizon's floor (issue 45): when every room takes
+// The link's round trip raises the adaptive horizon's floor: when every room takes
 // `latency` to come (here the first five rooms, round after round), the p90 rule alone gives
 // 1 + 2 x latency, but no room can come sooner than the quickest did, so the floor keeps six of
 // those ahead: 1 + 6 x 0.3 s = 2.8 s over a 300 ms link. On loopback (3 ms) the floor stays 1.5 s.
@@ -1499,4 +1499,4 @@ TEST(Conversation, a_pinned_areas_rooms_are_not_evicted_until_it_is_unpinned) {
 }
 
 }  // namespace
-}  // namespace grotto::client
+}  // namespace grotto::stream

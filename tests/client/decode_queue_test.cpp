@@ -1,6 +1,6 @@
 // The Runtime's decode queue (client/stream/decode_queue.hpp): the frame due soonest is decoded
 // next, whichever Stream queued it and however much prefetch waits ahead of it. Run ordered and
-// unordered (first in, first out, what Runtimes did before issue 28): the two must differ.
+// unordered (first in, first out, as Runtimes once did): the two must differ.
 #include "client/stream/decode_queue.hpp"
 
 #include <gtest/gtest.h>
@@ -9,7 +9,7 @@
 #include <thread>
 #include <vector>
 
-namespace grotto::client {
+namespace grotto::stream {
 namespace {
 
 using Clock = std::chrono::steady_clock;
@@ -62,4 +62,4 @@ TEST(DecodeQueue, pop_on_empty_is_an_empty_job_and_pushes_from_threads_all_arriv
 }
 
 }  // namespace
-}  // namespace grotto::client
+}  // namespace grotto::stream

@@ -17,7 +17,7 @@
 #include <utility>
 #include <vector>
 
-#include "cave/layout.hpp"
+#include "common/cave/layout.hpp"
 #include "server/embedded.hpp"
 
 namespace {
@@ -167,7 +167,7 @@ TEST(PublicStream, rooms_are_well_formed_and_outlive_their_stream) {
     expect_well_formed(*r);
 }
 
-// The horizon adapts by default (issue 28): against a quick server it stays near its floor;
+// The horizon adapts by default: against a quick server it stays near its floor;
 // min_horizon_s 0 keeps the fixed horizon.
 TEST(PublicStream, the_default_horizon_adapts_and_zero_keeps_it_fixed) {
   Server server;

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Grotto::stream as a game uses it (issue 19): install the built library into a scratch prefix
+# Grotto::stream as a game uses it: install the built library into a scratch prefix
 # (cmake --install --component grotto_stream: nothing is rebuilt), check what was installed (the
 # package files, headers that include only the standard library, a library that exports only its
 # public functions), then build examples/minimal_stream (C++) and examples/minimal_stream_c (C) as

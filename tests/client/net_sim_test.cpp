@@ -1,4 +1,4 @@
-// The simulated network (client/stream/net_sim.hpp, issue 45): the --net profile's text, and
+// The simulated network (client/stream/net_sim.hpp): the --net profile's text, and
 // when a link delivers what it is handed: half the round trip, jitter that never reorders, the
 // downlink's cap, stalls.
 #include <gtest/gtest.h>
@@ -7,7 +7,7 @@
 
 #include "client/stream/net_sim.hpp"
 
-namespace grotto::client {
+namespace grotto::stream {
 namespace {
 
 using std::chrono::microseconds;
@@ -119,4 +119,4 @@ TEST(NetLink, a_stall_holds_what_would_travel_during_it) {
 }
 
 }  // namespace
-}  // namespace grotto::client
+}  // namespace grotto::stream

@@ -8,7 +8,7 @@
 
 #include "client/stream/options.hpp"
 
-namespace grotto::client {
+namespace grotto::stream {
 namespace {
 
 using std::chrono::milliseconds;
@@ -30,7 +30,7 @@ TEST(StreamOptions, defaults_with_a_url_are_valid) {
 TEST(StreamOptions, the_default_horizon_is_adaptive_and_a_floor_above_it_is_no_error) {
   StreamOptions o = good();
   EXPECT_EQ(o.min_horizon_s, kDefaultMinHorizonS);
-  EXPECT_GT(o.min_horizon_s, 0) << "adaptive by default (issue 28)";
+  EXPECT_GT(o.min_horizon_s, 0) << "adaptive by default";
   EXPECT_LT(o.min_horizon_s, o.plan.horizon_s);
   o.plan.horizon_s = 1.0;  // shorter than the default floor: a fixed 1 s horizon, no error
   EXPECT_TRUE(validate_options(o).ok());
@@ -74,4 +74,4 @@ TEST(StreamOptions, each_bad_option_is_refused_by_name) {
 }
 
 }  // namespace
-}  // namespace grotto::client
+}  // namespace grotto::stream

@@ -8,10 +8,10 @@
 #include <cmath>
 #include <map>
 
-#include "cave/layout.hpp"
 #include "client/stream/portal_graph.hpp"
+#include "common/cave/layout.hpp"
 
-namespace grotto::client {
+namespace grotto::stream {
 namespace {
 
 using cave::Room;
@@ -263,7 +263,7 @@ TEST_F(RealSector, portal_sides_are_bit_identical_with_exactly_negated_normals) 
       ++checked;
     }
   }
-  EXPECT_GT(checked, 800);  // the block's portals, both sides (872 in the world of issue 27)
+  EXPECT_GT(checked, 800);  // the block's portals, both sides (872 when last counted)
 }
 
 TEST_F(RealSector, every_room_is_accepted_in_any_order) {
@@ -490,4 +490,4 @@ TEST_F(RealSector, plan_stretches_rooms_behind_the_view_direction) {
 }
 
 }  // namespace
-}  // namespace grotto::client
+}  // namespace grotto::stream

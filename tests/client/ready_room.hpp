@@ -7,13 +7,13 @@
 
 #include <utility>
 
-#include "cave/layout.hpp"
 #include "client/stream/conversation.hpp"
 #include "client/stream/room_store.hpp"
-#include "codec/room_codec.hpp"
-#include "mesh/room_mesh.hpp"
+#include "common/cave/layout.hpp"
+#include "common/codec/room_codec.hpp"
+#include "common/mesh/room_mesh.hpp"
 
-namespace grotto::client::test {
+namespace grotto::stream::test {
 
 inline ReadyRoom ready_room(const mesh::RoomMesh& m, const cave::Room& r) {
   ReadyRoom out;
@@ -40,4 +40,4 @@ inline ReadyRoom ready_room(const mesh::RoomMesh& m, const cave::Room& r) {
   return out;
 }
 
-}  // namespace grotto::client::test
+}  // namespace grotto::stream::test

@@ -6,7 +6,7 @@
 
 #include "client/stream/room_store.hpp"
 
-namespace grotto::client {
+namespace grotto::stream {
 namespace {
 
 cave::RoomId rid(int index) {
@@ -140,4 +140,4 @@ TEST(RoomStore, an_evicted_room_stays_usable_by_whoever_holds_it) {
 }
 
 }  // namespace
-}  // namespace grotto::client
+}  // namespace grotto::stream

@@ -18,12 +18,12 @@
 #include <thread>
 #include <vector>
 
-#include "cave/layout.hpp"
 #include "client/stream/stream.hpp"
 #include "client/stream/verify.hpp"
-#include "codec/room_codec.hpp"
-#include "mesh/context.hpp"
-#include "mesh/room_mesh.hpp"
+#include "common/cave/layout.hpp"
+#include "common/codec/room_codec.hpp"
+#include "common/mesh/context.hpp"
+#include "common/mesh/room_mesh.hpp"
 #include "proto/room_frame.hpp"
 #include "server/server.hpp"
 
@@ -37,13 +37,13 @@ using tcp = net::ip::tcp;
 using namespace std::chrono_literals;
 using Clock = std::chrono::steady_clock;
 using grotto::cave::RoomId;
-using grotto::client::Pose;
-using grotto::client::Runtime;
-using grotto::client::Stream;
-using grotto::client::StreamOptions;
-using grotto::client::StreamState;
 using grotto::server::Server;
 using grotto::server::ServerConfig;
+using grotto::stream::Pose;
+using grotto::stream::Runtime;
+using grotto::stream::Stream;
+using grotto::stream::StreamOptions;
+using grotto::stream::StreamState;
 
 constexpr auto kWait = 30s;
 
@@ -69,8 +69,8 @@ std::string url_of(uint16_t port) {
 }
 
 // For failure messages: what the Stream did.
-std::string describe(const grotto::client::StreamStats& s) {
-  std::string text = std::string("state=") + grotto::client::state_name(s.state) +
+std::string describe(const grotto::stream::StreamStats& s) {
+  std::string text = std::string("state=") + grotto::stream::state_name(s.state) +
                      " requests=" + std::to_string(s.requests_sent) +
                      " cancels=" + std::to_string(s.cancels_sent) +
                      " received=" + std::to_string(s.rooms_received) +
@@ -101,9 +101,9 @@ bool wait_for(const std::function<bool()>& done, std::chrono::milliseconds limit
 
 // The whole portal graph of the sectors around the origin, from the layout itself: what the
 // client should end up knowing.
-grotto::client::PortalGraph layout_graph(uint64_t seed) {
+grotto::stream::PortalGraph layout_graph(uint64_t seed) {
   auto world = grotto::cave::World::create(seed, {});
-  grotto::client::PortalGraph graph;
+  grotto::stream::PortalGraph graph;
   std::vector<grotto::cave::Room> all;
   for (int x = -1; x <= 1; ++x) {
     for (int y = -1; y <= 1; ++y) {
@@ -128,7 +128,7 @@ std::set<RoomId> expected_rooms(uint64_t seed, const grotto::proto::SpawnPoint& 
   Pose pose;
   pose.position = spawn.position;
   pose.room = spawn.room;
-  grotto::client::PlanOptions plan;
+  grotto::stream::PlanOptions plan;
   plan.horizon_s = horizon_s;
   std::set<RoomId> ids;
   for (const auto& p : graph.plan(spawn.room, pose, plan))
@@ -160,15 +160,15 @@ TEST(Stream, the_default_adaptive_horizon_fetches_the_rooms_within_its_floor) {
   Runtime rt(1, 2);
   StreamOptions o;
   o.url = url_of(server->port());
-  ASSERT_EQ(o.min_horizon_s, grotto::client::kDefaultMinHorizonS);
+  ASSERT_EQ(o.min_horizon_s, grotto::stream::kDefaultMinHorizonS);
   auto stream = start_stream(o, rt);
   ASSERT_TRUE(stream);
   ASSERT_TRUE(wait_for([&] { return stream->spawn_point().has_value(); }))
       << describe(stream->stats());
-  auto expected = expected_rooms(7, *stream->spawn_point(), grotto::client::kDefaultMinHorizonS);
+  auto expected = expected_rooms(7, *stream->spawn_point(), grotto::stream::kDefaultMinHorizonS);
   ASSERT_FALSE(expected.empty());
   EXPECT_TRUE(wait_for([&] { return all_ready(*stream, expected); })) << describe(stream->stats());
-  EXPECT_GE(stream->stats().horizon_s, grotto::client::kDefaultMinHorizonS);
+  EXPECT_GE(stream->stats().horizon_s, grotto::stream::kDefaultMinHorizonS);
   EXPECT_LT(stream->stats().horizon_s, o.plan.horizon_s) << "a quick server: near the floor";
 }
 
@@ -229,7 +229,7 @@ TEST(Stream, both_protocol_versions_stream_rooms_whose_seams_agree) {
     ASSERT_TRUE(wait_for([&] { return all_ready(*stream, expected); }))
         << describe(stream->stats());
     EXPECT_EQ(stream->stats().rooms_rejected, 0u);
-    std::map<RoomId, std::shared_ptr<const grotto::client::ReadyRoom>> rooms;
+    std::map<RoomId, std::shared_ptr<const grotto::stream::ReadyRoom>> rooms;
     for (const auto& r : stream->take_new_rooms()) {
       rooms[r->room.id] = r;
       received[version].insert(r->room.id);
@@ -237,13 +237,13 @@ TEST(Stream, both_protocol_versions_stream_rooms_whose_seams_agree) {
       ASSERT_EQ(r->mesh.normals.size(), r->mesh.vertex_count());
       for (const auto& n : r->mesh.normals)
         ASSERT_NEAR(std::sqrt(n.x * n.x + n.y * n.y + n.z * n.z), 1.0, 1e-3);
-      EXPECT_TRUE(grotto::client::verify_room(*r).ok()) << r->room.id.to_string();
+      EXPECT_TRUE(grotto::stream::verify_room(*r).ok()) << r->room.id.to_string();
     }
     for (const auto& [id, r] : rooms) {
       for (const auto& portal : r->room.portals) {
         auto other = rooms.find(portal.neighbour);
         if (other == rooms.end() || !(id < portal.neighbour)) continue;
-        grotto::Status s = grotto::client::verify_seam(*r, *other->second);
+        grotto::Status s = grotto::stream::verify_seam(*r, *other->second);
         EXPECT_TRUE(s.ok()) << s.error().message;
         ++seams[version];
       }
@@ -510,7 +510,7 @@ TEST(Stream, keeps_its_store_within_budget_by_evicting_the_farthest_rooms) {
   o.url = url_of(server->port());
   o.plan.horizon_s = 2.0;
   // Room for a handful of patch rooms: most decode to 20-100 KB, the hall each stop stands in (the
-  // hub room r0, issue 27) with its neighbours to ~0.45 MB, which the store keeps whatever the
+  // hub room r0) with its neighbours to ~0.45 MB, which the store keeps whatever the
   // budget.
   o.store_bytes = 512 << 10;
   o.spawn = false;
@@ -561,7 +561,7 @@ TEST(Stream, wait_area_ready_holds_until_the_ground_around_the_spawn_exists) {
   pose.position = spawn.position;
   pose.forward = {};
   pose.speed = 1.0;
-  grotto::client::PlanOptions plan;
+  grotto::stream::PlanOptions plan;
   plan.horizon_s = 8.0;
   plan.behind_weight = 0;
   ASSERT_GT(graph.plan(spawn.room, pose, plan).size(), 1u);
@@ -596,13 +596,13 @@ FarRoom far_room(const grotto::Vec3& spawn) {
 }
 
 // The rooms of the area around `point` by the layout's own graph (area.hpp's walk).
-std::vector<RoomId> layout_area(const grotto::client::PortalGraph& graph, grotto::Vec3 point,
+std::vector<RoomId> layout_area(const grotto::stream::PortalGraph& graph, grotto::Vec3 point,
                                 double radius_m) {
   std::vector<RoomId> ids;
   const auto start = graph.room_at(point);
   EXPECT_TRUE(start.has_value());
   if (!start) return ids;
-  for (const auto& p : grotto::client::area_rooms(graph, *start, point, radius_m))
+  for (const auto& p : grotto::stream::area_rooms(graph, *start, point, radius_m))
     ids.push_back(p.id);
   return ids;
 }
@@ -721,12 +721,12 @@ TEST(Stream, refuses_bad_urls_and_options_by_name) {
   auto s = Stream::start(o, rt);
   ASSERT_FALSE(s.ok());
   EXPECT_NE(s.error().message.find("horizon"), std::string::npos);
-  auto url = grotto::client::parse_url("ws://example.org:8080/caves/ws");
+  auto url = grotto::stream::parse_url("ws://example.org:8080/caves/ws");
   ASSERT_TRUE(url.ok());
   EXPECT_EQ(url->host, "example.org");
   EXPECT_EQ(url->port, 8080);
   EXPECT_EQ(url->path, "/caves/ws");
-  EXPECT_EQ(grotto::client::parse_url("ws://h")->path, "/ws");
+  EXPECT_EQ(grotto::stream::parse_url("ws://h")->path, "/ws");
 }
 
 // ---- a server that misbehaves on purpose ----

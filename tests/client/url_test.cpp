@@ -3,7 +3,7 @@
 
 #include <gtest/gtest.h>
 
-namespace grotto::client {
+namespace grotto::stream {
 namespace {
 
 TEST(Url, parses_host_port_and_path_with_defaults) {
@@ -56,4 +56,4 @@ TEST(Url, refuses_what_is_not_a_ws_url_and_says_why) {
 }
 
 }  // namespace
-}  // namespace grotto::client
+}  // namespace grotto::stream

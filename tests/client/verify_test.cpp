@@ -10,18 +10,18 @@
 #include <utility>
 #include <vector>
 
-#include "cave/layout.hpp"
 #include "client/stream/verify.hpp"
-#include "core/grid.hpp"
-#include "mesh/room_mesh.hpp"
-#include "ready_room.hpp"
+#include "common/cave/layout.hpp"
+#include "common/core/grid.hpp"
+#include "common/mesh/room_mesh.hpp"
+#include "tests/client/ready_room.hpp"
 
-namespace grotto::client {
+namespace grotto::stream {
 namespace {
 
 using cave::RoomId;
 
-constexpr auto ready = client::test::ready_room;
+constexpr auto ready = stream::test::ready_room;
 
 using RoomMap = std::map<RoomId, ReadyRoom>;
 
@@ -336,4 +336,4 @@ TEST_F(Verify, room_names_each_broken_vertex_attribute) {
 }
 
 }  // namespace
-}  // namespace grotto::client
+}  // namespace grotto::stream

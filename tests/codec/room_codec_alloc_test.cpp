@@ -16,8 +16,8 @@
 #include <new>
 #include <vector>
 
-#include "codec/room_codec.hpp"
-#include "core/grid.hpp"
+#include "common/codec/room_codec.hpp"
+#include "common/core/grid.hpp"
 
 namespace {
 

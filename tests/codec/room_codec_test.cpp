@@ -11,9 +11,9 @@
 #include <map>
 #include <tuple>
 
-#include "codec/room_codec.hpp"
-#include "core/grid.hpp"
-#include "draco_payload.hpp"
+#include "common/codec/room_codec.hpp"
+#include "common/core/grid.hpp"
+#include "tests/codec/draco_payload.hpp"
 
 namespace grotto::codec {
 namespace {
@@ -496,8 +496,8 @@ TEST(RoomCodecLayout, wrong_attribute_layouts_are_errors) {
   auto swapped = valid_layout();
   std::swap(swapped[0].unique_id, swapped[1].unique_id);
   expect_error(decode_room(draco_payload(swapped)), "has the wrong type");
-  // All four in one attribute decoder (what encode_room writes) and each in its own (what it wrote
-  // before issue 18) both decode.
+  // All four in one attribute decoder (what encode_room writes) and each in its own (what older
+  // servers wrote) both decode.
   auto shared = draco_payload(valid_layout(), draco::MESH_EDGEBREAKER_ENCODING, true);
   ASSERT_FALSE(shared.empty());
   EXPECT_TRUE(decode_room(shared).ok());

@@ -1,6 +1,6 @@
 // core/bytes.hpp: the one little-endian writer and reader. The formats built on it (room frames,
 // digests, the binary cache) pin their own bytes; these pin the primitives.
-#include "core/bytes.hpp"
+#include "common/core/bytes.hpp"
 
 #include <gtest/gtest.h>
 

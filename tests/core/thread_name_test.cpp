@@ -9,7 +9,7 @@
 #include <sys/syscall.h>
 #include <unistd.h>
 
-#include "core/thread_name.hpp"
+#include "common/core/thread_name.hpp"
 
 namespace grotto {
 namespace {

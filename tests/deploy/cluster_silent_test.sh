@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# A room owner that accepts connections and never answers (issue 29): three replicas take the
+# A room owner that accepts connections and never answers: three replicas take the
 # players, and the room tier's ring (deploy/nginx/render.sh --owners) holds them plus a silent
 # peer (a socket that accepts and reads, never writes). Its rooms stall at nginx until its read
 # timeout; the replicas asking for them give up after their wait (150 ms for a room due now, the

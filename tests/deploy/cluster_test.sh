@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# One world on many replicas (issue 29): deploy/local-cluster.sh with 4 replicas behind nginx.
+# One world on many replicas: deploy/local-cluster.sh with 4 replicas behind nginx.
 #   1. 40 spread players of seed 7 get every room verified, no errors, no stalls; each replica
 #      holds at least 15 % of the sessions (fewest connections first); the replicas together
 #      build at most 1.05 times the distinct rooms the players received (each room once, by its
@@ -85,7 +85,7 @@ status=$(curl -sS -o /dev/null -w '%{http_code}' -H "If-None-Match: $etag" "http
 [[ "$status" == 304 ]] || lb_fail "If-None-Match: $etag got $status, want 304"
 echo "room URL $url: immutable, ETag $etag, then a cache hit, then 304"
 
-# ---- the browser viewer through nginx (issue 44): the page, its files, a room's extras ----
+# ---- the browser viewer through nginx: the page, its files, a room's extras ----
 page=$(curl -sS "http://127.0.0.1:$port/" -D - -o "$lb_dir/index.html" | tr -d '\r')
 grep -qi '^content-type: text/html' <<<"$page" || lb_fail "/ through nginx is not the viewer: $page"
 grep -q 'viewer/main.js' "$lb_dir/index.html" || lb_fail "/ through nginx has no viewer script"

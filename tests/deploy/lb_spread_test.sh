@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Three multi-world grotto-server replicas (--max-worlds) behind nginx (deploy/nginx): 24 walking
 # players in eight worlds (grotto-load --seeds) get every room verified, no errors and no stalls,
-# and the sessions are spread by load, not by world (issue 29): each replica holds a third of
+# and the sessions are spread by load, not by world: each replica holds a third of
 # them (nginx's least_conn; the access log, written when a WebSocket closes, says where each
 # went), and a world's players are served by whichever replica took them (worlds open on more
 # than one replica). Each replica's /metrics is read through nginx (/replica/<i>/metrics).

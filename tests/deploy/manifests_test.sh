@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # What can be checked offline about deploy/: the Kubernetes manifests build with kustomize and say
 # what grotto-server does (probe paths, port, drain time, config keys, uid, cache paths, players
-# spread by round robin, not hashed by seed), the owner ring (issue 29: a headless Service over
+# spread by round robin, not hashed by seed), the owner ring (a headless Service over
 # the Deployment's ready pods) and the room tier (nginx hashing $uri over the ring with
 # proxy_cache_lock, its /rooms/ block the same as deploy/nginx's; its run.sh and nginx.conf run
 # offline against a real grotto-server with a fake getent as the ring's DNS: a miss then a hit,
@@ -184,7 +184,7 @@ check(selects(svc["spec"]["selector"]), "Service selector misses the pods")
 check(selects(pdb["spec"]["selector"]["matchLabels"]), "PodDisruptionBudget selector misses the pods")
 check(hpa["spec"]["scaleTargetRef"]["name"] == dep["metadata"]["name"], "HPA targets another Deployment")
 check("replicas" not in dep["spec"], "Deployment sets replicas although the HPA owns them")
-# Players are spread by load, not hashed by world (issue 29): no upstream-hash-by, and round
+# Players are spread by load, not hashed by world: no upstream-hash-by, and round
 # robin set explicitly (ingress.yaml says why not ewma).
 ann = ing["metadata"].get("annotations", {})
 check("nginx.ingress.kubernetes.io/upstream-hash-by" not in ann,
@@ -193,7 +193,7 @@ check(ann.get("nginx.ingress.kubernetes.io/load-balance") == "round_robin",
       "the Ingress must set load-balance: round_robin (ewma scores WebSockets by session length)")
 routes = {p["path"]: p["backend"]["service"] for r in ing["spec"]["rules"] for p in r["http"]["paths"]}
 check(routes.get("/ws", {}).get("name") == svc["metadata"]["name"], "Ingress /ws is not the Service")
-# The browser viewer (issue 44): its page, files and room extras, from the replicas too.
+# The browser viewer: its page, files and room extras, from the replicas too.
 check(set(routes) <= {"/ws", "/rooms/", "/", "/viewer/", "/extras/"},
       f"the Ingress should route /ws, the viewer's paths (and /rooms/) only (got {list(routes)})")
 for path in ("/", "/viewer/", "/extras/"):

@@ -1,4 +1,4 @@
-// The fault suite (issue 17): each test starts a real server (in-process, or the grotto-server
+// The fault suite: each test starts a real server (in-process, or the grotto-server
 // program where the fault needs a process of its own: a low file limit, a broken cache, its log),
 // produces one fault, and while the fault lasts and after it ends checks the one thing that must
 // hold: /healthz answers 200 and a real player gets rooms (expect_still_serving, in
@@ -21,9 +21,9 @@
 #include <thread>
 #include <vector>
 
-#include "core/bytes.hpp"
-#include "kernels/binary_cache.hpp"
-#include "server_harness.hpp"
+#include "common/core/bytes.hpp"
+#include "common/kernels/binary_cache.hpp"
+#include "tests/server/server_harness.hpp"
 
 namespace {
 
@@ -296,7 +296,7 @@ TEST(CacheFaults, a_checksummed_but_cut_program_binary_does_not_stop_the_start) 
   std::filesystem::remove_all(dir);
 }
 
-// ---- 3. a driver that fails later (issue 28) ----
+// ---- 3. a driver that fails later ----
 
 // PoCL 5.0 passed a probe that built the kernel once, then aborted the server when its workers
 // ran side by side. The probe child drives the server's whole life cycle: two cycles of one
@@ -536,7 +536,7 @@ TEST(SlowReader, a_client_that_does_not_read_is_dropped_and_others_carry_on) {
   expect_still_serving(server->port());
 }
 
-// The close arrives (issue 45): a client with a small receive buffer asks for the same 4 cached
+// The close arrives: a client with a small receive buffer asks for the same 4 cached
 // rooms 377 times (1,508 frames: its queue passes the bound at once, and the server's socket
 // buffer fills with frames it cannot send), says nothing for 3 s, then reads. It gets the frames
 // that were on their way and then the close frame, 1008 slow_client: the server lingered, reading

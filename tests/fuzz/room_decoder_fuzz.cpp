@@ -10,8 +10,8 @@
 #include <string>
 #include <vector>
 
-#include "codec/room_codec.hpp"
-#include "core/grid.hpp"
+#include "common/codec/room_codec.hpp"
+#include "common/core/grid.hpp"
 
 namespace {
 

@@ -1,11 +1,11 @@
 // The disk cache's key, location and file format, checked without a device.
-#include "kernels/binary_cache.hpp"
+#include "common/kernels/binary_cache.hpp"
 
 #include <gtest/gtest.h>
 
 #include <set>
 
-#include "test_support.hpp"
+#include "tests/kernels/test_support.hpp"
 
 namespace grotto::kernels {
 namespace {

@@ -1,7 +1,7 @@
 // GROTTO_CL_CHECK / GROTTO_CL_TRY and the error names, against the real ICD loader.
 #include <gtest/gtest.h>
 
-#include "kernels/cl_context.hpp"
+#include "common/kernels/cl_context.hpp"
 
 namespace grotto::kernels {
 namespace {

@@ -7,8 +7,8 @@
 #include <cstdio>
 #include <vector>
 
-#include "kernels/cl_context.hpp"
-#include "test_support.hpp"
+#include "common/kernels/cl_context.hpp"
+#include "tests/kernels/test_support.hpp"
 
 namespace grotto::kernels {
 namespace {

@@ -1,6 +1,6 @@
 // The deformation kernel against the CPU reference, on real PoCL: bit-identical, batched or not,
 // and the room builder's fail-soft path.
-#include "kernels/deform.hpp"
+#include "common/kernels/deform.hpp"
 
 #include <gtest/gtest.h>
 #include <sys/wait.h>
@@ -12,9 +12,9 @@
 #include <set>
 #include <thread>
 
-#include "kernels/room_builder.hpp"
-#include "kernels/shared_deform.hpp"
-#include "test_support.hpp"
+#include "common/kernels/room_builder.hpp"
+#include "common/kernels/shared_deform.hpp"
+#include "tests/kernels/test_support.hpp"
 
 namespace grotto::kernels {
 namespace {
@@ -198,7 +198,7 @@ TEST_F(DeformKernelTest, a_batch_split_into_many_launches_gives_the_one_launch_b
   }
 }
 
-// Issue 30: a launch's time split by the queue's events. With profiling (the default) the device's
+// A launch's time split by the queue's events. With profiling (the default) the device's
 // upload, kernel and download are timed and fit in the device's span; without it they read 0, and
 // either way the results are the same bits.
 TEST_F(DeformKernelTest, a_profiled_queue_splits_the_launch_into_upload_kernel_and_download) {

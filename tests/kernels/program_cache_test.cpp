@@ -6,11 +6,11 @@
 #include <cstring>
 #include <stdexcept>
 
-#include "core/random.hpp"
-#include "kernels/binary_cache.hpp"
-#include "kernels/cl_context.hpp"
-#include "kernels/selftest.hpp"
-#include "test_support.hpp"
+#include "common/core/random.hpp"
+#include "common/kernels/binary_cache.hpp"
+#include "common/kernels/cl_context.hpp"
+#include "common/kernels/selftest.hpp"
+#include "tests/kernels/test_support.hpp"
 
 namespace grotto::kernels {
 namespace {

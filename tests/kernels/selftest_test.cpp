@@ -1,15 +1,15 @@
 // The embedded self-test kernel: the embedding is byte-exact, and the device computes the same
 // bits as the scalar C++ reference (the determinism the mesh kernels depend on).
-#include "kernels/selftest.hpp"
+#include "common/kernels/selftest.hpp"
 
 #include <gtest/gtest.h>
 
 #include <bit>
 #include <cmath>
 
-#include "core/random.hpp"
+#include "common/core/random.hpp"
 #include "embedded_cl/embed_fixture.hpp"
-#include "test_support.hpp"
+#include "tests/kernels/test_support.hpp"
 
 namespace grotto::kernels {
 namespace {

@@ -7,8 +7,8 @@
 #include <limits>
 #include <vector>
 
-#include "mesh/deform_lanes.hpp"
-#include "mesh/room_mesh.hpp"
+#include "common/mesh/deform_lanes.hpp"
+#include "common/mesh/room_mesh.hpp"
 
 namespace grotto::mesh {
 namespace {

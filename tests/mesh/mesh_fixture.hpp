@@ -6,8 +6,8 @@
 #include <map>
 #include <vector>
 
-#include "core/random.hpp"
-#include "mesh/room_mesh.hpp"
+#include "common/core/random.hpp"
+#include "common/mesh/room_mesh.hpp"
 
 namespace grotto::mesh::testing {
 

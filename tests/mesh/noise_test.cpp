@@ -4,8 +4,8 @@
 
 #include <cmath>
 
-#include "mesh/context.hpp"
-#include "mesh/deform.hpp"
+#include "common/mesh/context.hpp"
+#include "common/mesh/deform.hpp"
 
 namespace grotto::mesh {
 namespace {

@@ -1,11 +1,11 @@
-#include "mesh/rim.hpp"
+#include "common/mesh/rim.hpp"
 
 #include <gtest/gtest.h>
 
 #include <algorithm>
 #include <cstdio>
 
-#include "core/grid.hpp"
+#include "common/core/grid.hpp"
 
 namespace grotto::mesh {
 namespace {

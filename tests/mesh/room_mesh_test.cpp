@@ -7,8 +7,8 @@
 #include <optional>
 #include <vector>
 
-#include "core/grid.hpp"
-#include "mesh_fixture.hpp"
+#include "common/core/grid.hpp"
+#include "tests/mesh/mesh_fixture.hpp"
 
 namespace grotto::mesh {
 namespace {
@@ -209,7 +209,7 @@ struct CavernWorld {
   cave::Region region = cave::generate_region(world, {0, 0, 0}, {1, 0, 0});
 };
 
-// Halls keep their space (issue 27): a cavern world's big rooms keep their sphere away from
+// Halls keep their space: a cavern world's big rooms keep their sphere away from
 // their portals (the median vertex stands >= 0.85 of the radius from the centre; the spline
 // tubes between small portals left 0.66-0.71), and rooms with a floor rest on it: of the
 // up-facing area, >= 60 % lies within 15 degrees of horizontal (a bowl has almost none), and

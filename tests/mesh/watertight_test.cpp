@@ -1,11 +1,11 @@
-// Watertight across independently built rooms (DESIGN decision 2): shared rims are identical,
+// Watertight across independently built rooms: shared rims are identical,
 // and the union of a 2x2x2 block of sectors is a closed, consistently oriented 2-manifold.
 #include <gtest/gtest.h>
 
 #include <map>
 #include <tuple>
 
-#include "mesh_fixture.hpp"
+#include "tests/mesh/mesh_fixture.hpp"
 
 namespace grotto::mesh {
 namespace {

@@ -7,8 +7,8 @@
 #include <cstring>
 #include <limits>
 
-#include "cave/layout.hpp"
-#include "core/grid.hpp"
+#include "common/cave/layout.hpp"
+#include "common/core/grid.hpp"
 #include "proto/room_frame.hpp"
 
 namespace grotto::proto {

@@ -12,7 +12,7 @@ namespace {
 TEST(WorldDigest, default_parameters_have_a_pinned_digest) {
   // Changing this value changes every world's digest: clients drop their caches. Do it only
   // with a change to the layout parameters or their canonical form.
-  // Changed in issue 27: halls and floors (grotto.layout.v2), then ceilings (grotto.layout.v3).
+  // Changed by halls and floors (grotto.layout.v2), then ceilings (grotto.layout.v3).
   EXPECT_EQ(layout_params_digest(cave::LayoutParams{}), 0x9c8782f0f3856b30ull);
 }
 
@@ -53,15 +53,15 @@ TEST(WorldDigest, the_servers_digest_is_pinned_and_sees_the_mesh_settings) {
   const cave::LayoutParams layout;
   const mesh::MeshParams mesh;
   const uint64_t d = world_params_digest(layout, mesh);
-  // Changed in issue 18: the digest folds in the world grid (1/64 m since then); in issue 27:
-  // the deformation's version 2 (halls keep their sphere, floors, the axis fade, donor caps),
-  // then the world's lights (cave/lights.hpp: grotto.lights.v1 and its parameters), then the
-  // halls' ceilings and larger halls (grotto.layout.v3, grotto.mesh.v3, grotto.lights.v2), then
-  // the patch level's donor cap 28 -> 24 (issue 28: a hall's cost), then the relief's version
-  // (kReliefVersion: the relief and formations engines evaluate; no room changed), then its
-  // version 2 (stalagmites from cones to candles), then the formations as geometry (issue 43:
-  // grotto.relief.v3, grotto.formations.v1), then the flowstone's irregular edges
-  // (grotto.relief.v4), then draperies (grotto.formations.v2).
+  // Changed when the digest folded in the world grid (1/64 m since then); then by the
+  // deformation's version 2 (halls keep their sphere, floors, the axis fade, donor caps), then
+  // the world's lights (cave/lights.hpp: grotto.lights.v1 and its parameters), then the halls'
+  // ceilings and larger halls (grotto.layout.v3, grotto.mesh.v3, grotto.lights.v2), then the
+  // patch level's donor cap 28 -> 24 (a hall's cost), then the relief's version (kReliefVersion:
+  // the relief and formations engines evaluate; no room changed), then its version 2
+  // (stalagmites from cones to candles), then the formations as geometry (grotto.relief.v3,
+  // grotto.formations.v1), then the flowstone's irregular edges (grotto.relief.v4), then
+  // draperies (grotto.formations.v2).
   EXPECT_EQ(d, 0x72f6d1fb1de6c1fcull);
   EXPECT_NE(d, layout_params_digest(layout));
   std::vector<mesh::MeshParams> variants(12, mesh);

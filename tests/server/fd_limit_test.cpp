@@ -1,4 +1,4 @@
-// grotto-server's descriptor limit (server/fd_limit.hpp, issue 28): the count it needs, the soft
+// grotto-server's descriptor limit (server/fd_limit.hpp): the count it needs, the soft
 // limit it asks for and its verdict, by tables. tests/server/fd_limit_test.sh runs the program
 // under low limits and reads its log line.
 #include "server/fd_limit.hpp"

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# grotto-server's descriptor limit (issue 28, server/fd_limit.hpp) with the real program: started
+# grotto-server's descriptor limit (server/fd_limit.hpp) with the real program: started
 # under low RLIMIT_NOFILE limits (bash's ulimit, then exec), it must raise the soft limit to the
 # hard one (its log line and /proc/PID/limits both say so) and warn, on one line with the numbers,
 # when the limit is still below what --max-connections and --max-handshakes need. Each start is

@@ -21,8 +21,8 @@
 #include <set>
 #include <thread>
 
-#include "codec/room_codec.hpp"
-#include "mesh/context.hpp"
+#include "common/codec/room_codec.hpp"
+#include "common/mesh/context.hpp"
 #include "proto/lod.hpp"
 #include "proto/room_frame.hpp"
 #include "server/generator.hpp"

@@ -10,7 +10,7 @@
 #include <utility>
 #include <vector>
 
-#include "cave/room_id.hpp"
+#include "common/cave/room_id.hpp"
 
 namespace grotto::server_test {
 

@@ -1,4 +1,4 @@
-// Rooms as immutable HTTP resources (PROTOCOL.md, "Rooms over HTTP"; issue 29, item 1), over real
+// Rooms as immutable HTTP resources (PROTOCOL.md, "Rooms over HTTP"), over real
 // loopback sockets: a Server started in-process on 127.0.0.1, port 0. A room URL answers the
 // WebSocket room frame's bytes with the cache headers, 304 to its ETag, each bad URL its status
 // and a one-line reason, and the token and rate rules of the WebSocket.
@@ -9,12 +9,12 @@
 #include <string>
 #include <vector>
 
-#include "cave/layout.hpp"
-#include "harness_plain.hpp"
+#include "common/cave/layout.hpp"
 #include "proto/room_path.hpp"
 #include "proto/world_digest.hpp"
 #include "server/config.hpp"
 #include "server/server.hpp"
+#include "tests/server/harness_plain.hpp"
 
 namespace {
 

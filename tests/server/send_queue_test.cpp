@@ -1,7 +1,7 @@
 // A session's send queue (server/send_queue.hpp) by tables: the room frame due soonest goes next,
 // past prefetch frames already queued, but never past a control message or the frame being
-// written. Each ordered row is also run unordered (first in, first out, what sessions did before
-// issue 28) and must come out differently there, so every row can fail.
+// written. Each ordered row is also run unordered (first in, first out, as sessions once did)
+// and must come out differently there, so every row can fail.
 #include "server/send_queue.hpp"
 
 #include <gtest/gtest.h>

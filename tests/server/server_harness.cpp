@@ -1,6 +1,6 @@
-#include "server_harness.hpp"
+#include "tests/server/server_harness.hpp"
 
-#include "harness_plain.hpp"
+#include "tests/server/harness_plain.hpp"
 
 #include <gtest/gtest.h>
 #include <poll.h>
@@ -20,7 +20,7 @@
 #include <sstream>
 #include <thread>
 
-#include "codec/room_codec.hpp"
+#include "common/codec/room_codec.hpp"
 #include "proto/room_frame.hpp"
 
 namespace grotto::server_test {

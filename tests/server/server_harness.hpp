@@ -25,7 +25,7 @@
 #include <variant>
 #include <vector>
 
-#include "cave/layout.hpp"
+#include "common/cave/layout.hpp"
 #include "proto/messages.hpp"
 #include "server/config.hpp"
 #include "server/server.hpp"
@@ -133,7 +133,7 @@ HttpReply http_get(uint16_t port, const std::string& target, size_t body_bytes =
 // nullopt if absent.
 std::optional<double> metric(const std::string& exposition, const std::string& name);
 
-// ---- the fault suite's check (issue 17) ----
+// ---- the fault suite's check ----
 
 // A real player's part: asks for a room of the spawn sector of the world it was welcomed to (a
 // different one each call), then decodes its room frame and Draco payload. `player` has said

@@ -19,18 +19,18 @@
 #include <span>
 #include <thread>
 
-#include "cave/layout.hpp"
-#include "codec/room_codec.hpp"
-#include "harness_plain.hpp"
-#include "mesh/context.hpp"
-#include "mesh/room_mesh.hpp"
+#include "common/cave/layout.hpp"
+#include "common/codec/room_codec.hpp"
+#include "common/mesh/context.hpp"
+#include "common/mesh/room_mesh.hpp"
 #include "proto/messages.hpp"
 #include "proto/room_frame.hpp"
 #include "proto/room_path.hpp"
 #include "proto/world_digest.hpp"
 #include "server/config.hpp"
 #include "server/server.hpp"
-#include "server_harness.hpp"
+#include "tests/server/harness_plain.hpp"
+#include "tests/server/server_harness.hpp"
 
 namespace {
 
@@ -666,7 +666,7 @@ TEST(ServerShutdown, stop_closes_every_session_with_service_restart_in_bounded_t
   EXPECT_EQ(http_get(server->port(), "/healthz").status, 0);  // no longer listening
 }
 
-// ---- what PROTOCOL.md's Closing section promises (issue 29, item 6) ----
+// ---- what PROTOCOL.md's Closing section promises ----
 
 // A client frame as the wire carries it (masked, as RFC 6455 requires of clients), or unmasked.
 std::string client_frame(uint8_t first_byte, const std::string& payload, bool masked = true) {

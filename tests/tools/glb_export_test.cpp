@@ -1,4 +1,4 @@
-// grotto-layout --glb (issue 19), read back by a reader of this file's own: the GLB container and
+// grotto-layout --glb, read back by a reader of this file's own: the GLB container and
 // the glTF 2.0 document are checked against the spec's rules (glTF 2.0 §4.4 GLB, §3.6 buffers,
 // §5.1 accessors, KHR_draco_mesh_compression), every Draco payload is decoded and compared with
 // the plain fallback arrays, and the payloads are compared with encode_room of the same rooms
@@ -18,12 +18,12 @@
 #include <string>
 #include <vector>
 
-#include "cave/layout.hpp"
-#include "cave/lights.hpp"
-#include "codec/room_codec.hpp"
-#include "layout_process.hpp"
-#include "mesh/room_mesh.hpp"
-#include "shaders/formations.hpp"
+#include "common/cave/layout.hpp"
+#include "common/cave/lights.hpp"
+#include "common/codec/room_codec.hpp"
+#include "common/formations/formations.hpp"
+#include "common/mesh/room_mesh.hpp"
+#include "tests/tools/layout_process.hpp"
 
 namespace {
 

@@ -7,8 +7,8 @@
 #include <sstream>
 #include <string>
 
-#include "layout_process.hpp"
-#include "tools/png.hpp"
+#include "common/png/png.hpp"
+#include "tests/tools/layout_process.hpp"
 
 namespace {
 
@@ -84,7 +84,7 @@ TEST(GrottoLayout, renders_a_lit_picture_without_a_gpu) {
               ("grotto-png-test-" + std::to_string(getpid()) + ".png");
   ProcessResult r = run("--seed 3 --sectors 1 --png '" + path.string() + "'", "none");
   ASSERT_EQ(r.exit_code, 0) << r.output;
-  auto image = grotto::tools::read_png(path.string());
+  auto image = grotto::png::read_png(path.string());
   std::filesystem::remove(path);
   ASSERT_TRUE(image.ok()) << image.error().message;
   const size_t w = 1200, h = 800;

@@ -1,9 +1,10 @@
 #!/usr/bin/env bash
-# The pipeline has no arrow back up (issue 16): a folder includes only from its own stage or an
-# earlier one. Reads every `#include "..."` under the source folders, resolves it as the build
-# does (the including file's folder, then common/, then the repository root; generated headers
-# resolve to none and are skipped) and fails naming the file and the include when it points at a
-# later stage, or at another folder of the same stage (siblings stay independent).
+# The pipeline has no arrow back up: a folder includes only from its own stage or an earlier one.
+# Reads every `#include "..."` under the source folders, resolves it from the one include root (the
+# repository root; generated headers resolve to none and are skipped) and fails naming the file
+# and the include when it points at a later stage, or at another folder of the same stage
+# (siblings stay independent). An include that names a path relative to its own folder instead of
+# from the root fails too: one root, so a path reads the same in every file.
 #
 # Also: the sans-I/O protocol cores (server/conversation.*, client/stream/conversation.* where
 # present) include no boost/, beast, asio or CL/ header, directly or through the project headers
@@ -14,19 +15,20 @@ set -u
 root=${1:?usage: layering_test.sh <repository root>}
 cd "$root" || exit 2
 
-# Stages in pipeline order (earlier first). Folders on one line are one stage. common/tools holds
-# only the PNG writer (common/core and zlib); shaders/ holds the GLSL (and its C++ twins: the
-# relief, the formations' placement and shape) that the client's collision and renderer share and
-# the server's room extras derive from (server/extras, the browser viewer's), so it comes before
-# them all, after the codec whose decoded rooms it reads.
+# Stages in pipeline order (earlier first). Folders on one line are one stage. shaders/ holds the
+# GLSL programs and includes nothing, so every stage may include it (common/relief and
+# common/formations compile the relief's and the formations' GLSL as C++). Everything the world
+# digest covers lives under common/; the programs and their libraries come after it.
 stages=(
   "common/core"
-  "common/tools"
+  "shaders"
+  "common/png"
   "common/cave"
   "common/mesh"
-  "kernels"
+  "common/kernels"
   "common/codec"
-  "shaders"
+  "common/relief"
+  "common/formations"
   "proto"
   "server"
   "client/stream"
@@ -61,16 +63,16 @@ rank_of() {
   done
 }
 
-# The repository path an include names, or nothing (system or generated headers).
+# The repository path an include names from the root, or nothing (system or generated headers).
 resolve() {
-  local from_dir=$1 name=$2 base candidate
-  for base in "$from_dir" common .; do
-    candidate=$(realpath -m --relative-to=. "$base/$name")
-    if [[ -f $candidate ]]; then
-      echo "$candidate"
-      return
-    fi
-  done
+  local name=$1
+  [[ -f $name ]] && realpath -m --relative-to=. "$name"
+}
+
+# The repository path an include names relative to the including file's folder, or nothing.
+resolve_relative() {
+  local from_dir=$1 name=$2
+  [[ -f $from_dir/$name ]] && realpath -m --relative-to=. "$from_dir/$name"
 }
 
 sources() {
@@ -95,8 +97,14 @@ while IFS= read -r file; do
   from_rank=$(rank_of "$from")
   while IFS= read -r name; do
     [[ -n $name ]] || continue
-    target=$(resolve "$(dirname "$file")" "$name")
-    [[ -n $target ]] || continue
+    target=$(resolve "$name")
+    if [[ -z $target ]]; then
+      if [[ -n $(resolve_relative "$(dirname "$file")" "$name") ]]; then
+        echo "FAIL: $file includes \"$name\" relative to its folder: name it from the root"
+        failures=$((failures + 1))
+      fi
+      continue
+    fi
     to=$(folder_of "$target")
     [[ -n $to && $to != "$from" ]] || continue
     checked=$((checked + 1))
@@ -123,7 +131,7 @@ all_includes() {
     if [[ $line == \"*\" ]]; then
       name=${line#\"}
       name=${name%\"}
-      target=$(resolve "$(dirname "$file")" "$name")
+      target=$(resolve "$name")
       [[ -n $target ]] && all_includes "$target"
     fi
   done < <(sed -n 's/^[[:space:]]*#[[:space:]]*include[[:space:]]*\([<"][^>"]*[>"]\).*/\1/p' "$file")

@@ -1,6 +1,6 @@
 // tools/png: what write_png writes, read_png reads back exactly; the file is compressed; a file
 // that is not a PNG of ours gets an error naming it.
-#include "tools/png.hpp"
+#include "common/png/png.hpp"
 
 #include <gtest/gtest.h>
 #include <unistd.h>
@@ -27,9 +27,9 @@ TEST(Png, round_trips_an_image_and_compresses_it) {
         rgb[(static_cast<size_t>(y) * w + x) * 3 + c] = static_cast<unsigned char>(
             (x > 100 && x < 150 && y > 50 && y < 90) ? 230 - 20 * c : (x + y * c) / 8);
   const std::string path = temp_path("round.png");
-  ASSERT_TRUE(grotto::tools::write_png(path, rgb, w, h).ok());
+  ASSERT_TRUE(grotto::png::write_png(path, rgb, w, h).ok());
   const auto size = std::filesystem::file_size(path);
-  auto back = grotto::tools::read_png(path);
+  auto back = grotto::png::read_png(path);
   std::filesystem::remove(path);
   ASSERT_TRUE(back.ok()) << back.error().message;
   EXPECT_EQ(back.value().width, w);
@@ -40,25 +40,25 @@ TEST(Png, round_trips_an_image_and_compresses_it) {
 
 TEST(Png, refuses_a_size_that_does_not_match_the_pixels) {
   EXPECT_FALSE(
-      grotto::tools::write_png(temp_path("x.png"), std::vector<unsigned char>(5), 2, 2).ok());
+      grotto::png::write_png(temp_path("x.png"), std::vector<unsigned char>(5), 2, 2).ok());
 }
 
 TEST(Png, a_file_that_is_not_a_png_gets_an_error_naming_it) {
   const std::string path = temp_path("not.png");
   std::ofstream(path) << "GIF89a this is not a PNG at all, just some bytes long enough";
-  auto r = grotto::tools::read_png(path);
+  auto r = grotto::png::read_png(path);
   EXPECT_FALSE(r.ok());
   if (!r.ok()) {
     EXPECT_NE(r.error().message.find(path + ": not a PNG"), std::string::npos);
   }
   // A truncated PNG: the image data does not inflate to the size its header promises.
   std::vector<unsigned char> rgb(64 * 64 * 3, 90);
-  ASSERT_TRUE(grotto::tools::write_png(path, rgb, 64, 64).ok());
+  ASSERT_TRUE(grotto::png::write_png(path, rgb, 64, 64).ok());
   std::filesystem::resize_file(path, std::filesystem::file_size(path) - 30);
-  r = grotto::tools::read_png(path);
+  r = grotto::png::read_png(path);
   EXPECT_FALSE(r.ok());
   std::filesystem::remove(path);
-  EXPECT_FALSE(grotto::tools::read_png(path).ok()) << "a missing file";
+  EXPECT_FALSE(grotto::png::read_png(path).ok()) << "a missing file";
 }
 
 }  // namespace

@@ -1,6 +1,6 @@
-// grotto-layout --bake-relief (shaders/relief_bake.hpp): the client's relief moved into a mesh, for
-// engines that do not tessellate. Seed 7's hall in sector 0,0,0 at the detail level.
-#include "shaders/relief_bake.hpp"
+// grotto-layout --bake-relief (common/relief/relief_bake.hpp): the client's relief moved into a
+// mesh, for engines that do not tessellate. Seed 7's hall in sector 0,0,0 at the detail level.
+#include "common/relief/relief_bake.hpp"
 
 #include <gtest/gtest.h>
 

@@ -11,7 +11,7 @@
 #include <string>
 #include <vector>
 
-#include "codec/room_codec.hpp"
+#include "common/codec/room_codec.hpp"
 #include "proto/room_frame.hpp"
 
 int main(int argc, char** argv) {

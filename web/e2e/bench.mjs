@@ -1,4 +1,4 @@
-// The browser viewer's figures (issue 44's targets), as a benchmark with a JSON report, never a
+// The browser viewer's figures, as a benchmark with a JSON report, never a
 // timed test: the first picture after opening the page (median of `loads` fresh pages), the decode
 // and subdivision medians, and the page's memory over a walk across the world (flying forward,
 // and every 10 s on to the next sector, for `minutes`), sampled every 10 s.

@@ -1,4 +1,4 @@
-// The browser viewer in a real browser (issue 44): Debian's chromium, headless, with SwiftShader's
+// The browser viewer in a real browser: Debian's chromium, headless, with SwiftShader's
 // WebGL2, driven by playwright-core, against grotto-servers this file starts (harness.mjs) on
 // loopback. Run by CTest (web.e2e) with GROTTO_SERVER, GROTTO_LAYOUT and GROTTO_RIM_REFERENCE
 // set; GROTTO_WEB_REPORT names a JSON file for the figures it measures (first picture, decode

@@ -12,8 +12,8 @@
 #include <string>
 #include <thread>
 
-#include "cave/layout.hpp"
 #include "client/load/load.hpp"
+#include "common/cave/layout.hpp"
 #include "server/server.hpp"
 
 namespace {
@@ -114,16 +114,16 @@ TEST(GrottoLoad, parse_command_line_fills_the_options) {
   const char* argv[] = {"grotto-load", "--players", "7",        "--mode",   "soak",
                         "--seed",      "42",        "--spread", "--verify", "--max-stalls",
                         "3",           "--json",    "x.json"};
-  auto cli = grotto::client::load::parse_command_line(static_cast<int>(std::size(argv)), argv);
+  auto cli = grotto::load::parse_command_line(static_cast<int>(std::size(argv)), argv);
   ASSERT_TRUE(cli.run) << cli.text;
   EXPECT_EQ(cli.options.players, 7);
-  EXPECT_EQ(cli.options.mode, grotto::client::load::Mode::kSoak);
+  EXPECT_EQ(cli.options.mode, grotto::load::Mode::kSoak);
   EXPECT_EQ(cli.options.seed, 42u);
   EXPECT_TRUE(cli.options.spread);
   EXPECT_TRUE(cli.options.verify);
   EXPECT_EQ(cli.options.max_stalls, 3);
   EXPECT_EQ(cli.json_path, "x.json");
-  EXPECT_EQ(grotto::client::load::default_duration_s(cli.options.mode), 600);
+  EXPECT_EQ(grotto::load::default_duration_s(cli.options.mode), 600);
 }
 
 // The figures of a run's JSON agree with each other and with the players'.
@@ -193,7 +193,7 @@ TEST(GrottoLoad, four_players_walk_the_embedded_server_without_errors_or_stalls)
   std::filesystem::remove_all(dir);
 }
 
-// Over a simulated network (issue 45): a 400 ms round trip and a 1 Mbit/s downlink. The first room
+// Over a simulated network: a 400 ms round trip and a 1 Mbit/s downlink. The first room
 // takes the connect, the upgrade, hello, spawn and the request (five round trips: >= 2 s) and the
 // frame's time on the link; every room's latency includes a round trip; the report names the
 // profile; nothing is lost or refused on the way.
@@ -222,7 +222,7 @@ TEST(GrottoLoad, players_over_a_simulated_slow_link_see_its_latency) {
 // players' worlds (one sector each, not every player's sector in every world).
 TEST(GrottoLoadSpread, each_player_starts_in_its_sector_of_its_world) {
   const std::vector<uint64_t> seeds = {7, 8, 7, 9, 8};
-  auto starts = grotto::client::load::spread_starts(seeds);
+  auto starts = grotto::load::spread_starts(seeds);
   ASSERT_TRUE(starts.ok()) << starts.error().message;
   ASSERT_EQ(starts->size(), seeds.size());
   for (size_t i = 0; i < seeds.size(); ++i) {
@@ -233,7 +233,7 @@ TEST(GrottoLoadSpread, each_player_starts_in_its_sector_of_its_world) {
     const grotto::Vec3 at = (*starts)[i].second, centre = layout.rooms[0].sphere.centre;
     EXPECT_TRUE(at.x == centre.x && at.y == centre.y && at.z == centre.z) << "player " << i;
   }
-  EXPECT_TRUE(grotto::client::load::spread_starts({}).ok());
+  EXPECT_TRUE(grotto::load::spread_starts({}).ok());
 }
 
 // --ramp: player i's Stream starts at i x ramp / players; its time to first room and its mean
@@ -358,7 +358,7 @@ TEST(GrottoLoad, sends_the_token_from_its_file_or_the_environment) {
 TEST(GrottoLoad, seeds_are_assigned_round_robin_and_rooms_counted_per_seed) {
   const char* argv[] = {"grotto-load", "--seeds", "7,8,18446744073709551615", "--server",
                         "ws://127.0.0.1:1/ws"};
-  auto cli = grotto::client::load::parse_command_line(static_cast<int>(std::size(argv)), argv);
+  auto cli = grotto::load::parse_command_line(static_cast<int>(std::size(argv)), argv);
   ASSERT_TRUE(cli.run) << cli.text;
   EXPECT_EQ(cli.options.seeds, (std::vector<uint64_t>{7, 8, 18446744073709551615ull}));
   EXPECT_FALSE(cli.options.seed.has_value());

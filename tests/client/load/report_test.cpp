@@ -7,11 +7,11 @@
 
 namespace {
 
-using grotto::client::load::Distribution;
-using grotto::client::load::LoadReport;
-using grotto::client::load::percentile;
-using grotto::client::load::PlayerReport;
-using grotto::client::load::summarize;
+using grotto::load::Distribution;
+using grotto::load::LoadReport;
+using grotto::load::percentile;
+using grotto::load::PlayerReport;
+using grotto::load::summarize;
 
 TEST(Report, percentiles_are_nearest_rank) {
   // The textbook example: 15, 20, 35, 40, 50.
@@ -79,7 +79,7 @@ LoadReport sample_report() {
     p.restart_notices = 2 * i;
     r.players_detail.push_back(p);
   }
-  grotto::client::load::total_players(r);
+  grotto::load::total_players(r);
   return r;
 }
 
@@ -103,11 +103,11 @@ TEST(Report, totals_add_up_the_players_and_rates_use_elapsed_time) {
 }
 
 TEST(Report, exit_code_is_1_for_errors_3_for_too_many_stalls_and_errors_win) {
-  using grotto::client::load::exit_code;
+  using grotto::load::exit_code;
   LoadReport r = sample_report();
   EXPECT_EQ(exit_code(r), 1);  // error messages
   r.errors.clear();
-  grotto::client::load::total_players(r);
+  grotto::load::total_players(r);
   EXPECT_EQ(exit_code(r), 0);        // no limit on stalls by default
   ASSERT_GT(r.restart_notices, 0u);  // drain notices are no errors
   r.max_stalls = 3;
@@ -122,12 +122,12 @@ TEST(Report, exit_code_is_1_for_errors_3_for_too_many_stalls_and_errors_win) {
   EXPECT_EQ(exit_code(r), 1);
   r.streams_failed = 0;
   r.players_detail[0].first_room_ms = -1;  // a player that never got a room
-  grotto::client::load::total_players(r);
+  grotto::load::total_players(r);
   EXPECT_EQ(exit_code(r), 1);
 }
 
 TEST(Report, the_gates_errors_lost_server_and_latency) {
-  using grotto::client::load::exit_code;
+  using grotto::load::exit_code;
   LoadReport r = sample_report();
   ASSERT_GT(r.errors_total, 0u);
   EXPECT_EQ(exit_code(r), 1);
@@ -151,7 +151,7 @@ TEST(Report, json_holds_every_figure) {
   r.verify.rooms_checked = 9;
   r.verify.graph_failures = 1;
   r.verify.first_failures = {"portal 3 disagrees"};
-  auto j = nlohmann::json::parse(grotto::client::load::to_json_text(r));
+  auto j = nlohmann::json::parse(grotto::load::to_json_text(r));
   EXPECT_EQ(j["tool"], "grotto-load");
   EXPECT_EQ(j["mode"], "walk");
   EXPECT_EQ(j["compute"], "cpu: test");
@@ -195,12 +195,12 @@ TEST(Report, json_holds_every_figure) {
   EXPECT_EQ(j["per_player"][1]["stalls"], 2);
   EXPECT_EQ(j["exit_code"], 1);
   r.seed.reset();
-  EXPECT_TRUE(nlohmann::json::parse(grotto::client::load::to_json_text(r))["seed"].is_null());
+  EXPECT_TRUE(nlohmann::json::parse(grotto::load::to_json_text(r))["seed"].is_null());
 }
 
 TEST(Report, table_names_the_figures_and_the_outcome) {
   LoadReport r = sample_report();
-  std::string t = grotto::client::load::format_table(r);
+  std::string t = grotto::load::format_table(r);
   for (const char* s : {"request->room ms", "time to first room", "decode ms", "stall ms",
                         "rooms/s", "MB/s", "player kbit/s (mean)", "player kbit/s (peak s)",
                         "rooms per portal", "overloaded=2", "reconnects", "exit 1"}) {

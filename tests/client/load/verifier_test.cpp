@@ -7,18 +7,18 @@
 
 #include <map>
 
-#include "cave/layout.hpp"
-#include "codec/room_codec.hpp"
-#include "mesh/context.hpp"
-#include "mesh/room_mesh.hpp"
+#include "common/cave/layout.hpp"
+#include "common/codec/room_codec.hpp"
+#include "common/mesh/context.hpp"
+#include "common/mesh/room_mesh.hpp"
 
 namespace {
 
 using grotto::cave::RoomId;
-using grotto::client::ReadyRoom;
-using grotto::client::load::PlayerVerifier;
-using grotto::client::load::Verifier;
-using grotto::client::load::VerifyReport;
+using grotto::load::PlayerVerifier;
+using grotto::load::Verifier;
+using grotto::load::VerifyReport;
+using grotto::stream::ReadyRoom;
 using RoomPtr = std::shared_ptr<const ReadyRoom>;
 
 // The spawn room and its first neighbour, as a client holds them after their frames.

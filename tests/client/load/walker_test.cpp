@@ -7,17 +7,17 @@
 #include <map>
 #include <set>
 
-#include "cave/layout.hpp"
+#include "common/cave/layout.hpp"
 
 namespace {
 
 using grotto::Vec3;
 using grotto::cave::Room;
 using grotto::cave::RoomId;
-using grotto::client::load::Walker;
-using grotto::client::load::WalkerOptions;
-using grotto::client::load::WalkerState;
-using grotto::client::load::WorldView;
+using grotto::load::Walker;
+using grotto::load::WalkerOptions;
+using grotto::load::WalkerState;
+using grotto::load::WorldView;
 
 // The cave as a client that has every room would see it; `blocked` rooms are not ready.
 struct Layout {

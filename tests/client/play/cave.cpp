@@ -1,16 +1,16 @@
-#include "cave.hpp"
+#include "tests/client/play/cave.hpp"
 
 #include <gtest/gtest.h>
 
-#include "../ready_room.hpp"
 #include "client/play/flythrough.hpp"
-#include "codec/room_codec.hpp"
-#include "mesh/room_mesh.hpp"
+#include "common/codec/room_codec.hpp"
+#include "common/mesh/room_mesh.hpp"
+#include "tests/client/ready_room.hpp"
 
 namespace grotto::play::test {
 namespace {
 
-constexpr auto ready = client::test::ready_room;
+constexpr auto ready = stream::test::ready_room;
 
 Cave build() {
   Cave c;

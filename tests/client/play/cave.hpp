@@ -6,14 +6,14 @@
 #include <map>
 #include <vector>
 
-#include "cave/layout.hpp"
 #include "client/stream/room_store.hpp"
-#include "core/vec3.hpp"
+#include "common/cave/layout.hpp"
+#include "common/core/vec3.hpp"
 
 namespace grotto::play::test {
 
 struct Cave {
-  std::map<cave::RoomId, client::ReadyRoom> rooms;  // every room of the sector and its gates
+  std::map<cave::RoomId, stream::ReadyRoom> rooms;  // every room of the sector and its gates
   cave::RoomId spawn_room = cave::RoomId::interior({0, 0, 0}, 0);
   Vec3 spawn;               // the server's spawn point (cave::spawn)
   double spawn_radius = 0;  // the spawn room's sphere radius

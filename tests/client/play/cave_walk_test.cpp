@@ -12,11 +12,11 @@
 #include <set>
 #include <string>
 
-#include "cave.hpp"
 #include "client/play/flythrough.hpp"
 #include "client/play/player.hpp"
 #include "client/stream/verify.hpp"
-#include "core/random.hpp"
+#include "common/core/random.hpp"
+#include "tests/client/play/cave.hpp"
 
 namespace grotto::play {
 namespace {
@@ -51,7 +51,7 @@ std::string outside(const test::Cave& cave, const CollisionWorld& world, const P
     for (const auto& [id, room] : cave.rooms) {
       const cave::Sphere& s = room.room.sphere;
       in_a_room = in_a_room ||
-                  distance(now[k], s.centre) < s.radius + client::vertex_sphere_margin(s.radius);
+                  distance(now[k], s.centre) < s.radius + stream::vertex_sphere_margin(s.radius);
     }
     if (!in_a_room) return sphere + "is in no room's sphere";
     for (const Triangle& t : near.triangles) {

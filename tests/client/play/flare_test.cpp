@@ -5,7 +5,7 @@
 #include <cstring>
 
 #include "client/play/flare.hpp"
-#include "shapes.hpp"
+#include "tests/client/play/shapes.hpp"
 
 namespace grotto::play {
 namespace {

@@ -5,10 +5,10 @@
 
 #include <set>
 
-#include "cave.hpp"
 #include "client/play/collision.hpp"
 #include "client/play/flythrough.hpp"
 #include "client/play/player.hpp"
+#include "tests/client/play/cave.hpp"
 
 namespace grotto::play {
 namespace {

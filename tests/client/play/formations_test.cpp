@@ -1,4 +1,4 @@
-// The formations as instanced geometry (shaders/formations.hpp, issue 43), placed over real rooms
+// The formations as instanced geometry (common/formations/formations.hpp), placed over real rooms
 // of seed 7 as a client holds them (sector 0,0,0 at the patch level, round-tripped through the
 // room codec; its room r0 is a hall): every root meets the rock it grows from (no gap), each
 // hangs or stands plumb, stalagmites stand under their drip points and differ, lengths run from
@@ -13,24 +13,24 @@
 #include <tuple>
 #include <vector>
 
-#include "cave.hpp"
 #include "client/play/collision.hpp"
-#include "shaders/formations.hpp"
+#include "common/formations/formations.hpp"
+#include "tests/client/play/cave.hpp"
 
 namespace grotto::play {
 namespace {
 
 namespace fm = grotto::formations;
 
-std::vector<fm::FormationShape> place(const client::ReadyRoom& room) {
+std::vector<fm::FormationShape> place(const stream::ReadyRoom& room) {
   return fm::place(fm::surface_of(room.mesh, room.origin, room.room.sphere.radius));
 }
 
-const client::ReadyRoom& hall() {
+const stream::ReadyRoom& hall() {
   return test::sector_zero().rooms.at(cave::RoomId::interior({0, 0, 0}, 0));
 }
 
-Vec3 world(const client::ReadyRoom& room, glm::vec3 p) {
+Vec3 world(const stream::ReadyRoom& room, glm::vec3 p) {
   return room.origin + Vec3{p.x, p.y, p.z};
 }
 
@@ -194,7 +194,7 @@ TEST(Formations, stalagmites_stand_under_their_drip_points_and_neighbours_differ
 // Placement is a pure function of the room's mesh: the same twice, and the same whatever order
 // its triangles come in (another decoder's, another server's).
 TEST(Formations, placement_is_the_same_whatever_the_order_of_the_triangles) {
-  const client::ReadyRoom& room = hall();
+  const stream::ReadyRoom& room = hall();
   const auto key = [](const fm::FormationShape& f) {
     return std::make_tuple(f.root.x, f.root.z, f.kind, f.root.y, f.length, f.radius, f.seed);
   };
@@ -207,7 +207,7 @@ TEST(Formations, placement_is_the_same_whatever_the_order_of_the_triangles) {
   };
   const auto once = sorted(place(room));
   EXPECT_EQ(once, sorted(place(room)));
-  client::ReadyRoom turned = room;
+  stream::ReadyRoom turned = room;
   const size_t triangles = turned.mesh.indices.size() / 3;
   std::vector<uint32_t> indices;
   for (size_t t = 0; t < triangles; ++t) {
@@ -223,7 +223,7 @@ TEST(Formations, placement_is_the_same_whatever_the_order_of_the_triangles) {
 // Walkers and flares collide with formations: a segment from beside a formation's body to its
 // axis, at half its length, meets its hull (a drapery's: from beside its face to its middle).
 TEST(Formations, walkers_collide_with_them) {
-  const client::ReadyRoom& room = hall();
+  const stream::ReadyRoom& room = hall();
   CollisionWorld with(1.0f, true);
   with.add(room);
   int hit = 0, tested = 0;

@@ -1,6 +1,6 @@
 // The player on a hall's floor (seed 7's hall 0.0.0.r0, radius 18.3 m, its floor at
 // cave::floor_height), colliding with the surface as grotto-client draws it (the patch mesh as PN
-// triangles with the relief on top, through shaders/relief.hpp, as CollisionWorld does by
+// triangles with the relief on top, through common/relief/relief.hpp, as CollisionWorld does by
 // default): a walk across the floor from one side to the other, over the floor's bumps and round
 // or over its stalagmites, keeps the feet on the drawn surface at every step and gets across; a
 // player dropped above the floor lands on it. The same walk and drop without collision fall
@@ -12,8 +12,8 @@
 #include <optional>
 #include <string>
 
-#include "cave.hpp"
 #include "client/play/player.hpp"
+#include "tests/client/play/cave.hpp"
 
 namespace grotto::play {
 namespace {

@@ -6,7 +6,7 @@
 #include <cmath>
 
 #include "client/play/player.hpp"
-#include "shapes.hpp"
+#include "tests/client/play/shapes.hpp"
 
 namespace grotto::play {
 namespace {

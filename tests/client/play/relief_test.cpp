@@ -1,4 +1,4 @@
-// The rock's relief through shaders/relief.hpp (the C++ face of the shader's source): the
+// The rock's relief through common/relief/relief.hpp (the C++ face of the shader's source): the
 // speleothem lattice's candidates grow in rows along cracks, octaves too fine for the mesh move to
 // the shading, the values are pinned to the world digest's version, nothing moves on a portal rim,
 // flowstone drowns the rock, the fine detail fades and everything stays within the bound the
@@ -13,10 +13,10 @@
 #include <map>
 #include <vector>
 
-#include "core/random.hpp"
-#include "core/vec3.hpp"
+#include "common/core/random.hpp"
+#include "common/core/vec3.hpp"
+#include "common/relief/relief.hpp"
 #include "proto/world_digest.hpp"
-#include "shaders/relief.hpp"
 
 namespace grotto::play {
 namespace {
@@ -151,8 +151,8 @@ TEST(Relief, its_values_are_pinned_to_the_version_in_the_world_digest) {
   const std::map<std::string_view, uint64_t> pinned = {
       {"grotto.relief.v1", 0x3ce883fafaec6c06ull},
       {"grotto.relief.v2", 0x493b6ced8188ba3dull},  // stalagmites from cones to candles
-      // The formations out of the relief (shaders/formations.hpp), every noise at whole cycles
-      // per block (the same precision 6,000 km out).
+      // The formations out of the relief (common/formations/formations.hpp), every noise at whole
+      // cycles per block (the same precision 6,000 km out).
       {"grotto.relief.v3", 0x1d8b82e08bfa825cull},
       // Flowstone sheets' edges bent by the rock's warp and scalloped by a finer octave (a
       // value-noise cell thresholded cut a rectangle of bare rock out of a sheet).
@@ -240,7 +240,7 @@ TEST(Relief, fine_detail_vanishes_under_coarse_pixels_and_occlusion_stays_in_bou
 }
 
 // A joint is a fracture plane's trace: on a ceiling it is a line, straight over its run, never the
-// loops and meanders of a noise's zero line (issue 43, item 4: they read as hairs on the lens).
+// loops and meanders of a noise's zero line (those read as hairs on the lens).
 // relief_fine's joints alone, on 8 x 8 m of ceiling sampled every 1 cm: every crack (8-connected
 // samples the joints darken) 30 cm long or more is thin for its length, the spread across it
 // at most a fifth of the spread along it (the square root of the ratio of its points'
@@ -305,7 +305,7 @@ TEST(Relief, joints_on_a_ceiling_are_straight_lines) {
   EXPECT_EQ(curled, 0) << "joints meander instead of following a plane";
 }
 
-// The same look everywhere (issue 43, item 5): 6,240 km out (sector 65000,0,65000), where a
+// The same look everywhere: 6,240 km out (sector 65000,0,65000), where a
 // float's step is 0.5 m, the relief evaluated from a block and an offset (relief_pos_of, as the
 // renderer's anchor and collision give it) varies as smoothly and as much as near the origin:
 // along a 2 m line in 1 cm steps no two neighbouring samples are equal, and the height's spread

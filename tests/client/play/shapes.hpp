@@ -4,9 +4,9 @@
 
 #include <vector>
 
-#include "cave/layout.hpp"
 #include "client/stream/room_store.hpp"
-#include "core/vec3.hpp"
+#include "common/cave/layout.hpp"
+#include "common/core/vec3.hpp"
 
 namespace grotto::play::test {
 
@@ -16,9 +16,9 @@ struct Quad {
 
 // A room `index` of sector (0,0,0) holding the quads as its patch mesh, its sphere around them,
 // its vertices as offsets from `origin` (as a decoded room holds them).
-inline client::ReadyRoom shape_room(int index, const std::vector<Quad>& quads, Vec3 origin = {},
+inline stream::ReadyRoom shape_room(int index, const std::vector<Quad>& quads, Vec3 origin = {},
                                     std::vector<cave::Portal> portals = {}) {
-  client::ReadyRoom r;
+  stream::ReadyRoom r;
   r.room.id = cave::RoomId::interior({0, 0, 0}, index);
   r.room.sphere = {origin, 100};
   r.room.portals = std::move(portals);

@@ -5,8 +5,8 @@
 
 #include <gtest/gtest.h>
 
-#include "cave/layout.hpp"
 #include "client/app/options.hpp"
+#include "common/cave/layout.hpp"
 
 namespace grotto::app {
 namespace {

@@ -17,11 +17,11 @@
 #include <string>
 #include <vector>
 
-#include "cave/layout.hpp"
-#include "core/vec3.hpp"
-#include "mesh/room_mesh.hpp"
-#include "shaders/relief.hpp"
-#include "tools/png.hpp"
+#include "common/cave/layout.hpp"
+#include "common/core/vec3.hpp"
+#include "common/mesh/room_mesh.hpp"
+#include "common/png/png.hpp"
+#include "common/relief/relief.hpp"
 
 namespace {
 
@@ -45,7 +45,7 @@ Outcome run(const std::string& command) {
 
 // The pixels of a PNG grotto-client wrote (empty when it is missing or unreadable).
 std::vector<unsigned char> read_picture(const std::string& path, int& width, int& height) {
-  auto image = grotto::tools::read_png(path);
+  auto image = grotto::png::read_png(path);
   if (!image) return {};
   width = image.value().width;
   height = image.value().height;
@@ -99,7 +99,7 @@ double lit_fraction(const std::vector<unsigned char>& rgb) {
   return rgb.empty() ? 0 : static_cast<double>(lit) / static_cast<double>(rgb.size() / 3);
 }
 
-// Issue 15: on a machine with no X server (a GPU box, a container) --screenshot and --bench make
+// On a machine with no X server (a GPU box, a container) --screenshot and --bench make
 // their context with EGL and no window system. Here that is Mesa's llvmpipe through EGL's
 // software device or surfaceless platform; the picture is the same kind as under Xvfb.
 TEST(GrottoClient, without_a_display_a_screenshot_renders_through_egl) {

@@ -18,7 +18,7 @@ TEST(Hud, a_ready_stream_shows_figures_and_toggles_without_a_connection_line) {
   s.frame_ms = 16.7;
   s.latency_ms = 42;
   s.rooms_on_gpu = 12;
-  s.stream.state = client::StreamState::kReady;
+  s.stream.state = stream::StreamState::kReady;
   s.stream.in_flight = 3;
   s.mode = "walk";
   s.seed = "7";
@@ -43,7 +43,7 @@ TEST(Hud, a_ready_stream_shows_figures_and_toggles_without_a_connection_line) {
 
 TEST(Hud, says_plainly_when_the_server_is_gone_or_refuses) {
   HudState s;
-  s.stream.state = client::StreamState::kBackoff;
+  s.stream.state = stream::StreamState::kBackoff;
   s.stream.connects = 2;
   s.stream.last_error = "connection refused";
   auto lines = hud_lines(s);
@@ -51,17 +51,17 @@ TEST(Hud, says_plainly_when_the_server_is_gone_or_refuses) {
   EXPECT_TRUE(has_line(lines, "connection refused", render::kOverlayError));
   s.stream.connects = 0;
   EXPECT_TRUE(has_line(hud_lines(s), "CANNOT REACH THE SERVER", render::kOverlayError));
-  s.stream.state = client::StreamState::kFailed;
+  s.stream.state = stream::StreamState::kFailed;
   s.stream.last_error = "unauthorized: missing token";
   EXPECT_TRUE(has_line(hud_lines(s), "SERVER REFUSED US: unauthorized", render::kOverlayError));
-  s.stream.state = client::StreamState::kConnecting;
+  s.stream.state = stream::StreamState::kConnecting;
   s.stream.connects = 1;
   EXPECT_TRUE(has_line(hud_lines(s), "SERVER LOST: RECONNECTING", render::kOverlayWarning));
 }
 
 TEST(Hud, the_key_list_appears_on_request) {
   HudState s;
-  s.stream.state = client::StreamState::kReady;
+  s.stream.state = stream::StreamState::kReady;
   const size_t short_list = hud_lines(s).size();
   s.help = true;
   EXPECT_GT(hud_lines(s).size(), short_list);
@@ -72,7 +72,7 @@ TEST(HudMeter, averages_frames_takes_the_median_latency_and_measures_bandwidth) 
   EXPECT_LT(m.latency_ms(), 0);
   m.frame(0, 0.0, 0, {});  // the first frame's time is unknown
   EXPECT_EQ(m.frame_ms(), 0);
-  std::vector<client::RoomSample> samples(3);
+  std::vector<stream::RoomSample> samples(3);
   samples[0].latency_ms = 5, samples[1].latency_ms = 100, samples[2].latency_ms = 7;
   m.frame(20, 0.5, 1024, samples);
   EXPECT_EQ(m.frame_ms(), 20);

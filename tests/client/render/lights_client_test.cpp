@@ -1,4 +1,4 @@
-// Light in the dark (issue 27, item 4) as grotto-client shows it: which lights a frame takes
+// Light in the dark as grotto-client shows it: which lights a frame takes
 // (render::frame_lights, pure), a shot in a hall reporting the hall's world lights, and a hall lit
 // by one flare with the headlamp off. The shots run the program against its in-process server
 // (CPU reference) under the render tests' xvfb-run.
@@ -14,9 +14,9 @@
 #include <fstream>
 #include <string>
 
-#include "cave/layout.hpp"
-#include "cave/lights.hpp"
 #include "client/render/renderer.hpp"
+#include "common/cave/layout.hpp"
+#include "common/cave/lights.hpp"
 
 namespace grotto {
 namespace {
@@ -102,7 +102,7 @@ Shot shoot(Vec3 eye, double yaw, const std::string& flags) {
   return shot;
 }
 
-// Seed 95's hall in sectors 0,0,0..1,0,1 (the issue's checks): sector 1,0,1's hub.
+// Seed 95's hall in sectors 0,0,0..1,0,1 (bench/hall_views.sh's check): sector 1,0,1's hub.
 cave::Room hall() {
   const auto world = cave::World::create(95, cave::LayoutParams{}).value();
   return cave::room(world, cave::RoomId::parse("1.0.1.r0").value()).value();

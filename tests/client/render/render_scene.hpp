@@ -18,13 +18,13 @@
 #include <string>
 #include <vector>
 
-#include "../ready_room.hpp"
-#include "cave/layout.hpp"
 #include "client/render/gl.hpp"
 #include "client/render/renderer.hpp"
 #include "client/render/room_cache.hpp"
-#include "codec/room_codec.hpp"
-#include "mesh/room_mesh.hpp"
+#include "common/cave/layout.hpp"
+#include "common/codec/room_codec.hpp"
+#include "common/mesh/room_mesh.hpp"
+#include "tests/client/ready_room.hpp"
 
 namespace grotto::render::test {
 
@@ -72,15 +72,15 @@ inline GlContext& gl() {
     if (gl().window == nullptr) GTEST_SKIP() << gl().why_not; \
   } while (0)
 
-inline constexpr auto ready = client::test::ready_room;
+inline constexpr auto ready = stream::test::ready_room;
 
 // Every room of sector (0,0,0) and its gates, built once for the binary.
 // The patch meshes of sector (0,0,0)'s rooms in the world of `seed` (built once per seed).
-inline const std::vector<client::ReadyRoom>& sector_rooms(uint64_t seed = 7) {
-  static std::map<uint64_t, std::vector<client::ReadyRoom>> built;
+inline const std::vector<stream::ReadyRoom>& sector_rooms(uint64_t seed = 7) {
+  static std::map<uint64_t, std::vector<stream::ReadyRoom>> built;
   if (auto it = built.find(seed); it != built.end()) return it->second;
-  const std::vector<client::ReadyRoom> rooms = [seed] {
-    std::vector<client::ReadyRoom> out;
+  const std::vector<stream::ReadyRoom> rooms = [seed] {
+    std::vector<stream::ReadyRoom> out;
     const cave::World world = cave::World::create(seed, cave::LayoutParams{}).value();
     const mesh::MeshContext ctx = mesh::MeshContext::create(world, mesh::MeshParams{}).value();
     for (const cave::Room& r : cave::generate_region(world, {0, 0, 0}, {0, 0, 0}).rooms) {
@@ -124,7 +124,7 @@ class Scene {
     auto f = Framebuffer::create(kWidth, kHeight);
     EXPECT_TRUE(f.ok());
     if (f.ok()) framebuffer_ = std::make_unique<Framebuffer>(std::move(f).value());
-    for (const client::ReadyRoom& room : sector_rooms(seed))
+    for (const stream::ReadyRoom& room : sector_rooms(seed))
       cache_.upload(room);
   }
   bool ok() const { return renderer_ && framebuffer_; }
@@ -160,14 +160,14 @@ class Scene {
 };
 
 // Interior rooms of the sector, whose centres are in open cave.
-inline std::vector<const client::ReadyRoom*> interior_rooms() {
-  std::vector<const client::ReadyRoom*> out;
-  for (const client::ReadyRoom& r : sector_rooms())
+inline std::vector<const stream::ReadyRoom*> interior_rooms() {
+  std::vector<const stream::ReadyRoom*> out;
+  for (const stream::ReadyRoom& r : sector_rooms())
     if (!r.room.id.is_gate()) out.push_back(&r);
   return out;
 }
 
-inline Camera camera_in(const client::ReadyRoom& room, double yaw_deg, double pitch_deg) {
+inline Camera camera_in(const stream::ReadyRoom& room, double yaw_deg, double pitch_deg) {
   Camera c;
   c.position = room.room.sphere.centre;
   c.yaw = yaw_deg * kPi / 180;

@@ -16,13 +16,13 @@
 #include <string>
 #include <vector>
 
-#include "cave/layout.hpp"
 #include "client/render/gl.hpp"
 #include "client/render/renderer.hpp"
 #include "client/render/room_cache.hpp"
-#include "codec/room_codec.hpp"
-#include "mesh/room_mesh.hpp"
-#include "render_scene.hpp"
+#include "common/cave/layout.hpp"
+#include "common/codec/room_codec.hpp"
+#include "common/mesh/room_mesh.hpp"
+#include "tests/client/render/render_scene.hpp"
 
 namespace grotto::render {
 namespace {
@@ -33,7 +33,7 @@ using namespace test;  // render_scene.hpp
 // to ceiling, so every direction gets looked at.
 Camera pose(int i, int n) {
   const auto rooms = interior_rooms();
-  const client::ReadyRoom& room = *rooms[static_cast<size_t>(i) % rooms.size()];
+  const stream::ReadyRoom& room = *rooms[static_cast<size_t>(i) % rooms.size()];
   const double yaw = std::fmod(i * 137.50776, 360.0);
   const double pitch = n > 1 ? -70.0 + 140.0 * ((i * 7) % n) / (n - 1) : 0.0;
   return camera_in(room, yaw, pitch);
@@ -131,7 +131,7 @@ TEST(Renderer, screenshots_are_lit_not_blank_and_change_with_tessellation) {
   EXPECT_GT(differing_pixels(a, b), kWidth * kHeight / 20) << "tessellation on and off look alike";
 }
 
-// The GPU carries the detail (issue 15): over poses in two worlds (the biggest room, a cavern;
+// The GPU carries the detail: over poses in two worlds (the biggest room, a cavern;
 // the smallest, a tunnel or passage; looking level, up a shaft or at a ceiling, and down at the
 // floor), the relief and the formations change at least a tenth of the pixels by more than 8/255
 // at every pose. Off is the same tessellated PN surface with displacement strength 0 and no
@@ -143,14 +143,14 @@ TEST(Renderer, the_relief_changes_a_tenth_of_the_pixels_at_every_pose) {
   for (uint64_t seed : {7u, 95u}) {
     Scene scene(seed);
     ASSERT_TRUE(scene.ok());
-    std::vector<const client::ReadyRoom*> rooms;
-    for (const client::ReadyRoom& r : sector_rooms(seed))
+    std::vector<const stream::ReadyRoom*> rooms;
+    for (const stream::ReadyRoom& r : sector_rooms(seed))
       if (!r.room.id.is_gate()) rooms.push_back(&r);
     ASSERT_GE(rooms.size(), 2u);
     std::sort(rooms.begin(), rooms.end(),
               [](auto* a, auto* b) { return a->room.sphere.radius > b->room.sphere.radius; });
     const struct {
-      const client::ReadyRoom* room;
+      const stream::ReadyRoom* room;
       double yaw, pitch;
     } views[] = {{rooms[1], 20, -15},
                  {rooms.front(), 200, 55},
@@ -341,7 +341,7 @@ TEST(Renderer, patch_culling_discards_patches_and_keeps_the_pixels) {
       total_on += primitives_on;
       total_off += primitives_off;
     }
-    // A fifth at least: 24 % in the world of issue 27, whose poses stand in a hall that fills
+    // A fifth at least: 24 % in the world with halls, whose poses stand in a hall that fills
     // more of the view than the rooms before it (over 25 % then).
     EXPECT_LT(total_on, total_off * 4 / 5) << "patch culling discards little";
     std::printf("patch culling: %u triangles tessellated (%u without)\n", total_on, total_off);
@@ -360,7 +360,7 @@ TEST(Renderer, without_fog_caps_the_void_shows_through_open_portals) {
   options.fog_caps = false;
   options.clear_color = {1.0f, 0.0f, 1.0f};
   int magenta = 0;
-  for (const client::ReadyRoom* room : rooms) {
+  for (const stream::ReadyRoom* room : rooms) {
     for (double yaw = 0; yaw < 360 && magenta == 0; yaw += 45)
       for (double pitch : {-60.0, 0.0, 60.0})
         magenta += scene.draw(camera_in(*room, yaw, pitch), options).count(255, 0, 255);

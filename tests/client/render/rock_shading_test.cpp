@@ -1,10 +1,11 @@
-// The rock's shading up close (issue 27, items 4 and 5) on llvmpipe under Xvfb: the fine detail
+// The rock's shading up close on llvmpipe under Xvfb: the fine detail
 // (shaders/relief.glsl's relief_fine: grain, pits, joints) shows on a wall 1.5 m away and fades
 // out far away, the ambient occlusion darkens the crease at a stalagmite's root, a drapery lit
 // from behind lets the light through, a stalagmite in front of a flare is veiled by its haze, a
 // stalactite in a lit hall's passage gets the hall's spill, and glow-worms seen from metres away
 // are dots. Poses in seed 7's hall 0.0.0.r0, found from its patch mesh, the relief's C++ face
-// (shaders/relief.hpp) and the formations' placement (shaders/formations.hpp), not hard-coded.
+// (common/relief/relief.hpp) and the formations' placement (common/formations/formations.hpp), not
+// hard-coded.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -13,9 +14,9 @@
 #include <optional>
 #include <vector>
 
-#include "render_scene.hpp"
-#include "shaders/formations.hpp"
-#include "shaders/relief.hpp"
+#include "common/formations/formations.hpp"
+#include "common/relief/relief.hpp"
+#include "tests/client/render/render_scene.hpp"
 
 namespace grotto::render {
 namespace {
@@ -25,18 +26,18 @@ using namespace test;  // render_scene.hpp
 namespace rl = grotto::relief;
 
 // The biggest room of seed 7's sector (0,0,0): its hall.
-const client::ReadyRoom& hall() {
-  const client::ReadyRoom* best = nullptr;
-  for (const client::ReadyRoom& r : sector_rooms(7))
+const stream::ReadyRoom& hall() {
+  const stream::ReadyRoom* best = nullptr;
+  for (const stream::ReadyRoom& r : sector_rooms(7))
     if (!r.room.id.is_gate() && (!best || r.room.sphere.radius > best->room.sphere.radius))
       best = &r;
   return *best;
 }
 
-// The hall's formations as every client places them (shaders/formations.hpp), and a point of
-// the hall's frame in world metres.
+// The hall's formations as every client places them (common/formations/formations.hpp), and a point
+// of the hall's frame in world metres.
 std::vector<formations::FormationShape> hall_formations() {
-  const client::ReadyRoom& room = hall();
+  const stream::ReadyRoom& room = hall();
   return formations::place(formations::surface_of(room.mesh, room.origin, room.room.sphere.radius));
 }
 Vec3 in_world(glm::vec3 p) {
@@ -98,7 +99,7 @@ struct Hit {
 
 // The first crossing of the ray from `from` along unit `dir` with the room's patch mesh
 // (Moller-Trumbore), or none.
-std::optional<Hit> cast(const client::ReadyRoom& room, Vec3 from, Vec3 dir) {
+std::optional<Hit> cast(const stream::ReadyRoom& room, Vec3 from, Vec3 dir) {
   const auto& m = room.mesh;
   std::optional<Hit> best;
   const glm::dvec3 o{from.x - room.origin.x, from.y - room.origin.y, from.z - room.origin.z};
@@ -180,7 +181,7 @@ TEST(RockShading, fine_detail_shows_up_close_and_fades_out_far_away) {
   REQUIRE_GL();
   Scene scene(7);
   ASSERT_TRUE(scene.ok());
-  const client::ReadyRoom& room = hall();
+  const stream::ReadyRoom& room = hall();
   const Vec3 centre = room.room.sphere.centre;
   // A level look at the wall, from the hall's centre, at the first yaw whose wall is far enough
   // for both poses.
@@ -261,7 +262,7 @@ TEST(RockShading, ambient_occlusion_darkens_the_crease_at_a_stalagmites_root) {
 // gets nothing of it: centre luma 16.3 with the flare and without; 204 with the light through).
 TEST(RockShading, a_drapery_lit_from_behind_lets_the_light_through) {
   REQUIRE_GL();
-  const client::ReadyRoom& room = hall();
+  const stream::ReadyRoom& room = hall();
   const std::vector<formations::FormationShape> all = hall_formations();
   const formations::FormationShape* found = nullptr;
   for (const formations::FormationShape& f : all)
@@ -307,7 +308,7 @@ TEST(RockShading, a_drapery_lit_from_behind_lets_the_light_through) {
 // without).
 TEST(RockShading, a_formation_in_front_of_a_flare_is_veiled_by_its_haze) {
   REQUIRE_GL();
-  const client::ReadyRoom& room = hall();
+  const stream::ReadyRoom& room = hall();
   const std::vector<formations::FormationShape> all = hall_formations();
   const formations::FormationShape* found = stalagmite_near_centre(all, 0.5f, 2.0f);
   ASSERT_NE(found, nullptr) << "no stalagmite of 0.5-2 m in the hall";
@@ -354,7 +355,7 @@ TEST(RockShading, a_formation_in_front_of_a_flare_is_veiled_by_its_haze) {
 // against 182).
 TEST(RockShading, a_formation_through_a_lit_halls_portal_gets_its_spill) {
   REQUIRE_GL();
-  const client::ReadyRoom& lit = hall();
+  const stream::ReadyRoom& lit = hall();
   const Vec3 centre = lit.room.sphere.centre;
   const double bound = lit.room.sphere.radius;
   struct Pick {
@@ -364,8 +365,8 @@ TEST(RockShading, a_formation_through_a_lit_halls_portal_gets_its_spill) {
   };
   std::optional<Pick> pick;
   for (const cave::Portal& portal : lit.room.portals) {
-    const client::ReadyRoom* next = nullptr;
-    for (const client::ReadyRoom& r : sector_rooms(7))
+    const stream::ReadyRoom* next = nullptr;
+    for (const stream::ReadyRoom& r : sector_rooms(7))
       if (r.room.id == portal.neighbour) next = &r;
     if (next == nullptr) continue;
     for (const formations::FormationShape& f : formations::place(
@@ -426,7 +427,7 @@ TEST(RockShading, a_formation_through_a_lit_halls_portal_gets_its_spill) {
 // pixels).
 TEST(RockShading, far_glow_worms_are_dots_not_crosses) {
   REQUIRE_GL();
-  const client::ReadyRoom& room = hall();
+  const stream::ReadyRoom& room = hall();
   const Vec3 centre = room.room.sphere.centre;
   const auto roof = cast(room, centre, Vec3{0, 1, 0});
   ASSERT_TRUE(roof.has_value()) << "no roof above the hall's centre";

@@ -1,4 +1,4 @@
-// Speleothems as instanced geometry (issue 43): where a room's stalactites, stalagmites, soda
+// Speleothems as instanced geometry: where a room's stalactites, stalagmites, soda
 // straws, columns and draperies are and what shape each has, as a pure function of (world, room):
 // the cells of relief.glsl's speleothem lattice (relief_speleothem: one candidate per 1 m cell,
 // pulled onto the cracks water seeps along, heavy-tailed lengths) that lie under the room's
@@ -22,9 +22,9 @@
 
 #include <glm/glm.hpp>
 
-#include "codec/room_codec.hpp"
-#include "core/vec3.hpp"
-#include "mesh/deform.hpp"
+#include "common/codec/room_codec.hpp"
+#include "common/core/vec3.hpp"
+#include "common/mesh/deform.hpp"
 
 namespace grotto::formations {
 

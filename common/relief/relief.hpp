@@ -6,7 +6,7 @@
 #include <cmath>
 #include <glm/glm.hpp>
 
-#include "core/vec3.hpp"
+#include "common/core/vec3.hpp"
 
 namespace grotto::relief {
 

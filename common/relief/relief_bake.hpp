@@ -1,20 +1,20 @@
 // The GPU's relief baked into a room mesh (grotto-layout --bake-relief; header-only beside
 // relief.hpp, so tools and tests share it): every vertex moved as
 // shaders/room.tese moves a tessellated point, through the same function (shaders/relief.glsl,
-// compiled as C++ by shaders/relief.hpp): the rock and flowstone along the normal. An engine that
-// imports the file gets the rock the client draws, at the mesh's resolution: the detail level's
-// 0.25-0.3 m spacing holds the metre-scale rock, not the 15 cm octave, which only the GPU's
+// compiled as C++ by common/relief/relief.hpp): the rock and flowstone along the normal. An engine
+// that imports the file gets the rock the client draws, at the mesh's resolution: the detail
+// level's 0.25-0.3 m spacing holds the metre-scale rock, not the 15 cm octave, which only the GPU's
 // tessellation (or relief.hpp evaluated where needed) resolves. The formations are instances of
-// their own (shaders/formations.hpp), not baked into the rock.
+// their own (common/formations/formations.hpp), not baked into the rock.
 #pragma once
 
 #include <algorithm>
 #include <cmath>
 #include <vector>
 
-#include "cave/layout.hpp"
-#include "mesh/room_mesh.hpp"
-#include "shaders/relief.hpp"
+#include "common/cave/layout.hpp"
+#include "common/mesh/room_mesh.hpp"
+#include "common/relief/relief.hpp"
 
 namespace grotto::relief {
 

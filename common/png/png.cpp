@@ -1,4 +1,4 @@
-#include "tools/png.hpp"
+#include "common/png/png.hpp"
 
 #include <algorithm>
 #include <array>
@@ -10,7 +10,7 @@
 
 #include <zlib.h>
 
-namespace grotto::tools {
+namespace grotto::png {
 namespace {
 
 uint32_t crc32_of(const std::vector<unsigned char>& data) {
@@ -161,4 +161,4 @@ Result<RgbImage> read_png(const std::string& path) {
   return image;
 }
 
-}  // namespace grotto::tools
+}  // namespace grotto::png

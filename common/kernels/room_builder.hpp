@@ -1,7 +1,7 @@
 // Builds room meshes with the deformation (and, on a GPU, the detail channels) batched on an
-// OpenCL device when one is usable, and on the CPU reference otherwise. Fail soft, never silently
-// (DESIGN decision 6): no platform, no device, a failed build or a failed launch is a logged
-// warning and the CPU path, and path() says which path is in use.
+// OpenCL device when one is usable, and on the CPU reference otherwise. Fail soft, never silently:
+// no platform, no device, a failed build or a failed launch is a logged warning and the CPU path,
+// and path() says which path is in use.
 #pragma once
 
 #include <memory>
@@ -10,9 +10,9 @@
 #include <string>
 #include <vector>
 
-#include "cave/layout.hpp"
-#include "kernels/deform.hpp"
-#include "kernels/shared_deform.hpp"
+#include "common/cave/layout.hpp"
+#include "common/kernels/deform.hpp"
+#include "common/kernels/shared_deform.hpp"
 
 namespace grotto::kernels {
 
@@ -57,7 +57,7 @@ class RoomBuilder {
   // cave::generate_region's, meshes[i] is region.rooms[i]'s as build() gives it. A pipeline on
   // the builder's threads: the block's own sectors are laid out first, and its interior rooms
   // built while the sectors beyond its faces (which only its gate rooms need) are laid out; then
-  // the gates (issue 30: the whole cave on every core). With one or two threads, which the layout
+  // the gates, so that every core has work. With one or two threads, which the layout
   // keeps busy, the region is laid out, then built.
   struct BuiltRegion {
     cave::Region region;

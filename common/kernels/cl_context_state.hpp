@@ -1,12 +1,12 @@
 // The inside of a ComputeContext, shared by cl_context.cpp and program_build.cpp; not part of the
-// public face (include kernels/cl_context.hpp instead).
+// public face (include common/kernels/cl_context.hpp instead).
 #pragma once
 
 #include <map>
 #include <mutex>
 #include <string>
 
-#include "kernels/cl_context.hpp"
+#include "common/kernels/cl_context.hpp"
 
 namespace grotto::kernels {
 

@@ -1,4 +1,4 @@
-#include "shaders/formations.hpp"
+#include "common/formations/formations.hpp"
 
 #include <algorithm>
 #include <array>
@@ -7,7 +7,7 @@
 #include <tuple>
 #include <utility>
 
-#include "shaders/relief.hpp"
+#include "common/relief/relief.hpp"
 
 namespace grotto::formations {
 namespace {

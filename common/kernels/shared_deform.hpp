@@ -1,4 +1,4 @@
-// One OpenCL device's deformation shared by every RoomBuilder of a process (issue 30, item 2).
+// One OpenCL device's deformation shared by every RoomBuilder of a process.
 // The server's workers each had a context, a queue and a kernel of their own: a GPU was
 // time-sliced among 16 contexts and every worker's batch of up to 32 patch rooms paid its own
 // round trip (on an H100 the server built slower with the GPU than without). Shared, there is one
@@ -18,7 +18,7 @@
 #include <span>
 #include <vector>
 
-#include "kernels/deform.hpp"
+#include "common/kernels/deform.hpp"
 
 namespace grotto::kernels {
 

@@ -1,7 +1,7 @@
 // Names for OpenCL error codes and the Error that carries them.
 #include <cstring>
 
-#include "kernels/cl_context.hpp"
+#include "common/kernels/cl_context.hpp"
 
 namespace grotto::kernels {
 

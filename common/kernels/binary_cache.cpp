@@ -1,5 +1,5 @@
 // The on-disk binary cache's key, location and file format (see binary_cache.hpp).
-#include "kernels/binary_cache.hpp"
+#include "common/kernels/binary_cache.hpp"
 
 #include <unistd.h>
 
@@ -11,8 +11,8 @@
 #include <fstream>
 #include <system_error>
 
-#include "core/bytes.hpp"
-#include "core/random.hpp"
+#include "common/core/bytes.hpp"
+#include "common/core/random.hpp"
 
 namespace grotto::kernels {
 namespace {

@@ -1,4 +1,4 @@
-#include "kernels/room_builder.hpp"
+#include "common/kernels/room_builder.hpp"
 
 #include <spdlog/spdlog.h>
 
@@ -10,7 +10,7 @@
 #include <numeric>
 #include <thread>
 
-#include "core/parallel.hpp"
+#include "common/core/parallel.hpp"
 
 namespace grotto::kernels {
 
@@ -180,7 +180,7 @@ std::vector<Result<mesh::RoomMesh>> RoomBuilder::build(
       channels_in_pieces ? mesh::ChannelsBy::kCaller : mesh::ChannelsBy::kAssemble;
   // Rooms are independent: each index writes its own output and mesh slot. Largest first: with
   // whole rooms as the unit of work, a hall taken last would finish alone while the other
-  // threads wait (issue 30: the whole cave on every core).
+  // threads wait.
   std::vector<size_t> order(inputs.size());
   std::iota(order.begin(), order.end(), size_t{0});
   std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) {

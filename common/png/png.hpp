@@ -5,9 +5,9 @@
 #include <string>
 #include <vector>
 
-#include "core/result.hpp"
+#include "common/core/result.hpp"
 
-namespace grotto::tools {
+namespace grotto::png {
 
 // An RGB image (width * height * 3 bytes, top row first) as a PNG file.
 Status write_png(const std::string& path, const std::vector<unsigned char>& rgb, int width,
@@ -21,4 +21,4 @@ struct RgbImage {
 // file and what is wrong with it.
 Result<RgbImage> read_png(const std::string& path);
 
-}  // namespace grotto::tools
+}  // namespace grotto::png

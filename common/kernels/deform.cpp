@@ -1,4 +1,4 @@
-#include "kernels/deform.hpp"
+#include "common/kernels/deform.hpp"
 
 #include <spdlog/spdlog.h>
 
@@ -7,11 +7,11 @@
 #include <cstdio>
 #include <string>
 
+#include "common/mesh/context.hpp"
 #include "embedded_cl/channels_core.hpp"
 #include "embedded_cl/deform.hpp"
 #include "embedded_cl/deform_core.hpp"
 #include "embedded_cl/deform_prelude.hpp"
-#include "mesh/context.hpp"
 
 namespace grotto::kernels {
 
@@ -298,7 +298,7 @@ Status DeformKernel::launch(std::span<const mesh::DeformInput* const> rooms,
   if (portals.empty()) portals.push_back({});  // no zero-size buffers; never read
 
   // The inputs go up by explicit writes rather than CL_MEM_COPY_HOST_PTR, so the queue's events
-  // time the copies apart from the kernel (issue 30: where a launch's time goes).
+  // time the copies apart from the kernel (to show where a launch's time goes).
   const Clock::time_point t_allocate = Clock::now();
   auto room_buf = rooms_.reserve(*ctx_, records.size() * sizeof(GrottoRoom));
   auto portal_buf = portals_.reserve(*ctx_, portals.size() * sizeof(GrottoPortal));

@@ -8,9 +8,9 @@
 #include <utility>
 #include <vector>
 
-#include "kernels/binary_cache.hpp"
-#include "kernels/cl_context.hpp"
-#include "kernels/cl_context_state.hpp"
+#include "common/kernels/binary_cache.hpp"
+#include "common/kernels/cl_context.hpp"
+#include "common/kernels/cl_context_state.hpp"
 
 namespace grotto::kernels {
 namespace {

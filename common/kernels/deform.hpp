@@ -1,5 +1,5 @@
-// The room deformation on an OpenCL device (thesis §4.2): kernels/deform.cl compiled with the
-// shared core common/mesh/deform_core.h, many rooms per launch (§4.2.1). Its results are
+// The room deformation on an OpenCL device (thesis §4.2): common/kernels/deform.cl compiled with
+// the shared core common/mesh/deform_core.h, many rooms per launch (§4.2.1). Its results are
 // bit-identical to mesh::deform_cpu.
 #pragma once
 
@@ -8,9 +8,9 @@
 #include <span>
 #include <vector>
 
-#include "core/result.hpp"
-#include "kernels/cl_context.hpp"
-#include "mesh/room_mesh.hpp"
+#include "common/core/result.hpp"
+#include "common/kernels/cl_context.hpp"
+#include "common/mesh/room_mesh.hpp"
 
 namespace grotto::kernels {
 
@@ -101,7 +101,7 @@ class DeformKernel {
   // `max_constant_bytes` caps the constant memory a launch's tables may use (0: the device's
   // limit); a smaller cap splits batches into more launches (tests: every launch's results in
   // their own part of the host memory). With `channels` every work item also computes its
-  // vertex's detail channels (issue 30: the per-vertex stages on the device, in the same launch);
+  // vertex's detail channels (the per-vertex stages on the device, in the same launch);
   // that needs one lane (0 picks it) and double precision (cl_khr_fp64: the world position is
   // wrapped into the noise period in doubles, as on the CPU), else the kernel is not built.
   static Result<DeformKernel> create(ComputeContext& ctx, const mesh::MeshContext& mesh_ctx,
@@ -138,7 +138,7 @@ class DeformKernel {
 
   static constexpr size_t kPreferredGroupSize = 128;
 
-  // Resident donor directions (issue 30: upload a batch's compact inputs, not what the device
+  // Resident donor directions (a launch uploads a batch's compact inputs, not what the device
   // already holds): every donor sphere a launch has used, by (frequency, vertex count), as groups
   // of lanes_ directions in donor_directions_ (the host's copy) and donor_buffer_ (the device's,
   // rewritten whole when a new donor joins: a few times in a process's life). first_groups[i]

@@ -1,4 +1,4 @@
-// The self-test: one tiny real kernel (kernels/selftest.cl, embedded at build time) and its
+// The self-test: one tiny real kernel (common/kernels/selftest.cl, embedded at build time) and its
 // scalar C++ reference. A server can run it at start-up to decide between the OpenCL path and the
 // CPU reference path; the tests use it to check bit-identity and the caches.
 #pragma once
@@ -6,12 +6,12 @@
 #include <string>
 #include <vector>
 
-#include "core/result.hpp"
-#include "kernels/cl_context.hpp"
+#include "common/core/result.hpp"
+#include "common/kernels/cl_context.hpp"
 
 namespace grotto::kernels {
 
-// The self-test kernel's source (kernels/selftest.cl) and the options it is built with:
+// The self-test kernel's source (common/kernels/selftest.cl) and the options it is built with:
 // kDeterministicOptions plus its -D define.
 std::string_view selftest_source();
 std::string selftest_options();

@@ -10,7 +10,7 @@
  *
  * With GROTTO_CHANNELS (one lane; after channels_core.cl) a work item also computes its vertex's
  * detail channels from the position it deformed, which is the position the finished mesh keeps
- * (issue 30: the per-vertex stages on the device, no second launch). `room_channels` holds six
+ * (the per-vertex stages stay on the device, with no second launch). `room_channels` holds six
  * doubles a room: the mesh origin and its world's channel frequencies. */
 #if defined(GROTTO_CHANNELS) && GROTTO_LANES != 1
 #error "GROTTO_CHANNELS needs GROTTO_LANES 1"

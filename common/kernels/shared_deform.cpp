@@ -1,4 +1,4 @@
-#include "kernels/shared_deform.hpp"
+#include "common/kernels/shared_deform.hpp"
 
 #include <algorithm>
 #include <chrono>

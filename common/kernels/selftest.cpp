@@ -1,5 +1,5 @@
 // The self-test kernel's host side and its scalar C++ reference.
-#include "kernels/selftest.hpp"
+#include "common/kernels/selftest.hpp"
 
 #include <cmath>
 #include <cstdio>

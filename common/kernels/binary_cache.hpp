@@ -22,8 +22,8 @@
 #include <string_view>
 #include <vector>
 
-#include "core/result.hpp"
-#include "kernels/cl_context.hpp"
+#include "common/core/result.hpp"
+#include "common/kernels/cl_context.hpp"
 
 namespace grotto::kernels {
 

@@ -24,7 +24,7 @@
 #include <string_view>
 #include <type_traits>
 
-#include "core/result.hpp"
+#include "common/core/result.hpp"
 
 namespace grotto::kernels {
 
@@ -140,7 +140,7 @@ class ComputeContext {
   const cl::Device& device() const;
   const cl::CommandQueue& queue() const;
 
-  // Opaque outside this module (kernels/cl_context_state.hpp).
+  // Opaque outside this module (common/kernels/cl_context_state.hpp).
   struct State;
 
  private:

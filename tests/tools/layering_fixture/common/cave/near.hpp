@@ -1,0 +1,2 @@
+// layering_fixture: a header beside relative.cpp.
+#pragma once
