@@ -65,7 +65,7 @@ struct CommandLine {
 };
 CommandLine parse_command_line(int argc, const char* const* argv);
 
-// "grotto-server 0.1.0"
+// "grotto-server 0.2.0"
 std::string product_version();
 
 }  // namespace grotto::server

@@ -38,7 +38,9 @@ struct GeneratorConfig {
   // Worlds served at once: the generator's own, which stays open, plus up to max_worlds - 1
   // others opened for the clients that name them. An idle one (no clients) is closed, least
   // recently used first, when another is wanted; with every one in use a new world is refused.
-  size_t max_worlds = 1;
+  // Eight by default, so that a link to another seed opens on a default server; 1 serves the
+  // generator's own world alone (world_mismatch for any other).
+  size_t max_worlds = 8;
   size_t max_batch_rooms = 32;                     // rooms per build call (one kernel launch)
   std::chrono::milliseconds max_batch_wait{2};     // a worker waits at most this for a fuller batch
   std::chrono::milliseconds job_deadline{30'000};  // queued longer than this: overloaded error

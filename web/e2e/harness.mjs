@@ -19,11 +19,11 @@ for (const signal of ["SIGINT", "SIGTERM", "SIGHUP"]) {
 
 // Starts grotto-server with `args` on 127.0.0.1, port 0, and resolves with {url, stop()} once it
 // answers /healthz. Its own process group, so stop() (TERM, then KILL after 10 s) takes every
-// child with it.
-export async function startServer(args = []) {
+// child with it. asWritten: `args` alone, the server's own defaults for the rest (its port too).
+export async function startServer(args = [], { asWritten = false } = {}) {
   const bin = process.env.GROTTO_SERVER;
   if (!bin) throw new Error("GROTTO_SERVER (the grotto-server binary) is not set");
-  const child = spawn(bin, ["--port", "0", "--log-level", "warn", ...args], {
+  const child = spawn(bin, asWritten ? args : ["--port", "0", "--log-level", "warn", ...args], {
     detached: true, stdio: ["ignore", "pipe", "pipe"],
   });
   started.add(child);

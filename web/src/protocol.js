@@ -5,7 +5,7 @@
 
 export const PROTOCOL_VERSION = 2;
 export const VERSIONS_SPOKEN = [2];
-export const CLIENT_NAME = "grotto-viewer 0.1.0";
+export const CLIENT_NAME = "grotto-viewer 0.2.0";
 export const MAX_PORTALS = 16;
 export const HEADER_BYTES = 80;
 export const PORTAL_BYTES = 64;
@@ -353,6 +353,19 @@ export const STOP_REASONS = new Set(["unsupported_version", "world_mismatch", "u
 
 export function shouldStop(reason) {
   return STOP_REASONS.has(reason);
+}
+
+// What the page says when the server refused it for good: the server's own words (`said`, the
+// error's message, when it came) and what the reader can do. A reload cannot help with any of
+// these, so none of them says to reload.
+export function refusalText(reason, said) {
+  const what = said ? `${reason}: ${said}` : reason;
+  const todo = {
+    world_mismatch: "this server does not serve that world; open the page without ?seed= for its own world, or run a server that serves more worlds (grotto-server --max-worlds)",
+    unsupported_version: "this page and the server speak different protocol versions; open the page the server itself serves",
+    unauthorized: "this server needs a token; open the page with ?token=YOUR_TOKEN",
+  }[reason] || "the server will not serve this viewer";
+  return `the server refused this viewer (${what}): stopped; ${todo}`;
 }
 
 // The delay before reconnect attempt `attempt` (0-based): after service_restart (1001) uniform in

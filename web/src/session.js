@@ -7,7 +7,7 @@
 // the viewer, which decodes them in the worker; the room store (what is loaded) is the viewer's.
 import {
   parseRoomFrame, parseServerMessage, helloMessage, spawnMessage, locateMessage, requestMessage,
-  cancelMessage, pingMessage, shouldStop, reconnectDelay,
+  cancelMessage, pingMessage, shouldStop, refusalText, reconnectDelay,
 } from "./protocol.js";
 import { timesToReach, plan, TokenBucket, DEFAULTS } from "./scheduler.js";
 
@@ -161,7 +161,10 @@ export class Session {
       return;
     }
     this.error(`server error ${m.code}${m.fatal ? " (fatal)" : ""}: ${m.message}`);
-    if (m.code === "unauthorized" || m.code === "unsupported_version" || m.code === "world_mismatch") this.lastFatal = m.code;
+    if (m.code === "unauthorized" || m.code === "unsupported_version" || m.code === "world_mismatch") {
+      this.lastFatal = m.code;
+      this.lastFatalMessage = m.message;
+    }
   }
 
   onBinary(data) {
@@ -201,7 +204,8 @@ export class Session {
   onClose(code, reason) {
     this.stopTimers();
     const why = reason || this.lastFatal || "";
-    this.lastFatal = undefined;
+    const said = this.lastFatalMessage;
+    this.lastFatal = this.lastFatalMessage = undefined;
     if (shouldStop(why)) {
       if (why === "unauthorized") {
         const token = this.hooks.needToken?.();
@@ -214,7 +218,7 @@ export class Session {
         }
       }
       this.stopped = true;
-      this.setStatus("stopped", `the server refused this viewer (${why}): stopped; reload the page to try again`);
+      this.setStatus("stopped", refusalText(why, said));
       return;
     }
     this.scheduleReconnect({ code, reason });

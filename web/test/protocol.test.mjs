@@ -5,7 +5,7 @@ import fs from "node:fs";
 import {
   parseRoomFrame, roomIdToBinary, roomIdFromBinary, parseRoomId, helloMessage, requestMessage,
   cancelMessage, pingMessage, locateMessage, spawnMessage, parseServerMessage, reconnectDelay,
-  shouldStop, parsePose, formatPose, knownFormations,
+  shouldStop, refusalText, parsePose, formatPose, knownFormations,
 } from "../src/protocol.js";
 
 const fixture = new Uint8Array(fs.readFileSync(new URL("./fixtures/room_v2_7_0.0.0.r0.bin", import.meta.url)));
@@ -197,7 +197,7 @@ test("room ids: rejects", () => {
 });
 
 test("client messages", () => {
-  assert.deepEqual(JSON.parse(helloMessage({ ref: 1, seed: "7" })), { type: "hello", ref: 1, versions: [2], seed: "7", name: "grotto-viewer 0.1.0" });
+  assert.deepEqual(JSON.parse(helloMessage({ ref: 1, seed: "7" })), { type: "hello", ref: 1, versions: [2], seed: "7", name: "grotto-viewer 0.2.0" });
   assert.deepEqual(JSON.parse(helloMessage({ token: "s3cret" })).token, "s3cret");
   assert.ok(!("seed" in JSON.parse(helloMessage({}))));
   assert.deepEqual(JSON.parse(requestMessage([{ id: "0.0.0.r0", lod: 0, priority: 12.6 }, { id: "0.0.0.r1", lod: 0, priority: -4 }, { id: "0.0.0.r2", lod: 0, priority: 1e12 }], 5)), {
@@ -209,7 +209,7 @@ test("client messages", () => {
   assert.deepEqual(JSON.parse(spawnMessage(9)), { type: "spawn", ref: 9 });
 });
 
-const WELCOME = { type: "welcome", ref: 1, version: 2, server: "grotto-server 0.1.0", seed: "7", params: "5d1c0a2e9b7f3c44",
+const WELCOME = { type: "welcome", ref: 1, version: 2, server: "grotto-server 0.2.0", seed: "7", params: "5d1c0a2e9b7f3c44",
   limits: { max_message_bytes: 65536, max_frame_bytes: 4194304, max_rooms_per_request: 256, max_rooms_in_flight: 1024, max_lod: 0, idle_timeout_ms: 60000, handshake_timeout_ms: 5000, request_rate: 2000, request_burst: 4000 } };
 
 test("server messages: welcome and its limits", () => {
@@ -263,6 +263,15 @@ test("server messages: error, pong, located, spawn_point", () => {
   assert.ok(parseServerMessage({ type: "spawn_point", ref: 2, room: "0.0.0.r0", position: [47.9, 48.3, 48.1] }).ok);
   assert.equal(parseServerMessage({ type: "spawn_point", room: "0.0.0.r0", position: [1e30, 0, 0] }).ok, false);
   assert.equal(parseServerMessage({ type: "pong", ref: -1, t: 1, time: 1 }).ok, false);
+});
+
+test("a refusal says why, in the server's words, and what to do instead of reloading", () => {
+  const t = refusalText("world_mismatch", "this server serves seed 7, not 95");
+  assert.match(t, /world_mismatch: this server serves seed 7, not 95/);
+  assert.match(t, /without \?seed=|--max-worlds/);
+  assert.doesNotMatch(t, /reload/);
+  for (const r of ["unsupported_version", "unauthorized"]) assert.doesNotMatch(refusalText(r), /reload/);
+  assert.match(refusalText("unauthorized"), /token/);
 });
 
 test("after a close: stop or reconnect with backoff and jitter", () => {
