@@ -1,11 +1,12 @@
-// The generation service behind the server's sockets (DESIGN "streaming model"): rooms wanted by
+// The generation service behind the server's sockets: rooms wanted by
 // clients are scheduled per client by priority and round-robin across clients, built once for
 // all who want them (single flight), dropped before they run when nobody wants them any more
 // (cancellation), built in batches that share one kernel launch, encoded into ready-to-send room
 // frames, and kept in an LRU cache bounded in bytes. One generator serves up to max_worlds worlds
 // (seeds) with the same parameters: its own, and others that clients name, opened on demand;
 // workers, batches, cache and the round-robin are shared by all. No socket code here: sessions
-// call in from their strands and receive results through a callback.
+// call in from their strands and receive results through a callback. The rules themselves live in
+// a sans-I/O core, server/schedule.hpp; this class runs it with threads, OpenCL and the owners.
 //
 // Thread safety: every public member function may be called from any thread at any time.
 #pragma once
@@ -55,7 +56,7 @@ struct GeneratorConfig {
   // batches that wait for the device go up together in one launch). False: each worker opens
   // its own (a GPU time-sliced among as many contexts as workers).
   bool share_device = true;
-  // In a cluster (issue 29): where a room nobody here is building yet is asked for first (the
+  // In a cluster: where a room nobody here is building yet is asked for first (the
   // room tier: its owner replica through nginx), for clients that may have it from there
   // (Build::kAnywhere), unless it is due now (priority 0: the player waits; built here). A fetch
   // that fails, answers something other than that room's frame, or takes longer than its wait is
@@ -65,10 +66,6 @@ struct GeneratorConfig {
   std::shared_ptr<RoomSource> owners;
   std::chrono::milliseconds owner_timeout{1'000};
 };
-
-// Where a client's rooms may come from: kAnywhere, the room's owner when the generator has
-// owners, else built here; kHere, built here (the tier's requests to this replica as the owner).
-enum class Build { kAnywhere, kHere };
 
 // The build threads `config` runs: config.workers, or one per hardware thread when it is 0.
 size_t resolved_workers(const GeneratorConfig& config);

@@ -6,7 +6,7 @@
 #include <list>
 #include <map>
 
-#include "server/generator.hpp"
+#include "server/rooms.hpp"
 
 namespace grotto::server {
 

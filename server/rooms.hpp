@@ -42,6 +42,10 @@ struct Want {
   friend bool operator==(const Want&, const Want&) = default;
 };
 
+// Where a client's rooms may come from: kAnywhere, the room's owner when the generator has
+// owners, else built here; kHere, built here (the tier's requests to this replica as the owner).
+enum class Build { kAnywhere, kHere };
+
 // A built room, ready for the wire: the whole binary room frame (proto/room_frame.hpp: header,
 // descriptor, Draco payload). Immutable and shared by the cache and every session sending it.
 struct EncodedRoom {

@@ -193,7 +193,7 @@ class WsSession : public std::enable_shared_from_this<WsSession>, private WorldP
     if (closing_) return;
     close_code_ = websocket::close_reason(static_cast<websocket::close_code>(a.code), a.reason);
     close_after_flush_ = true;
-    // A slow client lingers (issue 45): its frame in flight and then the close frame wait up to
+    // A slow client lingers: its frame in flight and then the close frame wait up to
     // the HTTP timeout for it to read again, while what it sends is read and dropped (on_read),
     // so that a client that resumes reading gets the close, not a reset. A client that said
     // nothing for the whole idle timeout gets 1 s: it may be stuck in the middle of a frame.

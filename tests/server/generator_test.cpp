@@ -1,11 +1,16 @@
-// The generation service (server/generator.hpp): rooms reach clients as frames that decode to the
-// mesh built in-process; single flight, cancellation, client removal, fairness, priorities, the
-// encoded-room cache and its byte bound, not_found, deadlines, shutdown and determinism. Real
-// OpenCL (PoCL, or whatever $GROTTO_OPENCL_DEVICE picks) and the CPU path (device "none"), real
-// codec. Waits are condition variables with generous timeouts; nothing asserts a duration.
+// The generation service's shell (server/generator.hpp) with real threads:
+// rooms reach clients as frames that decode to the mesh built in-process, the
+// same bytes whatever the batches and worlds; the workers build for every
+// client and cache hits come back inside request(); clients requesting and
+// cancelling from many threads leave nothing behind; shutdown; worlds opened
+// and closed as the schedule says; owners' frames checked as untrusted input.
+// Real OpenCL (PoCL, or whatever $GROTTO_OPENCL_DEVICE picks) and the CPU path
+// (device "none"), real codec. Waits are condition variables with generous
+// timeouts; nothing asserts a duration.
 //
-// Many tests stall the single worker inside a deliver callback (a Gate), so that what they
-// queue next is known not to have started: scheduling is then deterministic.
+// The policy (priorities, deadline classes, round-robin, single flight,
+// cancellation, batches, deadlines, the world registry, owner fetches) is
+// tested without threads, by tables, in schedule_test.cpp.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -64,7 +69,8 @@ std::vector<Want> wants_of(const std::vector<cave::RoomId>& ids, uint32_t lod = 
 // Records the deliveries of one client, in order.
 class Inbox {
  public:
-  // on_deliver runs inside the callback, on the delivering thread, before the delivery counts.
+  // on_deliver runs inside the callback, on the delivering thread, before the
+  // delivery counts.
   Generator::DeliverFn fn(std::function<void()> on_deliver = {}) {
     return [this, on_deliver](Delivery d) {
       if (on_deliver) on_deliver();
@@ -93,32 +99,6 @@ class Inbox {
   std::vector<Delivery> got_;
 };
 
-// Holds the thread that enters it until opened; tells the test when a thread is inside.
-class Gate {
- public:
-  void pass() {
-    std::unique_lock lock(mutex_);
-    ++inside_;
-    cv_.notify_all();
-    cv_.wait(lock, [&] { return open_; });
-  }
-  bool wait_entered() {
-    std::unique_lock lock(mutex_);
-    return cv_.wait_for(lock, kWait, [&] { return inside_ > 0; });
-  }
-  void open() {
-    std::lock_guard lock(mutex_);
-    open_ = true;
-    cv_.notify_all();
-  }
-
- private:
-  std::mutex mutex_;
-  std::condition_variable cv_;
-  int inside_ = 0;
-  bool open_ = false;
-};
-
 GeneratorConfig cpu_config(int workers = 1) {
   GeneratorConfig c;
   c.workers = workers;
@@ -131,24 +111,6 @@ std::unique_ptr<Generator> make_generator(const GeneratorConfig& config, Metrics
   EXPECT_TRUE(g.ok()) << (g.ok() ? "" : g.error().message);
   return g.ok() ? std::move(g).value() : nullptr;
 }
-
-// A generator whose only worker is held inside a deliver callback: work queued while it is
-// held has not started. open() releases it.
-struct Stalled {
-  Gate gate;  // declared first: outlives the generator whose worker may be inside it
-  Metrics metrics;
-  std::unique_ptr<Generator> gen;
-  ClientId staller = 0;
-
-  explicit Stalled(GeneratorConfig config) {
-    gen = make_generator(config, metrics);
-    staller = gen->add_client([this](Delivery) { gate.pass(); });
-    std::vector<Want> one = wants_of({existing_rooms(1)});
-    gen->request(staller, one);
-    EXPECT_TRUE(gate.wait_entered());
-  }
-  ~Stalled() { gate.open(); }
-};
 
 // ---- frames ----
 
@@ -170,7 +132,8 @@ TEST_P(GeneratorPathTest, delivered_frame_decodes_to_the_mesh_built_in_process) 
   }
 
   cave::RoomId id = existing_rooms(3)[2];
-  // A client of each protocol version: the newest (no normals in the payload) and version 1.
+  // A client of each protocol version: the newest (no normals in the payload)
+  // and version 1.
   for (uint32_t version : {proto::kProtocolVersion, proto::kMinProtocolVersion}) {
     SCOPED_TRACE("protocol version " + std::to_string(version));
     Inbox inbox;
@@ -196,7 +159,8 @@ TEST_P(GeneratorPathTest, delivered_frame_decodes_to_the_mesh_built_in_process) 
     cave::append_bytes(expected_room, b);
     EXPECT_EQ(a, b);
 
-    // The same room built here, with a builder of the same options, encoded the same way.
+    // The same room built here, with a builder of the same options, encoded the
+    // same way.
     auto ctx = mesh::MeshContext::create(test_world(), mesh::MeshParams{}).value();
     auto builder = kernels::RoomBuilder::create(ctx, config.builder);
     auto meshes = builder.build(std::span(&expected_room, 1), mesh::Lod::kPatch);
@@ -227,7 +191,8 @@ TEST_P(GeneratorPathTest, delivered_frame_decodes_to_the_mesh_built_in_process) 
   }
   EXPECT_EQ(metrics.rooms_built.value(), 2u);
   EXPECT_EQ(metrics.batches.value(), 2u);
-  // A shared device launches each batch (one worker: nothing to merge), and says so.
+  // A shared device launches each batch (one worker: nothing to merge), and
+  // says so.
   const bool shared = gen->compute_path().rfind("opencl:", 0) == 0 && !per_worker;
   EXPECT_EQ(gen->compute_path().find("shared=true") != std::string::npos, shared)
       << gen->compute_path();
@@ -277,271 +242,63 @@ TEST(GeneratorTest, frames_are_identical_across_generators_and_batch_mixes) {
   EXPECT_EQ(a, c);
 }
 
-// ---- scheduling ----
+// ---- the workers ----
 
-TEST(GeneratorTest, single_flight_builds_a_room_once_for_every_client) {
-  Stalled s(cpu_config());
-  cave::RoomId id = existing_rooms(2)[1];
-  constexpr int kClients = 6;
-  std::vector<std::unique_ptr<Inbox>> inboxes;
-  for (int i = 0; i < kClients; ++i) {
-    inboxes.push_back(std::make_unique<Inbox>());
-    ClientId c = s.gen->add_client(inboxes.back()->fn());
-    std::vector<Want> want = {{id, 0, static_cast<uint32_t>(i)}};
-    s.gen->request(c, want);
-  }
-  EXPECT_EQ(s.gen->queue_depth(), 1u);
-  EXPECT_EQ(s.metrics.rooms_deduplicated.value(), kClients - 1u);
-  uint64_t built = s.metrics.rooms_built.value();
-  s.gate.open();
-  for (auto& inbox : inboxes) {
-    ASSERT_TRUE(inbox->wait_for(1));
-    Delivery d = inbox->got()[0];
-    ASSERT_TRUE(d.room);
-    EXPECT_EQ(d.key.id, id);
-  }
-  EXPECT_EQ(s.metrics.rooms_built.value(), built + 1);
-  // Every client got the very same encoded room.
-  for (auto& inbox : inboxes)
-    EXPECT_EQ(inbox->got()[0].room, inboxes[0]->got()[0].room);
-}
-
-TEST(GeneratorTest, cancelled_before_start_is_never_built_nor_delivered) {
-  Stalled s(cpu_config());
-  std::vector<cave::RoomId> ids = existing_rooms(6);
-  Inbox keep, drop;
-  ClientId a = s.gen->add_client(keep.fn());
-  ClientId b = s.gen->add_client(drop.fn());
-  std::vector<Want> keep_wants = wants_of({ids[1], ids[2]});
-  std::vector<Want> drop_wants = wants_of({ids[3], ids[4], ids[2]});
-  s.gen->request(a, keep_wants);
-  s.gen->request(b, drop_wants);
-  EXPECT_EQ(s.gen->queue_depth(), 4u);
-  std::vector<cave::RoomId> cancel = {ids[3], ids[4], ids[2], ids[5] /* never wanted */};
-  s.gen->cancel(b, cancel);
-  EXPECT_EQ(s.gen->queue_depth(), 2u);  // ids[2] stays: a still wants it
-  EXPECT_EQ(s.metrics.rooms_cancelled.value(), 3u);
-  uint64_t built = s.metrics.rooms_built.value();
-  s.gate.open();
-  ASSERT_TRUE(keep.wait_for(2));
-  // Once a's rooms are out the queue is empty; b's would have been built in the same batches.
-  EXPECT_EQ(s.gen->queue_depth(), 0u);
-  EXPECT_EQ(s.metrics.rooms_built.value(), built + 2);
-  EXPECT_EQ(drop.size(), 0u);
-  s.gen->shutdown();
-  EXPECT_EQ(drop.size(), 0u);
-  EXPECT_EQ(s.metrics.rooms_built.value(), built + 2);
-}
-
-TEST(GeneratorTest, remove_client_drops_its_work_and_delivers_nothing_more) {
-  Stalled s(cpu_config());
-  std::vector<cave::RoomId> ids = existing_rooms(8);
-  Inbox gone, stays;
-  ClientId a = s.gen->add_client(gone.fn());
-  ClientId b = s.gen->add_client(stays.fn());
-  std::vector<Want> a_wants = wants_of({ids[1], ids[2], ids[3], ids[4]});
-  std::vector<Want> b_wants = wants_of({ids[4], ids[5]});
-  s.gen->request(a, a_wants);
-  s.gen->request(b, b_wants);
-  EXPECT_EQ(s.gen->queue_depth(), 5u);
-  s.gen->remove_client(a);
-  EXPECT_EQ(s.gen->queue_depth(), 2u);
-  EXPECT_EQ(s.metrics.rooms_in_flight.value(), 2);  // b's two (the staller's is answered)
-  uint64_t built = s.metrics.rooms_built.value();
-  // Requests for a removed client are ignored.
-  s.gen->request(a, a_wants);
-  EXPECT_EQ(s.gen->queue_depth(), 2u);
-  s.gate.open();
-  ASSERT_TRUE(stays.wait_for(2));
-  EXPECT_EQ(s.metrics.rooms_built.value(), built + 2);
-  EXPECT_EQ(gone.size(), 0u);
-}
-
-TEST(GeneratorTest, a_client_asking_few_rooms_is_not_starved_by_one_asking_many) {
-  GeneratorConfig config = cpu_config();
-  config.max_batch_rooms = 8;
-  Stalled s(config);
-  std::vector<cave::RoomId> ids = existing_rooms(502);
-  // One worker delivers in order, so A's count read inside B's (or C's) callback is exactly
-  // how many of A's rooms reached A first.
-  Inbox many, few, later;
-  std::atomic<size_t> a_at_b{0}, a_at_c{0};
-  ClientId a = s.gen->add_client(many.fn());
-  ClientId b = s.gen->add_client(few.fn([&] { a_at_b = many.size(); }));
-  ClientId c = s.gen->add_client(later.fn([&] { a_at_c = many.size(); }));
-  std::vector<cave::RoomId> a_ids(ids.begin(), ids.begin() + 500);
-  s.gen->request(a, wants_of(a_ids));
-  std::vector<Want> b_want = wants_of({ids[500]});
-  s.gen->request(b, b_want);
-  s.gate.open();
-  // Round-robin: B's one room is in the first batch after A's 500 were queued.
-  ASSERT_TRUE(few.wait_for(1));
-  ASSERT_TRUE(few.got()[0].room);
-  EXPECT_LT(a_at_b.load(), 8u);
-  // A client arriving while A's batches are building waits for the batch building when it
-  // asked and for the rest of its own batch: 8 + 7 of A's rooms with one worker (plus one
-  // batch of slack: A's count is read just before C asks, and a batch may finish in between).
-  size_t a_at_request = many.size();
-  std::vector<Want> c_want = wants_of({ids[501]});
-  s.gen->request(c, c_want);
-  ASSERT_TRUE(later.wait_for(1));
-  ASSERT_TRUE(later.got()[0].room);
-  EXPECT_LE(a_at_c.load() - a_at_request, 15u + 8u);
-  EXPECT_LT(a_at_c.load(), 50u);
-  s.gen->remove_client(a);
-  EXPECT_EQ(s.gen->queue_depth(), 0u);
-}
-
-// The order in which clients' rooms are delivered, one letter a client, and a serial generator
-// (one worker, one room a batch, no batch wait) stalled at the gate, for the deadline tests.
-struct DeliveryOrder {
-  std::mutex m;
-  std::string order;
-  Generator::DeliverFn record(char who) {
-    return [this, who](Delivery) {
-      std::lock_guard lock(m);
-      order += who;
-    };
-  }
-  // The letters once n rooms came (or what came within the bound).
-  std::string wait_for(size_t n) {
-    for (int i = 0; i < 500; ++i) {
-      {
-        std::lock_guard lock(m);
-        if (order.size() >= n) return order;
-      }
-      std::this_thread::sleep_for(std::chrono::milliseconds(10));
-    }
-    std::lock_guard lock(m);
-    return order;
-  }
-};
-
-GeneratorConfig serial_config(int urgent_ms) {
-  GeneratorConfig config = cpu_config();
-  config.max_batch_rooms = 1;
-  config.max_batch_wait = std::chrono::milliseconds(0);
-  config.urgent_within = std::chrono::milliseconds(urgent_ms);
-  return config;
-}
-
-// Deadline classes: B's two rooms are due now, A's six are far prefetch. Round-robin alone would
-// build A, B, A, B...; with urgent_within, both of B's go first. Without it (0), one of A's far
-// rooms comes between them.
-TEST(GeneratorTest, rooms_due_soon_go_before_other_clients_far_prefetch) {
-  for (int urgent_ms : {1000, 0}) {
-    SCOPED_TRACE("urgent_within " + std::to_string(urgent_ms));
-    Stalled s(serial_config(urgent_ms));
-    std::vector<cave::RoomId> ids = existing_rooms(9);
-    DeliveryOrder d;
-    ClientId a = s.gen->add_client(d.record('A'));
-    ClientId b = s.gen->add_client(d.record('B'));
-    std::vector<Want> far;
-    for (size_t i = 1; i <= 6; ++i)
-      far.push_back({ids[i], 0, 60'000});
-    s.gen->request(a, far);
-    std::vector<Want> soon = {{ids[7], 0, 0}, {ids[8], 0, 200}};
-    s.gen->request(b, soon);
-    s.gate.open();
-    const std::string order = d.wait_for(8);
-    ASSERT_EQ(order.size(), 8u) << order;
-    if (urgent_ms > 0) {
-      EXPECT_EQ(order.substr(0, 2), "BB") << order;
+// Two clients' rooms from two workers: each room built once (the one both want
+// too), errors of layout (not_found) and of the want (invalid_argument)
+// delivered, and a room built before is delivered from the cache inside
+// request(), on the caller's thread.
+TEST(GeneratorTest, workers_build_for_every_client_and_cache_hits_come_inside_request) {
+  Metrics metrics;
+  auto gen = make_generator(cpu_config(2), metrics);
+  ASSERT_TRUE(gen);
+  const std::vector<cave::RoomId> ids = existing_rooms(2);
+  const cave::RoomId missing = cave::RoomId::interior({0, 0, 0}, 4000);
+  const cave::RoomId no_gate = cave::RoomId::gate({0, 0, 0}, 1, 15);
+  Inbox inbox;  // both clients'
+  ClientId a = gen->add_client(inbox.fn());
+  ClientId b = gen->add_client(inbox.fn());
+  std::vector<Want> a_wants = {
+      {ids[0], 0, 0}, {ids[1], 0, 0}, {missing, 0, 0}, {ids[0], proto::kMaxWireLod + 1, 0}};
+  std::vector<Want> b_wants = {{ids[1], 0, 0}, {no_gate, 0, 0}};
+  gen->request(a, a_wants);
+  gen->request(b, b_wants);
+  ASSERT_TRUE(inbox.wait_for(6));
+  std::map<std::pair<cave::RoomId, uint8_t>, std::vector<RoomPtr>> rooms;
+  std::map<cave::RoomId, ErrorCode> errors;
+  for (const Delivery& d : inbox.got()) {
+    if (d.error) {
+      EXPECT_FALSE(d.room);
+      errors[d.key.id] = d.error->code;
     } else {
-      EXPECT_NE(order.substr(0, 2), "BB") << order << " (round-robin alone)";
+      rooms[{d.key.id, d.key.lod}].push_back(d.room);
     }
   }
-}
+  EXPECT_EQ(errors[missing], ErrorCode::kNotFound);
+  EXPECT_EQ(errors[no_gate], ErrorCode::kNotFound);
+  EXPECT_EQ(errors[ids[0]], ErrorCode::kInvalidArgument);
+  const std::vector<RoomPtr>& both = rooms[{ids[1], 0}];
+  ASSERT_EQ(both.size(), 2u);
+  EXPECT_EQ(both[0], both[1]) << "one encoded room for both";
+  EXPECT_EQ(metrics.rooms_built.value(), 2u);
+  EXPECT_EQ(metrics.rooms_failed.value(), 2u);
+  EXPECT_EQ(metrics.rooms_in_flight.value(), 0);
+  EXPECT_EQ(gen->queue_depth(), 0u);
 
-// Among urgent wants, the one due soonest goes first whichever client asked (one job a client a
-// round): B's room is due now (a stream's first room), C's in 300 ms, A's in 600 and 800 ms.
-// Round-robin from the first client would build A, B, C, A.
-TEST(GeneratorTest, the_urgent_room_due_soonest_goes_first_across_clients) {
-  for (int urgent_ms : {1000, 0}) {
-    SCOPED_TRACE("urgent_within " + std::to_string(urgent_ms));
-    Stalled s(serial_config(urgent_ms));
-    std::vector<cave::RoomId> ids = existing_rooms(5);
-    DeliveryOrder d;
-    ClientId a = s.gen->add_client(d.record('A'));
-    ClientId b = s.gen->add_client(d.record('B'));
-    ClientId c = s.gen->add_client(d.record('C'));
-    std::vector<Want> a_wants = {{ids[1], 0, 800}, {ids[2], 0, 600}};
-    std::vector<Want> b_wants = {{ids[3], 0, 0}};
-    std::vector<Want> c_wants = {{ids[4], 0, 300}};
-    s.gen->request(a, a_wants);
-    s.gen->request(b, b_wants);
-    s.gen->request(c, c_wants);
-    s.gate.open();
-    const std::string order = d.wait_for(4);
-    ASSERT_EQ(order.size(), 4u) << order;
-    EXPECT_EQ(order == "BCAA", urgent_ms > 0) << order;
-  }
-}
-
-// A batch holding an urgent room is not topped up with prefetch, and each room of a batch goes
-// out as soon as it is encoded: when B's urgent room is delivered only it has been built since
-// the gate, and A's ten far rooms follow in a batch of their own. With one class (0) the batch
-// takes them all.
-TEST(GeneratorTest, an_urgent_room_does_not_wait_for_a_batch_of_prefetch) {
-  for (int urgent_ms : {1000, 0}) {
-    SCOPED_TRACE("urgent_within " + std::to_string(urgent_ms));
-    GeneratorConfig config = cpu_config();
-    config.max_batch_rooms = 32;
-    config.max_batch_wait = std::chrono::milliseconds(0);
-    config.urgent_within = std::chrono::milliseconds(urgent_ms);
-    Stalled s(config);
-    const uint64_t built_before = s.metrics.rooms_built.value();
-    const uint64_t batches_before = s.metrics.batches.value();
-    std::vector<cave::RoomId> ids = existing_rooms(12);
-    std::atomic<uint64_t> built_at_b{0};
-    Inbox far_inbox;
-    Inbox near_inbox;
-    ClientId a = s.gen->add_client(far_inbox.fn());
-    ClientId b = s.gen->add_client(
-        near_inbox.fn([&] { built_at_b = s.metrics.rooms_built.value() - built_before; }));
-    std::vector<Want> far;
-    for (size_t i = 1; i <= 10; ++i)
-      far.push_back({ids[i], 0, 60'000});
-    s.gen->request(a, far);
-    std::vector<Want> near = {{ids[11], 0, 0}};
-    s.gen->request(b, near);
-    s.gate.open();
-    ASSERT_TRUE(near_inbox.wait_for(1));
-    ASSERT_TRUE(far_inbox.wait_for(10));
-    const uint64_t batches = s.metrics.batches.value() - batches_before;
-    if (urgent_ms > 0) {
-      EXPECT_EQ(built_at_b.load(), 1u);
-      EXPECT_EQ(batches, 2u);
-    } else {
-      EXPECT_EQ(batches, 1u) << "one class: the batch takes every queued room";
-    }
-  }
-}
-
-// A few wants asked while every worker waits are shared among them, each worker a batch of its
-// own (on its own core), instead of one batch on one worker while the others stay idle: 8 urgent
-// rooms and two idle workers make at least two batches (the first worker takes 4; the second
-// takes the rest unless the first comes back for some first). One worker takes them all at once.
-TEST(GeneratorTest, a_few_wants_are_shared_among_idle_workers) {
-  for (int workers : {2, 1}) {
-    SCOPED_TRACE(std::to_string(workers) + " workers");
-    GeneratorConfig config = cpu_config(workers);
-    config.max_batch_rooms = 32;
-    Metrics metrics;
-    auto gen = make_generator(config, metrics);
-    ASSERT_TRUE(gen);
-    Inbox inbox;
-    ClientId c = gen->add_client(inbox.fn());
-    std::vector<Want> wants = wants_of(existing_rooms(8));
-    gen->request(c, wants);
-    ASSERT_TRUE(inbox.wait_for(8));
-    if (workers == 2) {
-      EXPECT_GE(metrics.batches.value(), 2u);
-    } else {
-      EXPECT_EQ(metrics.batches.value(), 1u);
-    }
-    gen->remove_client(c);
-  }
+  Inbox later;
+  ClientId c = gen->add_client(later.fn());
+  std::vector<Want> again = {{ids[0], 0, 0}};
+  gen->request(c, again);
+  ASSERT_EQ(later.size(), 1u);  // delivered before request() returned
+  EXPECT_TRUE(later.got()[0].from_cache);
+  const RoomPtr first_built = rooms[{ids[0], 0}].at(0);
+  EXPECT_EQ(later.got()[0].room, first_built);
+  EXPECT_EQ(metrics.rooms_from_cache.value(), 1u);
+  EXPECT_EQ(metrics.cache_entries.value(), 2);
+  // Removed clients get nothing more, and their requests are ignored.
+  gen->remove_client(c);
+  gen->request(c, again);
+  EXPECT_EQ(later.size(), 1u);
 }
 
 // The workers carry a name the operating system shows (top -H, ps -L, perf).
@@ -559,28 +316,6 @@ TEST(GeneratorTest, workers_are_named_for_the_operating_system) {
   EXPECT_GE(named, 2);
 }
 
-TEST(GeneratorTest, priorities_are_honoured_within_a_client) {
-  GeneratorConfig config = cpu_config();
-  config.max_batch_rooms = 1;
-  Stalled s(config);
-  std::vector<cave::RoomId> ids = existing_rooms(7);
-  Inbox inbox;
-  ClientId c = s.gen->add_client(inbox.fn());
-  std::vector<Want> wants = {{ids[1], 0, 50}, {ids[2], 0, 30}, {ids[3], 0, 90},
-                             {ids[4], 0, 10}, {ids[5], 0, 30}, {ids[6], 0, 70}};
-  s.gen->request(c, wants);
-  // A repeated want changes the priority: ids[3] now comes first.
-  std::vector<Want> again = {{ids[3], 0, 0}};
-  s.gen->request(c, again);
-  s.gate.open();
-  ASSERT_TRUE(inbox.wait_for(6));
-  std::vector<cave::RoomId> order;
-  for (const Delivery& d : inbox.got())
-    order.push_back(d.key.id);
-  std::vector<cave::RoomId> expected = {ids[3], ids[4], ids[2], ids[5], ids[1], ids[6]};
-  EXPECT_EQ(order, expected);
-}
-
 TEST(GeneratorTest, concurrent_clients_requesting_and_cancelling_leave_nothing_behind) {
   GeneratorConfig config = cpu_config(2);
   config.max_batch_rooms = 4;
@@ -593,8 +328,9 @@ TEST(GeneratorTest, concurrent_clients_requesting_and_cancelling_leave_nothing_b
   std::vector<std::thread> threads;
   for (int t = 0; t < kThreads; ++t) {
     threads.emplace_back([&, t] {
-      // What this client still waits for. A delivery for a room it cancelled (collected just
-      // before the cancel) may still come: it is counted apart, never an error.
+      // What this client still waits for. A delivery for a room it cancelled
+      // (collected just before the cancel) may still come: it is counted apart,
+      // never an error.
       std::mutex m;
       std::condition_variable cv;
       std::set<cave::RoomId> outstanding;
@@ -643,180 +379,34 @@ TEST(GeneratorTest, concurrent_clients_requesting_and_cancelling_leave_nothing_b
   EXPECT_LE(metrics.cache_bytes.value(), 40'000);
 }
 
-// ---- cache ----
+// ---- shutdown ----
 
-TEST(GeneratorTest, second_request_is_served_from_cache_inside_request) {
+// The workers stop and shutdown() returns; later wants fail with
+// service_restart inside request(), and no other world opens. (What happens to
+// queued work: schedule_test.cpp.)
+TEST(GeneratorTest, shutdown_stops_the_workers_and_refuses_later_work) {
   Metrics metrics;
-  auto gen = make_generator(cpu_config(), metrics);
-  cave::RoomId id = existing_rooms(1)[0];
-  Inbox first, second;
-  ClientId a = gen->add_client(first.fn());
-  ClientId b = gen->add_client(second.fn());
-  std::vector<Want> want = {{id, 0, 0}};
-  gen->request(a, want);
-  ASSERT_TRUE(first.wait_for(1));
-  ASSERT_TRUE(first.got()[0].room);
-  EXPECT_FALSE(first.got()[0].from_cache);
-  EXPECT_EQ(metrics.rooms_built.value(), 1u);
-  gen->request(b, want);
-  ASSERT_EQ(second.size(), 1u);  // delivered before request() returned
-  EXPECT_TRUE(second.got()[0].from_cache);
-  EXPECT_EQ(second.got()[0].room, first.got()[0].room);
-  EXPECT_EQ(metrics.rooms_built.value(), 1u);
-  EXPECT_EQ(metrics.rooms_from_cache.value(), 1u);
-  EXPECT_EQ(metrics.cache_entries.value(), 1);
-  EXPECT_EQ(metrics.cache_bytes.value(), static_cast<int64_t>(first.got()[0].room->frame.size()));
-  // Another lod is another room.
-  std::vector<Want> detail = {{id, 1, 0}};
-  gen->request(b, detail);
-  ASSERT_TRUE(second.wait_for(2));
-  EXPECT_FALSE(second.got()[1].from_cache);
-  EXPECT_EQ(second.got()[1].key.lod, 1);
-  EXPECT_EQ(metrics.rooms_built.value(), 2u);
-}
-
-TEST(GeneratorTest, cache_keeps_within_its_byte_bound_evicting_least_recent) {
-  GeneratorConfig config = cpu_config();
-  config.cache_bytes = 12'000;  // a few patch frames
-  Metrics metrics;
+  GeneratorConfig config = cpu_config(2);
+  config.max_worlds = 2;
   auto gen = make_generator(config, metrics);
-  std::vector<cave::RoomId> ids = existing_rooms(10);
+  ASSERT_TRUE(gen);
   Inbox inbox;
   ClientId c = gen->add_client(inbox.fn());
-  for (size_t i = 0; i < ids.size(); ++i) {
-    std::vector<Want> one = wants_of({ids[i]});
-    gen->request(c, one);
-    ASSERT_TRUE(inbox.wait_for(i + 1));
-    EXPECT_LE(metrics.cache_bytes.value(), 12'000);
-  }
-  EXPECT_GT(metrics.cache_entries.value(), 0);
-  EXPECT_LT(metrics.cache_entries.value(), 10);
-  uint64_t built = metrics.rooms_built.value();
-  std::vector<Want> last = wants_of({ids.back()});
-  gen->request(c, last);
-  ASSERT_EQ(inbox.size(), ids.size() + 1);
-  EXPECT_TRUE(inbox.got().back().from_cache);
-  std::vector<Want> first = wants_of({ids.front()});
-  gen->request(c, first);
-  ASSERT_TRUE(inbox.wait_for(ids.size() + 2));
-  EXPECT_FALSE(inbox.got().back().from_cache);
-  EXPECT_EQ(metrics.rooms_built.value(), built + 1);
-}
-
-TEST(GeneratorTest, cache_disabled_builds_every_time) {
-  GeneratorConfig config = cpu_config();
-  config.cache_bytes = 0;
-  Metrics metrics;
-  auto gen = make_generator(config, metrics);
-  Inbox inbox;
-  ClientId c = gen->add_client(inbox.fn());
-  std::vector<Want> one = wants_of(existing_rooms(1));
-  gen->request(c, one);
-  ASSERT_TRUE(inbox.wait_for(1));
-  gen->request(c, one);
-  ASSERT_TRUE(inbox.wait_for(2));
-  EXPECT_EQ(metrics.rooms_built.value(), 2u);
-  EXPECT_EQ(metrics.cache_entries.value(), 0);
-}
-
-TEST(RoomCacheTest, lru_bound_in_bytes) {
-  auto room = [](int i, size_t bytes) {
-    auto r = std::make_shared<EncodedRoom>();
-    r->key = {cave::RoomId::interior({0, 0, 0}, i), 0};
-    r->frame.assign(bytes, 0);
-    return RoomPtr(r);
-  };
-  RoomCache cache(1000);
-  cache.insert(room(0, 400));
-  cache.insert(room(1, 400));
-  EXPECT_TRUE(cache.find(room(0, 0)->key));  // 0 becomes the most recent
-  cache.insert(room(2, 400));                // evicts 1
-  EXPECT_EQ(cache.bytes(), 800u);
-  EXPECT_FALSE(cache.find(room(1, 0)->key));
-  EXPECT_TRUE(cache.find(room(0, 0)->key));
-  cache.insert(room(3, 1001));  // larger than the bound: not kept, nothing evicted
-  EXPECT_EQ(cache.entries(), 2u);
-  cache.insert(room(2, 100));  // replaces
-  EXPECT_EQ(cache.bytes(), 500u);
-  RoomCache off(0);
-  off.insert(room(0, 1));
-  EXPECT_EQ(off.entries(), 0u);
-}
-
-// ---- errors ----
-
-TEST(GeneratorTest, missing_room_is_not_found_and_bad_lod_invalid) {
-  Metrics metrics;
-  auto gen = make_generator(cpu_config(), metrics);
-  Inbox inbox;
-  ClientId c = gen->add_client(inbox.fn());
-  std::vector<Want> wants = {{cave::RoomId::interior({0, 0, 0}, 4000), 0, 0},
-                             {cave::RoomId::gate({0, 0, 0}, 1, 15), 0, 0},
-                             {existing_rooms(1)[0], proto::kMaxWireLod + 1, 0}};
-  gen->request(c, wants);
-  ASSERT_TRUE(inbox.wait_for(3));
-  std::map<cave::RoomId, ErrorCode> codes;
-  for (const Delivery& d : inbox.got()) {
-    ASSERT_TRUE(d.error);
-    EXPECT_FALSE(d.room);
-    codes[d.key.id] = d.error->code;
-  }
-  EXPECT_EQ(codes[wants[0].id], ErrorCode::kNotFound);
-  EXPECT_EQ(codes[wants[1].id], ErrorCode::kNotFound);
-  EXPECT_EQ(codes[wants[2].id], ErrorCode::kInvalidArgument);
+  gen->shutdown();
+  gen->shutdown(10ms);  // idempotent
+  std::vector<Want> late = wants_of(existing_rooms(1));
+  gen->request(c, late);
+  ASSERT_EQ(inbox.size(), 1u);
+  ASSERT_TRUE(inbox.got()[0].error);
+  EXPECT_EQ(inbox.got()[0].error->code, ErrorCode::kServiceRestart);
+  auto other = gen->add_client(43, [](Delivery) {});
+  ASSERT_FALSE(other.ok());
+  EXPECT_EQ(other.error().code, ErrorCode::kServiceRestart);
+  EXPECT_EQ(gen->worlds_open(), 1u);
   EXPECT_EQ(metrics.rooms_built.value(), 0u);
-  EXPECT_EQ(metrics.rooms_failed.value(), 2u);
-  EXPECT_EQ(metrics.rooms_in_flight.value(), 0);
 }
 
-TEST(GeneratorTest, jobs_queued_past_the_deadline_fail_overloaded) {
-  GeneratorConfig config = cpu_config();
-  config.job_deadline = 1ms;
-  config.max_batch_rooms = 2;
-  Stalled s(config);
-  std::vector<cave::RoomId> ids = existing_rooms(11);
-  Inbox inbox;
-  ClientId c = s.gen->add_client(inbox.fn());
-  std::vector<cave::RoomId> queued(ids.begin() + 1, ids.end());
-  s.gen->request(c, wants_of(queued));
-  // Let the deadline pass while the worker is held (a guaranteed wait, not a hope).
-  std::this_thread::sleep_for(20ms);
-  s.gate.open();
-  ASSERT_TRUE(inbox.wait_for(queued.size()));
-  size_t overloaded = 0;
-  for (const Delivery& d : inbox.got()) {
-    if (d.error) {
-      EXPECT_EQ(d.error->code, ErrorCode::kOverloaded);
-      ++overloaded;
-    }
-  }
-  EXPECT_EQ(overloaded, queued.size());  // every one waited past 1 ms before any could start
-  EXPECT_EQ(s.metrics.rooms_in_flight.value(), 0);
-}
-
-TEST(GeneratorTest, shutdown_fails_queued_work_with_service_restart_and_returns) {
-  auto s = std::make_unique<Stalled>(cpu_config());
-  std::vector<cave::RoomId> ids = existing_rooms(21);
-  Inbox inbox;
-  ClientId c = s->gen->add_client(inbox.fn());
-  std::vector<cave::RoomId> queued(ids.begin() + 1, ids.end());
-  s->gen->request(c, wants_of(queued));
-  auto start = std::chrono::steady_clock::now();
-  s->gen->shutdown(200ms);  // the worker is held: shutdown stops waiting after 200 ms
-  EXPECT_LT(std::chrono::steady_clock::now() - start, 30s);
-  ASSERT_EQ(inbox.size(), queued.size());  // delivered inside shutdown()
-  for (const Delivery& d : inbox.got()) {
-    ASSERT_TRUE(d.error);
-    EXPECT_EQ(d.error->code, ErrorCode::kServiceRestart);
-  }
-  s->gen->shutdown(10ms);  // idempotent
-  std::vector<Want> late = wants_of({ids[0]});
-  s->gen->request(c, late);
-  ASSERT_EQ(inbox.size(), queued.size() + 1);
-  EXPECT_EQ(inbox.got().back().error->code, ErrorCode::kServiceRestart);
-  s->gate.open();
-  s.reset();  // the destructor joins the released worker
-}
+// ---- configuration ----
 
 TEST(GeneratorTest, create_rejects_bad_config_naming_the_setting) {
   Metrics metrics;
@@ -831,71 +421,6 @@ TEST(GeneratorTest, create_rejects_bad_config_naming_the_setting) {
   EXPECT_NE(g.error().message.find("workers"), std::string::npos);
 }
 
-// ---- layout side ----
-
-TEST(SectorCacheTest, rooms_locate_and_spawn_match_the_layout_functions) {
-  SectorCache cache(test_world(), 4);
-  std::vector<cave::RoomId> ids = existing_rooms(40);
-  cave::SectorLayout s0 = cave::generate_sector(test_world(), {0, 0, 0});
-  for (const cave::Room& g : s0.gates)
-    ids.push_back(g.id);
-  ids.push_back(cave::RoomId::interior({0, 0, 0}, 4000));
-  ids.push_back(cave::RoomId::gate({0, 0, 0}, 2, 15));
-  for (cave::RoomId id : ids) {
-    auto want = cave::room(test_world(), id);
-    auto got = cache.room(id);
-    ASSERT_EQ(want.ok(), got.ok()) << id.to_string();
-    if (!want.ok()) {
-      EXPECT_EQ(got.error().code, want.error().code);
-      continue;
-    }
-    std::vector<unsigned char> a, b;
-    cave::append_bytes(*want, a);
-    cave::append_bytes(*got, b);
-    EXPECT_EQ(a, b) << id.to_string();
-  }
-  EXPECT_LE(cache.size(), 4u);
-  EXPECT_GT(cache.hits(), 0u);
-  for (const cave::Room& r : s0.rooms) {
-    EXPECT_EQ(cache.locate(r.sphere.centre), cave::locate(test_world(), r.sphere.centre));
-  }
-  cave::Spawn spawn = cache.spawn();
-  EXPECT_EQ(spawn.room, cave::spawn_room(test_world()));
-  EXPECT_EQ(cave::locate(test_world(), spawn.position), spawn.room);
-}
-
-// Two worlds in one store: the same sector coordinates of each world stay apart, each answer is
-// its own world's, and one capacity bounds both together (least recently used goes first).
-TEST(SectorCacheTest, worlds_sharing_a_store_keep_their_own_layouts_within_one_bound) {
-  const cave::World other = cave::World::create(43, cave::LayoutParams{}).value();
-  auto store = std::make_shared<SectorStore>(4);
-  SectorCache a(test_world(), store);
-  SectorCache b(other, store);
-  for (int round = 0; round < 2; ++round) {
-    for (int step = 0; step < 3; ++step) {
-      int x = round == 0 ? step : 2 - step;  // back again: the last four are kept
-      for (const auto& [cache, world] :
-           {std::pair<SectorCache*, const cave::World*>{&a, &test_world()}, {&b, &other}}) {
-        cave::SectorLayout want = cave::generate_sector(*world, {x, 0, 0});
-        auto got = cache->sector({x, 0, 0});
-        ASSERT_EQ(got->rooms.size(), want.rooms.size());
-        std::vector<unsigned char> p, q;
-        for (size_t i = 0; i < want.rooms.size(); ++i) {
-          cave::append_bytes(want.rooms[i], p);
-          cave::append_bytes(got->rooms[i], q);
-        }
-        EXPECT_EQ(p, q) << "world " << world->seed() << " sector " << x;
-      }
-    }
-  }
-  // Round 1: six misses, sectors 1 and 2 of both worlds kept. Round 2 (2, 1, 0): four hits, then
-  // sector 0 of each world missed again.
-  EXPECT_EQ(store->size(), 4u);
-  EXPECT_EQ(store->hits(), 4u);
-  EXPECT_EQ(store->misses(), 8u);
-  EXPECT_NE(a.spawn().position, b.spawn().position);
-}
-
 TEST(GeneratorTest, locate_and_spawn_agree) {
   Metrics metrics;
   auto gen = make_generator(cpu_config(), metrics);
@@ -907,22 +432,25 @@ TEST(GeneratorTest, locate_and_spawn_agree) {
 
 // ---- worlds ----
 
-// A generator with room for several worlds: its own (test_world, seed 42) and others opened for
-// the clients that name them.
+// A generator with room for several worlds: its own (test_world, seed 42) and
+// others opened for the clients that name them.
 GeneratorConfig worlds_config(size_t max_worlds) {
   GeneratorConfig c = cpu_config(2);
   c.max_worlds = max_worlds;
   return c;
 }
 
-// Frames by room, from one client of world `seed` asking for `ids` on `gen`.
+// Frames by room, from one client of world `seed` asking for `ids` (at `lod`)
+// on `gen`; a Build::kHere client never asks an owner.
 std::map<cave::RoomId, std::vector<uint8_t>> frames_from(Generator& gen, uint64_t seed,
-                                                         const std::vector<cave::RoomId>& ids) {
+                                                         const std::vector<cave::RoomId>& ids,
+                                                         uint32_t lod = 0,
+                                                         Build build = Build::kAnywhere) {
   Inbox inbox;
-  auto c = gen.add_client(seed, inbox.fn());
+  auto c = gen.add_client(seed, inbox.fn(), proto::kProtocolVersion, build);
   EXPECT_TRUE(c.ok()) << (c.ok() ? "" : c.error().message);
   if (!c.ok()) return {};
-  gen.request(*c, wants_of(ids));
+  gen.request(*c, wants_of(ids, lod));
   EXPECT_TRUE(inbox.wait_for(ids.size()));
   std::map<cave::RoomId, std::vector<uint8_t>> out;
   for (const Delivery& d : inbox.got()) {
@@ -934,9 +462,10 @@ std::map<cave::RoomId, std::vector<uint8_t>> frames_from(Generator& gen, uint64_
   return out;
 }
 
-// The rooms of world 43 from a generator whose own world is 42, asked for at the same time as the
-// same room ids of world 42 and in the other order, are those of a generator serving 43 alone:
-// same bytes, never taken from the other world's cache or job.
+// The rooms of world 43 from a generator whose own world is 42, asked for at
+// the same time as the same room ids of world 42 and in the other order, are
+// those of a generator serving 43 alone: same bytes, never taken from the other
+// world's cache or job.
 TEST(GeneratorWorlds, another_worlds_rooms_equal_those_of_a_generator_of_that_world) {
   const cave::World world43 = cave::World::create(43, cave::LayoutParams{}).value();
   std::vector<cave::RoomId> ids = existing_rooms(6, world43);
@@ -964,7 +493,8 @@ TEST(GeneratorWorlds, another_worlds_rooms_equal_those_of_a_generator_of_that_wo
     EXPECT_NE(frame, expected43.at(id)) << "room " << id.to_string() << " crossed worlds";
   }
   EXPECT_GT(shared_ids, 0u) << "the test wants ids that exist in both worlds";
-  // The home world's rooms are still its own: the same as from a one-world generator.
+  // The home world's rooms are still its own: the same as from a one-world
+  // generator.
   Metrics home_metrics;
   auto home = make_generator(cpu_config(1), home_metrics);
   EXPECT_EQ(got42, frames_from(*home, 42, ids));
@@ -980,7 +510,9 @@ TEST(GeneratorWorlds, another_worlds_rooms_equal_those_of_a_generator_of_that_wo
 
 TEST(GeneratorWorlds, one_world_refuses_another_seed_with_world_mismatch) {
   Metrics metrics;
-  auto gen = make_generator(cpu_config(), metrics);
+  GeneratorConfig one = cpu_config();
+  one.max_worlds = 1;  // a generator of its own world alone (the default opens others)
+  auto gen = make_generator(one, metrics);
   auto refused = gen->add_client(43, [](Delivery) {});
   ASSERT_FALSE(refused.ok());
   EXPECT_EQ(refused.error().code, ErrorCode::kWorldMismatch);
@@ -990,8 +522,9 @@ TEST(GeneratorWorlds, one_world_refuses_another_seed_with_world_mismatch) {
   EXPECT_EQ(gen->worlds_open(), 1u);
 }
 
-// max_worlds 3: the own world (never closed) and two others. With both others in use a fourth
-// seed is refused (overloaded); once idle, the least recently used other world is closed for it.
+// max_worlds 3: the own world (never closed) and two others. With both others
+// in use a fourth seed is refused (overloaded); once idle, the least recently
+// used other world is closed for it.
 TEST(GeneratorWorlds, a_new_world_closes_the_least_recently_used_idle_one_or_is_refused) {
   Metrics metrics;
   auto gen = make_generator(worlds_config(3), metrics);
@@ -1037,13 +570,10 @@ TEST(GeneratorWorlds, max_worlds_out_of_range_is_refused_by_name) {
   EXPECT_NE(g.error().message.find("max_worlds"), std::string::npos) << g.error().message;
 }
 
-// ---- rooms from their owner (issue 29) ----
+// ---- rooms from their owner ----
 
-// A want due in 2 s: asked of its owner (a want due now is built here at once).
-constexpr uint32_t kPrefetch = 2000;
-
-// A room tier without sockets: each fetch is answered on a thread of its own (never inside
-// fetch(), as RoomSource promises) by `answer`.
+// A room tier without sockets: each fetch is answered on a thread of its own
+// (never inside fetch(), as RoomSource promises) by `answer`.
 class FakeOwners final : public RoomSource {
  public:
   explicit FakeOwners(std::function<Result<std::vector<uint8_t>>(const RoomKey&)> answer)
@@ -1052,241 +582,79 @@ class FakeOwners final : public RoomSource {
     for (std::thread& t : threads_)
       t.join();
   }
-  void fetch(const RoomKey& key, uint32_t, std::chrono::milliseconds timeout, Done done) override {
+  void fetch(const RoomKey& key, uint32_t, std::chrono::milliseconds, Done done) override {
     std::lock_guard lock(mutex_);
     asked_.push_back(key.id);
-    timeouts_[key.id] = timeout;
-    threads_.emplace_back([this, key, done = std::move(done)] {
-      std::unique_lock hold(gate_mutex_);
-      gate_cv_.wait(hold, [&] { return open_; });
-      hold.unlock();
-      done(answer_(key));
-    });
+    threads_.emplace_back([this, key, done = std::move(done)] { done(answer_(key)); });
   }
   std::vector<cave::RoomId> asked() {
     std::lock_guard lock(mutex_);
     return asked_;
-  }
-  std::map<cave::RoomId, std::chrono::milliseconds> timeouts() {
-    std::lock_guard lock(mutex_);
-    return timeouts_;
-  }
-  void hold() { open_ = false; }
-  void open() {
-    std::lock_guard lock(gate_mutex_);
-    open_ = true;
-    gate_cv_.notify_all();
   }
 
  private:
   std::function<Result<std::vector<uint8_t>>(const RoomKey&)> answer_;
   std::mutex mutex_;
   std::vector<cave::RoomId> asked_;
-  std::map<cave::RoomId, std::chrono::milliseconds> timeouts_;
   std::vector<std::thread> threads_;
-  std::mutex gate_mutex_;
-  std::condition_variable gate_cv_;
-  bool open_ = true;
 };
 
-// Owners that answer every fetch with an unavailable error saying `why`.
-std::shared_ptr<FakeOwners> failing_owners(std::string why) {
-  return std::make_shared<FakeOwners>([why](const RoomKey&) -> Result<std::vector<uint8_t>> {
-    return Error{ErrorCode::kUnavailable, why};
-  });
-}
-
-// A generator of the test world (CPU path, one worker) that asks `owners` first.
-std::unique_ptr<Generator> replica_asking(std::shared_ptr<RoomSource> owners, Metrics& metrics,
-                                          std::chrono::milliseconds owner_timeout = 1000ms) {
-  GeneratorConfig config = cpu_config();
-  config.owners = std::move(owners);
-  config.owner_timeout = owner_timeout;
-  return make_generator(config, metrics);
-}
-
-// The frame a generator of the test world builds for `id` (lod 0), through a Build::kHere client.
-std::vector<uint8_t> frame_built_by(Generator& gen, cave::RoomId id) {
-  Inbox inbox;
-  auto client =
-      gen.add_client(gen.world().seed(), inbox.fn(), proto::kProtocolVersion, Build::kHere);
-  EXPECT_TRUE(client.ok());
-  std::vector<Want> one = wants_of({id});
-  gen.request(*client, one);
-  EXPECT_TRUE(inbox.wait_for(1));
-  gen.remove_client(*client);
-  Delivery d = inbox.got().at(0);
-  return d.room ? d.room->frame : std::vector<uint8_t>{};
-}
-
-TEST(GeneratorOwners, rooms_come_from_their_owner_once_and_are_not_built_here) {
-  Metrics owner_metrics;
-  std::unique_ptr<Generator> owner = make_generator(cpu_config(), owner_metrics);
-  ASSERT_TRUE(owner);
-  auto owners =
-      std::make_shared<FakeOwners>([&](const RoomKey& key) -> Result<std::vector<uint8_t>> {
-        return frame_built_by(*owner, key.id);
-      });
-  owners->hold();
-  Metrics metrics;
-  std::unique_ptr<Generator> replica = replica_asking(owners, metrics);
-  ASSERT_TRUE(replica);
-  const std::vector<cave::RoomId> ids = existing_rooms(4);
-  Inbox a, b;
-  ClientId ca = replica->add_client(a.fn()), cb = replica->add_client(b.fn());
-  std::vector<Want> wa = wants_of(ids, 0, kPrefetch), wb = wants_of({ids[1], ids[2]}, 0, kPrefetch);
-  replica->request(ca, wa);
-  replica->request(cb, wb);  // joins the fetches in flight
-  owners->open();
-  ASSERT_TRUE(a.wait_for(ids.size()));
-  ASSERT_TRUE(b.wait_for(2));
-  EXPECT_EQ(owners->asked().size(), ids.size()) << "one fetch per room, whoever wants it";
-  EXPECT_EQ(metrics.rooms_fetched.value(), ids.size());
-  EXPECT_EQ(metrics.rooms_built.value(), 0u);
-  EXPECT_EQ(metrics.owner_failures.value(), 0u);
-  for (const Delivery& d : a.got()) {
-    ASSERT_TRUE(d.room) << d.error->message;
-    EXPECT_EQ(d.room->frame, frame_built_by(*owner, d.key.id));
-  }
-  // Fetched rooms are cached like built ones.
-  Inbox c;
-  ClientId cc = replica->add_client(c.fn());
-  std::vector<Want> wc = wants_of({ids[0]});
-  replica->request(cc, wc);
-  ASSERT_EQ(c.size(), 1u);
-  EXPECT_TRUE(c.got()[0].from_cache);
-}
-
-TEST(GeneratorOwners, an_owner_that_fails_or_answers_wrong_bytes_is_built_here) {
+// Owners' frames are checked as untrusted input: the room's own frame is taken
+// (and cached), and every other answer is built here: unreachable, garbage,
+// another room's frame, the same room at another lod, the same id in another
+// world. The rooms built here are the owner's bytes.
+TEST(GeneratorOwners, an_owners_frame_is_taken_when_it_is_the_room_else_it_is_built_here) {
+  const std::vector<cave::RoomId> ids = existing_rooms(6);
   Metrics reference_metrics;
   std::unique_ptr<Generator> reference = make_generator(cpu_config(), reference_metrics);
   ASSERT_TRUE(reference);
-  const std::vector<cave::RoomId> ids = existing_rooms(5);
+  auto frames = frames_from(*reference, 42, ids, 0, Build::kHere);
+  auto detail = frames_from(*reference, 42, {ids[4]}, 1, Build::kHere);
   const cave::World other = cave::World::create(43, cave::LayoutParams{}).value();
-  // Each room's owner goes wrong in its own way: unreachable, garbage, another room's frame,
-  // the same room at another lod, and the same id in another world.
-  std::map<cave::RoomId, std::function<Result<std::vector<uint8_t>>()>> answers = {
-      {ids[0],
-       [] {
-         return Error{ErrorCode::kUnavailable, "connection refused"};
-       }},
-      {ids[1], [] { return std::vector<uint8_t>{'G', 'R', 'T', 'O', 1, 2, 3}; }},
-      {ids[2], [&] { return frame_built_by(*reference, ids[3]); }},
-      {ids[3],
-       [&] {
-         Inbox inbox;
-         auto c = reference->add_client(test_world().seed(), inbox.fn(), proto::kProtocolVersion,
-                                        Build::kHere);
-         std::vector<Want> w = {{ids[3], 1, 0}};
-         reference->request(*c, w);
-         EXPECT_TRUE(inbox.wait_for(1));
-         reference->remove_client(*c);
-         return inbox.got()[0].room->frame;
-       }},
-      {ids[4],
-       [&]() -> Result<std::vector<uint8_t>> {
-         Metrics m;
-         auto g = Generator::create(other, mesh::MeshParams{}, cpu_config(), m);
-         if (!g) return g.error();
-         // A room of the other world with the same id (sector 0,0,0 has enough rooms).
-         return frame_built_by(**g, ids[4]);
-       }},
+  Metrics other_metrics;
+  auto other_gen = Generator::create(other, mesh::MeshParams{}, cpu_config(), other_metrics);
+  ASSERT_TRUE(other_gen.ok());
+  // A room of the other world with the same id (sector 0,0,0 has enough rooms).
+  auto elsewhere = frames_from(**other_gen, 43, {ids[5]}, 0, Build::kHere);
+  ASSERT_EQ(frames.size(), ids.size());
+  ASSERT_EQ(detail.size(), 1u);
+  ASSERT_EQ(elsewhere.size(), 1u);
+  std::map<cave::RoomId, Result<std::vector<uint8_t>>> answers = {
+      {ids[0], frames.at(ids[0])},
+      {ids[1], frames.at(ids[0])},  // another room's frame
+      {ids[2], Error{ErrorCode::kUnavailable, "connection refused"}},
+      {ids[3], std::vector<uint8_t>{'G', 'R', 'T', 'O', 1, 2, 3}},
+      {ids[4], detail.at(ids[4])},
+      {ids[5], elsewhere.at(ids[5])},
   };
   auto owners =
-      std::make_shared<FakeOwners>([&](const RoomKey& key) { return answers.at(key.id)(); });
+      std::make_shared<FakeOwners>([&](const RoomKey& key) { return answers.at(key.id); });
+  GeneratorConfig config = cpu_config();
+  config.owners = owners;
   Metrics metrics;
-  std::unique_ptr<Generator> replica = replica_asking(owners, metrics);
+  std::unique_ptr<Generator> replica = make_generator(config, metrics);
   ASSERT_TRUE(replica);
   Inbox inbox;
   ClientId c = replica->add_client(inbox.fn());
-  std::vector<Want> w = wants_of(ids, 0, kPrefetch);
+  std::vector<Want> w = wants_of(ids, 0, 2000);  // due in 2 s: asked of the owner
   replica->request(c, w);
   ASSERT_TRUE(inbox.wait_for(ids.size()));
-  EXPECT_EQ(metrics.owner_failures.value(), ids.size());
-  EXPECT_EQ(metrics.rooms_fetched.value(), 0u);
-  EXPECT_EQ(metrics.rooms_built.value(), ids.size());
+  EXPECT_EQ(owners->asked().size(), ids.size());
+  EXPECT_EQ(metrics.rooms_fetched.value(), 1u);
+  EXPECT_EQ(metrics.owner_failures.value(), ids.size() - 1);
+  EXPECT_EQ(metrics.rooms_built.value(), ids.size() - 1);
   for (const Delivery& d : inbox.got()) {
     ASSERT_TRUE(d.room) << d.error->message;
-    EXPECT_EQ(d.room->frame, frame_built_by(*reference, d.key.id)) << d.key.id.to_string();
+    EXPECT_EQ(d.room->frame, frames.at(d.key.id)) << d.key.id.to_string();
   }
-}
-
-TEST(GeneratorOwners, build_here_clients_never_ask_the_owner_and_cancelled_fetches_build_nothing) {
-  auto owners = failing_owners("down");
-  owners->hold();
-  Metrics metrics;
-  std::unique_ptr<Generator> replica = replica_asking(owners, metrics);
-  ASSERT_TRUE(replica);
-  const std::vector<cave::RoomId> ids = existing_rooms(3);
-  Inbox here;
-  auto h =
-      replica->add_client(test_world().seed(), here.fn(), proto::kProtocolVersion, Build::kHere);
-  ASSERT_TRUE(h.ok());
-  std::vector<Want> one = wants_of({ids[0]});
-  replica->request(*h, one);
-  ASSERT_TRUE(here.wait_for(1));
-  EXPECT_TRUE(here.got()[0].room);
-  EXPECT_TRUE(owners->asked().empty());
-  // A player's rooms are asked of the owner; cancelled while the owner is silent, then the owner
-  // fails: nothing is built here and nothing delivered.
-  Inbox player;
-  ClientId p = replica->add_client(player.fn());
-  std::vector<Want> two = wants_of({ids[1], ids[2]}, 0, kPrefetch);
-  replica->request(p, two);
-  EXPECT_EQ(owners->asked().size(), 2u);
-  replica->cancel(p, std::vector<cave::RoomId>{ids[1], ids[2]});
-  const uint64_t built = metrics.rooms_built.value();
-  owners->open();
+  // The owner's room is cached like a built one.
+  Inbox again;
+  ClientId c2 = replica->add_client(again.fn());
+  std::vector<Want> first = wants_of({ids[0]});
+  replica->request(c2, first);
+  ASSERT_EQ(again.size(), 1u);
+  EXPECT_TRUE(again.got()[0].from_cache);
   replica.reset();  // waits for the fetches' answers
-  EXPECT_EQ(metrics.owner_failures.value(), 2u);
-  EXPECT_EQ(metrics.rooms_built.value(), built);
-  EXPECT_EQ(player.size(), 0u);
-}
-
-TEST(GeneratorOwners, the_owners_own_request_for_a_room_it_is_fetching_builds_it_here_at_once) {
-  // The tier hashes a room to its owner; when that is the replica asking, its fetch comes back
-  // to it as a Build::kHere request. Waiting for the fetch would wait for itself.
-  auto owners = failing_owners("the answer comes after the room was built");
-  owners->hold();
-  Metrics metrics;
-  std::unique_ptr<Generator> replica = replica_asking(owners, metrics);
-  ASSERT_TRUE(replica);
-  const cave::RoomId id = existing_rooms(1)[0];
-  Inbox player, tier;
-  ClientId p = replica->add_client(player.fn());
-  std::vector<Want> one = wants_of({id}, 0, kPrefetch);
-  replica->request(p, one);
-  auto t = replica->add_client(replica->world().seed(), tier.fn(), proto::kProtocolVersion,
-                               Build::kHere);
-  ASSERT_TRUE(t.ok());
-  replica->request(*t, one);
-  ASSERT_TRUE(player.wait_for(1));  // the owner's gate is still closed
-  ASSERT_TRUE(tier.wait_for(1));
-  EXPECT_TRUE(player.got()[0].room);
-  EXPECT_EQ(player.got()[0].room, tier.got()[0].room);
-  EXPECT_EQ(metrics.rooms_built.value(), 1u);
-  owners->open();
-  replica.reset();
-  EXPECT_EQ(metrics.owner_failures.value(), 0u) << "a fetch answered after the room was built";
-}
-
-TEST(GeneratorOwners,
-     a_room_due_now_is_built_here_one_due_soon_waits_briefly_far_prefetch_longest) {
-  auto owners = failing_owners("down");
-  Metrics metrics;
-  std::unique_ptr<Generator> replica = replica_asking(owners, metrics);
-  ASSERT_TRUE(replica);
-  const std::vector<cave::RoomId> ids = existing_rooms(4);
-  Inbox inbox;
-  ClientId c = replica->add_client(inbox.fn());
-  std::vector<Want> w = {{ids[0], 0, 100}, {ids[1], 0, 1100}, {ids[2], 0, 5000}, {ids[3], 0, 0}};
-  replica->request(c, w);
-  ASSERT_TRUE(inbox.wait_for(4));
-  auto t = owners->timeouts();
-  EXPECT_EQ(t.at(ids[0]), 150ms) << "due in 100 ms: built here after a short wait";
-  EXPECT_FALSE(t.count(ids[3])) << "due now (the player waits): built here, not asked";
-  EXPECT_EQ(t.at(ids[1]), 600ms) << "its slack: 1,100 ms less 500 to build it here";
-  EXPECT_EQ(t.at(ids[2]), 1000ms) << "far prefetch: the whole owner_timeout";
 }
 }  // namespace
 }  // namespace grotto::server

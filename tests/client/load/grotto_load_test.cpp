@@ -297,9 +297,11 @@ TEST(GrottoLoad, a_server_that_is_not_there_is_an_error_not_a_hang) {
   EXPECT_NE(r.exit_code, 2) << r.output;
 }
 
-// A server in this process on 127.0.0.1 (seed 7, CPU reference), requiring `token` if not empty.
+// A server in this process on 127.0.0.1 (seed 7 alone, CPU reference), requiring `token` if not
+// empty.
 grotto::Result<std::unique_ptr<grotto::server::Server>> start_server(const std::string& token) {
   grotto::server::ServerConfig c;
+  c.generator.max_worlds = 1;
   c.port = 0;
   c.io_threads = 1;
   c.generator.workers = 2;
