@@ -25,8 +25,9 @@ const links = [...new Set([
 ])];
 // The program lines of the first screen: each `build/bin/...` step of its code, as written.
 const commands = [...new Set(
-  [...firstScreen.matchAll(/```[a-z]*\n([\s\S]*?)```|`([^`\n]+)`/g)]
-    .flatMap((m) => (m[1] || m[2]).split(/\n|&&/))
+  [...firstScreen.matchAll(/```[a-z]*\n([\s\S]*?)```|`([^`]+)`/g)]
+    // A code block's lines; an inline span wrapped over lines is one line.
+    .flatMap((m) => (m[1] ?? m[2].replace(/\s+/g, " ")).split(/\n|&&/))
     .map((c) => c.replace(/#.*$/, "").trim())
     .filter((c) => c.startsWith("build/bin/")),
 )];
