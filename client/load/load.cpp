@@ -23,6 +23,19 @@
 
 namespace grotto::load {
 
+// The stream library's vocabulary, which every simulated player speaks.
+using stream::kUrgentPriorityMs;
+using stream::net_profile_text;
+using stream::PlanOptions;
+using stream::PortalGraph;
+using stream::Pose;
+using stream::Runtime;
+using stream::state_name;
+using stream::Stream;
+using stream::StreamOptions;
+using stream::StreamState;
+using stream::StreamStats;
+
 const char* mode_name(Mode mode) {
   switch (mode) {
     case Mode::kWalk:

@@ -17,6 +17,10 @@
 
 namespace grotto::load {
 
+// The stream library's vocabulary, which every simulated player speaks.
+using stream::kDefaultMinHorizonS;
+using stream::NetProfile;
+
 enum class Mode {
   kWalk,   // players walk the portal graph for duration_s (default 20 s)
   kBurst,  // players stand still and want everything within radius_m at once

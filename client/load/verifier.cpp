@@ -6,6 +6,9 @@
 #include "common/core/thread_name.hpp"
 
 namespace grotto::load {
+
+// The stream library's vocabulary, which every simulated player speaks.
+using stream::ReadyRoom;
 namespace {
 
 void note(VerifyReport& report, const std::string& message) {

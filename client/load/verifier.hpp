@@ -20,6 +20,10 @@
 
 namespace grotto::load {
 
+// The stream library's vocabulary, which every simulated player speaks.
+using stream::PortalGraph;
+using stream::ReadyRoom;
+
 // The room `player` holds now, or nullptr. Called on the verifier's thread.
 using RoomLookup = std::function<std::shared_ptr<const ReadyRoom>(int player, cave::RoomId id)>;
 

@@ -6,6 +6,9 @@
 
 namespace grotto::load {
 
+// The stream library's vocabulary, which every simulated player speaks.
+using stream::Pose;
+
 const char* walker_state_name(WalkerState state) {
   switch (state) {
     case WalkerState::kWaiting:

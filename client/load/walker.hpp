@@ -21,6 +21,9 @@
 
 namespace grotto::load {
 
+// The stream library's vocabulary, which every simulated player speaks.
+using stream::Pose;
+
 // What a player knows of the world. descriptor: the room's sphere and portals once received
 // (nullopt before); ready: the room can be drawn (decoded and stored). Both are called from
 // advance() only.
