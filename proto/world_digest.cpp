@@ -3,6 +3,7 @@
 #include <string_view>
 #include <vector>
 
+#include "common/cave/geology.hpp"
 #include "common/cave/lights.hpp"
 #include "common/core/bytes.hpp"
 #include "common/core/grid.hpp"
@@ -111,6 +112,8 @@ uint64_t world_params_digest(const cave::LayoutParams& layout, const mesh::MeshP
                    lights.min_range, lights.intensity_per_range2}) {
     c.f64(v);
   }
+  // The world's rock (cave/geology.hpp): engines read it from the same seed.
+  c.text(cave::kGeologyVersion);
   // The relief and formations the client draws and engines evaluate (common/relief/relief.hpp):
   // part of the world though no room's bytes depend on them.
   c.text(kReliefVersion);

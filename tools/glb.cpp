@@ -270,7 +270,9 @@ Result<std::vector<uint8_t>> region_glb(const GlbSource& source, std::span<const
     Result<CodedRoom>& room_coded = coded[i % kWindow];
     const GlbRoom& r = rooms[i];
     // The portals as `grotto-layout --room` prints them: one view of a room (proto/).
-    json extras = json::parse(proto::room_json(*r.room), nullptr, false);
+    json extras = json::parse(
+        source.world ? proto::room_json(*source.world, *r.room) : proto::room_json(*r.room),
+        nullptr, false);
     assert(!extras.is_discarded());
     json node = {{"name", r.room->id.to_string()}};
     Vec3 parent = source.anchor;  // where the node's frame is, world metres

@@ -38,6 +38,9 @@ struct GlbSource {
   // Each room's formations (common/formations/formations.hpp) as a child node: one mesh of them all
   // at kGlbFormationLod, each instance's shape in its extras.
   bool formations = true;
+  // The world, when the rooms' extras should say what its rock made of them (each portal's
+  // section, the room's geology: proto::room_json with a world). Not owned.
+  const cave::World* world = nullptr;
 };
 
 // The level of detail formations are written at (formations::kLodSides / kLodRings: 10 x 16).

@@ -120,6 +120,7 @@ grotto::Status write_glb(const std::string& path, const grotto::cave::World& wor
   grotto::tools::GlbSource source;
   source.generator = std::string("grotto-layout ") + GROTTO_VERSION;
   source.seed = world.seed();
+  source.world = &world;
   source.sector_size = size;
   source.lo = region.lo;
   source.hi = region.hi;
@@ -296,7 +297,7 @@ int main(int argc, char** argv) {
     if (!id) return fail(id.error().message);
     auto r = grotto::cave::room(*world, *id);
     if (!r) return fail(r.error().message);
-    std::printf("%s\n", grotto::proto::room_json(*r, 2).c_str());
+    std::printf("%s\n", grotto::proto::room_json(*world, *r, 2).c_str());
     return 0;
   }
 

@@ -7,6 +7,8 @@
 #include <sstream>
 #include <string>
 
+#include <nlohmann/json.hpp>
+
 #include "common/png/png.hpp"
 #include "tests/tools/layout_process.hpp"
 
@@ -102,6 +104,28 @@ TEST(GrottoLayout, prints_one_room) {
   ProcessResult r = run("--seed 3 --room 0.0.0.x0");
   ASSERT_EQ(r.exit_code, 0) << r.output;
   EXPECT_NE(r.output.find("\"id\": \"0.0.0.x0\""), std::string::npos) << r.output;
+}
+
+// What the world's rock made of a room: its portals' sections and the geology at its centre, as
+// engines read them (the glb's room extras carry the same).
+TEST(GrottoLayout, a_room_says_its_portals_sections_and_its_rock) {
+  ProcessResult r = run("--seed 7 --room 0.0.0.r0");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  auto j = nlohmann::json::parse(r.output.substr(r.output.find('{')), nullptr, false);
+  ASSERT_FALSE(j.is_discarded()) << r.output;
+  ASSERT_FALSE(j["portals"].empty());
+  for (const auto& p : j["portals"]) {
+    const std::string kind = p["section"]["kind"].get<std::string>();
+    EXPECT_TRUE(kind == "tube" || kind == "lens" || kind == "canyon" || kind == "keyhole" ||
+                kind == "fissure")
+        << kind;
+    EXPECT_GT(p["section"]["half_width"].get<double>(), 0);
+    EXPECT_GT(p["section"]["half_height"].get<double>(), 0);
+  }
+  const auto& g = j["geology"];
+  EXPECT_GE(g["bed_thickness"].get<double>(), 0.3);
+  EXPECT_GE(g["joints"].size(), 2u);
+  EXPECT_TRUE(g["phreatic"].is_boolean());
 }
 
 TEST(GrottoLayout, bad_input_gets_a_clear_error) {
