@@ -17,6 +17,9 @@
 
 namespace grotto::load {
 
+// grotto-load is a client of client/stream through and through: its names read unqualified.
+using namespace grotto::stream;  // NOLINT(google-build-using-namespace)
+
 enum class Mode {
   kWalk,   // players walk the portal graph for duration_s (default 20 s)
   kBurst,  // players stand still and want everything within radius_m at once
