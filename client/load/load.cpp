@@ -363,6 +363,20 @@ Result<LoadReport> run_load(const LoadOptions& options) {
       all_failed &= p.stream->state() == StreamState::kFailed;
       drain(p);
     }
+    // Once a second: how many wait in an admission queue, and how long the servers say it is.
+    if (const auto second = static_cast<size_t>(t);
+        second >= report.queued.waiting_by_second.size()) {
+      uint64_t waiting_now = 0, length = 0;
+      for (auto& p : players) {
+        if (!p.joined()) continue;
+        if (auto place = p.stream->stats().queued) {
+          ++waiting_now;
+          length = std::max<uint64_t>(length, place->queue);
+        }
+      }
+      report.queued.waiting_by_second.resize(second + 1, waiting_now);
+      report.queued.length_by_second.resize(second + 1, length);
+    }
     if (burst && t >= next_burst_check) {
       next_burst_check = t + 0.1;
       bool all = true;
@@ -416,7 +430,7 @@ Result<LoadReport> run_load(const LoadOptions& options) {
   }
   if (verifier) report.verify = verifier->finish();
 
-  std::vector<double> first_rooms, stalls;
+  std::vector<double> first_rooms, stalls, queued_ms;
   for (auto& p : players) {
     if (!p.joined()) continue;
     const StreamStats& s = p.final_stats;
@@ -456,6 +470,12 @@ Result<LoadReport> run_load(const LoadOptions& options) {
     }
     pr.reconnects = s.reconnects;
     pr.restart_notices = s.restart_notices;
+    pr.queued_ms = s.queued_ms;
+    pr.times_queued = s.times_queued;
+    if (s.times_queued > 0) {
+      ++report.queued.players;
+      queued_ms.push_back(s.queued_ms);
+    }
     for (const auto& [code, n] : s.errors) {
       pr.errors += n;
       report.errors[code] += n;
@@ -484,6 +504,7 @@ Result<LoadReport> run_load(const LoadOptions& options) {
     report.latency_by_second_ms.push_back(summarize(std::move(second)));
   report.decode_ms = summarize(std::move(decodes));
   report.stall_ms = summarize(std::move(stalls));
+  report.queued.ms = summarize(std::move(queued_ms));
   // Without --seed the report names the world the server served (welcome.seed).
   if (!report.seed) {
     for (const PlayerReport& pr : report.players_detail)
