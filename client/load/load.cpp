@@ -71,6 +71,7 @@ struct Player {
   double peak_kbps = 0;
   StreamState final_state = StreamState::kConnecting;  // before stop()
   std::string final_error;                             // before stop()
+  bool queued_at_end = false;  // in a server's admission queue (before stop())
 };
 
 Status check(const LoadOptions& o) {
@@ -419,11 +420,17 @@ Result<LoadReport> run_load(const LoadOptions& options) {
   if (options.progress) std::fprintf(stderr, "\r\x1b[K");
   report.elapsed_s = seconds_since(t0, Clock::now());
 
+  // Every player's end state before any stops: a player leaving a full server lets one waiting
+  // in its admission queue in, which would otherwise read as welcomed at the end.
   for (auto& p : players) {
     if (!p.joined()) continue;  // a run cut short (all others failed) before its join
     StreamStats before = p.stream->stats();
     p.final_state = before.state;
     p.final_error = before.last_error;
+    p.queued_at_end = before.queued.has_value();
+  }
+  for (auto& p : players) {
+    if (!p.joined()) continue;
     p.stream->stop();
     drain(p);  // what arrived between the last step and the stop
     p.final_stats = p.stream->stats();
@@ -472,6 +479,8 @@ Result<LoadReport> run_load(const LoadOptions& options) {
     pr.restart_notices = s.restart_notices;
     pr.queued_ms = s.queued_ms;
     pr.times_queued = s.times_queued;
+    pr.queued_at_end = p.queued_at_end;
+    report.queued.at_end += p.queued_at_end ? 1 : 0;
     if (s.times_queued > 0) {
       ++report.queued.players;
       queued_ms.push_back(s.queued_ms);
@@ -491,8 +500,9 @@ Result<LoadReport> run_load(const LoadOptions& options) {
     report.streams_failed += p.final_state == StreamState::kFailed ? 1 : 0;
     // Still trying to connect when the run ends: the server was lost (a drain that another
     // replica picked up is not, since the player is connected again by then).
-    report.players_disconnected +=
-        p.final_state == StreamState::kConnecting || p.final_state == StreamState::kBackoff;
+    // A player waiting in an admission queue is connected and told where it stands.
+    report.players_disconnected += !p.queued_at_end && (p.final_state == StreamState::kConnecting ||
+                                                        p.final_state == StreamState::kBackoff);
     if (!s.server.empty()) report.server = s.server;
     report.players_detail.push_back(std::move(pr));
   }

@@ -44,6 +44,7 @@ struct PlayerReport {
   uint64_t restart_notices = 0;  // service_restart notices of draining servers (not errors)
   double queued_ms = 0;          // time spent in servers' admission queues (PROTOCOL.md `queued`)
   uint64_t times_queued = 0;     // connections that waited in one before their welcome
+  bool queued_at_end = false;    // still waiting when the run ended (not an error)
   uint64_t errors = 0;           // error messages received
   std::string state;             // the Stream's state at the end
   std::string last_error;        // its last error at the end, for people (empty: none)
@@ -123,6 +124,8 @@ struct LoadReport {
   // Servers past their capacity hold newcomers in a queue (PROTOCOL.md, "Waiting to enter").
   struct Queue {
     uint64_t players = 0;  // players that waited at least once
+    uint64_t at_end = 0;   // players still waiting when the run ended (neither an error nor
+                           // counted among players_without_room or players_disconnected)
     Distribution ms;       // their total time queued
     // By second of the run: players waiting then, and the longest queue a server reported.
     std::vector<uint64_t> waiting_by_second;

@@ -265,7 +265,7 @@ Actions Conversation::tick(SteadyTime now) {
   if (!welcomed_ && queued_since_) {
     // Queued, the server talks to us: connect_timeout does not apply, a ping now and then
     // keeps the connection known to be alive.
-    leave_queue(now);
+    stats_.queued_ms += std::chrono::duration<double, std::milli>(now - *queued_since_).count();
     queued_since_ = now;
     if (now - last_send_ > std::chrono::seconds{10}) {
       proto::Ping p;

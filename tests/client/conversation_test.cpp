@@ -1538,6 +1538,8 @@ TEST(Conversation, the_admission_queue) {
     a = h.tick(milliseconds(6'000));
     ASSERT_EQ(a.size(), 1u);
     EXPECT_EQ(describe(a[0]), "ping");
+    ASSERT_TRUE(h.c.stats().queued) << "ticks keep the place";
+    EXPECT_EQ(h.c.stats().queued->position, 3u);
     h.msg(proto::Queued{1, 1, 1000, 2});
     EXPECT_EQ(h.c.stats().queued->position, 1u);
     h.tick(milliseconds(3'000));
