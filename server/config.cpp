@@ -189,7 +189,8 @@ const std::vector<Setting>& settings() {
         0, 1 << 20, [](ServerConfig & c) -> auto& { return c.admission.max_players; }));
     t.push_back(ms_setting(
         "admission-late-ms",
-        "Newcomers wait (or are refused) while the oldest urgent room want is older than this; "
+        "Newcomers wait (or are refused) while players' oldest urgent room wants (90th percentile) "
+        "are older than this; "
         "0: every hello is admitted at once",
         0, kMaxInt, [](ServerConfig & c) -> auto& { return c.admission.late_after; }));
     t.push_back(int_setting(

@@ -170,7 +170,7 @@ std::string Metrics::render() const {
         "1 while the players are not served in time and newcomers wait in the queue.",
         admission_behind.value());
   gauge(out, "grotto_oldest_urgent_ms",
-        "Age of the oldest urgent room want still queued, as admission last measured it.",
+        "Players' oldest urgent room wants still queued, 90th percentile over the players, in ms.",
         oldest_urgent_ms.value());
   gauge(out, "grotto_sockets_open", "Accepted TCP sockets open now, upgraded or not.",
         sockets_open.value());

@@ -64,7 +64,7 @@ class Metrics {
   Counter sessions_refused;              // grotto_sessions_refused_total (overloaded at hello)
   Gauge admission_capacity;     // grotto_admission_capacity (players when it last fell behind)
   Gauge admission_behind;       // grotto_admission_behind (1 while newcomers wait)
-  Gauge oldest_urgent_ms;       // grotto_oldest_urgent_ms (the oldest urgent want still queued)
+  Gauge oldest_urgent_ms;       // grotto_oldest_urgent_ms (players' oldest urgent wants, p90)
   Counter http_requests_total;  // grotto_http_requests_total
   // Rooms over HTTP (PROTOCOL.md, "Rooms over HTTP"): GETs of a room URL answered with the room
   // (a peer replica's owner fetch, a cache or CDN, any client), answered 304 (the client's ETag
