@@ -134,6 +134,7 @@ Result<ClientMessage> parse_hello(const Fields& f, Ref ref) {
     // The token is not quoted back: the message names only what is wrong.
     if (Status s = check_token(*m.token); !s) return field_error("token", s.error().message);
   }
+  if (f.find("queue")) PROTO_TRY(m.queue, f.boolean("queue"));
   return {std::move(m)};
 }
 
@@ -331,6 +332,26 @@ Result<ServerMessage> parse_error_message(const Fields& f, Ref ref) {
     PROTO_TRY(list, f.array("versions", 0, kMaxVersions));
     PROTO_TRY(m.versions, versions(*list, "versions"));
   }
+  std::optional<uint64_t> retry;
+  PROTO_TRY(retry, f.optional_uint("retry_after_ms", kMaxWaitMs));
+  if (retry) m.retry_after_ms = static_cast<uint32_t>(*retry);
+  return {std::move(m)};
+}
+
+Result<ServerMessage> parse_queued(const Fields& f, Ref ref) {
+  Queued m;
+  m.ref = ref;
+  uint64_t v = 0;
+  PROTO_TRY(v, f.uint("position", kMaxQueueLength, 1));
+  m.position = static_cast<uint32_t>(v);
+  PROTO_TRY(v, f.uint("wait_ms", kMaxWaitMs));
+  m.wait_ms = static_cast<uint32_t>(v);
+  PROTO_TRY(v, f.uint("queue", kMaxQueueLength, 1));
+  m.queue = static_cast<uint32_t>(v);
+  if (m.queue < m.position) {
+    return field_error("queue", "must be at least position (" + std::to_string(m.position) +
+                                    ", got " + std::to_string(m.queue) + ")");
+  }
   return {std::move(m)};
 }
 
@@ -353,6 +374,7 @@ Result<ServerMessage> parse_server_body(const Fields& f, std::string_view type, 
     return {std::move(m)};
   }
   if (type == "error") return parse_error_message(f, ref);
+  if (type == "queued") return parse_queued(f, ref);
   if (type == "pong") {
     Pong m;
     m.ref = ref;
@@ -401,6 +423,7 @@ ojson to_json(const Hello& m) {
   if (m.params) out["params"] = digest_text(*m.params);
   out["name"] = m.name;
   if (m.token) out["token"] = *m.token;
+  if (m.queue) out["queue"] = true;
   return out;
 }
 ojson to_json(const Locate& m) {
@@ -481,6 +504,10 @@ ojson to_json(const ErrorMessage& m) {
   out["fatal"] = m.fatal;
   if (m.room) out["room"] = m.room->to_string();
   if (!m.versions.empty()) out["versions"] = m.versions;
+  if (m.retry_after_ms) {
+    assert(*m.retry_after_ms <= kMaxWaitMs);
+    out["retry_after_ms"] = *m.retry_after_ms;
+  }
   return out;
 }
 ojson to_json(const Pong& m) {
@@ -488,6 +515,15 @@ ojson to_json(const Pong& m) {
   ojson out = head("pong", m.ref);
   out["t"] = m.t;
   out["time"] = m.time_ms;
+  return out;
+}
+ojson to_json(const Queued& m) {
+  assert(m.position >= 1 && m.position <= m.queue && m.queue <= kMaxQueueLength);
+  assert(m.wait_ms <= kMaxWaitMs);
+  ojson out = head("queued", m.ref);
+  out["position"] = m.position;
+  out["wait_ms"] = m.wait_ms;
+  out["queue"] = m.queue;
   return out;
 }
 ojson to_json(const Stats& m) {

@@ -44,7 +44,10 @@ inline constexpr std::size_t kMaxNameBytes = 64;     // hello.name, welcome.serv
 inline constexpr std::size_t kMaxVersions = 16;      // hello.versions, error.versions
 inline constexpr std::size_t kMaxTypeBytes = 32;     // error.code (longer: too_large)
 inline constexpr std::size_t kMaxErrorBytes = 1024;  // error.message
-inline constexpr std::size_t kMaxEchoBytes = 32;  // how much of bad input an error message quotes
+inline constexpr std::size_t kMaxEchoBytes = 32;
+inline constexpr uint32_t kMaxQueueLength = 1'000'000;  // queued.position and queued.queue
+inline constexpr uint32_t kMaxWaitMs = 86'400'000;  // queued.wait_ms, error.retry_after_ms  // how
+                                                    // much of bad input an error message quotes
 // Integers travel as JSON numbers only up to 2^53 - 1 (exact in a JavaScript double); larger
 // 64-bit values (seeds, digests) travel as strings.
 inline constexpr uint64_t kMaxJsonInteger = (uint64_t{1} << 53) - 1;
@@ -90,6 +93,10 @@ struct Hello {
   // The deployment's shared secret (proto/token.hpp): ≤ kMaxTokenBytes of printable ASCII.
   // Absent: none presented. A server without a token ignores it.
   std::optional<std::string> token;
+  // The client understands `queued`: past capacity it may wait in the server's queue. Without
+  // it the server admits the client or refuses it (overloaded, retry_after_ms), never makes it
+  // wait in silence.
+  bool queue = false;
   friend bool operator==(const Hello&, const Hello&) = default;
 };
 
@@ -169,6 +176,8 @@ struct ErrorMessage {
   std::optional<cave::RoomId> room;  // the room it concerns (request failures)
   std::vector<uint32_t> versions;    // unsupported_version: the versions the server speaks
   bool fatal = false;                // the server closes the connection after sending it
+  // overloaded at the door: come back after this many milliseconds (≤ kMaxWaitMs)
+  std::optional<uint32_t> retry_after_ms;
   friend bool operator==(const ErrorMessage&, const ErrorMessage&) = default;
 };
 
@@ -188,7 +197,17 @@ struct Stats {
   friend bool operator==(const Stats&, const Stats&) = default;
 };
 
-using ServerMessage = std::variant<Welcome, Located, SpawnPoint, ErrorMessage, Pong, Stats>;
+// The server is past its capacity: the client waits in its queue, and `welcome` follows when it
+// is admitted. Sent on queueing and again when the place or the estimate changes.
+struct Queued {
+  Ref ref;                // the hello's
+  uint32_t position = 1;  // 1-based, ≤ kMaxQueueLength
+  uint32_t wait_ms = 0;   // estimated, ≤ kMaxWaitMs
+  uint32_t queue = 1;     // sessions waiting, ≥ position, ≤ kMaxQueueLength
+  friend bool operator==(const Queued&, const Queued&) = default;
+};
+
+using ServerMessage = std::variant<Welcome, Located, SpawnPoint, ErrorMessage, Pong, Stats, Queued>;
 
 // ---- parsing and serializing ----
 

@@ -178,6 +178,22 @@ const std::vector<Setting>& settings() {
         "counted apart from players; more are refused",
         1, 1 << 20, [](ServerConfig & c) -> auto& { return c.max_handshakes; }));
     t.push_back(int_setting(
+        "max-queue",
+        "Sessions past hello waiting to enter while the players are not served in time; more "
+        "are refused (overloaded, retry_after_ms)",
+        0, 1 << 20, [](ServerConfig & c) -> auto& { return c.admission.max_queue; }));
+    t.push_back(int_setting(
+        "max-players",
+        "Players admitted at most however well they are served; past it newcomers queue "
+        "(0: the measurements alone decide)",
+        0, 1 << 20, [](ServerConfig & c) -> auto& { return c.admission.max_players; }));
+    t.push_back(ms_setting(
+        "admission-late-ms",
+        "Newcomers wait (or are refused) while players' oldest urgent room wants (90th percentile) "
+        "are older than this; "
+        "0: every hello is admitted at once",
+        0, kMaxInt, [](ServerConfig & c) -> auto& { return c.admission.late_after; }));
+    t.push_back(int_setting(
         "send-queue-bytes", "Unsent bytes per client before it is dropped as a slow reader", 1024,
         kMaxBytes, [](ServerConfig & c) -> auto& { return c.send_queue_bytes; }));
     t.push_back(ms_setting(

@@ -11,6 +11,7 @@
 #include "common/core/result.hpp"
 #include "common/mesh/params.hpp"
 #include "proto/messages.hpp"
+#include "server/admission.hpp"
 #include "server/generator.hpp"
 
 namespace grotto::server {
@@ -29,6 +30,10 @@ struct ServerConfig {
   // Sessions upgraded but not yet past hello, counted apart from players so that sockets which
   // never say hello cannot take the players' places; each has handshake_timeout_ms.
   int max_handshakes = 512;
+  // Past capacity a valid hello waits in a queue or is refused (server/admission.hpp): queue
+  // length (--max-queue) and how late the oldest urgent want may be before newcomers wait
+  // (--admission-late-ms; 0: every hello is admitted as it comes, up to max_connections).
+  AdmissionConfig admission{};
   size_t send_queue_bytes = size_t{8} << 20;       // unsent bytes per client before it is dropped
   std::chrono::milliseconds http_timeout{10'000};  // a plain HTTP request or a WebSocket upgrade
   std::chrono::milliseconds drain_timeout{5'000};  // stop(): bound on the graceful close

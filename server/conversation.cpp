@@ -85,10 +85,14 @@ void Conversation::text(std::string_view message) {
   if (state_ == State::kOpen) {
     emit(act::Timer{std::chrono::milliseconds{config_.limits.idle_timeout_ms}});
   }
-  const bool welcomed = state_ == State::kOpen;
+  // A queued client has said its hello: only ping, which keeps it company while it waits.
+  const bool welcomed = state_ == State::kOpen || state_ == State::kQueued;
   proto::Ref ref;
   std::string type;
   auto parsed = proto::parse_client_message(message, config_.limits, &ref, &type);
+  if (state_ == State::kQueued && !type.empty() && type != "ping" && type != "hello") {
+    return fail(Error{ErrorCode::kOutOfOrder, "'" + type + "' while queued (only ping)"}, ref);
+  }
   if (!type.empty() && (type == "hello") == welcomed) {
     // The order check comes before any field error.
     return fail(
@@ -214,6 +218,16 @@ void Conversation::slow_client(size_t queued_bytes) {
   close(CloseCode::kPolicy, "slow_client");
 }
 
+void Conversation::admitted() {
+  if (state_ != State::kQueued) return;
+  open_world();
+}
+
+void Conversation::queue_update(uint32_t position, uint32_t wait_ms, uint32_t queue) {
+  if (state_ != State::kQueued) return;
+  send(proto::Queued{hello_ref_, position, std::min(wait_ms, proto::kMaxWaitMs), queue});
+}
+
 void Conversation::transport_closed() {
   release();
   log_unlogged();
@@ -246,10 +260,36 @@ void Conversation::on(const proto::Hello& m) {
                       "this server's parameter digest differs from the one asked for"},
                 m.ref);
   }
+  hello_ref_ = m.ref;
+  hello_seed_ = m.seed.value_or(worlds_.own_seed());
+  hello_version_ = chosen;
+  hello_name_ = m.name;
+  // Past capacity (server/admission.hpp): wait in the queue if the client understands it, else
+  // a refusal saying when to come back; never silence.
+  const Entry entry = worlds_.enter(m.queue);
+  if (entry.kind == Entry::Kind::kRefused) {
+    if (metrics_) metrics_->sessions_refused.add();
+    return fail(Error{ErrorCode::kOverloaded,
+                      entry.queue_full ? "the server is full and so is its queue; retry later"
+                                       : "the server is full (send hello.queue to wait in its "
+                                         "queue); retry later"},
+                m.ref, {}, entry.retry_after_ms);
+  }
+  if (entry.kind == Entry::Kind::kQueued) {
+    state_ = State::kQueued;
+    spdlog::info("event=queued session={} position={} wait_ms={}", config_.session, entry.position,
+                 entry.wait_ms);
+    return queue_update(entry.position, entry.wait_ms, entry.queue);
+  }
+  open_world();
+}
+
+void Conversation::open_world() {
   // The world: the one named, opened now if need be (--max-worlds), else the server's own.
-  const uint64_t seed = m.seed.value_or(worlds_.own_seed());
+  const uint64_t seed = hello_seed_;
+  const uint32_t chosen = hello_version_;
   auto client = worlds_.open(seed, chosen);
-  if (!client) return fail(client.error(), m.ref);
+  if (!client) return fail(client.error(), hello_ref_);
   client_ = *client;
   state_ = State::kOpen;
   tokens_ = config_.limits.request_burst;
@@ -257,7 +297,7 @@ void Conversation::on(const proto::Hello& m) {
   bytes_tokens_ = config_.limits.max_kbps / 8.0 * 1000;
   bytes_tokens_at_ = tokens_at_;
   proto::Welcome w;
-  w.ref = m.ref;
+  w.ref = hello_ref_;
   w.version = chosen;
   w.server = config_.server_name;
   w.seed = seed;
@@ -265,7 +305,7 @@ void Conversation::on(const proto::Hello& m) {
   w.limits = config_.limits;
   send(w);
   spdlog::info("event=hello session={} name=\"{}\" version={} seed={}", config_.session,
-               proto::echo(m.name), chosen, seed);
+               proto::echo(hello_name_), chosen, seed);
   emit(act::Timer{std::chrono::milliseconds{config_.limits.idle_timeout_ms}});
 }
 
@@ -432,12 +472,14 @@ void Conversation::log_unlogged() {
   errors_unlogged_ = 0;
 }
 
-void Conversation::fail(const Error& error, proto::Ref ref, std::vector<uint32_t> versions) {
+void Conversation::fail(const Error& error, proto::Ref ref, std::vector<uint32_t> versions,
+                        std::optional<uint32_t> retry_after_ms) {
   if (state_ == State::kClosed) return;
   release();
   auto e = proto::error_reply(error, ref);
   e.fatal = true;
   e.versions = std::move(versions);
+  e.retry_after_ms = retry_after_ms;
   send_error(std::move(e));
   close(close_code_for(error.code), proto::wire_code_name(error.code),
         error.code != ErrorCode::kTimeout);

@@ -37,10 +37,27 @@ enum class CloseCode : uint16_t {
 // The close code that follows a fatal error of this code.
 CloseCode close_code_for(ErrorCode code);
 
+// What the server's admission (server/admission.hpp) says about a hello that passed its checks.
+struct Entry {
+  enum class Kind { kAdmitted, kQueued, kRefused };
+  Kind kind = Kind::kAdmitted;
+  uint32_t position = 0;        // kQueued: 1-based
+  uint32_t wait_ms = 0;         // kQueued: estimated
+  uint32_t queue = 0;           // kQueued: sessions waiting
+  uint32_t retry_after_ms = 0;  // kRefused
+  bool queue_full = false;      // kRefused: the queue was full (else the client cannot wait)
+};
+
 // What a conversation needs answered at once about worlds (the generator, behind the session).
 class WorldPort {
  public:
   virtual ~WorldPort() = default;
+  // A valid hello asks to enter; `can_queue` is hello.queue. Admitted: open() follows at once;
+  // queued: Conversation::admitted() or queue_update() come later.
+  virtual Entry enter(bool can_queue) {
+    (void)can_queue;
+    return {};
+  }
   virtual uint64_t own_seed() const = 0;
   // A client of world `seed`, whose deliveries reach Conversation::delivery as frames of protocol
   // `version`. Errors: world_mismatch, overloaded (PROTOCOL.md's hello checks).
@@ -120,6 +137,7 @@ class Conversation {
   enum class State {
     kNew,            // upgraded, not yet admitted
     kAwaitingHello,  // admitted; the handshake timer runs
+    kQueued,         // a valid hello waits in the admission queue: only ping is answered
     kOpen,           // welcome sent; the idle timer runs
     kClosed,         // a close was returned, or the transport is gone: no more actions but none
   };
@@ -139,6 +157,8 @@ class Conversation {
   void shutdown();                      // the server is stopping
   void slow_client(size_t queued_bytes = 0);  // the send queue went over its bound
   void transport_closed();                    // the socket is gone: release what is held
+  void admitted();  // the admission queue let this queued session in: the world, then welcome
+  void queue_update(uint32_t position, uint32_t wait_ms, uint32_t queue);  // a new place
 
   // The actions since the last call, in order.
   std::vector<Action> take();
@@ -171,7 +191,9 @@ class Conversation {
   void log_unlogged();  // the summary line for errors past kErrorsLogged
   // A fatal error: the error, then the close (close_code_for its code); everything held is
   // released first.
-  void fail(const Error& error, proto::Ref ref, std::vector<uint32_t> versions = {});
+  void fail(const Error& error, proto::Ref ref, std::vector<uint32_t> versions = {},
+            std::optional<uint32_t> retry_after_ms = std::nullopt);
+  void open_world();  // the hello admitted: its world, then welcome
   void close(CloseCode code, std::string reason, bool await_reply = true);
   void release();
   template <class A>
@@ -184,6 +206,11 @@ class Conversation {
   Metrics* metrics_;
   State state_ = State::kNew;
   ClientId client_ = 0;
+  // The hello being admitted (kQueued until admitted()): what open_world() needs of it.
+  proto::Ref hello_ref_;
+  uint64_t hello_seed_ = 0;
+  uint32_t hello_version_ = 0;
+  std::string hello_name_;
   std::unordered_map<uint64_t, InFlight> in_flight_;  // the ledger, by packed room id
   uint64_t rooms_sent_ = 0;
   uint64_t bytes_sent_ = 0;

@@ -554,4 +554,9 @@ size_t Generator::queue_depth() const {
   return state_->schedule.queued_jobs();
 }
 
+std::chrono::milliseconds Generator::oldest_urgent() const {
+  std::lock_guard lock(state_->mutex);
+  return state_->schedule.oldest_urgent(Clock::now());
+}
+
 }  // namespace grotto::server

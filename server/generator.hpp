@@ -124,6 +124,8 @@ class Generator {
   // "opencl: <device>" or "cpu: <why>", as kernels::RoomBuilder::path() reports it.
   std::string compute_path() const;
   size_t queue_depth() const;  // jobs queued, not yet building
+  // Schedule::oldest_urgent now: how late the most overdue urgent room is (admission's measure).
+  std::chrono::milliseconds oldest_urgent() const;
   // The shared device's launches and the workers' batches they carried (share_device with a
   // usable device; zeros otherwise).
   struct DeviceLaunches {

@@ -115,8 +115,11 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
     }
     if (path == "/readyz") {
       // Ready on the CPU path too (slower, still serving); the body says which path it runs.
-      bool ready = server_.generator != nullptr && !server_.stopping.load();
+      // Not ready while newcomers wait in the admission queue: a balancer sends them elsewhere.
+      const size_t waiting = server_.queue_length.load();
+      bool ready = server_.generator != nullptr && !server_.stopping.load() && waiting == 0;
       std::string body = ready ? "ready\n" : "not ready\n";
+      if (waiting > 0) body += "queued: " + std::to_string(waiting) + "\n";
       if (server_.generator) body += "compute: " + server_.generator->compute_path() + "\n";
       return respond(req, ready ? http::status::ok : http::status::service_unavailable,
                      "text/plain", std::move(body));

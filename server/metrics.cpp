@@ -154,6 +154,24 @@ std::string Metrics::render() const {
   gauge(out, "grotto_handshakes_open",
         "WebSocket sessions that have not said hello yet (max-handshakes bounds them).",
         handshakes_open.value());
+  gauge(out, "grotto_sessions_queued",
+        "Sessions past a valid hello waiting in the admission queue (max-queue bounds them).",
+        sessions_queued.value());
+  counter(out, "grotto_sessions_admitted_from_queue_total",
+          "Queued sessions let in (a player left, or the service caught up).",
+          sessions_admitted_from_queue.value());
+  counter(out, "grotto_sessions_refused_total",
+          "Hellos refused with overloaded: the queue was full, or the client cannot wait in it.",
+          sessions_refused.value());
+  gauge(out, "grotto_admission_capacity",
+        "Players admitted when the service last fell behind (0: never behind).",
+        admission_capacity.value());
+  gauge(out, "grotto_admission_behind",
+        "1 while the players are not served in time and newcomers wait in the queue.",
+        admission_behind.value());
+  gauge(out, "grotto_oldest_urgent_ms",
+        "Players' oldest urgent room wants still queued, 90th percentile over the players, in ms.",
+        oldest_urgent_ms.value());
   gauge(out, "grotto_sockets_open", "Accepted TCP sockets open now, upgraded or not.",
         sockets_open.value());
   counter(out, "grotto_sockets_shed_total",

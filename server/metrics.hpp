@@ -58,7 +58,14 @@ class Metrics {
   Counter connections_rejected;  // grotto_connections_rejected_total (max_connections or
                                  // max_handshakes)
   Gauge handshakes_open;         // grotto_handshakes_open (sessions not yet past hello)
-  Counter http_requests_total;   // grotto_http_requests_total
+  // Admission past capacity (server/admission.hpp).
+  Gauge sessions_queued;                 // grotto_sessions_queued (valid hellos waiting to enter)
+  Counter sessions_admitted_from_queue;  // grotto_sessions_admitted_from_queue_total
+  Counter sessions_refused;              // grotto_sessions_refused_total (overloaded at hello)
+  Gauge admission_capacity;     // grotto_admission_capacity (players when it last fell behind)
+  Gauge admission_behind;       // grotto_admission_behind (1 while newcomers wait)
+  Gauge oldest_urgent_ms;       // grotto_oldest_urgent_ms (players' oldest urgent wants, p90)
+  Counter http_requests_total;  // grotto_http_requests_total
   // Rooms over HTTP (PROTOCOL.md, "Rooms over HTTP"): GETs of a room URL answered with the room
   // (a peer replica's owner fetch, a cache or CDN, any client), answered 304 (the client's ETag
   // matched), and refused (any 4xx or 5xx, by status). HEAD counts as a GET.

@@ -534,4 +534,28 @@ std::vector<sched::Action> Schedule::take() {
   return std::exchange(actions_, {});
 }
 
+std::chrono::milliseconds Schedule::oldest_urgent(ScheduleTime now) const {
+  if (clients_.empty()) return std::chrono::milliseconds{0};
+  const auto urgent = static_cast<uint64_t>(config_.urgent_within.count());
+  // Each client's oldest urgent want still queued; clients with none waiting count as 0.
+  std::vector<ScheduleTime::duration> ages(clients_.size(), ScheduleTime::duration{0});
+  size_t n = 0;
+  for (ClientId id : queued_clients_) {
+    const Client& c = clients_.at(id);
+    std::optional<ScheduleTime> oldest;
+    for (const QueueEntry& e : c.queue) {
+      if (e.priority > urgent) break;  // the queue is by priority: the rest is prefetch
+      const ScheduleTime received = c.wants.at(e.key).received;
+      if (!oldest || received < *oldest) oldest = received;
+    }
+    if (oldest && *oldest < now) ages[n++] = now - *oldest;
+  }
+  // The 90th percentile over the clients, not the maximum: one client asking a thousand rooms
+  // due now waits for its own backlog (round-robin serves everyone else first), which says
+  // nothing about whether the others are served in time.
+  const size_t k = (ages.size() - 1) * 9 / 10;
+  std::nth_element(ages.begin(), ages.begin() + static_cast<std::ptrdiff_t>(k), ages.end());
+  return std::chrono::duration_cast<std::chrono::milliseconds>(ages[k]);
+}
+
 }  // namespace grotto::server

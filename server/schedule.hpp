@@ -18,6 +18,7 @@
 #include <cstdint>
 #include <deque>
 #include <map>
+#include <optional>
 #include <set>
 #include <span>
 #include <variant>
@@ -140,6 +141,11 @@ class Schedule {
   // The actions since the last call, in order.
   std::vector<sched::Action> take();
 
+  // How long the clients' urgent wants (asked due within urgent_within) still queued have
+  // waited: each client's oldest, the 90th percentile over all clients (those with none waiting
+  // count as 0). What admission (server/admission.hpp) reads to tell whether the players are
+  // served in time. Looks only at the queues' urgent heads.
+  std::chrono::milliseconds oldest_urgent(ScheduleTime now) const;
   bool stopping() const { return stopping_; }
   size_t queued_jobs() const { return queued_jobs_; }  // jobs queued, not fetching or building
   size_t jobs() const { return jobs_.size(); }         // the ledger: queued, fetching, building

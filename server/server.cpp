@@ -147,6 +147,74 @@ void Server::Impl::reserve_returned() {
 
 // ---- Server ----
 
+Entry Server::Impl::enter(uint64_t id, bool can_queue) {
+  std::lock_guard lock(sessions_mutex);
+  if (!admission) return {};
+  auto decision = admission->enter(id, can_queue, Clock::now());
+  Entry e;
+  if (decision) {
+    if (auto* q = std::get_if<adm::Queued>(&*decision)) {
+      e = Entry{Entry::Kind::kQueued, q->position, q->wait_ms, q->queue, 0, false};
+      queued.insert(id);
+      queue_length.store(queued.size());
+      --handshakes;
+      metrics.handshakes_open.set(static_cast<int64_t>(handshakes));
+      metrics.sessions_queued.set(static_cast<int64_t>(queued.size()));
+    } else if (auto* r = std::get_if<adm::Refuse>(&*decision)) {
+      e = Entry{Entry::Kind::kRefused, 0, 0, 0, r->retry_after_ms, r->queue_full};
+    }
+  }
+  carry_out(admission->take(), id);
+  return e;
+}
+
+void Server::Impl::carry_out(std::vector<AdmissionAction> actions, uint64_t entering) {
+  for (AdmissionAction& a : actions) {
+    if (auto* admit = std::get_if<adm::Admit>(&a)) {
+      if (admit->session == entering || !queued.erase(admit->session)) continue;
+      // A handshake again until its world opens (promote()).
+      ++handshakes;
+      metrics.handshakes_open.set(static_cast<int64_t>(handshakes));
+      metrics.sessions_admitted_from_queue.add();
+      auto it = sessions.find(admit->session);
+      if (it == sessions.end()) continue;
+      if (auto p = it->second.lock()) admit_session(*p);
+    } else if (auto* place = std::get_if<adm::Queued>(&a)) {
+      if (place->session == entering) continue;
+      auto it = sessions.find(place->session);
+      if (it == sessions.end()) continue;
+      if (auto p = it->second.lock()) tell_session(*p, *place);
+    }
+  }
+  queue_length.store(queued.size());
+  metrics.sessions_queued.set(static_cast<int64_t>(queued.size()));
+}
+
+void Server::Impl::start_measuring() {
+  if (!admission || stopping.load()) return;
+  measure_timer->expires_after(kMeasureEvery);
+  measure_timer->async_wait([this](beast::error_code ec) {
+    if (ec || stopping.load()) return;
+    measure();
+    start_measuring();
+  });
+}
+
+void Server::Impl::measure() {
+  AdmissionSample sample;
+  sample.oldest_urgent = generator->oldest_urgent();  // the generator's lock, not ours
+  const uint64_t served = metrics.rooms_served.value();
+  sample.rooms_per_s = static_cast<double>(served - rooms_served_before) * 1000.0 /
+                       static_cast<double>(kMeasureEvery.count());
+  rooms_served_before = served;
+  std::lock_guard lock(sessions_mutex);
+  admission->measure(sample, Clock::now());
+  carry_out(admission->take(), 0);
+  metrics.oldest_urgent_ms.set(sample.oldest_urgent.count());
+  metrics.admission_behind.set(admission->behind() ? 1 : 0);
+  metrics.admission_capacity.set(static_cast<int64_t>(admission->capacity()));
+}
+
 Server::Server(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
 
 Server::~Server() {
@@ -167,6 +235,14 @@ Result<std::unique_ptr<Server>> Server::start(const ServerConfig& config) {
   if (!generator) return generator.error();
   impl->generator = std::move(generator).value();
   impl->metrics.set_compute_path(impl->generator->compute_path());
+  if (config.admission.late_after.count() > 0 || config.admission.max_players > 0) {
+    AdmissionConfig a = config.admission;
+    if (a.late_after.count() == 0) a.late_after = std::chrono::hours{24};  // max_players alone
+    // Caught up needs clearly less than late: a margin, so the two thresholds never cross.
+    a.caught_up_below = std::min(a.caught_up_below, a.late_after / 2);
+    impl->admission.emplace(a);
+    impl->measure_timer.emplace(net::make_strand(impl->ioc));
+  }
 
   beast::error_code ec;
   auto address = net::ip::make_address(config.bind, ec);
@@ -197,6 +273,9 @@ Result<std::unique_ptr<Server>> Server::start(const ServerConfig& config) {
   }
   impl->refill_reserve();  // before any thread runs: the accept strand is not yet in use
   net::dispatch(*impl->accept_strand, [p = impl.get()] { p->do_accept(); });
+  if (impl->measure_timer) {
+    net::dispatch(impl->measure_timer->get_executor(), [p = impl.get()] { p->start_measuring(); });
+  }
   for (int i = 0; i < threads; ++i) {
     impl->threads.emplace_back([p = impl.get()] {
       name_this_thread("grotto-io");
@@ -252,6 +331,9 @@ void Server::stop(std::chrono::milliseconds drain) {
   // elsewhere with a random delay, as the players being drained are, instead of meeting a TCP
   // refusal it cannot tell from a dead server. Bounded: by max_sockets() and the drain.
   s.stopping.store(true);
+  if (s.measure_timer) {
+    net::dispatch(s.measure_timer->get_executor(), [&s] { s.measure_timer->cancel(); });
+  }
   std::vector<std::shared_ptr<WsSession>> live;
   {
     std::lock_guard lock(s.sessions_mutex);

@@ -25,9 +25,11 @@
 #include <optional>
 #include <thread>
 #include <unordered_map>
+#include <unordered_set>
 #include <utility>
 #include <vector>
 
+#include "server/admission.hpp"
 #include "server/conversation.hpp"
 #include "server/fd_limit.hpp"
 #include "server/server.hpp"
@@ -114,7 +116,8 @@ struct Server::Impl {
   std::atomic<int> sockets{0};
   Clock::time_point shed_logged{};
   int max_sockets() const {
-    return config.max_connections + config.max_handshakes + kSpareSocketCount;
+    return config.max_connections + config.max_handshakes +
+           static_cast<int>(admission ? config.admission.max_queue : 0) + kSpareSocketCount;
   }
   Clock::time_point accept_logged{};
   std::vector<std::thread> threads;
@@ -132,6 +135,16 @@ struct Server::Impl {
   std::unordered_map<uint64_t, std::weak_ptr<WsSession>> sessions;
   size_t handshakes = 0;
   uint64_t next_session = 1;
+
+  // Admission past capacity (server/admission.hpp), under sessions_mutex; none with
+  // admission-late-ms 0. `queued` sessions said a valid hello and wait: neither handshakes nor
+  // players. One admitted from the queue counts as a handshake again until promote().
+  std::optional<AdmissionQueue> admission;
+  std::unordered_set<uint64_t> queued;
+  std::atomic<size_t> queue_length{0};  // queued.size(), for /readyz without the lock
+  std::optional<net::steady_timer> measure_timer;
+  uint64_t rooms_served_before = 0;  // on the timer's handler only
+  static constexpr auto kMeasureEvery = std::chrono::milliseconds{250};
 
   // Generator deliveries go through this gate: once stop() closes it, no worker posts into the
   // io_context any more (a straggling worker may outlive the drain timeout).
@@ -177,12 +190,29 @@ struct Server::Impl {
     {
       std::lock_guard lock(sessions_mutex);
       sessions.erase(id);
-      if (!player) --handshakes;
+      const bool was_queued = queued.erase(id) > 0;
+      queue_length.store(queued.size());
+      if (!player && !was_queued) --handshakes;
+      if (admission) {
+        admission->leave(id, Clock::now());
+        carry_out(admission->take(), 0);
+      }
       metrics.handshakes_open.set(static_cast<int64_t>(handshakes));
     }
     sessions_cv.notify_all();
   }
-  size_t players() const { return sessions.size() - handshakes; }  // under sessions_mutex
+  size_t players() const {  // under sessions_mutex
+    return sessions.size() - handshakes - queued.size();
+  }
+
+  // A valid hello asks to enter (WorldPort::enter). Admitted, queued or refused.
+  Entry enter(uint64_t id, bool can_queue);
+  // Periodically (kMeasureEvery): how the players are served, fed to the admission queue.
+  void start_measuring();
+  void measure();
+  // Carries out the admission queue's actions, but those about `entering` (answered in enter()).
+  // Under sessions_mutex.
+  void carry_out(std::vector<AdmissionAction> actions, uint64_t entering);
 
   void do_accept();
   void on_accept(beast::error_code ec, tcp::socket socket);
@@ -234,6 +264,9 @@ void start_ws_session(Server::Impl& server, beast::tcp_stream&& stream, SocketSl
                       http::request<http::string_body>&& req);
 // At stop: close a session with service_restart (drain), or cut its socket (drain timed out).
 void shutdown_session(WsSession& session);
+// The admission queue let a queued session in, or has news of its place (posted to its strand).
+void admit_session(WsSession& session);
+void tell_session(WsSession& session, adm::Queued place);
 void cut_session(WsSession& session);
 
 }  // namespace grotto::server

@@ -126,6 +126,26 @@ class WsSession : public std::enable_shared_from_this<WsSession>, private WorldP
 
   uint64_t own_seed() const override { return server_.generator->world().seed(); }
 
+  Entry enter(bool can_queue) override { return server_.enter(registry_id_, can_queue); }
+
+ public:
+  // From the admission queue (under the server's sessions lock: post only).
+  void admitted() {
+    net::post(ws_.get_executor(), [self = shared_from_this()] {
+      if (self->closing_ || !self->conversation_) return;
+      self->conversation_->admitted();
+      self->apply();
+    });
+  }
+  void told(adm::Queued place) {
+    net::post(ws_.get_executor(), [self = shared_from_this(), place] {
+      if (self->closing_ || !self->conversation_) return;
+      self->conversation_->queue_update(place.position, place.wait_ms, place.queue);
+      self->apply();
+    });
+  }
+
+ private:
   Result<ClientId> open(uint64_t seed, uint32_t version) override {
     if (!player_) {
       if (!server_.promote()) {
@@ -388,6 +408,12 @@ void start_ws_session(Server::Impl& server, beast::tcp_stream&& stream, SocketSl
 
 void shutdown_session(WsSession& session) {
   session.shutdown();
+}
+void admit_session(WsSession& session) {
+  session.admitted();
+}
+void tell_session(WsSession& session, adm::Queued place) {
+  session.told(place);
 }
 void cut_session(WsSession& session) {
   session.cut();

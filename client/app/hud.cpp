@@ -5,6 +5,20 @@
 
 namespace grotto::app {
 namespace {
+// "1ST", "2ND", "3RD", "11TH", "22ND".
+const char* ordinal_suffix(uint32_t n) {
+  if (n % 100 >= 11 && n % 100 <= 13) return "TH";
+  switch (n % 10) {
+    case 1:
+      return "ST";
+    case 2:
+      return "ND";
+    case 3:
+      return "RD";
+    default:
+      return "TH";
+  }
+}
 
 constexpr size_t kLatencyWindow = 64;
 
@@ -52,6 +66,14 @@ std::vector<render::OverlayLine> hud_lines(const HudState& s) {
     case stream::StreamState::kReady:
       break;
     case stream::StreamState::kConnecting:
+      if (st.queued) {
+        // Past the server's capacity (PROTOCOL.md, "Waiting to enter"): where we stand.
+        const int wait_s = std::max(1, static_cast<int>((st.queued->wait_ms + 500) / 1000));
+        lines.push_back({format("WAITING TO ENTER: %u%s IN LINE, ABOUT %d S", st.queued->position,
+                                ordinal_suffix(st.queued->position), wait_s),
+                         render::kOverlayWarning});
+        break;
+      }
       lines.push_back(
           {st.connects == 0 ? "CONNECTING TO THE SERVER..." : "SERVER LOST: RECONNECTING...",
            render::kOverlayWarning});

@@ -13,10 +13,6 @@
 
 namespace grotto::load {
 
-// The stream library's vocabulary, which every simulated player speaks.
-using stream::parse_net_profile;
-using stream::parse_url;
-using stream::Stream;
 namespace {
 
 constexpr const char* kDescription =

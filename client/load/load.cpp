@@ -23,18 +23,6 @@
 
 namespace grotto::load {
 
-// The stream library's vocabulary, which every simulated player speaks.
-using stream::kUrgentPriorityMs;
-using stream::net_profile_text;
-using stream::PlanOptions;
-using stream::PortalGraph;
-using stream::Pose;
-using stream::Runtime;
-using stream::state_name;
-using stream::Stream;
-using stream::StreamOptions;
-using stream::StreamState;
-using stream::StreamStats;
 
 const char* mode_name(Mode mode) {
   switch (mode) {
@@ -84,6 +72,7 @@ struct Player {
   double peak_kbps = 0;
   StreamState final_state = StreamState::kConnecting;  // before stop()
   std::string final_error;                             // before stop()
+  bool queued_at_end = false;  // in a server's admission queue (before stop())
 };
 
 Status check(const LoadOptions& o) {
@@ -376,6 +365,20 @@ Result<LoadReport> run_load(const LoadOptions& options) {
       all_failed &= p.stream->state() == StreamState::kFailed;
       drain(p);
     }
+    // Once a second: how many wait in an admission queue, and how long the servers say it is.
+    if (const auto second = static_cast<size_t>(t);
+        second >= report.queued.waiting_by_second.size()) {
+      uint64_t waiting_now = 0, length = 0;
+      for (auto& p : players) {
+        if (!p.joined()) continue;
+        if (auto place = p.stream->stats().queued) {
+          ++waiting_now;
+          length = std::max<uint64_t>(length, place->queue);
+        }
+      }
+      report.queued.waiting_by_second.resize(second + 1, waiting_now);
+      report.queued.length_by_second.resize(second + 1, length);
+    }
     if (burst && t >= next_burst_check) {
       next_burst_check = t + 0.1;
       bool all = true;
@@ -418,18 +421,24 @@ Result<LoadReport> run_load(const LoadOptions& options) {
   if (options.progress) std::fprintf(stderr, "\r\x1b[K");
   report.elapsed_s = seconds_since(t0, Clock::now());
 
+  // Every player's end state before any stops: a player leaving a full server lets one waiting
+  // in its admission queue in, which would otherwise read as welcomed at the end.
   for (auto& p : players) {
     if (!p.joined()) continue;  // a run cut short (all others failed) before its join
     StreamStats before = p.stream->stats();
     p.final_state = before.state;
     p.final_error = before.last_error;
+    p.queued_at_end = before.queued.has_value();
+  }
+  for (auto& p : players) {
+    if (!p.joined()) continue;
     p.stream->stop();
     drain(p);  // what arrived between the last step and the stop
     p.final_stats = p.stream->stats();
   }
   if (verifier) report.verify = verifier->finish();
 
-  std::vector<double> first_rooms, stalls;
+  std::vector<double> first_rooms, stalls, queued_ms;
   for (auto& p : players) {
     if (!p.joined()) continue;
     const StreamStats& s = p.final_stats;
@@ -469,6 +478,14 @@ Result<LoadReport> run_load(const LoadOptions& options) {
     }
     pr.reconnects = s.reconnects;
     pr.restart_notices = s.restart_notices;
+    pr.queued_ms = s.queued_ms;
+    pr.times_queued = s.times_queued;
+    pr.queued_at_end = p.queued_at_end;
+    report.queued.at_end += p.queued_at_end ? 1 : 0;
+    if (s.times_queued > 0) {
+      ++report.queued.players;
+      queued_ms.push_back(s.queued_ms);
+    }
     for (const auto& [code, n] : s.errors) {
       pr.errors += n;
       report.errors[code] += n;
@@ -484,8 +501,9 @@ Result<LoadReport> run_load(const LoadOptions& options) {
     report.streams_failed += p.final_state == StreamState::kFailed ? 1 : 0;
     // Still trying to connect when the run ends: the server was lost (a drain that another
     // replica picked up is not, since the player is connected again by then).
-    report.players_disconnected +=
-        p.final_state == StreamState::kConnecting || p.final_state == StreamState::kBackoff;
+    // A player waiting in an admission queue is connected and told where it stands.
+    report.players_disconnected += !p.queued_at_end && (p.final_state == StreamState::kConnecting ||
+                                                        p.final_state == StreamState::kBackoff);
     if (!s.server.empty()) report.server = s.server;
     report.players_detail.push_back(std::move(pr));
   }
@@ -497,6 +515,7 @@ Result<LoadReport> run_load(const LoadOptions& options) {
     report.latency_by_second_ms.push_back(summarize(std::move(second)));
   report.decode_ms = summarize(std::move(decodes));
   report.stall_ms = summarize(std::move(stalls));
+  report.queued.ms = summarize(std::move(queued_ms));
   // Without --seed the report names the world the server served (welcome.seed).
   if (!report.seed) {
     for (const PlayerReport& pr : report.players_detail)

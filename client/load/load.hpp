@@ -17,9 +17,8 @@
 
 namespace grotto::load {
 
-// The stream library's vocabulary, which every simulated player speaks.
-using stream::kDefaultMinHorizonS;
-using stream::NetProfile;
+// grotto-load is a client of client/stream through and through: its names read unqualified.
+using namespace grotto::stream;  // NOLINT(google-build-using-namespace)
 
 enum class Mode {
   kWalk,   // players walk the portal graph for duration_s (default 20 s)

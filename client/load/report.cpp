@@ -44,7 +44,7 @@ void total_players(LoadReport& r) {
   r.rooms_received_by_seed.clear();
   for (const auto& p : r.players_detail) {
     if (p.seed) r.rooms_received_by_seed[*p.seed] += p.rooms_received;
-    r.players_without_room += p.first_room_ms < 0 ? 1 : 0;
+    r.players_without_room += p.first_room_ms < 0 && !p.queued_at_end ? 1 : 0;
     r.rooms_ready += p.rooms_ready;
     r.rooms_received += p.rooms_received;
     r.bytes += p.bytes;
@@ -152,6 +152,13 @@ std::string format_table(const LoadReport& r) {
           r.rooms_per_room_entered);
   appendf(out, "  reconnects        %10llu  drops %llu, streams failed %llu, drain notices %llu\n",
           u(r.reconnects), u(r.drops), u(r.streams_failed), u(r.restart_notices));
+  if (r.queued.players > 0) {
+    appendf(out,
+            "  queued            %10llu  players, p50 %.1f s, p99 %.1f s; still waiting at the end "
+            "%llu\n",
+            u(r.queued.players), r.queued.ms.p50 / 1000, r.queued.ms.p99 / 1000,
+            u(r.queued.at_end));
+  }
   if (r.players_without_room > 0) {
     appendf(out, "  players without a room %llu\n", u(r.players_without_room));
   }
@@ -221,6 +228,9 @@ std::string to_json_text(const LoadReport& r) {
          {"stall_s", p.stall_s},
          {"reconnects", p.reconnects},
          {"restart_notices", p.restart_notices},
+         {"queued_ms", p.queued_ms},
+         {"times_queued", p.times_queued},
+         {"queued_at_end", p.queued_at_end},
          {"errors", p.errors},
          {"state", p.state},
          {"last_error", p.last_error},
@@ -289,6 +299,12 @@ std::string to_json_text(const LoadReport& r) {
       {"stalls", {{"count", r.stalls}, {"total_s", r.stall_total_s}, {"max", r.max_stalls}}},
       {"reconnects", r.reconnects},
       {"restart_notices", r.restart_notices},
+      {"queued",
+       {{"players", r.queued.players},
+        {"ms", to_json(r.queued.ms)},
+        {"at_end", r.queued.at_end},
+        {"waiting_by_second", r.queued.waiting_by_second},
+        {"length_by_second", r.queued.length_by_second}}},
       {"drops", r.drops},
       {"streams_failed", r.streams_failed},
       {"players_without_room", r.players_without_room},

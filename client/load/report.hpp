@@ -42,6 +42,9 @@ struct PlayerReport {
   double stall_s = 0;   // their total time
   uint64_t reconnects = 0;
   uint64_t restart_notices = 0;  // service_restart notices of draining servers (not errors)
+  double queued_ms = 0;          // time spent in servers' admission queues (PROTOCOL.md `queued`)
+  uint64_t times_queued = 0;     // connections that waited in one before their welcome
+  bool queued_at_end = false;    // still waiting when the run ended (not an error)
   uint64_t errors = 0;           // error messages received
   std::string state;             // the Stream's state at the end
   std::string last_error;        // its last error at the end, for people (empty: none)
@@ -118,6 +121,16 @@ struct LoadReport {
   double distance_m = 0;
   double burst_s = -1;  // burst mode: time until every player had its radius ready; -1: not
   VerifyReport verify;
+  // Servers past their capacity hold newcomers in a queue (PROTOCOL.md, "Waiting to enter").
+  struct Queue {
+    uint64_t players = 0;  // players that waited at least once
+    uint64_t at_end = 0;   // players still waiting when the run ended (neither an error nor
+                           // counted among players_without_room or players_disconnected)
+    Distribution ms;       // their total time queued
+    // By second of the run: players waiting then, and the longest queue a server reported.
+    std::vector<uint64_t> waiting_by_second;
+    std::vector<uint64_t> length_by_second;
+  } queued;
   std::vector<PlayerReport> players_detail;
 
   // The gates: stalls (-1: no limit), error messages, request->room p99 (-1: no limit).

@@ -7,8 +7,6 @@
 
 namespace grotto::load {
 
-// The stream library's vocabulary, which every simulated player speaks.
-using stream::ReadyRoom;
 namespace {
 
 void note(VerifyReport& report, const std::string& message) {

@@ -20,9 +20,8 @@
 
 namespace grotto::load {
 
-// The stream library's vocabulary, which every simulated player speaks.
-using stream::PortalGraph;
-using stream::ReadyRoom;
+// grotto-load is a client of client/stream through and through: its names read unqualified.
+using namespace grotto::stream;  // NOLINT(google-build-using-namespace)
 
 // The room `player` holds now, or nullptr. Called on the verifier's thread.
 using RoomLookup = std::function<std::shared_ptr<const ReadyRoom>(int player, cave::RoomId id)>;

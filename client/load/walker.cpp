@@ -6,8 +6,6 @@
 
 namespace grotto::load {
 
-// The stream library's vocabulary, which every simulated player speaks.
-using stream::Pose;
 
 const char* walker_state_name(WalkerState state) {
   switch (state) {

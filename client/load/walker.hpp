@@ -21,8 +21,8 @@
 
 namespace grotto::load {
 
-// The stream library's vocabulary, which every simulated player speaks.
-using stream::Pose;
+// grotto-load is a client of client/stream through and through: its names read unqualified.
+using namespace grotto::stream;  // NOLINT(google-build-using-namespace)
 
 // What a player knows of the world. descriptor: the room's sphere and portals once received
 // (nullopt before); ready: the room can be drawn (decoded and stored). Both are called from

@@ -84,6 +84,7 @@ Actions Conversation::opened(SteadyTime now) {
   hello.params = options_.params;
   hello.name = options_.name;
   if (!options_.token.empty()) hello.token = options_.token;
+  hello.queue = options_.queue;
   send(hello, now, out);
   return out;
 }
@@ -261,6 +262,18 @@ Actions Conversation::decoded(DecodeRoom job, Result<codec::DecodedRoom> mesh, S
 Actions Conversation::tick(SteadyTime now) {
   Actions out;
   if (!open_) return out;
+  if (!welcomed_ && queued_since_) {
+    // Queued, the server talks to us: connect_timeout does not apply, a ping now and then
+    // keeps the connection known to be alive.
+    stats_.queued_ms += std::chrono::duration<double, std::milli>(now - *queued_since_).count();
+    queued_since_ = now;
+    if (now - last_send_ > std::chrono::seconds{10}) {
+      proto::Ping p;
+      p.t = std::chrono::duration<double, std::milli>(now.time_since_epoch()).count();
+      send(p, now, out);
+    }
+    return out;
+  }
   if (!welcomed_) {
     if (now - opened_at_ >= options_.connect_timeout) {
       reconnect("no welcome within " + std::to_string(options_.connect_timeout.count()) + " ms",
@@ -325,8 +338,25 @@ bool Conversation::expire_pins(SteadyTime now) {
 
 // ---- messages ----
 
+void Conversation::on_message(const proto::Queued& q, SteadyTime now, Actions&) {
+  if (welcomed_) return note_error("server sent queued after welcome");
+  if (!queued_since_) {
+    queued_since_ = now;
+    ++stats_.times_queued;
+  }
+  stats_.queued = StreamStats::QueuePlace{q.position, q.wait_ms, q.queue};
+}
+
+void Conversation::leave_queue(SteadyTime now) {
+  if (!queued_since_) return;
+  stats_.queued_ms += std::chrono::duration<double, std::milli>(now - *queued_since_).count();
+  queued_since_.reset();
+  stats_.queued.reset();
+}
+
 void Conversation::on_message(const proto::Welcome& w, SteadyTime now, Actions& out) {
   if (welcomed_) return note_error("server sent a second welcome");
+  leave_queue(now);
   if (!proto::speaks_version(w.version)) {
     return fail("server chose protocol version " + std::to_string(w.version) +
                     "; this client speaks " + std::to_string(proto::kMinProtocolVersion) + " to " +
@@ -452,6 +482,9 @@ void Conversation::on_message(const proto::ErrorMessage& e, SteadyTime now, Acti
   if (e.code == ErrorCode::kOverloaded || e.code == ErrorCode::kLimitExceeded) {
     hold_until_ = now + backoff_delay(1);
   }
+  // Refused at the door with a time to come back: the reconnect waits at least that long, so a
+  // crowd refused together does not return together before the server can take it.
+  if (e.fatal && e.retry_after_ms) retry_after_ = std::chrono::milliseconds{*e.retry_after_ms};
   // Every error before welcome is fatal, whatever its flag says (PROTOCOL.md "Session").
   const bool fatal = e.fatal || !welcomed_;
   if (fatal) fatal_ = std::string(code) + ": " + e.message;
@@ -687,6 +720,7 @@ std::chrono::milliseconds Conversation::restart_delay() {
 
 void Conversation::end_connection() {
   if (open_ || stats_.state == StreamState::kConnecting) ++stats_.drops;
+  if (queued_since_) leave_queue(*queued_since_);  // no clock here: ticks kept queued_ms
   open_ = false;
   welcomed_ = false;
   in_flight_.clear();
@@ -702,7 +736,8 @@ void Conversation::reconnect(const std::string& why, bool restart, Actions& out)
   end_connection();
   note_error(why);
   stats_.state = StreamState::kBackoff;
-  const auto delay = restart ? restart_delay() : backoff_delay(attempts_++);
+  const auto delay = std::max(restart ? restart_delay() : backoff_delay(attempts_++),
+                              std::exchange(retry_after_, std::chrono::milliseconds{0}));
   out.emplace_back(std::in_place_type<Reconnect>, Reconnect{delay, why});
 }
 

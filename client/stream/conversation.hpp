@@ -166,7 +166,8 @@ class Conversation {
 
   StreamState state() const { return stats_.state; }
   bool welcomed() const { return welcomed_; }
-  StreamStats stats() const;  // in_flight and store figures filled in
+  StreamStats stats()
+      const;  // in_flight and store figures filled in (queued_ms as of the last event)
   const proto::Limits& limits() const { return limits_; }
   // The lod every room of this session is requested and held at.
   uint32_t lod() const { return lod_; }
@@ -198,6 +199,8 @@ class Conversation {
   void on_message(const proto::ErrorMessage& e, SteadyTime now, Actions& out);
   void on_message(const proto::Pong&, SteadyTime, Actions&) {}
   void on_message(const proto::Stats&, SteadyTime, Actions&) {}
+  void on_message(const proto::Queued& q, SteadyTime now, Actions& out);
+  void leave_queue(SteadyTime now);  // the queued time so far into stats_.queued_ms
 
   void plan(SteadyTime now, Actions& out);
   // The pinned areas' rooms, nearest first (fills pinned_); with `out`, asks the server where a
@@ -228,6 +231,9 @@ class Conversation {
   SteadyTime opened_at_;
   SteadyTime last_send_;
   SteadyTime hold_until_;  // after overloaded or limit_exceeded: no requests before this
+  std::optional<SteadyTime> queued_since_;  // this connection waits in the admission queue
+  // error.retry_after_ms of the last fatal overloaded: the next reconnect waits at least this.
+  std::chrono::milliseconds retry_after_{0};
   SteadyTime last_locate_;
   std::string fatal_;  // the fatal error the server sent before closing, if any
   std::map<cave::RoomId, InFlightRoom> in_flight_;

@@ -31,6 +31,9 @@ struct StreamOptions {
   std::optional<uint64_t> params;      // its parameter digest; absent: the server's
   std::string name = "grotto-stream";  // hello.name, for the server's logs
   std::string token;                   // hello.token (proto/token.hpp); "": none
+  // hello.queue: past its capacity the server may hold us in its queue (stats().queued says
+  // where) rather than refuse us; false: admitted or refused, overloaded + retry_after_ms.
+  bool queue = true;
   // Wire lod requested (0: the streamed patch mesh), capped at the server's max_lod. One lod a
   // session: rooms of lod 0 and lod 1 do not share rims, so neighbours must be of one lod.
   uint32_t lod = 0;
@@ -116,6 +119,16 @@ struct StreamStats {
   std::optional<uint64_t> seed;  // welcome.seed: the world served (none before a welcome)
   proto::Limits limits;          // welcome.limits of the current or last connection
   double horizon_s = 0;          // the prefetch horizon in use (StreamOptions::min_horizon_s)
+  // Waiting in the server's admission queue (state kConnecting, hello answered by `queued`
+  // rather than welcome): the last place the server gave. None when not queued.
+  struct QueuePlace {
+    uint32_t position = 0;  // 1-based
+    uint32_t wait_ms = 0;   // the server's estimate
+    uint32_t queue = 0;     // sessions waiting
+  };
+  std::optional<QueuePlace> queued;
+  uint64_t times_queued = 0;  // connections that waited in the queue before their welcome
+  double queued_ms = 0;       // time spent queued, all connections (the current wait included)
 };
 
 // Per-room measurements, for grotto-load's percentiles; drained by take_samples().

@@ -1498,5 +1498,82 @@ TEST(Conversation, a_pinned_areas_rooms_are_not_evicted_until_it_is_unpinned) {
   EXPECT_TRUE(h.c.room(rid(4)));
 }
 
+// Past a server's capacity (PROTOCOL.md, "Waiting to enter").
+TEST(Conversation, the_admission_queue) {
+  auto hello_of = [](const Actions& a) -> std::optional<proto::Hello> {
+    for (const auto& x : a) {
+      if (const auto* m = std::get_if<SendMessage>(&x)) {
+        if (const auto* h = std::get_if<proto::Hello>(&m->message)) return *h;
+      }
+    }
+    return std::nullopt;
+  };
+  {
+    Harness h;
+    auto hello = hello_of(h.open());
+    ASSERT_TRUE(hello);
+    EXPECT_TRUE(hello->queue) << "a stream says it can wait";
+    StreamOptions o = fixed_horizon();
+    o.queue = false;
+    Harness plain(o);
+    hello = hello_of(plain.open());
+    ASSERT_TRUE(hello);
+    EXPECT_FALSE(hello->queue);
+  }
+  {
+    Harness h;
+    h.open();
+    EXPECT_TRUE(h.msg(proto::Queued{1, 3, 4000, 5}).empty());
+    auto s = h.c.stats();
+    EXPECT_EQ(s.state, StreamState::kConnecting);
+    ASSERT_TRUE(s.queued);
+    EXPECT_EQ(s.queued->position, 3u);
+    EXPECT_EQ(s.queued->wait_ms, 4000u);
+    EXPECT_EQ(s.queued->queue, 5u);
+    EXPECT_EQ(s.times_queued, 1u);
+    // Queued past connect_timeout: the server is talking, no reconnect; a ping now and then.
+    Actions a = h.tick(milliseconds(6'000));
+    for (const auto& x : a)
+      EXPECT_FALSE(std::holds_alternative<Reconnect>(x)) << describe(x);
+    a = h.tick(milliseconds(6'000));
+    ASSERT_EQ(a.size(), 1u);
+    EXPECT_EQ(describe(a[0]), "ping");
+    ASSERT_TRUE(h.c.stats().queued) << "ticks keep the place";
+    EXPECT_EQ(h.c.stats().queued->position, 3u);
+    h.msg(proto::Queued{1, 1, 1000, 2});
+    EXPECT_EQ(h.c.stats().queued->position, 1u);
+    h.tick(milliseconds(3'000));
+    // Admitted: ready, no longer queued, the time it waited counted.
+    EXPECT_FALSE(h.msg(welcome()).empty());
+    s = h.c.stats();
+    EXPECT_EQ(s.state, StreamState::kReady);
+    EXPECT_FALSE(s.queued);
+    EXPECT_EQ(s.times_queued, 1u);
+    EXPECT_DOUBLE_EQ(s.queued_ms, 15'000);
+  }
+  {
+    // Refused with a time to come back: the reconnect waits at least that long.
+    Harness h;
+    h.open();
+    proto::ErrorMessage e;
+    e.ref = 1;
+    e.code = ErrorCode::kOverloaded;
+    e.message = "the server is full";
+    e.fatal = true;
+    e.retry_after_ms = 7'000;
+    h.msg(e);
+    Actions a = h.c.closed(kClosePolicy, "overloaded", h.now);
+    ASSERT_EQ(a.size(), 1u);
+    const auto* r = std::get_if<Reconnect>(&a[0]);
+    ASSERT_NE(r, nullptr);
+    EXPECT_GE(r->delay.count(), 7'000);
+    // Only once: the next failure backs off as usual.
+    h.c.connecting();
+    a = h.c.lost("connecting: refused", h.now);
+    ASSERT_EQ(a.size(), 1u);
+    EXPECT_LT(std::get<Reconnect>(a[0]).delay.count(), 7'000);
+  }
+}
+
 }  // namespace
 }  // namespace grotto::stream

@@ -41,11 +41,13 @@ TEST(ProtoRoundTrip, every_client_message_round_trips) {
             18446744073709551615ull,
             0x0123456789abcdefull,
             "grotto-load 0.1",
-            std::nullopt},
-      Hello{std::nullopt, {1}, std::nullopt, std::nullopt, "", std::nullopt},
-      Hello{0, {1}, 0, 0, "ünïcode ok", std::nullopt},
-      Hello{2, {1}, 7, std::nullopt, "fleet", "s3cret token ~!@#$%^&*()"},
-      Hello{3, {1}, std::nullopt, std::nullopt, "", std::string(kMaxTokenBytes, 't')},
+            std::nullopt,
+            false},
+      Hello{std::nullopt, {1}, std::nullopt, std::nullopt, "", std::nullopt, false},
+      Hello{0, {1}, 0, 0, "ünïcode ok", std::nullopt, false},
+      Hello{2, {1}, 7, std::nullopt, "fleet", "s3cret token ~!@#$%^&*()", false},
+      Hello{3, {1}, std::nullopt, std::nullopt, "", std::string(kMaxTokenBytes, 't'), false},
+      Hello{4, {1, 2}, std::nullopt, std::nullopt, "waits", std::nullopt, true},
       Locate{9007199254740991ull, {0.1, -0.0, -16777216.0}},
       Locate{std::nullopt, {1e-300, 123.456789012345678, 5e-324}},
       Spawn{3},
@@ -76,14 +78,22 @@ TEST(ProtoRoundTrip, every_server_message_round_trips) {
       Located{2, {1.5, 2.5, -3.5}, id("0.0.0.r4")},
       Located{std::nullopt, {0, 0, 0}, std::nullopt},
       SpawnPoint{3, id("0.0.0.r0"), {48.1, 47.9, 48.0}},
-      ErrorMessage{
-          4, ErrorCode::kNotFound, "room 0.0.0.r999 does not exist", id("0.0.0.r999"), {}, false},
+      ErrorMessage{4,
+                   ErrorCode::kNotFound,
+                   "room 0.0.0.r999 does not exist",
+                   id("0.0.0.r999"),
+                   {},
+                   false,
+                   std::nullopt},
       ErrorMessage{std::nullopt,
                    ErrorCode::kUnsupportedVersion,
                    "no common version",
                    std::nullopt,
                    {1, 2},
-                   true},
+                   true,
+                   std::nullopt},
+      ErrorMessage{7, ErrorCode::kOverloaded, "full", std::nullopt, {}, true, 2500},
+      Queued{8, 14, 20000, 30},
       Pong{5, 12.75, 1732339200123ull},
       Stats{6, 10, 2000, 123456789, 3},
   };
@@ -97,10 +107,10 @@ TEST(ProtoRoundTrip, text_matches_the_documented_shape) {
   Request r{12, {{id("0.0.0.r3"), 0, 250}}};
   EXPECT_EQ(serialize(ClientMessage(r)),
             R"({"type":"request","ref":12,"rooms":[{"id":"0.0.0.r3","lod":0,"priority":250}]})");
-  Hello h{1, {1}, 7, std::nullopt, "grotto-client", std::nullopt};
+  Hello h{1, {1}, 7, std::nullopt, "grotto-client", std::nullopt, false};
   EXPECT_EQ(serialize(ClientMessage(h)),
             R"({"type":"hello","ref":1,"versions":[1],"seed":"7","name":"grotto-client"})");
-  ErrorMessage e{12, ErrorCode::kInvalidRoomId, "bad", std::nullopt, {}, false};
+  ErrorMessage e{12, ErrorCode::kInvalidRoomId, "bad", std::nullopt, {}, false, std::nullopt};
   EXPECT_EQ(serialize(ServerMessage(e)),
             R"({"type":"error","ref":12,"code":"invalid_room_id","message":"bad","fatal":false})");
 }
@@ -117,7 +127,7 @@ TEST(ProtoRoundTrip, doubles_keep_every_bit) {
 
 TEST(ProtoRoundTrip, long_error_messages_are_cut_to_the_limit_and_still_parse) {
   ErrorMessage e{std::nullopt, ErrorCode::kInternal, std::string(5000, 'x'), std::nullopt, {},
-                 false};
+                 false,        std::nullopt};
   std::string text = serialize(ServerMessage(e));
   Result<ServerMessage> back = parse_server_message(text, Limits{});
   ASSERT_TRUE(back.ok()) << back.error().message;
@@ -125,7 +135,8 @@ TEST(ProtoRoundTrip, long_error_messages_are_cut_to_the_limit_and_still_parse) {
 }
 
 TEST(ProtoRoundTrip, invalid_utf8_in_a_string_is_replaced_not_thrown) {
-  ErrorMessage e{std::nullopt, ErrorCode::kInternal, "bad \xff byte", std::nullopt, {}, false};
+  ErrorMessage e{std::nullopt, ErrorCode::kInternal, "bad \xff byte", std::nullopt, {},
+                 false,        std::nullopt};
   std::string text = serialize(ServerMessage(e));
   EXPECT_TRUE(parse_server_message(text, Limits{}).ok()) << text;
 }
@@ -216,7 +227,8 @@ TEST(ProtoErrorReply, messages_of_invalid_bytes_stay_printable_ascii_within_the_
     EXPECT_TRUE(printable_ascii(reply.message)) << reply.message;
     // Also an ErrorMessage built by hand: serialize() masks and cuts the same way.
     for (const ErrorMessage& e :
-         {reply, ErrorMessage{1, ErrorCode::kInternal, message, std::nullopt, {}, false}}) {
+         {reply,
+          ErrorMessage{1, ErrorCode::kInternal, message, std::nullopt, {}, false, std::nullopt}}) {
       std::string text = serialize(ServerMessage(e));
       EXPECT_LE(text.size(), kMaxErrorBytes + 100);
       Result<ServerMessage> back = parse_server_message(text, tight);

@@ -47,6 +47,12 @@ class FakeWorlds : public WorldPort {
     s.position = {1, 2, 3};
     return s;
   }
+  Entry enter(bool can_queue) override {
+    asked_queue = can_queue;
+    return entry;
+  }
+  Entry entry;  // what admission says to a valid hello (admitted unless a row says otherwise)
+  bool asked_queue = false;
   uint32_t opened_version = 0;  // the version the last client opened was framed for
   std::map<uint64_t, Error> refuse = {
       {8, Error{ErrorCode::kWorldMismatch, "this server serves seed 7, not 8"}},
@@ -107,7 +113,12 @@ std::string describe(const Action& action) {
       if (m.room) s += " room=" + m.room->to_string();
       for (uint32_t v : m.versions)
         s += " v" + std::to_string(v);
+      if (m.retry_after_ms) s += " retry=" + std::to_string(*m.retry_after_ms);
       return s;
+    }
+    static std::string describe_message(const proto::Queued& m) {
+      return "queued pos=" + std::to_string(m.position) + " wait=" + std::to_string(m.wait_ms) +
+             " of=" + std::to_string(m.queue) + ref_text(m.ref);
     }
     static std::string describe_message(const proto::Pong& m) {
       return "pong t=" + std::to_string(static_cast<int>(m.t)) +
@@ -228,10 +239,11 @@ ConversationConfig config(std::string token = {}) {
   return c;
 }
 
-void run(const std::vector<Row>& rows, const ConversationConfig& cfg = config()) {
+void run(const std::vector<Row>& rows, const ConversationConfig& cfg = config(), Entry entry = {}) {
   for (const Row& row : rows) {
     SCOPED_TRACE(row.name);
     FakeWorlds worlds;
+    worlds.entry = entry;
     Conversation c(cfg, worlds, nullptr);
     for (const Event& e : row.given)
       e(c);
@@ -819,6 +831,101 @@ TEST(Conversation, close_codes_follow_the_error) {
                       ErrorCode::kUnauthorized, ErrorCode::kOutOfOrder, ErrorCode::kBadFrame,
                       ErrorCode::kUnsupportedVersion, ErrorCode::kBadJson}) {
     EXPECT_EQ(close_code_for(c), CloseCode::kPolicy) << error_code_name(c);
+  }
+}
+
+// Past capacity (server/admission.hpp): the hello's answer is the admission's.
+const std::string kQueueHello = R"({"type":"hello","ref":1,"versions":[1],"queue":true})";
+Event admitted() {
+  return [](Conversation& c) { c.admitted(); };
+}
+Event told(uint32_t position, uint32_t wait_ms, uint32_t queue) {
+  return [=](Conversation& c) { c.queue_update(position, wait_ms, queue); };
+}
+
+TEST(Conversation, past_capacity_a_hello_waits_in_the_queue) {
+  const Entry queued{Entry::Kind::kQueued, 3, 4000, 5, 0, false};
+  const std::vector<Event> waiting = {admit(), text(kQueueHello)};
+  auto then = [&](std::vector<Event> more) {
+    std::vector<Event> all = waiting;
+    all.insert(all.end(), more.begin(), more.end());
+    return all;
+  };
+  run(
+      {
+          {"a hello that can wait is told its place, the hello's ref in it",
+           {admit()},
+           text(kQueueHello),
+           {"queued pos=3 wait=4000 of=5 ref=1"},
+           State::kQueued},
+          {"a new place is told",
+           waiting,
+           told(2, 3000, 4),
+           {"queued pos=2 wait=3000 of=4 ref=1"},
+           State::kQueued},
+          {"admitted: the world opens, welcome with the hello's ref, the idle timer",
+           waiting,
+           admitted(),
+           {"welcome v1 seed=7 ref=1", "timer 60000"},
+           State::kOpen},
+          {"the handshake timer does not end a queued session",
+           waiting,
+           deadline(),
+           {},
+           State::kQueued},
+          {"queued, a ping is answered",
+           waiting,
+           text(R"({"type":"ping","ref":4,"t":5})"),
+           {"pong t=5 time=1000 ref=4"},
+           State::kQueued},
+          {"queued, anything but ping is out_of_order",
+           waiting,
+           text(R"({"type":"spawn","ref":4})"),
+           {"error out_of_order fatal ref=4", "close 1008 out_of_order"},
+           State::kClosed},
+          {"queued, a second hello is out_of_order",
+           waiting,
+           text(kQueueHello),
+           {"error out_of_order fatal ref=1", "close 1008 out_of_order"},
+           State::kClosed},
+          {"after welcome a late place is not sent",
+           then({admitted()}),
+           told(1, 0, 1),
+           {},
+           State::kOpen},
+          {"shutdown while queued: service_restart",
+           waiting,
+           shutdown(),
+           {"error service_restart fatal", "close 1001 service_restart"},
+           State::kClosed},
+      },
+      config(), queued);
+}
+
+TEST(Conversation, past_capacity_a_hello_that_cannot_wait_is_refused_with_a_retry) {
+  const Entry refused{Entry::Kind::kRefused, 0, 0, 0, 7000, false};
+  run({{"overloaded, fatal, with retry_after_ms; never silence",
+        {admit()},
+        text(kHello),
+        {"error overloaded fatal ref=1 retry=7000", "close 1008 overloaded"},
+        State::kClosed}},
+      config(), refused);
+  const Entry full{Entry::Kind::kRefused, 0, 0, 0, 60000, true};
+  run({{"the queue full: refused the same way",
+        {admit()},
+        text(kQueueHello),
+        {"error overloaded fatal ref=1 retry=60000", "close 1008 overloaded"},
+        State::kClosed}},
+      config(), full);
+}
+
+TEST(Conversation, hello_queue_reaches_admission) {
+  for (bool q : {false, true}) {
+    FakeWorlds worlds;
+    Conversation c(config(), worlds, nullptr);
+    c.admit(Admission::kAdmitted);
+    c.text(q ? kQueueHello : kHello);
+    EXPECT_EQ(worlds.asked_queue, q);
   }
 }
 

@@ -602,5 +602,24 @@ TEST(ScheduleTest, owners) {
   });
 }
 
+// What admission reads (server/admission.hpp): how long players' urgent rooms have waited, the
+// 90th percentile over the clients, so one client's own backlog does not speak for everyone.
+TEST(ScheduleTest, oldest_urgent_is_the_90th_percentile_of_clients_oldest_urgent_wants) {
+  Sim s(config());
+  for (int i = 0; i < 10; ++i)
+    join()(s);
+  EXPECT_EQ(s.schedule.oldest_urgent(s.now).count(), 0);
+  want_range(1, 0, 99, 0)(s);  // a greedy client: a hundred rooms due now
+  want(2, {{200, kFar}})(s);   // prefetch does not count
+  later(400ms)(s);
+  EXPECT_EQ(s.schedule.oldest_urgent(s.now).count(), 0) << "one client of ten is its own backlog";
+  want(3, {{300, 0}})(s);
+  later(100ms)(s);
+  EXPECT_EQ(s.schedule.oldest_urgent(s.now).count(), 100) << "two of ten: the second oldest";
+  for (int c = 2; c <= 10; ++c)
+    leave(static_cast<ClientId>(c))(s);
+  EXPECT_EQ(s.schedule.oldest_urgent(s.now).count(), 500) << "alone, its wait is the server's";
+}
+
 }  // namespace
 }  // namespace grotto::server

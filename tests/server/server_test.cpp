@@ -633,6 +633,62 @@ TEST(ServerLimits, connections_over_max_connections_are_refused) {
   EXPECT_TRUE(later.alive());
 }
 
+// Past capacity (PROTOCOL.md, "Waiting to enter"): max_players 1 stands for a server whose
+// players are no longer served in time.
+TEST(ServerAdmission, past_capacity_a_client_that_can_wait_is_queued_then_welcomed) {
+  auto c = test_config();
+  c.admission.max_players = 1;
+  auto server = start(c);
+  ASSERT_TRUE(server);
+  Client first(server->port()), second(server->port()), plain(server->port());
+  ASSERT_FALSE(first.connect());
+  first.hello();
+  // One that says it can wait: its place, then nothing while the first plays.
+  ASSERT_FALSE(second.connect());
+  grotto::proto::Hello h;
+  h.ref = 5;
+  h.versions = {2, 1};
+  h.queue = true;
+  ASSERT_FALSE(second.send(grotto::proto::ClientMessage(h)));
+  auto queued = second.next_text();
+  ASSERT_TRUE(queued && queued->as<grotto::proto::Queued>()) << (queued ? queued->data : "none");
+  EXPECT_EQ(queued->as<grotto::proto::Queued>()->position, 1u);
+  EXPECT_EQ(queued->as<grotto::proto::Queued>()->queue, 1u);
+  EXPECT_EQ(queued->as<grotto::proto::Queued>()->ref, grotto::proto::Ref{5});
+  EXPECT_TRUE(second.alive());  // ping is answered while queued
+  EXPECT_EQ(http_get(server->port(), "/readyz").status, 503);
+  auto metrics = http_get(server->port(), "/metrics").body;
+  EXPECT_EQ(metric(metrics, "grotto_sessions_queued"), 1.0);
+  // One that cannot wait: refused with a time to come back, never left silent.
+  ASSERT_FALSE(plain.connect());
+  grotto::proto::Hello p;
+  p.ref = 6;
+  p.versions = {2, 1};
+  ASSERT_FALSE(plain.send(grotto::proto::ClientMessage(p)));
+  auto e = plain.next_error();
+  ASSERT_TRUE(e);
+  EXPECT_EQ(e->code, ErrorCode::kOverloaded);
+  EXPECT_TRUE(e->fatal);
+  ASSERT_TRUE(e->retry_after_ms);
+  EXPECT_GE(*e->retry_after_ms, 1000u);
+  EXPECT_EQ(std::string(plain.wait_close().reason.c_str()), "overloaded");
+  // The first leaves: the second is welcomed and plays.
+  first.close();
+  std::optional<Incoming> welcome;
+  for (int i = 0; i < 10; ++i) {
+    welcome = second.next_text();
+    if (!welcome || !welcome->as<grotto::proto::Queued>()) break;
+  }
+  ASSERT_TRUE(welcome && welcome->as<grotto::proto::Welcome>())
+      << (welcome ? welcome->data : "none");
+  EXPECT_EQ(welcome->as<grotto::proto::Welcome>()->ref, grotto::proto::Ref{5});
+  EXPECT_TRUE(second.alive());
+  auto deadline = Clock::now() + kWait;
+  while (http_get(server->port(), "/readyz").status != 200 && Clock::now() < deadline)
+    std::this_thread::sleep_for(5ms);
+  EXPECT_EQ(http_get(server->port(), "/readyz").status, 200);
+}
+
 // ---- shutdown ----
 
 TEST(ServerShutdown, stop_closes_every_session_with_service_restart_in_bounded_time) {

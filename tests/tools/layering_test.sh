@@ -7,7 +7,8 @@
 # from the root fails too: one root, so a path reads the same in every file.
 #
 # Also: the sans-I/O cores (the protocol's, server/conversation.* and
-# client/stream/conversation.*, and the generator's policy, server/schedule.*, where present)
+# client/stream/conversation.*, the generator's policy, server/schedule.*, and admission past
+# capacity, server/admission.*, where present)
 # include no boost/, beast, asio or CL/ header, directly or through the project headers they
 # include (followed transitively).
 #
@@ -140,7 +141,7 @@ all_includes() {
 
 cores=0
 for core in server/conversation.hpp server/conversation.cpp server/schedule.hpp \
-  server/schedule.cpp client/stream/conversation.hpp client/stream/conversation.cpp; do
+  server/schedule.cpp server/admission.hpp server/admission.cpp client/stream/conversation.hpp client/stream/conversation.cpp; do
   [[ -f $core ]] || continue
   cores=$((cores + 1))
   visited=()

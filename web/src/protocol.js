@@ -190,7 +190,9 @@ export function parseRoomFrame(input, opts = {}) {
 
 // ---- Client messages ----
 
-export function helloMessage({ ref, seed, params, token, versions = VERSIONS_SPOKEN, name = CLIENT_NAME } = {}) {
+// queue: the viewer understands `queued` (PROTOCOL.md, "Waiting to enter"), so past its capacity a
+// server holds it in its queue and says where, rather than refusing it.
+export function helloMessage({ ref, seed, params, token, versions = VERSIONS_SPOKEN, name = CLIENT_NAME, queue = false } = {}) {
   const m = { type: "hello" };
   if (ref !== undefined) m.ref = ref;
   m.versions = versions.slice();
@@ -198,6 +200,7 @@ export function helloMessage({ ref, seed, params, token, versions = VERSIONS_SPO
   if (params) m.params = params;
   m.name = name;
   if (token) m.token = token;
+  if (queue) m.queue = true;
   return JSON.stringify(m);
 }
 
@@ -285,6 +288,19 @@ export function printable(s) {
 
 // Checks a server text message (a string or an already parsed value). Returns {ok: true, msg} or
 // {ok: false, message}. Unknown fields are ignored; an unknown error code reads as internal.
+// queued.position and queued.queue, queued.wait_ms and error.retry_after_ms (PROTOCOL.md).
+const MAX_QUEUE = 1000000;
+const MAX_WAIT_MS = 86400000;
+
+// What a queued player reads: "waiting to enter: 14th, about 20 s".
+export function queuedText({ position, wait_ms: waitMs }) {
+  const tens = position % 100;
+  const suffix = tens >= 11 && tens <= 13 ? "th" : ({ 1: "st", 2: "nd", 3: "rd" }[position % 10] ?? "th");
+  const s = Math.max(1, Math.round(waitMs / 1000));
+  const about = s < 120 ? `${s} s` : `${Math.round(s / 60)} min`;
+  return `waiting to enter: ${position}${suffix}, about ${about}`;
+}
+
 export function parseServerMessage(text) {
   let m = text;
   if (typeof text === "string") {
@@ -328,6 +344,7 @@ export function parseServerMessage(text) {
       if (typeof m.fatal !== "boolean") return bad("fatal is not a boolean");
       if ("room" in m && !isRoomId(m.room)) return bad("room is not a room id");
       if ("versions" in m && !(Array.isArray(m.versions) && m.versions.every((x) => isInt(x, 1, 65535)))) return bad("versions is not a list of versions");
+      if ("retry_after_ms" in m && !isInt(m.retry_after_ms, 0, MAX_WAIT_MS)) return bad("retry_after_ms is not an integer in [0, 86400000]");
       const known = new Set(["bad_json", "bad_message", "unknown_type", "unsupported_version", "too_large", "invalid_room_id", "not_found", "limit_exceeded", "world_mismatch", "out_of_order", "bad_frame", "unauthorized", "service_restart", "overloaded", "timeout", "internal"]);
       const msg = { ...m, message: printable(m.message).slice(0, 1024) };
       if (!known.has(m.code)) {
@@ -336,6 +353,11 @@ export function parseServerMessage(text) {
       }
       return { ok: true, msg };
     }
+    case "queued":
+      if (!isInt(m.position, 1, MAX_QUEUE)) return bad("position is not an integer in [1, 1000000]");
+      if (!isInt(m.wait_ms, 0, MAX_WAIT_MS)) return bad("wait_ms is not an integer in [0, 86400000]");
+      if (!isInt(m.queue, m.position, MAX_QUEUE)) return bad("queue is not an integer in [position, 1000000]");
+      return { ok: true, msg: m };
     case "pong":
       if (typeof m.t !== "number" || !Number.isFinite(m.t)) return bad("t is not a number");
       if (!isInt(m.time, 0, MAX_SAFE)) return bad("time is not an integer in [0, 2^53-1]");
@@ -371,10 +393,11 @@ export function refusalText(reason, said) {
 // The delay before reconnect attempt `attempt` (0-based): after service_restart (1001) uniform in
 // [50, 1000] ms; otherwise exponential backoff from 250 ms doubling to 15 s, with full jitter over
 // its upper half. rand: a function giving [0, 1).
-export function reconnectDelay(attempt, { code, reason } = {}, rand = Math.random) {
+// retryAfterMs: the server's retry_after_ms with its overloaded refusal: never come back sooner.
+export function reconnectDelay(attempt, { code, reason, retryAfterMs = 0 } = {}, rand = Math.random) {
   if (code === 1001 || reason === "service_restart") return 50 + rand() * 950;
   const base = Math.min(15000, 250 * 2 ** Math.min(attempt, 10));
-  return base / 2 + rand() * (base / 2);
+  return Math.max(retryAfterMs, base / 2 + rand() * (base / 2));
 }
 
 // A place link: /?seed=95&pose=x,y,z,yaw,pitch (metres, radians), millimetres and milliradians.

@@ -7,7 +7,7 @@
 // the viewer, which decodes them in the worker; the room store (what is loaded) is the viewer's.
 import {
   parseRoomFrame, parseServerMessage, helloMessage, spawnMessage, locateMessage, requestMessage,
-  cancelMessage, pingMessage, shouldStop, refusalText, reconnectDelay,
+  cancelMessage, pingMessage, shouldStop, refusalText, reconnectDelay, queuedText,
 } from "./protocol.js";
 import { timesToReach, plan, TokenBucket, DEFAULTS } from "./scheduler.js";
 
@@ -71,7 +71,7 @@ export class Session {
     this.ws = ws;
     ws.onopen = () => {
       const token = this.o.token || undefined;
-      this.send(helloMessage({ ref: this.nextRef("hello"), seed: this.o.seed, token }));
+      this.send(helloMessage({ ref: this.nextRef("hello"), seed: this.o.seed, token, queue: true }));
     };
     ws.onmessage = (ev) => {
       if (ws !== this.ws) return;
@@ -118,6 +118,7 @@ export class Session {
         this.lod = Math.min(this.o.lod ?? 0, m.limits.max_lod);
         this.bucket = new TokenBucket(m.limits.request_rate, m.limits.request_burst, this.now());
         this.welcomed = true;
+        this.queued = null;
         this.attempt = 0;
         this.setStatus("open", "");
         this.hooks.onWelcome?.(m, first);
@@ -130,6 +131,11 @@ export class Session {
       case "located":
         this.pendingLocate = null;
         this.hooks.onLocated?.(m.room, m.point);
+        break;
+      case "queued":
+        // Past the server's capacity: our place in its queue; welcome follows when it is our turn.
+        this.queued = { position: m.position, wait_ms: m.wait_ms, queue: m.queue };
+        this.setStatus("queued", queuedText(m));
         break;
       case "pong":
         break;
@@ -160,6 +166,7 @@ export class Session {
       if (m.code !== "limit_exceeded") this.error(`request refused: ${m.code}: ${m.message}`);
       return;
     }
+    if (m.retry_after_ms !== undefined) this.retryAfterMs = m.retry_after_ms;
     this.error(`server error ${m.code}${m.fatal ? " (fatal)" : ""}: ${m.message}`);
     if (m.code === "unauthorized" || m.code === "unsupported_version" || m.code === "world_mismatch") {
       this.lastFatal = m.code;
@@ -226,7 +233,9 @@ export class Session {
 
   scheduleReconnect(close) {
     if (this.stopped) return;
-    const delay = reconnectDelay(this.attempt++, close);
+    const delay = reconnectDelay(this.attempt++, { ...close, retryAfterMs: this.retryAfterMs ?? 0 });
+    this.retryAfterMs = 0;
+    this.queued = null;
     const what = close.code ? `connection closed (${close.code}${close.reason ? " " + close.reason : ""})` : "connection lost";
     this.setStatus("reconnecting", `${what}: reconnecting in ${Math.round(delay)} ms`);
     this.timers.push(setTimeout(() => {

@@ -5,7 +5,7 @@ import fs from "node:fs";
 import {
   parseRoomFrame, roomIdToBinary, roomIdFromBinary, parseRoomId, helloMessage, requestMessage,
   cancelMessage, pingMessage, locateMessage, spawnMessage, parseServerMessage, reconnectDelay,
-  shouldStop, refusalText, parsePose, formatPose, knownFormations,
+  shouldStop, refusalText, parsePose, formatPose, knownFormations, queuedText,
 } from "../src/protocol.js";
 
 const fixture = new Uint8Array(fs.readFileSync(new URL("./fixtures/room_v2_7_0.0.0.r0.bin", import.meta.url)));
@@ -200,6 +200,8 @@ test("client messages", () => {
   assert.deepEqual(JSON.parse(helloMessage({ ref: 1, seed: "7" })), { type: "hello", ref: 1, versions: [2], seed: "7", name: "grotto-viewer 0.2.0" });
   assert.deepEqual(JSON.parse(helloMessage({ token: "s3cret" })).token, "s3cret");
   assert.ok(!("seed" in JSON.parse(helloMessage({}))));
+  assert.equal(JSON.parse(helloMessage({ queue: true })).queue, true);
+  assert.ok(!("queue" in JSON.parse(helloMessage({}))));
   assert.deepEqual(JSON.parse(requestMessage([{ id: "0.0.0.r0", lod: 0, priority: 12.6 }, { id: "0.0.0.r1", lod: 0, priority: -4 }, { id: "0.0.0.r2", lod: 0, priority: 1e12 }], 5)), {
     type: "request", ref: 5, rooms: [{ id: "0.0.0.r0", lod: 0, priority: 13 }, { id: "0.0.0.r1", lod: 0, priority: 0 }, { id: "0.0.0.r2", lod: 0, priority: 4294967295 }],
   });
@@ -312,4 +314,27 @@ test("extras' formations: the known kinds kept, an unknown kind or a malformed i
   assert.equal(knownFormations({ count: 2, data: one(0) }), null, "fewer numbers than count says");
   assert.equal(knownFormations({ count: 1, data: one(4) }), null, "no known kind: nothing to draw");
   assert.equal(knownFormations(undefined), null);
+});
+
+test("queued: parsed strictly, shown as a place and a wait", () => {
+  const ok = parseServerMessage('{"type":"queued","ref":1,"position":14,"wait_ms":20000,"queue":30}');
+  assert.ok(ok.ok, ok.message);
+  assert.equal(queuedText(ok.msg), "waiting to enter: 14th, about 20 s");
+  assert.equal(queuedText({ position: 1, wait_ms: 400 }), "waiting to enter: 1st, about 1 s");
+  assert.equal(queuedText({ position: 22, wait_ms: 2000 }), "waiting to enter: 22nd, about 2 s");
+  assert.equal(queuedText({ position: 113, wait_ms: 600000 }), "waiting to enter: 113th, about 10 min");
+  for (const bad of [
+    '{"type":"queued","position":0,"wait_ms":0,"queue":1}',
+    '{"type":"queued","position":3,"wait_ms":0,"queue":2}',
+    '{"type":"queued","position":1,"wait_ms":-1,"queue":1}',
+    '{"type":"queued","position":1,"queue":1}',
+    '{"type":"error","code":"overloaded","message":"x","fatal":true,"retry_after_ms":"5"}',
+  ]) {
+    assert.equal(parseServerMessage(bad).ok, false, bad);
+  }
+  const refused = parseServerMessage('{"type":"error","code":"overloaded","message":"full","fatal":true,"retry_after_ms":7000}');
+  assert.ok(refused.ok);
+  assert.equal(refused.msg.retry_after_ms, 7000);
+  assert.ok(reconnectDelay(0, { code: 1008, reason: "overloaded", retryAfterMs: 7000 }, () => 0.5) >= 7000);
+  assert.ok(reconnectDelay(0, { code: 1008, reason: "overloaded" }, () => 0.5) < 7000);
 });

@@ -57,6 +57,11 @@ TEST(Hud, says_plainly_when_the_server_is_gone_or_refuses) {
   s.stream.state = stream::StreamState::kConnecting;
   s.stream.connects = 1;
   EXPECT_TRUE(has_line(hud_lines(s), "SERVER LOST: RECONNECTING", render::kOverlayWarning));
+  // Past the server's capacity: the place in its queue instead.
+  s.stream.queued = stream::StreamStats::QueuePlace{14, 19'600, 30};
+  EXPECT_TRUE(has_line(hud_lines(s), "WAITING TO ENTER: 14TH IN LINE, ABOUT 20 S",
+                       render::kOverlayWarning));
+  EXPECT_FALSE(has_line(hud_lines(s), "SERVER LOST", render::kOverlayWarning));
 }
 
 TEST(Hud, the_key_list_appears_on_request) {

@@ -1,0 +1,145 @@
+// Who enters the server past its capacity, as a plain state machine in the manner of the other
+// sans-I/O cores (server/conversation.hpp, server/schedule.hpp): the server feeds it events with
+// the time passed in (a session asks to enter after a valid hello, a session leaves, a periodic
+// measurement of how well the admitted players are served) and carries out the actions it
+// returns (admit this session, tell this queued session its place, refuse this one).
+//
+// The rule: a newcomer enters while the admitted players are served in time (the oldest urgent
+// want still waiting is young), and waits in a first-come queue while they are not. Admitted
+// players are never sent away for newcomers: past capacity each player keeps the service it had,
+// and newcomers wait where they can see their place instead of all stalling together.
+//
+// No threads, no clocks, no sockets: tests drive it with tables of events and actions.
+// Not thread-safe: the server calls it under its sessions lock.
+#pragma once
+
+#include <chrono>
+#include <cstdint>
+#include <deque>
+#include <map>
+#include <optional>
+#include <set>
+#include <variant>
+#include <vector>
+
+namespace grotto::server {
+
+using AdmissionTime = std::chrono::steady_clock::time_point;
+
+struct AdmissionConfig {
+  // Sessions waiting at most; a newcomer past it is refused (overloaded with retry_after_ms).
+  size_t max_queue = 1000;
+  // Players admitted at most, however well they are served (0: no fixed bound; the measurements
+  // alone decide). For a replica whose capacity was measured ahead (docs/BENCHMARKS.md).
+  size_t max_players = 0;
+  // Behind: a measurement's oldest urgent want older than this. Caught up again: every
+  // measurement within `window` younger than `caught_up_below` (hysteresis, so one quick sample
+  // in a slow stretch does not let a crowd in).
+  std::chrono::milliseconds late_after{250};
+  std::chrono::milliseconds caught_up_below{100};
+  std::chrono::milliseconds window{1000};
+  // Also behind while the bytes queued to send to players exceed this (0: not looked at): the
+  // links, not the workers, can be what is full.
+  uint64_t max_send_backlog_bytes = 0;
+  // Sessions let in from the queue per measurement once caught up: a slow start, so the crowd
+  // at the door does not all come in before the next measurement shows their cost.
+  size_t admit_per_measurement = 2;
+  // The admission rate behind the estimated wait is measured over this much time; with none
+  // measured yet each place ahead counts `unmeasured_wait`.
+  std::chrono::milliseconds rate_window{10'000};
+  std::chrono::milliseconds unmeasured_wait{2'000};
+  // A queued session hears of a new place or estimate at most this often.
+  std::chrono::milliseconds update_every{1'000};
+  // The retry_after_ms of a refusal stays within these.
+  std::chrono::milliseconds min_retry{1'000};
+  std::chrono::milliseconds max_retry{60'000};
+};
+
+// One periodic measurement of how the admitted players are served.
+struct AdmissionSample {
+  std::chrono::milliseconds oldest_urgent{0};  // age of the oldest urgent want still waiting
+  double rooms_per_s = 0;                      // rooms built and sent a second (reported only)
+  uint64_t send_backlog_bytes = 0;             // bytes queued to send, all players
+};
+
+namespace adm {
+struct Admit {  // the session enters now: open its world and welcome it
+  uint64_t session = 0;
+  friend bool operator==(const Admit&, const Admit&) = default;
+};
+struct Queued {  // the session waits: tell it its place (PROTOCOL.md's `queued`)
+  uint64_t session = 0;
+  uint32_t position = 0;  // 1-based
+  uint32_t wait_ms = 0;   // estimated
+  uint32_t queue = 0;     // sessions waiting
+  friend bool operator==(const Queued&, const Queued&) = default;
+};
+struct Refuse {  // overloaded, fatal: come back after retry_after_ms
+  uint64_t session = 0;
+  uint32_t retry_after_ms = 0;
+  bool queue_full = false;  // else: the client cannot wait in the queue
+  friend bool operator==(const Refuse&, const Refuse&) = default;
+};
+}  // namespace adm
+using AdmissionAction = std::variant<adm::Admit, adm::Queued, adm::Refuse>;
+
+class AdmissionQueue {
+ public:
+  explicit AdmissionQueue(AdmissionConfig config) : config_(config) {}
+
+  // ---- events ----
+  // A session said a valid hello. `can_queue`: it understands `queued` (hello.queue); one that
+  // does not is admitted or refused, never left waiting in silence. Returns Admit, Queued or
+  // Refuse for it (also queued as an action). An id already known is ignored (nullopt).
+  std::optional<AdmissionAction> enter(uint64_t session, bool can_queue, AdmissionTime now);
+  // A session admitted or queued is gone. An admitted one's place goes to the head of the queue
+  // at once: the load stays what it was. Unknown ids are ignored.
+  void leave(uint64_t session, AdmissionTime now);
+  // A periodic measurement (every few hundred milliseconds): updates behind/caught up, admits
+  // from the queue once caught up, and sends due place updates.
+  void measure(const AdmissionSample& sample, AdmissionTime now);
+
+  // The actions since the last call, in order.
+  std::vector<AdmissionAction> take();
+
+  bool behind() const { return behind_; }
+  size_t admitted() const { return admitted_.size(); }
+  size_t queued() const { return queue_.size(); }
+  // Players admitted when the service last fell behind: what it held then (0: never behind).
+  size_t capacity() const { return capacity_; }
+  // The estimated wait of the n-th place (1-based): n over the rate at which the queue's head
+  // was admitted within rate_window (call after expiring it: measure() does).
+  std::chrono::milliseconds estimate(size_t position) const;
+
+ private:
+  struct Waiter {
+    uint64_t session = 0;
+    AdmissionTime since{};
+    AdmissionTime told_at{};  // when its last Queued went out
+    uint32_t told_position = 0;
+    uint32_t told_wait_s = 0;  // its estimate, whole seconds (smaller changes are not news)
+  };
+  void admit(uint64_t session, AdmissionTime now);
+  bool room_for_one() const;  // not behind and under max_players
+  void admit_head(AdmissionTime now);
+  void tell(Waiter& w, uint32_t position, AdmissionTime now, bool force);
+  void tell_all(AdmissionTime now, bool force);
+  uint32_t retry_after(size_t position) const;
+  void forget_old_admissions(AdmissionTime now);
+  template <class A>
+  void emit(A action) {
+    actions_.emplace_back(std::in_place_type<A>, action);
+  }
+
+  const AdmissionConfig config_;
+  bool behind_ = false;
+  size_t capacity_ = 0;
+  std::set<uint64_t> admitted_;
+  std::deque<Waiter> queue_;
+  // Since when every measurement was young (under caught_up_below); none: the last was not.
+  std::optional<AdmissionTime> young_since_;
+  std::deque<AdmissionTime> admissions_;  // from the queue, within rate_window, oldest first
+  std::vector<AdmissionAction> actions_;
+};
+
+}  // namespace grotto::server
