@@ -476,6 +476,7 @@ TEST(Squatters, raw_sockets_are_counted_shed_and_timed_out) {
   auto c = test_config();
   c.max_connections = 2;
   c.max_handshakes = 2;
+  c.admission.max_queue = 0;  // no places kept for waiting players: the cap is 2 + 2 + 64
   c.limits.handshake_timeout_ms = 300;
   auto server = start(c);
   ASSERT_TRUE(server);
