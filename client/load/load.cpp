@@ -23,7 +23,6 @@
 
 namespace grotto::load {
 
-
 const char* mode_name(Mode mode) {
   switch (mode) {
     case Mode::kWalk:

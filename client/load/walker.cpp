@@ -6,7 +6,6 @@
 
 namespace grotto::load {
 
-
 const char* walker_state_name(WalkerState state) {
   switch (state) {
     case WalkerState::kWaiting:
