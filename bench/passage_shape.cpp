@@ -19,6 +19,8 @@
 #include <nlohmann/json.hpp>
 
 #include "bench/flags.hpp"
+#include "bench/sector_sample.hpp"
+#include "bench/timing.hpp"
 #include "common/cave/geology.hpp"
 #include "common/mesh/rim.hpp"
 #include "common/mesh/room_mesh.hpp"
@@ -26,13 +28,6 @@
 namespace {
 
 using namespace grotto;
-
-double percentile(std::vector<double> v, double q) {
-  if (v.empty()) return 0;
-  std::sort(v.begin(), v.end());
-  size_t i = static_cast<size_t>(std::ceil(q * static_cast<double>(v.size()))) - (q > 0 ? 1 : 0);
-  return v[std::min(i, v.size() - 1)];
-}
 
 double share(const std::vector<double>& v, bool (*keep)(double)) {
   if (v.empty()) return 0;
@@ -112,12 +107,12 @@ int main(int argc, char** argv) {
   app.add_option("--json", json_path, "Write the report here")->capture_default_str();
   if (auto rc = bench::parse_flags(app, argc, argv)) return *rc;
 
-  cave::SectorCoord lo{from[0], from[1], from[2]}, hi{to[0], to[1], to[2]};
-  if (!cave::in_range(lo) || !cave::in_range(hi) || lo[0] > hi[0] || lo[1] > hi[1] ||
-      lo[2] > hi[2]) {
+  const std::optional<bench::SectorBlock> block = bench::sector_block(from, to);
+  if (!block) {
     spdlog::error("--from and --to must be sectors within the range with from <= to");
     return 2;
   }
+  const cave::SectorCoord lo = block->lo, hi = block->hi;
 
   nlohmann::json report;
   report["from"] = from;
@@ -162,18 +157,18 @@ int main(int argc, char** argv) {
     const auto long_rim = [](double r) { return r >= 1.5; };
     nlohmann::json row = {{"seed", seed},
                           {"level_passages", mids.size()},
-                          {"mid_ratio_median", percentile(mids, 0.5)},
+                          {"mid_ratio_median", bench::percentile(mids, 0.5)},
                           {"mid_tall_share", share(mids, tall)},
                           {"mid_wide_share", share(mids, wide)},
                           {"rims", rims.size()},
-                          {"rim_axes_median", percentile(rims, 0.5)},
+                          {"rim_axes_median", bench::percentile(rims, 0.5)},
                           {"rim_long_share", share(rims, long_rim)},
                           {"sections", kinds}};
     report["per_seed"].push_back(row);
     std::printf(
         "| %llu | %zu | %.2f | %.0f %% | %.0f %% | %zu | %.2f | %.0f %% | %d, %d, %d, %d, %d |\n",
-        static_cast<unsigned long long>(seed), mids.size(), percentile(mids, 0.5),
-        100 * share(mids, tall), 100 * share(mids, wide), rims.size(), percentile(rims, 0.5),
+        static_cast<unsigned long long>(seed), mids.size(), bench::percentile(mids, 0.5),
+        100 * share(mids, tall), 100 * share(mids, wide), rims.size(), bench::percentile(rims, 0.5),
         100 * share(rims, long_rim), kinds["tube"], kinds["lens"], kinds["canyon"],
         kinds["keyhole"], kinds["fissure"]);
   }

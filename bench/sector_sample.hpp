@@ -3,6 +3,7 @@
 #pragma once
 
 #include <cstdint>
+#include <optional>
 #include <set>
 #include <span>
 #include <vector>
@@ -11,6 +12,21 @@
 #include "common/core/random.hpp"
 
 namespace grotto::bench {
+
+// The block of sectors --from and --to name (x y z each): none when either lies outside the
+// sector range or from > to on an axis.
+struct SectorBlock {
+  cave::SectorCoord lo, hi;
+};
+inline std::optional<SectorBlock> sector_block(const std::vector<int>& from,
+                                               const std::vector<int>& to) {
+  SectorBlock b{{from[0], from[1], from[2]}, {to[0], to[1], to[2]}};
+  if (!cave::in_range(b.lo) || !cave::in_range(b.hi) || b.lo[0] > b.hi[0] || b.lo[1] > b.hi[1] ||
+      b.lo[2] > b.hi[2]) {
+    return std::nullopt;
+  }
+  return b;
+}
 
 // `sample` sectors drawn uniformly from [-spread, spread]^3 by (sample_seed, world seed).
 inline std::vector<cave::SectorCoord> sample_sectors(uint64_t world_seed, uint64_t sample_seed,

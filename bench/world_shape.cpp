@@ -20,19 +20,14 @@
 #include <nlohmann/json.hpp>
 
 #include "bench/flags.hpp"
+#include "bench/sector_sample.hpp"
+#include "bench/timing.hpp"
 #include "common/codec/room_codec.hpp"
 #include "common/mesh/room_mesh.hpp"
 
 namespace {
 
 using namespace grotto;
-
-double percentile(std::vector<double> v, double q) {
-  if (v.empty()) return 0;
-  std::sort(v.begin(), v.end());
-  size_t i = static_cast<size_t>(std::ceil(q * static_cast<double>(v.size()))) - (q > 0 ? 1 : 0);
-  return v[std::min(i, v.size() - 1)];
-}
 
 struct RoomShape {
   std::string id;
@@ -65,9 +60,9 @@ RoomShape measure(const mesh::RoomMesh& m, const cave::Room& room) {
       hi[a] = std::max(hi[a], p[a]);
     }
   }
-  s.kept_m = percentile(dist, 0.5);
+  s.kept_m = bench::percentile(dist, 0.5);
   s.kept = s.kept_m / s.radius;
-  s.near10_m = percentile(dist, 0.1);
+  s.near10_m = bench::percentile(dist, 0.1);
   s.width_m = std::max(hi[0] - lo[0], hi[2] - lo[2]);
   s.height_m = hi[1] - lo[1];
   const double cos15 = std::cos(15.0 * 3.14159265358979323846 / 180.0);
@@ -107,12 +102,12 @@ int main(int argc, char** argv) {
   app.add_option("--json", json_path, "Write the report here")->capture_default_str();
   if (auto rc = bench::parse_flags(app, argc, argv)) return *rc;
 
-  cave::SectorCoord lo{from[0], from[1], from[2]}, hi{to[0], to[1], to[2]};
-  if (!cave::in_range(lo) || !cave::in_range(hi) || lo[0] > hi[0] || lo[1] > hi[1] ||
-      lo[2] > hi[2]) {
+  const std::optional<bench::SectorBlock> block = bench::sector_block(from, to);
+  if (!block) {
     spdlog::error("--from and --to must be sectors within the range with from <= to");
     return 2;
   }
+  const cave::SectorCoord lo = block->lo, hi = block->hi;
 
   nlohmann::json report;
   report["from"] = from;
@@ -189,15 +184,15 @@ int main(int argc, char** argv) {
     nlohmann::json row = {{"seed", seed},
                           {"rooms", shapes.size()},
                           {"big_rooms", kept.size()},
-                          {"kept_median", percentile(kept, 0.5)},
+                          {"kept_median", bench::percentile(kept, 0.5)},
                           {"kept_min", kept_min},
                           {"halls", halls},
                           {"flat_share", up > 0 ? flat / up : 0},
-                          {"bytes_p50", percentile(bytes, 0.5)},
-                          {"bytes_p99", percentile(bytes, 0.99)},
-                          {"bytes_max", percentile(bytes, 1.0)},
+                          {"bytes_p50", bench::percentile(bytes, 0.5)},
+                          {"bytes_p99", bench::percentile(bytes, 0.99)},
+                          {"bytes_max", bench::percentile(bytes, 1.0)},
                           {"vertices_max", max_vertices},
-                          {"ms_per_room_median", percentile(ms, 0.5)},
+                          {"ms_per_room_median", bench::percentile(ms, 0.5)},
                           {"ms_per_room_mean",
                            [&] {
                              double sum = 0;
@@ -213,10 +208,11 @@ int main(int argc, char** argv) {
       std::printf(
           "| %llu | %zu | %zu | %.2f (%.2f) | %s: %.1f, %.1f, %.1f, %.0f x %.0f | %d | "
           "%.0f%% | %.0f / %.0f / %.0f | %zu | %.2f |\n",
-          static_cast<unsigned long long>(seed), shapes.size(), kept.size(), percentile(kept, 0.5),
-          kept_min, largest->id.c_str(), largest->radius, largest->kept_m, largest->near10_m,
-          largest->width_m, largest->height_m, halls, up > 0 ? 100.0 * flat / up : 0.0,
-          percentile(bytes, 0.5), percentile(bytes, 0.99), percentile(bytes, 1.0), max_vertices,
+          static_cast<unsigned long long>(seed), shapes.size(), kept.size(),
+          bench::percentile(kept, 0.5), kept_min, largest->id.c_str(), largest->radius,
+          largest->kept_m, largest->near10_m, largest->width_m, largest->height_m, halls,
+          up > 0 ? 100.0 * flat / up : 0.0, bench::percentile(bytes, 0.5),
+          bench::percentile(bytes, 0.99), bench::percentile(bytes, 1.0), max_vertices,
           row["ms_per_room_mean"].get<double>());
     }
     report["per_seed"].push_back(row);
