@@ -32,10 +32,13 @@
 #   server-1000-ramp30      1,000 players joining over 30 s
 #   server-300-ramp10-w1    300 players joining over 10 s, grotto-server --workers 1
 #   server-300-ramp10-w2    the same with --workers 2: the server's CPU per room against one worker
+#   past-1000-ramp30-20     past capacity: 1,000 players of seed 95 joining over 30 s at 20 m/s,
+#                           grotto-server --workers 2 with admission (the default)
+#   past-1000-ramp30-20-off the same with admission off (--admission-late-ms 0)
 # Only with --rows, for a machine of 16 cores (the scaling set-up, CPU reference path):
 #   cores16-w2              1,000 players over 10 s; grotto-server --opencl-device none --workers 2
 #   cores16-w10             4,000 players over 20 s; --workers 10 --io-threads 4
-# Every row is 10 m/s unless its name ends in -30. Exit: 0 when every run ran (whatever its
+# Every row is 10 m/s unless its name ends in -30 or -20. Exit: 0 when every run ran (whatever its
 # figures), 1 when a build or a run failed, 2 on a bad flag.
 set -u
 cd "$(dirname "$0")/.."
@@ -75,6 +78,8 @@ all_rows=(
   "server-1000-ramp30|server|1000|30|10|"
   "server-300-ramp10-w1|server|300|10|10||--workers 1"
   "server-300-ramp10-w2|server|300|10|10||--workers 2"
+  "past-1000-ramp30-20|server|1000|30|20|--seed 95|--workers 2"
+  "past-1000-ramp30-20-off|server|1000|30|20|--seed 95|--workers 2 --admission-late-ms 0"
 )
 big_rows=(
   "cores16-w2|server|1000|10|10|--io-threads 2|--opencl-device none --workers 2 --max-connections 6000"
