@@ -132,6 +132,7 @@ int main(int argc, char** argv) {
     cave::Region region = cave::generate_region(*world, lo, hi);
     std::vector<double> mids, rims;
     std::map<std::string, int> kinds;
+    std::map<std::string, std::vector<double>> by_kind;
     for (const cave::Room& room : region.rooms) {
       for (const cave::Portal& p : room.portals) {
         if (region.find(p.neighbour) && p.neighbour < room.id) continue;  // each portal once
@@ -150,7 +151,15 @@ int main(int argc, char** argv) {
         return 1;
       }
       const double ratio = mid_section_ratio(*m, (a + b) * 0.5, axis, room.sphere.radius);
-      if (ratio > 0) mids.push_back(ratio);
+      if (ratio <= 0) continue;
+      mids.push_back(ratio);
+      // The passage's kind when both its ends have the same one ("mixed" otherwise).
+      const auto kind_at = [&](const cave::Portal& p) {
+        return cave::section_kind_name(
+            cave::passage_section(*world, p.centre, p.normal, p.radius).kind);
+      };
+      const std::string ka = kind_at(room.portals[0]), kb = kind_at(room.portals[1]);
+      by_kind[ka == kb ? ka : "mixed"].push_back(ratio);
     }
     const auto tall = [](double r) { return r >= 1.6; };
     const auto wide = [](double r) { return r <= 0.625; };
@@ -164,6 +173,12 @@ int main(int argc, char** argv) {
                           {"rim_axes_median", bench::percentile(rims, 0.5)},
                           {"rim_long_share", share(rims, long_rim)},
                           {"sections", kinds}};
+    for (const auto& [kind, ratios] : by_kind) {
+      row["mid_by_kind"][kind] = {{"passages", ratios.size()},
+                                  {"mid_ratio_median", bench::percentile(ratios, 0.5)},
+                                  {"mid_tall_share", share(ratios, tall)},
+                                  {"mid_wide_share", share(ratios, wide)}};
+    }
     report["per_seed"].push_back(row);
     std::printf(
         "| %llu | %zu | %.2f | %.0f %% | %.0f %% | %zu | %.2f | %.0f %% | %d, %d, %d, %d, %d |\n",

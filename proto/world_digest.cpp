@@ -78,10 +78,11 @@ uint64_t world_params_digest(const cave::LayoutParams& layout, const mesh::MeshP
     c.f64(l.edge_length);
     c.f64(static_cast<double>(l.octaves));
   }
-  // Version 3 of the deformation: halls keep their sphere, rest on floors and lower their wall
-  // onto a ceiling, donors are capped by frequency, and the spline's rim point is pulled in near
-  // a portal's axis line. The algorithm itself is part of the world, not only its numbers.
-  c.text("grotto.mesh.v3");
+  // Version 4 of the deformation: halls keep their sphere, rest on floors and lower their wall
+  // onto a ceiling, donors are capped by frequency, the spline's rim point is pulled in near a
+  // portal's axis line, and every rim is its passage's section from the world's geology. The
+  // algorithm itself is part of the world, not only its numbers.
+  c.text("grotto.mesh.v4");
   for (const auto& l : m.lods)
     c.f64(static_cast<double>(l.max_frequency));
   for (double v : {m.axis_fade_edges, m.keep_distance, m.wall_allow, m.wall_softness,

@@ -24,20 +24,20 @@ enum Field : uint64_t {
   kJointThird = 9,  // where a third set exists
   kJointSpacing = 10,
   kWaterLevel = 11,
-  kLensField = 12,     // phreatic: lens along the bedding, or a round tube
-  kCanyonField = 13,   // vadose: canyon, or keyhole
+  kLensField = 12,     // lens along the bedding, or a round tube (or a keyhole)
+  kCanyonField = 13,   // vadose: canyon, or a bedding-plane passage or keyhole
   kFissureField = 14,  // where joints guide passages
   kAspectField = 15,   // how far a section departs from round
 };
 
-// Region scales (metres): beds fold over hundreds of metres, passage styles change over a few
-// passages, joints over a few sectors.
+// Region scales (metres): beds fold over hundreds of metres, passage styles and the water's level
+// change over a few passages, joints over a few sectors.
 constexpr double kStructureCell = 420;
 constexpr double kStructureFineCell = 150;
 constexpr double kDipCell = 900;
 constexpr double kJointCell = 600;
-constexpr double kWaterCell = 700;
-constexpr double kStyleCell = 140;
+constexpr double kWaterCell = 40;
+constexpr double kStyleCell = 50;
 // Beds are laid out a stack of this many metres at a time (along the pole), 0.3-3 m each.
 constexpr double kStackHeight = 24;
 constexpr double kMinBed = 0.3, kMaxBed = 3.0;
@@ -142,11 +142,13 @@ Geology geology_at(const World& world, Vec3 p) {
   }
 
   // The water table: a level in every band of one sector's height (the cave has many storeys,
-  // each with its own old water level), between a quarter and three quarters up the band.
+  // each with its own old water level), from 7 % to 77 % up the band and changing within tens of
+  // metres (perched water and the levels of several stillstands), so that every part of the cave
+  // has passages that formed full of water beside passages a stream cut.
   const double band_height = world.params().sector_size;
   const double band = std::floor(p.y / band_height);
   g.water_level =
-      band_height * (band + 0.25 + 0.5 * value2(seed, kWaterLevel, p.x, p.z, kWaterCell).v);
+      band_height * (band + 0.07 + 0.7 * value2(seed, kWaterLevel, p.x, p.z, kWaterCell).v);
   g.phreatic = p.y < g.water_level;
   return g;
 }
@@ -172,9 +174,10 @@ PassageSection passage_section(const World& world, Vec3 centre, Vec3 normal, dou
   const Geology g = geology_at(world, centre);
   const Vec3 n = unit_or(normal, Vec3{0, 1, 0});
   // The narrowest a section's half-extent may be with the rim's noise at its narrowest: a player
-  // 1.8 m tall and 0.6 m wide walks through with room for the relief.
+  // 1.8 m tall walks through, and a walker 0.5 m in radius (the client's) with room for the
+  // relief.
   constexpr double kNoiseNarrowing = 0.88;  // 1 - the rim noise's amplitude (mesh params)
-  constexpr double kMinHalfHeight = 1.0, kMinHalfWidth = 0.45, kMinSlot = 0.42;
+  constexpr double kMinHalfHeight = 1.0, kMinHalfWidth = 0.6, kMinSlot = 0.42;
   const double r = radius * kNoiseNarrowing;
   const double min_width = std::min(1.0, kMinHalfWidth / r);
   const double min_height = std::min(1.0, kMinHalfHeight / r);
@@ -198,47 +201,59 @@ PassageSection passage_section(const World& world, Vec3 centre, Vec3 normal, dou
   // Along a joint: the passage's axis lies in one of the joint planes.
   bool along_joint = false;
   for (int i = 0; i < g.joint_count; ++i) {
-    if (std::abs(dot(n, g.joints[i].normal)) < 0.3) along_joint = true;
+    if (std::abs(dot(n, g.joints[i].normal)) < 0.6) along_joint = true;
   }
-  if (along_joint && value2(seed, kFissureField, centre.x, centre.z, kStyleCell).v > 0.62) {
+  if (!g.phreatic && along_joint &&
+      value2(seed, kFissureField, centre.x, centre.z, kStyleCell).v > 0.75) {
     s.kind = SectionKind::kFissure;
     s.half_width = narrow_to(2.0 + 0.6 * style);
+    s.deepen = 0.7;
     return s;
   }
+  // A lens along the bedding plane (the section's height tilted halfway to the beds' pole), no
+  // lower than two thirds of its disc at its ends (a flatter one folded the stitch between its
+  // rim and the round hole in the room's donor sphere), widening along the bed between them: a
+  // small portal's lens is nearly round at its ends and wide in its middle.
+  const double lens_field = value2(seed, kLensField, centre.x, centre.z, kStyleCell).v;
+  const auto lens = [&] {
+    const Vec3 pole = g.bedding_normal;
+    const Vec3 up_bed = unit_or(pole - n * dot(pole, n), up_plumb);
+    s.kind = SectionKind::kLens;
+    s.up = unit_or(up_plumb + up_bed, up_plumb);
+    s.half_height = std::min(1.0, std::max(min_height, 0.65 + 0.1 * style));
+    s.widen = 1.0 + 0.3 * style;
+    // ... and lower there where it is high enough to stay walkable.
+    s.deepen = -std::clamp(1 - min_height / s.half_height, 0.0, 0.25);
+    return s;
+  };
   if (g.phreatic) {
-    // Dissolved full of water: along the bedding plane where a soft bed guided it (the section's
-    // height tilted halfway to the beds' pole), round where nothing did.
-    // A lens no lower than two thirds of its disc: a flatter one folded the stitch between its
-    // rim and the round hole in the room's donor sphere.
-    const double low = std::max(min_height, 0.65 + 0.1 * style);
-    if (value2(seed, kLensField, centre.x, centre.z, kStyleCell).v > 0.3 && low <= 0.8) {
-      const Vec3 pole = g.bedding_normal;
-      const Vec3 up_bed = unit_or(pole - n * dot(pole, n), up_plumb);
-      s.kind = SectionKind::kLens;
-      s.up = unit_or(up_plumb + up_bed, up_plumb);
-      s.half_height = low;
-      return s;
-    }
+    // Dissolved full of water: along a soft bed that guided it, round where nothing did.
+    if (lens_field > 0.1) return lens();
     s.kind = SectionKind::kTube;
     s.half_width = 0.92 + 0.08 * style;
     return s;
   }
   // Above the water table a stream cut down into the floor: a canyon (tall, narrow, a narrow flat
-  // floor), or a keyhole (the tube it flowed in before, a slot below it to the floor).
+  // floor), or a keyhole (the tube it flowed in before, a slot below it to the floor); or it
+  // spread along a soft bed instead of cutting down (a bedding-plane passage, low and wide).
   const double slot = std::min(0.45, std::max(0.3, kMinSlot / r));
   const double tube = 0.6 + 0.1 * style;
   const bool keyhole_fits = (tube + 0.95) * r >= 2 * kMinHalfHeight;
-  if (value2(seed, kCanyonField, centre.x, centre.z, kStyleCell).v > 0.4 || !keyhole_fits) {
+  const bool canyon = value2(seed, kCanyonField, centre.x, centre.z, kStyleCell).v > 0.45;
+  if (!canyon && lens_field > 0.3) return lens();
+  if (canyon || !keyhole_fits) {
     s.kind = SectionKind::kCanyon;
     s.half_width = narrow_to(1.9 + 0.6 * style);
     s.slot_depth = 0.95;
     s.slot_width = std::min(slot, s.half_width);
+    s.deepen = 0.7;
     return s;
   }
   s.kind = SectionKind::kKeyhole;
   s.half_width = s.half_height = tube;
   s.slot_depth = 0.95;
   s.slot_width = slot;
+  s.deepen = 0.7;
   return s;
 }
 
@@ -247,7 +262,7 @@ double section_reach(const PassageSection& s) {
   if (s.slot_depth > 0) {
     reach = std::max(reach, std::sqrt(s.slot_depth * s.slot_depth + s.slot_width * s.slot_width));
   }
-  return reach + 0.15;  // the smooth join's bias: half its softness
+  return reach + 0.15;  // the smooth maximum's bias (deform_core.h's GROTTO_SECTION_SOFTNESS / 2)
 }
 
 double section_narrow(const PassageSection& s) {

@@ -4,9 +4,8 @@
 // passage section it gives a portal: a lens along the bedding, a canyon or a keyhole cut into the
 // floor above the water table, a fissure along a joint, or a round tube.
 //
-// Part of the world definition: proto::world_params_digest folds kGeologyVersion. Engines read it
-// through grotto-layout's JSON and the glb's room extras. The room meshes do not carry the
-// sections yet: their rims are still the portals' discs. Deterministic like
+// Part of the world definition: proto::world_params_digest folds kGeologyVersion. The room meshes
+// read it (their portals' sections); engines and the glb export read it too. Deterministic like
 // the layout: Grotto's own hash, only +, -, *, / and sqrt (no libm), no state.
 #pragma once
 
@@ -19,7 +18,7 @@
 namespace grotto::cave {
 
 // Bumped whenever the geology or the sections it gives change: part of the world digest.
-inline constexpr const char* kGeologyVersion = "grotto.geology.v1";
+inline constexpr const char* kGeologyVersion = "grotto.geology.v2";
 
 // One set of parallel fractures: steep planes `spacing` metres apart.
 struct JointSet {
@@ -65,20 +64,27 @@ struct PassageSection {
   double half_height = 1;
   double slot_depth = 0;
   double slot_width = 0;
+  // How the passage grows between its two ends, as a fraction of its section there: a lens
+  // widens along its bed and a canyon or fissure grows taller, most halfway along. Its portals
+  // are its narrowest places, as a cave's squeezes lie between its rooms. The room's deformation
+  // blends the two ends' values (and keeps the passage inside its room's sphere).
+  double widen = 0;
+  double deepen = 0;
 };
 
 // The section of a portal at `centre` with unit `normal` (either sign: the section does not
 // depend on it) and disc radius `radius`, from the geology at its centre and the passage's
-// direction. Every section keeps a player 1.8 m tall and 0.6 m wide walking through with the
+// direction. Every section keeps a player 1.8 m tall and 1 m wide walking through with the
 // rim's noise at its narrowest.
 PassageSection passage_section(const World& world, Vec3 centre, Vec3 normal, double radius);
 // The farthest any section reaches from its portal's centre, in radii (the slot's corners and
 // the smooth join of slot and ellipse reach a little past the disc).
 inline constexpr double kMaxSectionReach = 1.25;
 
-// The section's extent in radii: the farthest it reaches from the centre (its slot's corners, and
-// a smooth join of slot and ellipse 0.3 radii soft), the nearest, its overall height over its
-// width, and its perimeter over 2 pi.
+// The section's extent in radii (the shape itself is evaluated where the rims are built,
+// common/mesh/deform_core.h's grotto_section): the farthest it reaches from the centre (the
+// rim's noise fade), the nearest (how far the rim's noise may narrow it), its overall height
+// over its width, and its perimeter over 2 pi (how many vertices its rim gets).
 double section_reach(const PassageSection& section);
 double section_narrow(const PassageSection& section);
 double section_aspect(const PassageSection& section);

@@ -31,14 +31,21 @@
 #define GROTTO_MAX_OCTAVES 6
 
 /* A portal of the room being deformed, in the room's frame (metres from the room origin).
- * 16 floats, no float3 members, so the layout is the same on host and device. */
+ * 24 floats, no float3 members, so the layout is the same on host and device. */
 typedef struct {
   float cx, cy, cz;    /* disc centre */
   float nx, ny, nz;    /* unit normal, out of the room */
   float e1x, e1y, e1z; /* canonical in-plane basis (shared by both rooms of the portal) */
   float e2x, e2y, e2z;
   float radius; /* disc radius */
-  float pad0, pad1, pad2;
+  /* The passage's section (cave::PassageSection, from the geology), in radii: an ellipse of
+   * half-width half_w and half-height half_h, its height along up_c * e1 + up_s * e2, and below
+   * the centre a slot slot_width wide each side with a flat floor slot_depth down (0: none).
+   * reach and narrow: its farthest and nearest extent. widen and deepen: how much the passage
+   * grows across and along its height halfway to its other end (fractions). */
+  float up_c, up_s, half_w, half_h, slot_depth, slot_width, reach, narrow;
+  float widen, deepen;
+  float pad;
 } GrottoPortal;
 
 /* One room of a batch. 20 floats/uints. */
@@ -197,12 +204,44 @@ GROTTO_FN gfloat grotto_noise3(uint seed, gfloat3 p, float f) {
   return grotto_noise(seed, p.x * f, p.y * f, p.z * f);
 }
 
-/* Thesis §3.1.6: the portal's radius varies with noise sampled on the rim, so rims are irregular.
- * u is the unit in-plane direction from the disc centre; w0 the room origin in noise space. */
+/* The portal's section along the unit in-plane direction u, in radii: an ellipse (its height along
+ * the section's up), and below the centre, where there is one, a slot with a flat floor joined to
+ * it by a smooth maximum (GROTTO_SECTION_SOFTNESS radii). The section's axes come from the
+ * canonical basis, so both rooms of a portal draw the same shape. */
+#define GROTTO_SECTION_SOFTNESS 0.3f
+GROTTO_FN gfloat grotto_section(GROTTO_CONSTANT const GrottoPortal* p, gfloat3 u) {
+  float ux = p->up_c * p->e1x + p->up_s * p->e2x;
+  float uy = p->up_c * p->e1y + p->up_s * p->e2y;
+  float uz = p->up_c * p->e1z + p->up_s * p->e2z;
+  float ax = p->up_c * p->e2x - p->up_s * p->e1x;
+  float ay = p->up_c * p->e2y - p->up_s * p->e1y;
+  float az = p->up_c * p->e2z - p->up_s * p->e1z;
+  gfloat b = u.x * ux + u.y * uy + u.z * uz; /* along the height */
+  gfloat a = u.x * ax + u.y * ay + u.z * az; /* across */
+  gfloat aw = a / p->half_w, bh = b / p->half_h;
+  gfloat r = 1.0f / grotto_sqrt(aw * aw + bh * bh);
+  if (p->slot_depth > 0.0f) {
+    /* A ray downwards leaves the slot through its floor or through a side, whichever first. */
+    gfloat side = a < 0.0f ? -a : a, down = -b;
+    gfloat to_floor = p->slot_depth / (down > 1e-6f ? down : 1e-6f);
+    gfloat to_side = p->slot_width / (side > 1e-6f ? side : 1e-6f);
+    gfloat slot = to_floor < to_side ? to_floor : to_side;
+    slot = down > 0.0f ? slot : 0.0f;
+    gfloat gap = r - slot;
+    r = 0.5f *
+        (r + slot + grotto_sqrt(gap * gap + GROTTO_SECTION_SOFTNESS * GROTTO_SECTION_SOFTNESS));
+  }
+  return r;
+}
+
+/* Thesis §3.1.6: the portal's radius varies with noise sampled on the rim, so rims are irregular;
+ * the passage's section shapes it. u is the unit in-plane direction from the disc centre; w0 the
+ * room origin in noise space. */
 GROTTO_FN gfloat grotto_rim_radius(uint seed, GROTTO_CONSTANT const GrottoPortal* p,
                                    GROTTO_CONSTANT const GrottoShape* s, gfloat3 w0, gfloat3 u) {
   gfloat3 on_rim = grotto_add(grotto_add(w0, grotto_portal_centre(p)), grotto_scale(u, p->radius));
-  return p->radius * (1.0f + s->rim_amplitude * grotto_noise3(seed, on_rim, s->rim_frequency));
+  return p->radius * (1.0f + s->rim_amplitude * grotto_noise3(seed, on_rim, s->rim_frequency)) *
+         grotto_section(p, u);
 }
 
 /* Thesis §3.1.6: the surface octaves at noise-space point wp, metres along the outward direction.
@@ -262,6 +301,51 @@ GROTTO_FN gfloat3 grotto_hermite(gfloat3 p0, gfloat3 t0, gfloat3 p1, gfloat3 t1,
   return grotto_add(
       grotto_add(grotto_add(grotto_scale(p0, h00), grotto_scale(t0, h10)), grotto_scale(p1, h01)),
       grotto_scale(t1, h11));
+}
+
+/* How a passage grows between its ends (GrottoPortal::widen, deepen): the spline's offset d from
+ * its axis at parameter t, stretched along the sections' height (the ends' up directions blended)
+ * and across it, most halfway and not at all at the rims (whose slope it keeps: the growth eases
+ * in). The more grown end's values hold (a passage from a canyon to a shaft is still cut deep),
+ * held so that the passage stays inside the room's sphere (radius) as far as its widest end's
+ * reach allows. */
+GROTTO_FN gfloat3 grotto_grow(GROTTO_CONSTANT const GrottoPortal* pi,
+                              GROTTO_CONSTANT const GrottoPortal* pj, float radius, gfloat3 d,
+                              gfloat t) {
+  float widen = pi->widen > pj->widen ? pi->widen : pj->widen;
+  float deepen = pi->deepen > pj->deepen ? pi->deepen : pj->deepen;
+  float extent_i = pi->radius * pi->reach, extent_j = pj->radius * pj->reach;
+  float extent = extent_i > extent_j ? extent_i : extent_j;
+  float room_for = radius / extent - 1.0f;
+  room_for = room_for > 0.0f ? room_for : 0.0f;
+  widen = widen < room_for ? widen : room_for;
+  deepen = deepen < room_for ? deepen : room_for;
+  /* A bent passage widens less: its widened wall would reach across a portal's plane (where the
+   * plane runs on beyond the disc, into the room). It grows taller all the same: a level
+   * passage's portal planes stand upright, and the wall moves along them. */
+  float facing = -(pi->nx * pj->nx + pi->ny * pj->ny + pi->nz * pj->nz);
+  float straight = (facing + 0.2f) / 0.7f;
+  straight = straight < 0.0f ? 0.0f : (straight > 1.0f ? 1.0f : straight);
+  straight = straight * straight * (3.0f - 2.0f * straight);
+  widen = widen * straight;
+  if (widen <= 0.0f && deepen <= 0.0f) return d;
+  float uix = pi->up_c * pi->e1x + pi->up_s * pi->e2x;
+  float uiy = pi->up_c * pi->e1y + pi->up_s * pi->e2y;
+  float uiz = pi->up_c * pi->e1z + pi->up_s * pi->e2z;
+  float ujx = pj->up_c * pj->e1x + pj->up_s * pj->e2x;
+  float ujy = pj->up_c * pj->e1y + pj->up_s * pj->e2y;
+  float ujz = pj->up_c * pj->e1z + pj->up_s * pj->e2z;
+  /* The ends' ups point the same way (both from the world's up); blended along t. */
+  gfloat3 up = grotto_v3(uix + (ujx - uix) * t, uiy + (ujy - uiy) * t, uiz + (ujz - uiz) * t);
+  gfloat up_len = grotto_length(up);
+  up = grotto_select3(up_len > 1e-6f, grotto_div(up, up_len > 1e-6f ? up_len : 1.0f),
+                      grotto_v3(0.0f, 1.0f, 0.0f));
+  gfloat along = grotto_dot(d, up);
+  gfloat3 d_up = grotto_scale(up, along);
+  gfloat3 d_across = grotto_sub(d, d_up);
+  gfloat bump = grotto_smooth(4.0f * t * (1.0f - t));
+  return grotto_add(grotto_scale(d_across, 1.0f + widen * bump),
+                    grotto_scale(d_up, 1.0f + deepen * bump));
 }
 
 /* Deforms donor-sphere vertices (unit directions dir, one per lane) of a room. Returns the
@@ -358,6 +442,9 @@ GROTTO_FN gfloat3 grotto_deform_vertex(uint seed, GROTTO_CONSTANT const GrottoSh
         gfloat axis_span = grotto_length(grotto_sub(cj, ci)) * s->tension;
         gfloat3 a = grotto_hermite(ci, grotto_scale(grotto_neg(ni), axis_span), cj,
                                    grotto_scale(nj, axis_span), t);
+        /* A passage (two portals) grows between its ends; a junction's pairs do not (a pair's
+         * growth would push its wall across a third portal's plane). */
+        if (n == 2u) h = grotto_add(a, grotto_grow(pi, pj, room->radius, grotto_sub(h, a), t));
         gfloat3 d = grotto_sub(h, v);
         gfloat wgt = 1.0f / (grotto_dot(d, d) + 1e-4f);
         sum = grotto_add(sum, grotto_scale(h, wgt));
@@ -435,11 +522,11 @@ GROTTO_FN gfloat3 grotto_deform_vertex(uint seed, GROTTO_CONSTANT const GrottoSh
     gfloat3 rel = grotto_sub(smooth_pos, grotto_portal_centre(p));
     gfloat h = -grotto_dot(rel, grotto_portal_normal(p));
     gfloat3 in_plane = grotto_add(rel, grotto_scale(grotto_portal_normal(p), h));
-    gfloat beyond_disc = grotto_length(in_plane) - p->radius * (1.0f + s->rim_amplitude);
+    gfloat beyond_disc = grotto_length(in_plane) - p->radius * p->reach * (1.0f + s->rim_amplitude);
     gfloat near_plane = 1.0f - grotto_smooth(h / s->fade_distance);
     gfloat on_disc = 1.0f - grotto_smooth(beyond_disc / s->fade_distance - 1.0f);
     near_sum = near_sum + near_plane;
-    rim_sum = rim_sum + near_plane * on_disc * grotto_rim_noise(s, p->radius, noise);
+    rim_sum = rim_sum + near_plane * on_disc * grotto_rim_noise(s, p->radius * p->narrow, noise);
   }
   gfloat rim_target = near_sum > 0.0f ? rim_sum / (near_sum > 0.0f ? near_sum : 1.0f) : 0.0f;
   gfloat fade = grotto_smooth(nearest / s->fade_distance);

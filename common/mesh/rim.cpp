@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "common/cave/geology.hpp"
 #include "common/core/detmath.hpp"
 #include "common/core/grid.hpp"
 
@@ -26,11 +27,51 @@ RimLoop rim_frame(const cave::Room& room, const cave::Portal& portal) {
   return loop;
 }
 
+core::GrottoPortal portal_record(const MeshContext& ctx, const cave::Room& room,
+                                 const cave::Portal& portal, Vec3 origin) {
+  RimLoop basis = rim_frame(room, portal);
+  core::GrottoPortal g{};
+  Vec3 c = portal.centre - origin;
+  g.cx = static_cast<float>(c.x);
+  g.cy = static_cast<float>(c.y);
+  g.cz = static_cast<float>(c.z);
+  g.nx = static_cast<float>(portal.normal.x);
+  g.ny = static_cast<float>(portal.normal.y);
+  g.nz = static_cast<float>(portal.normal.z);
+  g.e1x = static_cast<float>(basis.e1.x);
+  g.e1y = static_cast<float>(basis.e1.y);
+  g.e1z = static_cast<float>(basis.e1.z);
+  g.e2x = static_cast<float>(basis.e2.x);
+  g.e2y = static_cast<float>(basis.e2.y);
+  g.e2z = static_cast<float>(basis.e2.z);
+  g.radius = static_cast<float>(portal.radius);
+  // The section from the canonical normal, its height in the canonical basis: both rooms agree.
+  cave::PassageSection section =
+      cave::passage_section(ctx.world(), portal.centre, basis.normal, portal.radius);
+  g.up_c = static_cast<float>(dot(section.up, basis.e1));
+  g.up_s = static_cast<float>(dot(section.up, basis.e2));
+  g.half_w = static_cast<float>(section.half_width);
+  g.half_h = static_cast<float>(section.half_height);
+  g.slot_depth = static_cast<float>(section.slot_depth);
+  g.slot_width = static_cast<float>(section.slot_width);
+  g.reach = static_cast<float>(cave::section_reach(section));
+  g.narrow = static_cast<float>(cave::section_narrow(section));
+  g.widen = static_cast<float>(section.widen);
+  g.deepen = static_cast<float>(section.deepen);
+  return g;
+}
+
 RimLoop canonical_rim(const MeshContext& ctx, const cave::Room& room, const cave::Portal& portal,
                       Lod lod) {
   RimLoop loop = rim_frame(room, portal);
   const core::GrottoShape& shape = ctx.shape(lod);
-  int k_count = rim_vertex_count(portal.radius, ctx.edge_length(lod));
+  // The record in the portal's own frame: only its section is read here.
+  const core::GrottoPortal record = portal_record(ctx, room, portal, portal.centre);
+  const cave::PassageSection section =
+      cave::passage_section(ctx.world(), portal.centre, loop.normal, portal.radius);
+  // As many vertices as the disc's circle at least: a slot's corners and floor need them.
+  int k_count = rim_vertex_count(portal.radius * std::max(1.0, cave::section_perimeter(section)),
+                                 ctx.edge_length(lod));
   loop.positions.reserve(k_count);
   loop.normals.reserve(k_count);
   for (int k = 0; k < k_count; ++k) {
@@ -38,17 +79,39 @@ RimLoop canonical_rim(const MeshContext& ctx, const cave::Room& room, const cave
     detmath::sincos(2.0 * detmath::kPi * k / k_count - detmath::kPi, s, c);
     Vec3 u = loop.e1 * c + loop.e2 * s;
     // Thesis §3.1.6: noise on the radius makes the rim irregular; sampled where the kernel samples
-    // it (on the plain rim), from the canonical world position.
+    // it (on the plain rim), from the canonical world position. The passage's section shapes it
+    // (deform_core.h: the same function the kernel evaluates).
     core::float3 at = ctx.noise_position(portal.centre + u * portal.radius);
     float noise = core::grotto_noise3(ctx.noise_seed(), at, shape.rim_frequency);
-    double radius = portal.radius * (1.0 + shape.rim_amplitude * static_cast<double>(noise));
+    core::float3 uf{static_cast<float>(u.x), static_cast<float>(u.y), static_cast<float>(u.z)};
+    double radius = portal.radius * (1.0 + shape.rim_amplitude * static_cast<double>(noise)) *
+                    static_cast<double>(core::grotto_section(&record, uf));
     // The surface noise where the walls of both rooms reach the rim (deform_core.h), in the plane.
     core::float3 on_rim = ctx.noise_position(portal.centre + u * radius);
     float surface = core::grotto_surface_noise(ctx.noise_seed(), &shape, on_rim);
-    radius += core::grotto_rim_noise(&shape, static_cast<float>(portal.radius), surface);
+    radius += core::grotto_rim_noise(&shape, record.radius * record.narrow, surface);
     loop.positions.push_back(grid::snap(portal.centre + u * radius));
+    // The normal is the section's own, in the plane and square to its outline, towards the
+    // passage's axis (for a disc, -u): a lens's or a slot's wall faces across the passage, not
+    // towards its centre. From the section's outline a small turn either side of u.
+    const double kTurn = 1e-3;
+    double s0, c0, s1, c1;
+    const double angle = 2.0 * detmath::kPi * k / k_count - detmath::kPi;
+    detmath::sincos(angle - kTurn, s0, c0);
+    detmath::sincos(angle + kTurn < detmath::kPi ? angle + kTurn : angle + kTurn - 2 * detmath::kPi,
+                    s1, c1);
+    const Vec3 u0 = loop.e1 * c0 + loop.e2 * s0, u1 = loop.e1 * c1 + loop.e2 * s1;
+    const auto on_outline = [&](Vec3 d) {
+      core::float3 df{static_cast<float>(d.x), static_cast<float>(d.y), static_cast<float>(d.z)};
+      return d * static_cast<double>(core::grotto_section(&record, df));
+    };
+    const Vec3 tangent = on_outline(u1) - on_outline(u0);
+    Vec3 inward = cross(tangent, loop.normal);
+    if (dot(inward, u) > 0) inward = -inward;
+    const double len = length(inward);
+    const Vec3 n = len > 1e-12 ? inward / len : -u;
     loop.normals.push_back(
-        {static_cast<float>(-u.x), static_cast<float>(-u.y), static_cast<float>(-u.z)});
+        {static_cast<float>(n.x), static_cast<float>(n.y), static_cast<float>(n.z)});
   }
   return loop;
 }
@@ -61,7 +124,8 @@ double rim_reach(const MeshParams& params, double portal_radius) {
       sum += params.octave_amplitude[k];
     octaves = std::max(octaves, sum);
   }
-  return portal_radius * (1.0 + params.rim_amplitude) + octaves + 0.5 * params.rim_softness;
+  return portal_radius * cave::kMaxSectionReach * (1.0 + params.rim_amplitude) + octaves +
+         0.5 * params.rim_softness;
 }
 
 }  // namespace grotto::mesh

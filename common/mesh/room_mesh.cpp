@@ -24,12 +24,18 @@ Vec3 to_vec(float3 f) {
 float3 to_f3(Vec3 v) {
   return {static_cast<float>(v.x), static_cast<float>(v.y), static_cast<float>(v.z)};
 }
-// Distance from v to a portal's disc (its plane within the radius, its rim beyond).
+// Distance from v to a portal's opening: its plane within its passage's section (the disc drawn
+// out to the section's shape), its rim beyond.
 double disc_distance(const core::GrottoPortal& p, Vec3 v) {
   Vec3 rel = v - Vec3{p.cx, p.cy, p.cz};
   Vec3 n{p.nx, p.ny, p.nz};
   double h = dot(rel, n);
-  double radial = std::max(0.0, length(rel - n * h) - p.radius);
+  Vec3 in_plane = rel - n * h;
+  double along = length(in_plane);
+  double extent = p.radius;
+  if (along > 1e-9)
+    extent *= static_cast<double>(core::grotto_section(&p, to_f3(in_plane / along)));
+  double radial = std::max(0.0, along - extent);
   return std::sqrt(h * h + radial * radial);
 }
 
@@ -311,23 +317,7 @@ DeformInput prepare_room(const MeshContext& ctx, const cave::Room& room, Lod lod
                             static_cast<float>(3 * p.roughness_frequency),
                             static_cast<float>(p.mineral_frequency)};
   for (const cave::Portal& portal : room.portals) {
-    RimLoop basis = rim_frame(room, portal);
-    core::GrottoPortal g{};
-    Vec3 c = portal.centre - in.origin;
-    g.cx = static_cast<float>(c.x);
-    g.cy = static_cast<float>(c.y);
-    g.cz = static_cast<float>(c.z);
-    g.nx = static_cast<float>(portal.normal.x);
-    g.ny = static_cast<float>(portal.normal.y);
-    g.nz = static_cast<float>(portal.normal.z);
-    g.e1x = static_cast<float>(basis.e1.x);
-    g.e1y = static_cast<float>(basis.e1.y);
-    g.e1z = static_cast<float>(basis.e1.z);
-    g.e2x = static_cast<float>(basis.e2.x);
-    g.e2y = static_cast<float>(basis.e2.y);
-    g.e2z = static_cast<float>(basis.e2.z);
-    g.radius = static_cast<float>(portal.radius);
-    in.portals.push_back(g);
+    in.portals.push_back(portal_record(ctx, room, portal, in.origin));
   }
   return in;
 }

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <map>
+#include <string>
 #include <vector>
 
 #include "common/core/random.hpp"
@@ -14,11 +15,12 @@ namespace grotto::mesh::testing {
 struct BuiltBlock {
   cave::Region region;
   std::map<cave::RoomId, RoomMesh> meshes;
+  std::vector<std::string> failures;  // "room: why" for each room that did not build
 };
 
 inline BuiltBlock build_block(const MeshContext& ctx, cave::SectorCoord lo, cave::SectorCoord hi,
                               Lod lod, uint64_t order_seed) {
-  BuiltBlock out{cave::generate_region(ctx.world(), lo, hi), {}};
+  BuiltBlock out{cave::generate_region(ctx.world(), lo, hi), {}, {}};
   std::vector<const cave::Room*> order;
   for (const cave::Room& r : out.region.rooms)
     order.push_back(&r);
@@ -28,7 +30,11 @@ inline BuiltBlock build_block(const MeshContext& ctx, cave::SectorCoord lo, cave
   }
   for (const cave::Room* r : order) {
     auto mesh = build_room_mesh(ctx, *r, lod);
-    if (mesh.ok()) out.meshes.emplace(r->id, std::move(mesh).value());
+    if (mesh.ok()) {
+      out.meshes.emplace(r->id, std::move(mesh).value());
+    } else {
+      out.failures.push_back(r->id.to_string() + ": " + mesh.error().message);
+    }
   }
   return out;
 }

@@ -1,4 +1,5 @@
 #include "common/mesh/rim.hpp"
+#include "common/cave/geology.hpp"
 
 #include <gtest/gtest.h>
 
@@ -50,18 +51,20 @@ TEST_F(RimTest, loops_lie_on_the_grid_around_their_portal) {
   for (const cave::Portal& p : room.portals) {
     RimLoop loop = canonical_rim(ctx, room, p, Lod::kPatch);
     EXPECT_GE(loop.positions.size(), 8u);
-    EXPECT_EQ(static_cast<int>(loop.positions.size()), rim_vertex_count(p.radius, 0.56));
+    const cave::PassageSection section = cave::passage_section(world, p.centre, p.normal, p.radius);
+    EXPECT_EQ(static_cast<int>(loop.positions.size()),
+              rim_vertex_count(p.radius * std::max(1.0, cave::section_perimeter(section)), 0.56));
     double area = 0;
     for (size_t k = 0; k < loop.positions.size(); ++k) {
       Vec3 v = loop.positions[k];
       EXPECT_TRUE(grid::on_grid(v.x) && grid::on_grid(v.y) && grid::on_grid(v.z));
-      // In the portal plane (to the grid's precision), near the disc's rim: moved by the rim noise
-      // (12 % of the radius) and by at most the surface octaves (0.78 m at patch level), never
-      // below rim_min_radius (1.05 m).
+      // In the portal plane (to the grid's precision), on its passage's section: moved by the rim
+      // noise (12 % of the radius) and by at most the surface octaves (0.78 m at patch level),
+      // never narrower than rim_min_radius (1.05 m) or the section itself allows.
       EXPECT_LT(std::abs(dot(v - p.centre, p.normal)), grid::kStep);
       double r = length(v - p.centre);
-      EXPECT_GT(r, std::max(1.0, p.radius * 0.8 - 0.8));
-      EXPECT_LT(r, p.radius * 1.2 + 0.8);
+      EXPECT_GT(r, std::min(1.05, p.radius * cave::section_narrow(section) * 0.88) - grid::kStep);
+      EXPECT_LT(r, p.radius * cave::section_reach(section) * 1.2 + 0.8);
       Vec3 w = loop.positions[(k + 1) % loop.positions.size()];
       Vec3 a = v - p.centre, b = w - p.centre;
       area += dot(Vec3{a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x},
@@ -90,7 +93,12 @@ TEST_F(RimTest, rims_move_with_the_surface_noise_but_stay_wide_enough) {
         double radius = length(rough.positions[k] - p.centre);
         moved += std::abs(radius - length(smooth.positions[k] - p.centre));
         ++count;
-        EXPECT_GT(radius, ctx.params().rim_min_radius - grid::kStep) << r.id.to_string();
+        const double narrowest =
+            p.radius *
+            cave::section_narrow(cave::passage_section(world, p.centre, p.normal, p.radius)) *
+            (1 - ctx.params().rim_amplitude);
+        EXPECT_GT(radius, std::min(ctx.params().rim_min_radius, narrowest) - grid::kStep)
+            << r.id.to_string();
       }
     }
   }

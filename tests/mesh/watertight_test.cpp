@@ -39,6 +39,8 @@ testing::BuiltBlock* Watertight::block_ = nullptr;
 
 TEST_F(Watertight, every_room_of_the_block_was_built) {
   EXPECT_EQ(block_->meshes.size(), block_->region.rooms.size());
+  for (const std::string& failure : block_->failures)
+    ADD_FAILURE() << failure;
   EXPECT_GT(block_->meshes.size(), 500u);
 }
 
