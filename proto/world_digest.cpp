@@ -78,11 +78,12 @@ uint64_t world_params_digest(const cave::LayoutParams& layout, const mesh::MeshP
     c.f64(l.edge_length);
     c.f64(static_cast<double>(l.octaves));
   }
-  // Version 4 of the deformation: halls keep their sphere, rest on floors and lower their wall
-  // onto a ceiling, donors are capped by frequency, the spline's rim point is pulled in near a
-  // portal's axis line, and every rim is its passage's section from the world's geology. The
-  // algorithm itself is part of the world, not only its numbers.
-  c.text("grotto.mesh.v4");
+  // Version 5 of the deformation: halls keep their sphere, rest on floors and lower their wall
+  // onto a ceiling that steps along the beds of the world's geology, with notches and ledges in
+  // their walls; donors are capped by frequency, the spline's rim point is pulled in near a
+  // portal's axis line, every rim is its passage's section from the geology, and a passage grows
+  // between its ends. The algorithm itself is part of the world, not only its numbers.
+  c.text("grotto.mesh.v5");
   for (const auto& l : m.lods)
     c.f64(static_cast<double>(l.max_frequency));
   for (double v : {m.axis_fade_edges, m.keep_distance, m.wall_allow, m.wall_softness,

@@ -100,22 +100,29 @@ void find_bed(uint64_t seed, double s, Geology& g) {
   }
 }
 
-}  // namespace
-
-Geology geology_at(const World& world, Vec3 p) {
-  const uint64_t seed = world.seed();
-  Geology g;
-
-  // Beds: the level sets of y - h(x, z), h a folded height field whose amplitude varies by
-  // region (dips of a few degrees in most, up to about fifteen in some).
+// Beds: the level sets of y - h(x, z), h a folded height field whose amplitude varies by region
+// (dips of a few degrees in most, up to about fifteen in some). h and its slopes at (x, z).
+struct Structure {
+  double h = 0, hx = 0, hz = 0;
+};
+Structure structure_at(uint64_t seed, Vec3 p) {
   Field2 amount = value2(seed, kDipAmount, p.x, p.z, kDipCell);
   Field2 broad = value2(seed, kStructure, p.x, p.z, kStructureCell);
   Field2 fine = value2(seed, kStructureFine, p.x, p.z, kStructureFineCell);
   const double amp = 10 + 80 * amount.v * amount.v;
   const double amp_dx = 160 * amount.v * amount.dx, amp_dz = 160 * amount.v * amount.dz;
-  const double h = amp * (broad.v - 0.5) + 8 * (fine.v - 0.5);
-  const double hx = amp_dx * (broad.v - 0.5) + amp * broad.dx + 8 * fine.dx;
-  const double hz = amp_dz * (broad.v - 0.5) + amp * broad.dz + 8 * fine.dz;
+  return {amp * (broad.v - 0.5) + 8 * (fine.v - 0.5),
+          amp_dx * (broad.v - 0.5) + amp * broad.dx + 8 * fine.dx,
+          amp_dz * (broad.v - 0.5) + amp * broad.dz + 8 * fine.dz};
+}
+
+}  // namespace
+
+Geology geology_at(const World& world, Vec3 p) {
+  const uint64_t seed = world.seed();
+  Geology g;
+  const Structure st = structure_at(seed, p);
+  const double h = st.h, hx = st.hx, hz = st.hz;
   g.bedding_normal = unit_or(Vec3{-hx, 1, -hz}, Vec3{0, 1, 0});
   const double slope = std::sqrt(hx * hx + hz * hz);
   // atan without libm: the slope is small (below ~0.3), where this series is exact to 1e-5 rad.
@@ -151,6 +158,45 @@ Geology geology_at(const World& world, Vec3 p) {
       band_height * (band + 0.07 + 0.7 * value2(seed, kWaterLevel, p.x, p.z, kWaterCell).v);
   g.phreatic = p.y < g.water_level;
   return g;
+}
+
+std::vector<BedBreak> bed_breaks(const World& world, Vec3 p, double below, double above,
+                                 double min_package, int max_breaks) {
+  const uint64_t seed = world.seed();
+  const Structure st = structure_at(seed, p);
+  // Along the pole, s = y - h grows by `stretch` a metre (the planes through p).
+  const double stretch = std::sqrt(st.hx * st.hx + 1 + st.hz * st.hz);
+  const double s0 = p.y - st.h;
+  std::vector<BedBreak> breaks;
+  Geology g;
+  find_bed(seed, s0 - below * stretch, g);
+  double base = s0 - below * stretch - g.bed_depth;  // the first bed's base, in s
+  double package_base = base;
+  while (base < s0 + above * stretch) {
+    find_bed(seed, base + 1e-6, g);  // the bed starting at base
+    const double top = base + 1e-6 - g.bed_depth + g.bed_thickness;
+    // A package ends where a bed starts once it is thick enough.
+    if (top - package_base >= min_package * stretch) {
+      const double offset = (top - s0) / stretch;
+      if (offset > -below && offset < above) {
+        Geology next;
+        find_bed(seed, top + 1e-6, next);
+        breaks.push_back({offset, next.bed_hardness});
+      }
+      package_base = top;
+    }
+    base = top;
+  }
+  // The nearest to the middle of the span, in order.
+  const double middle = 0.5 * (above - below);
+  while (static_cast<int>(breaks.size()) > max_breaks) {
+    if (std::abs(breaks.front().offset - middle) > std::abs(breaks.back().offset - middle)) {
+      breaks.erase(breaks.begin());
+    } else {
+      breaks.pop_back();
+    }
+  }
+  return breaks;
 }
 
 const char* section_kind_name(SectionKind kind) {
@@ -228,7 +274,7 @@ PassageSection passage_section(const World& world, Vec3 centre, Vec3 normal, dou
   };
   if (g.phreatic) {
     // Dissolved full of water: along a soft bed that guided it, round where nothing did.
-    if (lens_field > 0.1) return lens();
+    if (lens_field > 0.2) return lens();
     s.kind = SectionKind::kTube;
     s.half_width = 0.92 + 0.08 * style;
     return s;

@@ -11,6 +11,7 @@
 
 #include <array>
 #include <cstdint>
+#include <vector>
 
 #include "common/cave/layout.hpp"
 #include "common/core/vec3.hpp"
@@ -41,6 +42,21 @@ struct Geology {
 
 // The rock at `p` (world metres). Pure: the same for every caller, any order, any machine.
 Geology geology_at(const World& world, Vec3 p);
+
+// A break between packages of beds along the pole through a point: where a hall's ceiling steps
+// (a slab's underside) and its walls change from one package to the next.
+struct BedBreak {
+  double offset = 0;    // metres along the beds' pole from the point (negative: below)
+  double hardness = 0;  // 0-1: the package above it (soft packages weather back into notches)
+};
+
+// The breaks between packages of beds at least `min_package` metres thick (thinner beds merge
+// into the package above them) within `below` metres under and `above` metres over `p` along
+// the pole there, in order (at most `max_breaks`, the nearest to the middle of the span kept),
+// from the same beds geology_at gives, taken as planes through p (a hall's span is small against
+// the folds).
+std::vector<BedBreak> bed_breaks(const World& world, Vec3 p, double below, double above,
+                                 double min_package, int max_breaks);
 
 // How a passage formed, read off its section.
 enum class SectionKind : uint8_t {

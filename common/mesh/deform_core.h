@@ -29,6 +29,7 @@
 
 #define GROTTO_MAX_PORTALS 16
 #define GROTTO_MAX_OCTAVES 6
+#define GROTTO_MAX_BEDS 16
 
 /* A portal of the room being deformed, in the room's frame (metres from the room origin).
  * 24 floats, no float3 members, so the layout is the same on host and device. */
@@ -48,7 +49,7 @@ typedef struct {
   float pad;
 } GrottoPortal;
 
-/* One room of a batch. 20 floats/uints. */
+/* One room of a batch. 25 + 2 x GROTTO_MAX_BEDS floats/uints. */
 typedef struct {
   float ox, oy, oz;    /* sphere centre in the room frame (|o| < one grid step) */
   float radius;        /* sphere radius */
@@ -68,6 +69,15 @@ typedef struct {
   /* OpenCL only: the room's donor's first group of directions in the device's resident copy
    * (common/kernels/deform.cl); the CPU paths read their donor directly. */
   uint first_direction;
+  /* A hall's beds (cave::bed_breaks; bed_count 0: none): the pole (unit), and bed_count breaks
+   * between packages of beds, bed_at metres along it from the sphere's centre (ascending), each
+   * package's wall set back bed_notch metres (soft packages weather back into notches, hard ones
+   * stand as ledges). The ceiling steps along them (bed_step 0-1). */
+  float bed_nx, bed_ny, bed_nz;
+  uint bed_count;
+  float bed_step;
+  float bed_at[GROTTO_MAX_BEDS];
+  float bed_notch[GROTTO_MAX_BEDS];
 } GrottoRoom;
 
 /* Noise and shape parameters of one level of detail. 32 floats/uints. */
@@ -348,6 +358,41 @@ GROTTO_FN gfloat3 grotto_grow(GROTTO_CONSTANT const GrottoPortal* pi,
                     grotto_scale(d_up, 1.0f + deepen * bump));
 }
 
+/* A hall shaped by its beds (GrottoRoom::bed_*), far from its portals (keep): where the wall
+ * faces up into the rock (its outward direction `out` along the pole) it steps along the breaks
+ * between packages, each package's underside a flat slab, the rise to the next one steep (a
+ * ceiling that broke along its beds, not a dome); where it faces sideways, each package stands
+ * back by its notch, eased over a hand's breadth at the breaks (ledges and notches). */
+GROTTO_FN gfloat3 grotto_beds(GROTTO_CONSTANT const GrottoRoom* room, gfloat3 o, gfloat3 out,
+                              gfloat keep, gfloat3 pos) {
+  gfloat3 pole =
+      grotto_v3(GROTTO_SPLAT(room->bed_nx), GROTTO_SPLAT(room->bed_ny), GROTTO_SPLAT(room->bed_nz));
+  gfloat s = grotto_dot(grotto_sub(pos, o), pole);
+  gfloat lo = GROTTO_SPLAT(-3.4e38f), hi = GROTTO_SPLAT(3.4e38f);
+  gfloat notch = GROTTO_SPLAT(0.0f);
+  float previous = 0.0f;
+  for (uint i = 0; i < room->bed_count; ++i) {
+    float b = room->bed_at[i];
+    lo = b <= s ? GROTTO_SPLAT(b) : lo;
+    hi = (b > s) & (b < hi) ? GROTTO_SPLAT(b) : hi;
+    notch = notch + (room->bed_notch[i] - previous) * grotto_smooth((s - b) / 0.3f + 0.5f);
+    previous = room->bed_notch[i];
+  }
+  /* Between two breaks: flat at the lower one, rising steeply near the upper (x^8). */
+  gmask between = (lo > -1e38f) & (hi < 1e38f);
+  gfloat gap = between ? hi - lo : GROTTO_SPLAT(1.0f);
+  gfloat x = between ? (s - lo) / gap : GROTTO_SPLAT(0.0f);
+  gfloat x2 = x * x, x4 = x2 * x2;
+  gfloat drop = gap * (x - x4 * x4); /* s - the stepped s, >= 0 */
+  gfloat up = grotto_dot(out, pole);
+  gfloat ceiling = grotto_smooth((up - 0.35f) / 0.4f) * keep * room->bed_step;
+  gfloat side = (1.0f - grotto_smooth(((up < 0.0f ? -up : up) - 0.3f) / 0.4f)) * keep;
+  pos = grotto_sub(pos, grotto_scale(pole, drop * ceiling));
+  /* Set back across the wall: the outward direction without its part along the pole. */
+  gfloat3 across = grotto_sub(out, grotto_scale(pole, up));
+  return grotto_sub(pos, grotto_scale(across, notch * side));
+}
+
 /* Deforms donor-sphere vertices (unit directions dir, one per lane) of a room. Returns the
  * positions in the room frame; *clearance receives the smallest distance to a portal plane on the
  * room's side (negative when the vertex ended beyond a portal: it will be removed). */
@@ -568,6 +613,8 @@ GROTTO_FN gfloat3 grotto_deform_vertex(uint seed, GROTTO_CONSTANT const GrottoSh
     gfloat ramp = t < bend ? t * t / (2.0f * bend) : t - 0.5f * bend;
     pos.y = pos.y - room->ceiling_squash * ramp * keep;
   }
+
+  if (big && room->bed_count > 0u) pos = grotto_beds(room, o, out, keep, pos);
 
   *clearance = grotto_least_height(portals, n, pos);
   return pos;

@@ -7,6 +7,7 @@
 #include <map>
 #include <numeric>
 
+#include "common/cave/geology.hpp"
 #include "common/core/detmath.hpp"
 #include "common/core/grid.hpp"
 #include "common/mesh/deform_lanes.hpp"
@@ -275,6 +276,28 @@ std::vector<uint32_t> pinches_to_cut(const std::vector<std::vector<uint32_t>>& l
   return cut;
 }
 
+// A hall's beds from the world's geology (deform_core.h's grotto_beds): the breaks between
+// packages at least kMinPackage thick from its floor to above its ceiling's top, each package's
+// notch from its hardness (the softest stand back kNotch x the radius, at most kMaxNotch).
+void set_beds(const MeshContext& ctx, const cave::Room& room, core::GrottoRoom& record) {
+  constexpr double kMinPackage = 1.5, kNotch = 0.06, kMaxNotch = 1.5;
+  const double r = room.sphere.radius;
+  const cave::Geology g = cave::geology_at(ctx.world(), room.sphere.centre);
+  const std::vector<cave::BedBreak> breaks = cave::bed_breaks(
+      ctx.world(), room.sphere.centre, 0.6 * r, 0.7 * r, kMinPackage, GROTTO_MAX_BEDS);
+  record.bed_nx = static_cast<float>(g.bedding_normal.x);
+  record.bed_ny = static_cast<float>(g.bedding_normal.y);
+  record.bed_nz = static_cast<float>(g.bedding_normal.z);
+  record.bed_count = static_cast<core::uint>(breaks.size());
+  record.bed_step = 1.0f;
+  const double notch = std::min(kMaxNotch, kNotch * r);
+  for (size_t i = 0; i < breaks.size(); ++i) {
+    const double soft = 1 - breaks[i].hardness;
+    record.bed_at[i] = static_cast<float>(breaks[i].offset);
+    record.bed_notch[i] = static_cast<float>(notch * soft * soft);
+  }
+}
+
 }  // namespace
 
 DeformInput prepare_room(const MeshContext& ctx, const cave::Room& room, Lod lod) {
@@ -307,6 +330,7 @@ DeformInput prepare_room(const MeshContext& ctx, const cave::Room& room, Lod lod
     in.record.ceiling_bend = static_cast<float>(ceiling->bend);
     in.record.ceiling_squash = static_cast<float>(ceiling->squash);
   }
+  if (big) set_beds(ctx, room, in.record);
   in.record.first_portal = 0;
   in.record.portal_count = static_cast<core::uint>(room.portals.size());
   in.record.first_vertex = 0;

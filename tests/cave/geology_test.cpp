@@ -8,6 +8,7 @@
 #include <cmath>
 #include <map>
 #include <set>
+#include <vector>
 
 #include "common/cave/layout.hpp"
 
@@ -66,8 +67,8 @@ TEST(Geology, beds_joints_and_water_stay_within_their_ranges_everywhere) {
     EXPECT_NEAR(angle_degrees(g.joints[0].normal, g.joints[1].normal), 90, 16);
     EXPECT_EQ(g.phreatic, p.y < g.water_level);
     const double band = std::floor(p.y / 96.0) * 96.0;
-    EXPECT_GE(g.water_level, band + 24 - 1e-9);
-    EXPECT_LE(g.water_level, band + 72 + 1e-9);
+    EXPECT_GE(g.water_level, band + 0.07 * 96 - 1e-9);
+    EXPECT_LE(g.water_level, band + 0.77 * 96 + 1e-9);
   }
 }
 
@@ -170,6 +171,33 @@ TEST(PassageSections, a_region_has_every_kind_of_passage) {
   EXPECT_GT(tall, level / 5);
   EXPECT_GT(wide, level / 20);
   EXPECT_GT(long_shafts, 3000 / 5);
+}
+
+// A hall's beds: the breaks between packages lie in order within the span, a package apart,
+// each the base of a bed geology_at reports there, and they are the same however often asked.
+TEST(Geology, bed_breaks_are_the_bases_of_the_beds_in_order_a_package_apart) {
+  const World w = world_of(95);
+  for (Vec3 p : {Vec3{49.5, 30, 46.5}, Vec3{-800, 12, 310}, Vec3{2000, -60, -75}}) {
+    const std::vector<BedBreak> breaks = bed_breaks(w, p, 15, 18, 1.5, 16);
+    ASSERT_GE(breaks.size(), 8u) << p.x;
+    EXPECT_EQ(breaks.size(), bed_breaks(w, p, 15, 18, 1.5, 16).size());
+    const Vec3 pole = geology_at(w, p).bedding_normal;
+    for (size_t i = 0; i < breaks.size(); ++i) {
+      EXPECT_GT(breaks[i].offset, -15);
+      EXPECT_LT(breaks[i].offset, 18);
+      EXPECT_GE(breaks[i].hardness, 0);
+      EXPECT_LE(breaks[i].hardness, 1);
+      if (i > 0) {
+        EXPECT_GE(breaks[i].offset - breaks[i - 1].offset, 1.5 * 0.99);
+      }
+      // Either side of a break lie two beds (the planes through p leave the folded beds by a
+      // few centimetres at the span's ends).
+      const Geology above = geology_at(w, p + pole * (breaks[i].offset + 0.1));
+      const Geology below = geology_at(w, p + pole * (breaks[i].offset - 0.1));
+      EXPECT_NE(above.bed, below.bed) << i;
+    }
+  }
+  EXPECT_LE(bed_breaks(w, {0, 0, 0}, 40, 40, 0.3, 16).size(), 16u);
 }
 
 }  // namespace

@@ -7,6 +7,7 @@
 #include <optional>
 #include <vector>
 
+#include "common/cave/geology.hpp"
 #include "common/core/grid.hpp"
 #include "tests/mesh/mesh_fixture.hpp"
 
@@ -296,6 +297,45 @@ TEST(RoomMesh, halls_lower_their_cap_onto_a_ceiling) {
     EXPECT_GT((hi_x - lo_x) / (top + floor), 2.0) << room.id.to_string();
   }
   EXPECT_GE(halls, 2);
+}
+
+// A hall's ceiling steps along its beds: most of the rock overhead lies on the undersides of
+// the packages of beds (cave::bed_breaks), slabs with steep steps between them, not a dome that
+// crosses the beds at every height (it would put about a fifth of its points that near).
+TEST(HallBeds, the_ceiling_of_a_hall_is_the_undersides_of_its_beds) {
+  const cave::World world = cave::World::create(95, cave::LayoutParams{}).value();
+  const MeshContext ctx = MeshContext::create(world, MeshParams{}).value();
+  const cave::Region region = cave::generate_region(world, {1, 0, 1}, {1, 0, 1});
+  const cave::Room* hall = nullptr;
+  for (const cave::Room& r : region.rooms)
+    if (!hall || r.sphere.radius > hall->sphere.radius) hall = &r;
+  ASSERT_NE(hall, nullptr);
+  ASSERT_GE(hall->sphere.radius, 20);
+  const auto m = build_room_mesh(ctx, *hall, Lod::kPatch);
+  ASSERT_TRUE(m.ok());
+  const Vec3 c = hall->sphere.centre, pole = cave::geology_at(world, c).bedding_normal;
+  const std::vector<cave::BedBreak> breaks = cave::bed_breaks(
+      world, c, 0.6 * hall->sphere.radius, 0.7 * hall->sphere.radius, 1.5, GROTTO_MAX_BEDS);
+  ASSERT_GE(breaks.size(), 3u);
+  int overhead = 0, on_a_slab = 0;
+  for (size_t v = 0; v < m->vertex_count(); ++v) {
+    const Vec3 p = m->world_position(v);
+    const core::float3 n = m->normals[v];
+    const double s = dot(p - c, pole);
+    if (s < 0.3 * hall->sphere.radius || n.y > -0.8) continue;  // the ceiling, facing down
+    bool near_portal = false;
+    for (const cave::Portal& portal : hall->portals)
+      near_portal |= length(p - portal.centre) < portal.radius + 6;
+    if (near_portal) continue;
+    ++overhead;
+    double nearest = 1e9;
+    for (const cave::BedBreak& b : breaks)
+      nearest = std::min(nearest, std::abs(s - b.offset));
+    on_a_slab += nearest < 0.15;
+  }
+  ASSERT_GT(overhead, 200);
+  RecordProperty("on_a_slab_percent", 100 * on_a_slab / overhead);
+  EXPECT_GT(on_a_slab, overhead / 2) << on_a_slab << " of " << overhead;
 }
 
 }  // namespace
