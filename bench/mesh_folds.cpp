@@ -255,9 +255,18 @@ int main(int argc, char** argv) {
           std::vector<float3> pos(nv);
           std::vector<float> clearance(nv);
           mesh::deform_cpu(ctx, in, pos, clearance);
-          auto m = mesh::assemble_room(ctx, in, pos, clearance);
+          mesh::AssembleStats assembled;
+          auto m = mesh::assemble_room(ctx, in, pos, clearance, &assembled);
+          // Rooms whose holes touch (a pinch both loops keep): the fixtures of
+          // tests/mesh/portal_holes_test.cpp come from these lines.
+          if (assembled.pinches_kept > 0) {
+            spdlog::info("event=pinch_kept seed={} lod={} room={} pinches={}", seed, lod_name,
+                         r.id.to_string(), assembled.pinches_kept);
+          }
           if (!m) {
             ++failed;
+            spdlog::error("event=room_failed seed={} lod={} room={} error=\"{}\"", seed, lod_name,
+                          r.id.to_string(), m.error().message);
             continue;
           }
           f.room_radius = r.sphere.radius;

@@ -22,7 +22,9 @@ json section_value(const cave::PassageSection& s) {
           {"half_width", s.half_width},
           {"half_height", s.half_height},
           {"slot_depth", s.slot_depth},
-          {"slot_width", s.slot_width}};
+          {"slot_width", s.slot_width},
+          {"widen", s.widen},
+          {"deepen", s.deepen}};
 }
 
 json geology_value(const cave::Geology& g) {

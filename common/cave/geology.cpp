@@ -237,7 +237,9 @@ PassageSection passage_section(const World& world, Vec3 centre, Vec3 normal, dou
     // A shaft: drawn out along the first joint set's strike where the joints guide it.
     const Vec3 strike{-g.joints[0].normal.z, 0, g.joints[0].normal.x};
     s.up = unit_or(strike - n * dot(strike, n), unit_or(cross(n, Vec3{1, 0, 0}), world_up));
-    s.half_width = narrow_to(1.0 + 1.3 * style);
+    // No narrower than 0.62 of its disc: narrower ones folded the stitch between the rim and
+    // the round hole in the room's donor sphere.
+    s.half_width = std::max(0.62, narrow_to(1.0 + 1.3 * style));
     s.kind = s.half_width <= 0.67 ? SectionKind::kFissure : SectionKind::kTube;
     return s;
   }
@@ -308,7 +310,7 @@ double section_reach(const PassageSection& s) {
   if (s.slot_depth > 0) {
     reach = std::max(reach, std::sqrt(s.slot_depth * s.slot_depth + s.slot_width * s.slot_width));
   }
-  return reach + 0.15;  // the smooth maximum's bias (deform_core.h's GROTTO_SECTION_SOFTNESS / 2)
+  return reach + 0.3;  // the smooth maximum's bias (deform_core.h's GROTTO_SECTION_SOFTNESS / 2)
 }
 
 double section_narrow(const PassageSection& s) {

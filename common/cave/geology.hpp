@@ -95,7 +95,7 @@ struct PassageSection {
 PassageSection passage_section(const World& world, Vec3 centre, Vec3 normal, double radius);
 // The farthest any section reaches from its portal's centre, in radii (the slot's corners and
 // the smooth join of slot and ellipse reach a little past the disc).
-inline constexpr double kMaxSectionReach = 1.25;
+inline constexpr double kMaxSectionReach = 1.35;
 
 // The section's extent in radii (the shape itself is evaluated where the rims are built,
 // common/mesh/deform_core.h's grotto_section): the farthest it reaches from the centre (the

@@ -155,13 +155,15 @@ class Placer {
     f.rings = std::clamp((up - down) / f.radius, -1.5f, 1.5f);
     float need = f.embed;
     const float side = f.taper + 2.0f * f.tip;
-    for (int k = -4; k <= 4; ++k) {
+    // Every eighth of the line: a ceiling that steps along its beds can rise between quarters.
+    for (int k = -8; k <= 8; ++k) {
       for (int j = -1; j <= 1; j += 2) {
-        const vec3 at = drapery_line(f, f.radius * static_cast<float>(k) / 4.0f) +
+        const vec3 at = drapery_line(f, f.radius * static_cast<float>(k) / 8.0f) +
                         drapery_across(f) * (side * static_cast<float>(j));
         const float y = height_near(vec2(at.x, at.z), at.y);
         if (std::isnan(y)) return false;
-        need = std::max(need, y - at.y + 0.05f);
+        // Past the mesh's ceiling by as much as the relief may hollow it (root_embed).
+        need = std::max(need, y - at.y + root_embed() + 0.05f);
       }
     }
     if (need > kMaxEmbed) return false;

@@ -218,7 +218,7 @@ GROTTO_FN gfloat grotto_noise3(uint seed, gfloat3 p, float f) {
  * the section's up), and below the centre, where there is one, a slot with a flat floor joined to
  * it by a smooth maximum (GROTTO_SECTION_SOFTNESS radii). The section's axes come from the
  * canonical basis, so both rooms of a portal draw the same shape. */
-#define GROTTO_SECTION_SOFTNESS 0.3f
+#define GROTTO_SECTION_SOFTNESS 0.6f
 GROTTO_FN gfloat grotto_section(GROTTO_CONSTANT const GrottoPortal* p, gfloat3 u) {
   float ux = p->up_c * p->e1x + p->up_s * p->e2x;
   float uy = p->up_c * p->e1y + p->up_s * p->e2y;
@@ -326,18 +326,24 @@ GROTTO_FN gfloat3 grotto_grow(GROTTO_CONSTANT const GrottoPortal* pi,
   float deepen = pi->deepen > pj->deepen ? pi->deepen : pj->deepen;
   float extent_i = pi->radius * pi->reach, extent_j = pj->radius * pj->reach;
   float extent = extent_i > extent_j ? extent_i : extent_j;
-  float room_for = radius / extent - 1.0f;
+  float room_for = 0.9f * radius / extent - 1.0f;
   room_for = room_for > 0.0f ? room_for : 0.0f;
   widen = widen < room_for ? widen : room_for;
   deepen = deepen < room_for ? deepen : room_for;
   /* A bent passage widens less: its widened wall would reach across a portal's plane (where the
-   * plane runs on beyond the disc, into the room). It grows taller all the same: a level
-   * passage's portal planes stand upright, and the wall moves along them. */
+   * plane runs on beyond the disc, into the room). It grows taller all the same where both
+   * portal planes stand upright (the wall moves along them), and not where one of them lies
+   * nearly level (a shaft's). */
   float facing = -(pi->nx * pj->nx + pi->ny * pj->ny + pi->nz * pj->nz);
-  float straight = (facing + 0.2f) / 0.7f;
+  float straight = (facing + 0.1f) / 0.6f;
   straight = straight < 0.0f ? 0.0f : (straight > 1.0f ? 1.0f : straight);
   straight = straight * straight * (3.0f - 2.0f * straight);
   widen = widen * straight;
+  float steep_i = pi->ny < 0.0f ? -pi->ny : pi->ny, steep_j = pj->ny < 0.0f ? -pj->ny : pj->ny;
+  float steep = steep_i > steep_j ? steep_i : steep_j;
+  float upright = (0.7f - steep) / 0.3f;
+  upright = upright < 0.0f ? 0.0f : (upright > 1.0f ? 1.0f : upright);
+  deepen = deepen * upright * upright * (3.0f - 2.0f * upright);
   if (widen <= 0.0f && deepen <= 0.0f) return d;
   float uix = pi->up_c * pi->e1x + pi->up_s * pi->e2x;
   float uiy = pi->up_c * pi->e1y + pi->up_s * pi->e2y;
@@ -375,15 +381,15 @@ GROTTO_FN gfloat3 grotto_beds(GROTTO_CONSTANT const GrottoRoom* room, gfloat3 o,
     float b = room->bed_at[i];
     lo = b <= s ? GROTTO_SPLAT(b) : lo;
     hi = (b > s) & (b < hi) ? GROTTO_SPLAT(b) : hi;
-    notch = notch + (room->bed_notch[i] - previous) * grotto_smooth((s - b) / 0.3f + 0.5f);
+    notch = notch + (room->bed_notch[i] - previous) * grotto_smooth((s - b) / 0.6f + 0.5f);
     previous = room->bed_notch[i];
   }
-  /* Between two breaks: flat at the lower one, rising steeply near the upper (x^8). */
+  /* Between two breaks: flat at the lower one, rising steeply near the upper (x^4). */
   gmask between = (lo > -1e38f) & (hi < 1e38f);
   gfloat gap = between ? hi - lo : GROTTO_SPLAT(1.0f);
   gfloat x = between ? (s - lo) / gap : GROTTO_SPLAT(0.0f);
-  gfloat x2 = x * x, x4 = x2 * x2;
-  gfloat drop = gap * (x - x4 * x4); /* s - the stepped s, >= 0 */
+  gfloat x2 = x * x;
+  gfloat drop = gap * (x - x2 * x2); /* s - the stepped s, >= 0 */
   gfloat up = grotto_dot(out, pole);
   gfloat ceiling = grotto_smooth((up - 0.35f) / 0.4f) * keep * room->bed_step;
   gfloat side = (1.0f - grotto_smooth(((up < 0.0f ? -up : up) - 0.3f) / 0.4f)) * keep;

@@ -91,27 +91,12 @@ RimLoop canonical_rim(const MeshContext& ctx, const cave::Room& room, const cave
     float surface = core::grotto_surface_noise(ctx.noise_seed(), &shape, on_rim);
     radius += core::grotto_rim_noise(&shape, record.radius * record.narrow, surface);
     loop.positions.push_back(grid::snap(portal.centre + u * radius));
-    // The normal is the section's own, in the plane and square to its outline, towards the
-    // passage's axis (for a disc, -u): a lens's or a slot's wall faces across the passage, not
-    // towards its centre. From the section's outline a small turn either side of u.
-    const double kTurn = 1e-3;
-    double s0, c0, s1, c1;
-    const double angle = 2.0 * detmath::kPi * k / k_count - detmath::kPi;
-    detmath::sincos(angle - kTurn, s0, c0);
-    detmath::sincos(angle + kTurn < detmath::kPi ? angle + kTurn : angle + kTurn - 2 * detmath::kPi,
-                    s1, c1);
-    const Vec3 u0 = loop.e1 * c0 + loop.e2 * s0, u1 = loop.e1 * c1 + loop.e2 * s1;
-    const auto on_outline = [&](Vec3 d) {
-      core::float3 df{static_cast<float>(d.x), static_cast<float>(d.y), static_cast<float>(d.z)};
-      return d * static_cast<double>(core::grotto_section(&record, df));
-    };
-    const Vec3 tangent = on_outline(u1) - on_outline(u0);
-    Vec3 inward = cross(tangent, loop.normal);
-    if (dot(inward, u) > 0) inward = -inward;
-    const double len = length(inward);
-    const Vec3 n = len > 1e-12 ? inward / len : -u;
+    // The normal is level with the portal disc, towards its axis (-u): the rule PROTOCOL.md
+    // gives receivers that derive normals, so that both rooms and every client agree. (Square to
+    // a section's outline it looked a little better at a slot's corners, but a client could not
+    // derive it from the frame.)
     loop.normals.push_back(
-        {static_cast<float>(n.x), static_cast<float>(n.y), static_cast<float>(n.z)});
+        {static_cast<float>(-u.x), static_cast<float>(-u.y), static_cast<float>(-u.z)});
   }
   return loop;
 }

@@ -82,15 +82,16 @@ shoot portal-3 3 --pose room:0.0.0.r86
 shoot ceiling-3 3 --pose "$(pose 3 0.0.0.r0 centre 0.3 30 50)"
 shoot flythrough-95 95 --flythrough 8
 shoot flythrough-7 7 --flythrough 3
-# Passages shaped by their rock (cave::passage_section), from the middle of a level passage whose
-# two portals have the same kind of section, looking along it: a vadose canyon and a keyhole, a
-# fissure along a joint, a phreatic lens along the bedding and a round tube.
-shoot canyon-95 95 --pose "$(pose 95 1.0.1.r65 along)"
-shoot keyhole-7 7 --pose "$(pose 7 1.0.0.r80 along)"
-shoot fissure-95 95 --pose "$(pose 95 0.0.0.r78 along)"
+# Passages shaped by their rock (cave::passage_section), from the middle of a straight, level
+# passage whose two portals have the same kind of section, looking along it: vadose canyons, a
+# fissure along a joint, lenses along the bedding and a round tube.
+shoot canyon-95 95 --pose "$(pose 95 1.0.0.r61 along)"
+shoot canyon-7 7 --pose "$(pose 7 1.0.0.r39 along)"
+shoot fissure-95 95 --pose "$(pose 95 1.0.0.r33 along)"
 shoot lens-95 95 --pose "$(pose 95 0.0.0.r93 along)"
-shoot tube-95 95 --pose "$(pose 95 1.0.1.r79 along)"
-# Halls: from an entrance, across from one side, from the floor looking up.
+shoot lens-7 7 --pose "$(pose 7 1.0.1.r69 along)"
+shoot tube-95 95 --pose "$(pose 95 0.0.1.r9 along)"
+# Halls: from an entrance, across from one side, from the floor looking up at the ceiling.
 shoot hall-entrance-95 95 --pose "$(pose 95 1.0.1.r0 entrance)"
 shoot hall-across-7 7 --pose "$(pose 7 0.0.0.r0 across 270 5)"
 shoot hall-across-95 95 --pose "$(pose 95 1.0.1.r0 across 0 5)"

@@ -356,7 +356,9 @@ TEST_F(GlbExport, front_faces_look_into_the_cave) {
       inward += to_centre > 0;
     }
   }
-  EXPECT_EQ(agree, triangles);
+  // Folded triangles (docs/BENCHMARKS.md, "Folded triangles") are the only ones that disagree:
+  // about 1 in 17,000 of the block's since rims follow their passages' sections (0 before).
+  EXPECT_GE(agree * 10000, triangles * 9999) << triangles - agree << " of " << triangles;
   EXPECT_GT(inward, triangles * 9 / 10) << inward << " of " << triangles;
 }
 
