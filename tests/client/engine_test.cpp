@@ -36,14 +36,16 @@ bool wait_for(const std::function<bool()>& done) {
   return done();
 }
 
-// A grotto-server in-process on loopback, the CPU reference.
+// A grotto-server in-process on loopback, the CPU reference. max_players > 0 stands for a server
+// past its capacity from that many players on: the next ones wait in its admission queue.
 struct Server {
   grotto::server::EmbeddedServer embedded;
-  Server() {
+  explicit Server(size_t max_players = 0) {
     auto config = grotto::server::embedded_config();
     config.generator.workers = 2;
     config.generator.builder.device.device = "none";
     config.log_level = "warn";
+    config.admission.max_players = max_players;
     auto started = grotto::server::start_embedded(config);
     EXPECT_TRUE(started.ok()) << (started.ok() ? "" : started.error().message);
     if (started.ok()) embedded = std::move(started).value();
@@ -189,6 +191,48 @@ TEST(PublicStream, the_default_horizon_adapts_and_zero_keeps_it_fixed) {
       EXPECT_EQ(horizon, config.horizon_s);
     }
   }
+}
+
+// Past its capacity a server queues a newcomer (proto/PROTOCOL.md "Waiting to enter"): the
+// Stream offers to wait, says where it stands, and plays once the player ahead leaves.
+TEST(PublicStream, waits_in_the_admission_queue_and_plays_when_its_turn_comes) {
+  Server server(1);
+  ASSERT_FALSE(server.url().empty());
+  grotto::StreamConfig config;
+  config.url = server.url();
+  auto first = grotto::Stream::start(config);
+  ASSERT_NE(first, nullptr);
+  ASSERT_TRUE(wait_for([&] { return first->stats().state == grotto::StreamState::kReady; }))
+      << grotto::state_name(first->stats().state) << ": " << first->stats().last_error;
+  EXPECT_FALSE(first->stats().queued);
+  EXPECT_EQ(first->stats().times_queued, 0u);
+
+  auto second = grotto::Stream::start(config);
+  ASSERT_NE(second, nullptr);
+  ASSERT_TRUE(wait_for([&] { return second->stats().state == grotto::StreamState::kQueued; }))
+      << grotto::state_name(second->stats().state) << ": " << second->stats().last_error;
+  EXPECT_STREQ(grotto::state_name(grotto::StreamState::kQueued), "queued");
+  grotto::StreamStats s = second->stats();
+  ASSERT_TRUE(s.queued);
+  EXPECT_EQ(s.queued->position, 1u);
+  EXPECT_EQ(s.queued->length, 1u);
+  EXPECT_EQ(s.times_queued, 1u);
+  EXPECT_EQ(s.connects, 0u);
+  EXPECT_FALSE(second->spawn_point()) << "no spawn point before the welcome";
+  std::this_thread::sleep_for(300ms);
+  EXPECT_EQ(second->stats().state, grotto::StreamState::kQueued) << "it waits: no retries";
+  EXPECT_GT(second->stats().queued_ms, 0.0) << "the current wait counts";
+
+  first.reset();  // the player ahead leaves: its place goes to the head of the queue at once
+  ASSERT_TRUE(wait_for([&] { return second->stats().state == grotto::StreamState::kReady; }))
+      << grotto::state_name(second->stats().state) << ": " << second->stats().last_error;
+  s = second->stats();
+  EXPECT_FALSE(s.queued);
+  EXPECT_EQ(s.times_queued, 1u);
+  EXPECT_GE(s.queued_ms, 300.0);
+  EXPECT_EQ(s.connects, 1u);
+  ASSERT_TRUE(wait_for([&] { return second->spawn_point().has_value(); }));
+  EXPECT_TRUE(second->wait_area_ready(second->spawn_point()->position, 4.0, 0, kWait));
 }
 
 TEST(CStream, create_refuses_null_and_bad_configurations_into_the_callers_buffer) {
