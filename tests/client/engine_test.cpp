@@ -11,6 +11,7 @@
 #include <cstring>
 #include <functional>
 #include <grotto/stream.hpp>
+#include <memory>
 #include <set>
 #include <string>
 #include <thread>
@@ -269,6 +270,9 @@ TEST(CStream, a_null_stream_is_harmless) {
   EXPECT_EQ(grotto_stream_area_ready(nullptr, p, 1, 0, 0), 0);
   EXPECT_STREQ(grotto_stream_last_error(nullptr), "");
   EXPECT_STREQ(grotto_stream_state_name(GROTTO_STATE_READY), "ready");
+  EXPECT_STREQ(grotto_stream_state_name(GROTTO_STATE_QUEUED), "queued");
+  EXPECT_STREQ(grotto_stream_state_name(GROTTO_STATE_QUEUED + 1), "unknown");
+  EXPECT_STREQ(grotto_stream_state_name(-1), "unknown");
   EXPECT_STREQ(grotto_stream_state_name(99), "unknown");
   EXPECT_EQ(grotto_set_log_level(nullptr), 0);
   EXPECT_EQ(grotto_set_log_level("loud"), 0);
@@ -371,6 +375,59 @@ TEST(CStream, area_ready_fetches_an_area_far_from_the_pose) {
   }
   EXPECT_TRUE(far_room_polled) << grotto::room_name(far_key) << " was not handed out";
   grotto_stream_destroy(stream);
+}
+
+// The C interface over the same queue: two streams on a server full with one player; the second
+// reports GROTTO_STATE_QUEUED and its place, and becomes READY when the first is destroyed.
+TEST(CStream, waits_in_the_admission_queue_and_plays_when_its_turn_comes) {
+  Server server(1);
+  ASSERT_FALSE(server.url().empty());
+  grotto_stream_config config{};
+  config.url = server.url().c_str();
+  char error[128] = "";
+  // Destroyed however the test ends, before the server.
+  using Handle = std::unique_ptr<grotto_stream, decltype(&grotto_stream_destroy)>;
+  Handle first(grotto_stream_create(&config, error, sizeof error), grotto_stream_destroy);
+  ASSERT_NE(first, nullptr) << error;
+  grotto_stream_stats stats;
+  auto state_of = [&](grotto_stream* stream) {
+    grotto_stream_get_stats(stream, &stats);
+    return stats.state;
+  };
+  EXPECT_TRUE(wait_for([&] { return state_of(first.get()) == GROTTO_STATE_READY; }))
+      << grotto_stream_state_name(stats.state) << ": " << grotto_stream_last_error(first.get());
+  EXPECT_EQ(stats.queue_position, 0u);
+  EXPECT_EQ(stats.queue_length, 0u);
+  EXPECT_EQ(stats.times_queued, 0u);
+
+  Handle second(grotto_stream_create(&config, error, sizeof error), grotto_stream_destroy);
+  ASSERT_NE(second, nullptr) << error;
+  EXPECT_TRUE(wait_for([&] { return state_of(second.get()) == GROTTO_STATE_QUEUED; }))
+      << grotto_stream_state_name(stats.state) << ": " << grotto_stream_last_error(second.get());
+  EXPECT_STREQ(grotto_stream_state_name(stats.state), "queued");
+  EXPECT_EQ(stats.queue_position, 1u);
+  EXPECT_EQ(stats.queue_length, 1u);
+  EXPECT_LE(stats.queue_wait_ms, 86'400'000u);
+  EXPECT_EQ(stats.times_queued, 1u);
+  EXPECT_EQ(stats.connects, 0u);
+  double spawn[3];
+  EXPECT_EQ(grotto_stream_spawn_point(second.get(), spawn, nullptr), 0);
+  std::this_thread::sleep_for(300ms);
+  EXPECT_EQ(state_of(second.get()), GROTTO_STATE_QUEUED) << "it waits: no retries";
+  EXPECT_EQ(stats.queue_position, 1u);
+  EXPECT_GT(stats.queued_ms, 0.0) << "the current wait counts";
+
+  first.reset();  // grotto_stream_destroy: the player ahead leaves
+  EXPECT_TRUE(wait_for([&] { return state_of(second.get()) == GROTTO_STATE_READY; }))
+      << grotto_stream_state_name(stats.state) << ": " << grotto_stream_last_error(second.get());
+  EXPECT_EQ(stats.queue_position, 0u);
+  EXPECT_EQ(stats.queue_length, 0u);
+  EXPECT_EQ(stats.queue_wait_ms, 0u);
+  EXPECT_EQ(stats.times_queued, 1u);
+  EXPECT_GE(stats.queued_ms, 300.0);
+  EXPECT_EQ(stats.connects, 1u);
+  EXPECT_TRUE(
+      wait_for([&] { return grotto_stream_spawn_point(second.get(), spawn, nullptr) == 1; }));
 }
 
 }  // namespace
