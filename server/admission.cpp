@@ -122,6 +122,41 @@ uint32_t AdmissionQueue::retry_after(size_t position) const {
       std::clamp(estimate(position), config_.min_retry, config_.max_retry).count());
 }
 
+static_assert(static_cast<size_t>(Redirect::kBehind) + 1 == kRedirectCount,
+              "kRedirectCount counts every Redirect");
+
+Redirect redirect_newcomer(const Door& door) {
+  if (door.stopping) return Redirect::kStopping;
+  if (door.players + door.handshakes >= door.max_connections) return Redirect::kMaxConnections;
+  if (door.handshakes >= door.max_handshakes) return Redirect::kMaxHandshakes;
+  if (!door.admission) return Redirect::kNone;
+  if (door.queued > 0) return Redirect::kQueue;
+  if (door.max_players > 0 && door.admitted + door.handshakes >= door.max_players)
+    return Redirect::kMaxPlayers;
+  if (door.behind) return Redirect::kBehind;
+  return Redirect::kNone;
+}
+
+std::string_view redirect_name(Redirect reason) {
+  switch (reason) {
+    case Redirect::kNone:
+      return "none";
+    case Redirect::kStopping:
+      return "stopping";
+    case Redirect::kMaxConnections:
+      return "max_connections";
+    case Redirect::kMaxHandshakes:
+      return "max_handshakes";
+    case Redirect::kQueue:
+      return "queue";
+    case Redirect::kMaxPlayers:
+      return "max_players";
+    case Redirect::kBehind:
+      return "behind";
+  }
+  return "none";
+}
+
 void AdmissionQueue::forget_old_admissions(AdmissionTime now) {
   while (!admissions_.empty() && now - admissions_.front() > config_.rate_window)
     admissions_.pop_front();

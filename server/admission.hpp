@@ -19,6 +19,7 @@
 #include <map>
 #include <optional>
 #include <set>
+#include <string_view>
 #include <variant>
 #include <vector>
 
@@ -102,6 +103,7 @@ class AdmissionQueue {
   // The actions since the last call, in order.
   std::vector<AdmissionAction> take();
 
+  const AdmissionConfig& config() const { return config_; }
   bool behind() const { return behind_; }
   size_t admitted() const { return admitted_.size(); }
   size_t queued() const { return queue_.size(); }
@@ -141,5 +143,47 @@ class AdmissionQueue {
   std::deque<AdmissionTime> admissions_;  // from the queue, within rate_window, oldest first
   std::vector<AdmissionAction> actions_;
 };
+
+// ---- a balancer's question at the door (PROTOCOL.md, "Balancers") ----
+//
+// A balancer that can try several replicas marks a newcomer's WebSocket upgrade (the
+// X-Grotto-Balancer header); a replica that would not let a newcomer in at once declines it before
+// the upgrade, and the balancer tries the next one. Only when every replica declines does it send
+// the newcomer unmarked, to be admitted or queued as by a replica alone. The decision is a
+// function of what the server holds at that moment, under its sessions lock.
+
+// Why a marked newcomer is sent on (kNone: it would get in at once here).
+enum class Redirect : uint8_t {
+  kNone,
+  kStopping,        // the server drains: it answers every upgrade with service_restart
+  kMaxConnections,  // players, with the upgrades on their way in, at max_connections
+  kMaxHandshakes,   // max_handshakes upgrades still wait for their hello
+  kQueue,           // newcomers already wait in the admission queue: nobody passes them
+  kMaxPlayers,      // players admitted, with the upgrades on their way in, at max_players
+  kBehind,          // the players are not served in time (admission-late-ms): newcomers queue
+};
+inline constexpr size_t kRedirectCount = 7;
+
+// What the server holds when a marked upgrade arrives.
+struct Door {
+  bool stopping = false;
+  size_t players = 0;     // sessions past hello with a world open (not the queued ones)
+  size_t handshakes = 0;  // upgraded sessions whose hello is not answered yet
+  size_t max_connections = 0;
+  size_t max_handshakes = 0;
+  // The admission queue's state; all zero and false while admission is off.
+  bool admission = false;
+  size_t admitted = 0;
+  size_t queued = 0;
+  size_t max_players = 0;  // 0: no fixed bound
+  bool behind = false;
+};
+
+// The first reason, in the enum's order, that a newcomer would not enter at once. Upgrades on
+// their way in (handshakes) count as taken places: a crowd that arrives together is spread over
+// the replicas instead of all trying the one with a single place left.
+Redirect redirect_newcomer(const Door& door);
+// The reason as the metric's label and the refusal's body say it ("max_players", ...).
+std::string_view redirect_name(Redirect reason);
 
 }  // namespace grotto::server

@@ -36,6 +36,13 @@ constexpr const char* kRoomCacheControl = "public, max-age=31536000, immutable";
 // Room extras (server/extras.hpp): /extras/ then a room URL's path after /rooms/.
 constexpr std::string_view kExtrasPathPrefix = "/extras/";
 constexpr const char* kRoomContentType = "application/octet-stream";
+// A balancer that can try several replicas marks a newcomer's upgrade with this header
+// (PROTOCOL.md, "Balancers"): a replica that would not let the newcomer in at once declines it
+// with 403 before the upgrade, and the balancer tries the next one. 403 rather than 503: nginx's
+// proxy_next_upstream counts a 5xx it acts on as a failed attempt (max_fails takes the replica out
+// of rotation for fail_timeout), a 403 never.
+constexpr const char* kBalancerHeader = "X-Grotto-Balancer";
+constexpr const char* kTryOthers = "try-others";
 
 class HttpSession : public std::enable_shared_from_this<HttpSession> {
  public:
@@ -94,6 +101,10 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
       if (path != proto::kWebSocketPath) {
         server_.metrics.http_requests_total.add();
         return respond(req, http::status::not_found, "text/plain", "not found\n");
+      }
+      if (beast::iequals(req[kBalancerHeader], kTryOthers)) {
+        if (Redirect why = server_.redirect_newcomer(); why != Redirect::kNone)
+          return redirect(req, why);
       }
       return start_ws_session(server_, std::move(stream_), std::move(slot_), std::move(req));
     }
@@ -467,6 +478,32 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
     http::async_write(stream_, *res,
                       [self = shared_from_this(), res](beast::error_code ec, std::size_t) {
                         self->on_write(ec, res->keep_alive());
+                      });
+  }
+
+  // A marked newcomer's upgrade that this replica would not let in at once: 403 with why and
+  // when to come back, before any WebSocket (no session, no player refused), then the connection
+  // closes. The balancer tries the next replica.
+  template <class Request>
+  void redirect(const Request& req, Redirect why) {
+    server_.metrics.count_redirect(why);
+    const std::string_view name = redirect_name(why);
+    spdlog::debug("event=newcomer_redirected reason={}", name);
+    auto res =
+        std::make_shared<http::response<http::string_body>>(http::status::forbidden, req.version());
+    res->set(http::field::server, product_version());
+    res->set(http::field::content_type, "text/plain");
+    res->set(http::field::cache_control, "no-store");
+    res->set(http::field::retry_after, "1");
+    res->keep_alive(false);
+    res->body() = std::string(name) + ": no place for a newcomer here at once (" +
+                  std::string(kBalancerHeader) + ": " + std::string(kTryOthers) +
+                  "); try another replica\n";
+    res->prepare_payload();
+    stream_.expires_after(server_.config.http_timeout);
+    http::async_write(stream_, *res,
+                      [self = shared_from_this(), res](beast::error_code ec, std::size_t) {
+                        self->on_write(ec, false);
                       });
   }
 

@@ -140,6 +140,16 @@ uint64_t Metrics::room_http_refusals(int status) const {
   return room_http_refusals_[room_http_status_index(status)].value();
 }
 
+void Metrics::count_redirect(Redirect reason) {
+  const auto i = static_cast<size_t>(reason);
+  if (i < redirects_.size()) redirects_[i].add();
+}
+
+uint64_t Metrics::redirects(Redirect reason) const {
+  const auto i = static_cast<size_t>(reason);
+  return i < redirects_.size() ? redirects_[i].value() : 0;
+}
+
 void Metrics::set_compute_path(std::string path) {
   std::lock_guard lock(path_mutex_);
   compute_path_ = std::move(path);
@@ -169,6 +179,15 @@ std::string Metrics::render() const {
   gauge(out, "grotto_admission_behind",
         "1 while the players are not served in time and newcomers wait in the queue.",
         admission_behind.value());
+  header(out, "grotto_admission_redirected_total", "counter",
+         "Upgrades a balancer marked (X-Grotto-Balancer) sent on to another replica before the "
+         "upgrade, by reason (stopping, max_connections, max_handshakes, queue, max_players, "
+         "behind). Not connections, not refusals.");
+  for (size_t i = 1; i < kRedirectCount; ++i) {
+    out += "grotto_admission_redirected_total{reason=\"";
+    out += redirect_name(static_cast<Redirect>(i));
+    out += "\"} " + std::to_string(redirects_[i].value()) + '\n';
+  }
   gauge(out, "grotto_oldest_urgent_ms",
         "Players' oldest urgent room wants still queued, 90th percentile over the players, in ms.",
         oldest_urgent_ms.value());

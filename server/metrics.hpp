@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "common/core/result.hpp"
+#include "server/admission.hpp"
 
 namespace grotto::server {
 
@@ -62,9 +63,15 @@ class Metrics {
   Gauge sessions_queued;                 // grotto_sessions_queued (valid hellos waiting to enter)
   Counter sessions_admitted_from_queue;  // grotto_sessions_admitted_from_queue_total
   Counter sessions_refused;              // grotto_sessions_refused_total (overloaded at hello)
-  Gauge admission_capacity;     // grotto_admission_capacity (players when it last fell behind)
-  Gauge admission_behind;       // grotto_admission_behind (1 while newcomers wait)
-  Gauge oldest_urgent_ms;       // grotto_oldest_urgent_ms (players' oldest urgent wants, p90)
+  Gauge admission_capacity;  // grotto_admission_capacity (players when it last fell behind)
+  Gauge admission_behind;    // grotto_admission_behind (1 while newcomers wait)
+  Gauge oldest_urgent_ms;    // grotto_oldest_urgent_ms (players' oldest urgent wants, p90)
+  // Upgrades a balancer marked (X-Grotto-Balancer: try-others) that were sent on to another
+  // replica before the upgrade, by reason: grotto_admission_redirected_total{reason="..."}.
+  // Neither connections nor refusals: the newcomer goes to another replica, or comes back
+  // unmarked once every replica has sent it on.
+  void count_redirect(Redirect reason);
+  uint64_t redirects(Redirect reason) const;
   Counter http_requests_total;  // grotto_http_requests_total
   // Rooms over HTTP (PROTOCOL.md, "Rooms over HTTP"): GETs of a room URL answered with the room
   // (a peer replica's owner fetch, a cache or CDN, any client), answered 304 (the client's ETag
@@ -130,6 +137,7 @@ class Metrics {
  private:
   std::array<Counter, 32> errors_{};
   std::array<Counter, kRoomHttpStatuses.size()> room_http_refusals_{};
+  std::array<Counter, kRedirectCount> redirects_{};
   mutable std::mutex path_mutex_;
   std::string compute_path_;
 };

@@ -147,6 +147,24 @@ void Server::Impl::reserve_returned() {
 
 // ---- Server ----
 
+Redirect Server::Impl::redirect_newcomer() const {
+  std::lock_guard lock(sessions_mutex);
+  Door door;
+  door.stopping = stopping.load();
+  door.players = players();
+  door.handshakes = handshakes;
+  door.max_connections = static_cast<size_t>(config.max_connections);
+  door.max_handshakes = static_cast<size_t>(config.max_handshakes);
+  if (admission) {
+    door.admission = true;
+    door.admitted = admission->admitted();
+    door.queued = admission->queued();
+    door.max_players = admission->config().max_players;
+    door.behind = admission->behind();
+  }
+  return grotto::server::redirect_newcomer(door);
+}
+
 Entry Server::Impl::enter(uint64_t id, bool can_queue) {
   std::lock_guard lock(sessions_mutex);
   if (!admission) return {};

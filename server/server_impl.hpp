@@ -205,6 +205,9 @@ struct Server::Impl {
     return sessions.size() - handshakes - queued.size();
   }
 
+  // A balancer asks, at a marked upgrade, whether a newcomer would get in at once here
+  // (server/admission.hpp, redirect_newcomer): kNone, or why it should try another replica.
+  Redirect redirect_newcomer() const;
   // A valid hello asks to enter (WorldPort::enter). Admitted, queued or refused.
   Entry enter(uint64_t id, bool can_queue);
   // Periodically (kMeasureEvery): how the players are served, fed to the admission queue.

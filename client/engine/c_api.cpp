@@ -32,8 +32,11 @@ static_assert(static_cast<int>(grotto::StreamState::kConnecting) == GROTTO_STATE
                   static_cast<int>(grotto::StreamState::kReady) == GROTTO_STATE_READY &&
                   static_cast<int>(grotto::StreamState::kBackoff) == GROTTO_STATE_BACKOFF &&
                   static_cast<int>(grotto::StreamState::kFailed) == GROTTO_STATE_FAILED &&
-                  static_cast<int>(grotto::StreamState::kStopped) == GROTTO_STATE_STOPPED,
+                  static_cast<int>(grotto::StreamState::kStopped) == GROTTO_STATE_STOPPED &&
+                  static_cast<int>(grotto::StreamState::kQueued) == GROTTO_STATE_QUEUED,
               "the C states are the C++ ones");
+// The last state: grotto_stream_state_name names every value up to it.
+constexpr int kLastState = GROTTO_STATE_QUEUED;
 
 void copy3(const grotto::Vec3d& v, double out[3]) {
   out[0] = v.x;
@@ -199,6 +202,13 @@ void grotto_stream_get_stats(grotto_stream* stream, grotto_stream_stats* stats) 
   stats->in_flight = s.in_flight;
   stats->rooms_held = s.rooms_held;
   stats->memory_bytes = s.memory_bytes;
+  if (s.queued) {
+    stats->queue_position = s.queued->position;
+    stats->queue_length = s.queued->length;
+    stats->queue_wait_ms = s.queued->wait_ms;
+  }
+  stats->times_queued = s.times_queued;
+  stats->queued_ms = s.queued_ms;
 }
 
 const char* grotto_stream_last_error(grotto_stream* stream) {
@@ -210,7 +220,7 @@ const char* grotto_stream_last_error(grotto_stream* stream) {
 }
 
 const char* grotto_stream_state_name(int state) {
-  if (state < GROTTO_STATE_CONNECTING || state > GROTTO_STATE_STOPPED) return "unknown";
+  if (state < GROTTO_STATE_CONNECTING || state > kLastState) return "unknown";
   return grotto::state_name(static_cast<grotto::StreamState>(state));
 }
 

@@ -62,7 +62,8 @@ RoomPtr to_public(std::shared_ptr<const stream::ReadyRoom> ready) {
 }
 
 // The public enum mirrors the library's, value for value, so one cast converts and one
-// state_name (client/stream/options.hpp) names both.
+// state_name (client/stream/options.hpp) names both; kQueued, after them, is the library's
+// kConnecting with a place in the admission queue (stats().queued), which a game shows.
 static_assert(
     static_cast<int>(StreamState::kConnecting) ==
         static_cast<int>(stream::StreamState::kConnecting) &&
@@ -70,8 +71,9 @@ static_assert(
     static_cast<int>(StreamState::kBackoff) == static_cast<int>(stream::StreamState::kBackoff) &&
     static_cast<int>(StreamState::kFailed) == static_cast<int>(stream::StreamState::kFailed) &&
     static_cast<int>(StreamState::kStopped) == static_cast<int>(stream::StreamState::kStopped));
-StreamState to_public(stream::StreamState s) {
-  return static_cast<StreamState>(s);
+StreamState to_public(const stream::StreamStats& s) {
+  if (s.state == stream::StreamState::kConnecting && s.queued) return StreamState::kQueued;
+  return static_cast<StreamState>(s.state);
 }
 
 }  // namespace
@@ -94,6 +96,9 @@ std::unique_ptr<Stream> Stream::start(const StreamConfig& config, std::string* e
   o.plan.horizon_s = config.horizon_s;
   o.min_horizon_s = config.min_horizon_s;
   o.store_bytes = config.memory_budget_bytes;
+  // Past its capacity a server then queues the player and says where (kQueued) rather than
+  // refusing it: a game can tell the player how long, instead of retrying blindly.
+  o.queue = true;
   std::string why;
   if (config.decode_threads < 0 || config.decode_threads > 64) {
     why = "decode_threads must be in [0, 64]";
@@ -158,7 +163,7 @@ RoomPtr Stream::room(RoomKey key) const {
 StreamStats Stream::stats() const {
   stream::StreamStats s = impl_->stream->stats();
   StreamStats out;
-  out.state = to_public(s.state);
+  out.state = to_public(s);
   out.connects = s.connects;
   out.reconnects = s.reconnects;
   out.rooms_received = s.rooms_received;
@@ -172,6 +177,11 @@ StreamStats Stream::stats() const {
   out.horizon_s = s.horizon_s;
   out.seed = s.seed;
   out.last_error = s.last_error;
+  if (out.state == StreamState::kQueued) {
+    out.queued = StreamStats::QueuePlace{s.queued->position, s.queued->queue, s.queued->wait_ms};
+  }
+  out.times_queued = s.times_queued;
+  out.queued_ms = s.queued_ms;
   return out;
 }
 
@@ -194,6 +204,7 @@ std::string room_name(RoomKey key) {
 }
 
 const char* state_name(StreamState state) {
+  if (state == StreamState::kQueued) return "queued";
   return stream::state_name(static_cast<stream::StreamState>(state));
 }
 

@@ -15,7 +15,8 @@ usage() {
 Usage: render.sh --prefix DIR --listen [ADDR:]PORT --replicas HOST:PORT[,HOST:PORT...] [options]
 
 Writes DIR/conf/nginx.conf for grotto-server replicas behind nginx and checks it with `nginx -t`:
-players' WebSockets on /ws to the replica with the fewest connections; room URLs (/rooms/...) to
+players' WebSockets on /ws to the replica with the fewest connections that has room for them at
+once (when none has, to the queue of the one with the fewest connections); room URLs (/rooms/...) to
 each room's owner replica (consistent hash of the path) through a cache in DIR/temp/rooms, the
 room tier that replicas started with --room-tier http://ADDR:PORT use; /healthz of nginx itself;
 /replica/<i>/{metrics,healthz,readyz} of replica i, counted from 0 in --replicas order.

@@ -1,18 +1,31 @@
-// The smallest game loop over Grotto::stream: connect, hold the player until the ground around the
-// spawn point exists, then walk from portal centre to portal centre, printing rooms as they
-// arrive. Usage: minimal_stream ws://host:port/ws [seconds]
+// The smallest game loop over Grotto::stream: connect (saying where it stands while a full server
+// holds it in its queue), hold the player until the ground around the spawn point exists, then
+// walk from portal centre to portal centre, printing rooms as they arrive.
+// Usage: minimal_stream ws://host:port/ws [seconds]
 #include <grotto/stream.hpp>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <cstdlib>
 #include <optional>
 #include <set>
 #include <string>
 #include <thread>
+#include <utility>
 
 using namespace std::chrono_literals;
+
+namespace {
+
+const char* ordinal_suffix(uint32_t n) {
+  if (n % 100 >= 11 && n % 100 <= 13) return "th";
+  return n % 10 == 1 ? "st" : n % 10 == 2 ? "nd" : n % 10 == 3 ? "rd" : "th";
+}
+
+}  // namespace
 
 int main(int argc, char** argv) {
   if (argc < 2) {
@@ -32,9 +45,25 @@ int main(int argc, char** argv) {
 
   // No pose yet: the stream asks the server where to start.
   std::optional<grotto::SpawnPoint> spawn;
-  for (int i = 0; i < 500 && !spawn; ++i) {  // the server's answer: up to 10 s
-    spawn = stream->spawn_point();
-    if (!spawn) std::this_thread::sleep_for(20ms);
+  std::pair<uint32_t, uint32_t> told{0, 0};  // the place and the wait (s) last printed
+  for (int i = 0; i < 500;) {                // the server's answer: up to 10 s, once admitted
+    if ((spawn = stream->spawn_point())) break;
+    // A server past its capacity holds newcomers in a queue: tell the player where they stand
+    // (a game shows it instead of its loading screen) and wait as long as it takes.
+    const grotto::StreamStats s = stream->stats();
+    if (s.queued) {
+      const std::pair<uint32_t, uint32_t> now{s.queued->position,
+                                              std::max(1u, (s.queued->wait_ms + 500) / 1000)};
+      if (now != told) {
+        std::printf("waiting to enter: %u%s of %u, about %u s\n", now.first,
+                    ordinal_suffix(now.first), s.queued->length, now.second);
+        std::fflush(stdout);
+        told = now;
+      }
+    } else {
+      ++i;
+    }
+    std::this_thread::sleep_for(20ms);
   }
   if (!spawn) {
     std::fprintf(stderr, "minimal_stream: no spawn point (%s: %s)\n",

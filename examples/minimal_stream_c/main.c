@@ -1,5 +1,6 @@
-/* Grotto::stream from C: connect, stand at the server's spawn point until the ground within 8 m
- * exists, then walk away from it portal by portal, printing rooms as they arrive.
+/* Grotto::stream from C: connect (saying where it stands while a full server holds it in its
+ * queue), stand at the server's spawn point until the ground within 8 m exists, then walk away
+ * from it portal by portal, printing rooms as they arrive.
  * Usage: minimal_stream_c ws://host:port/ws [seconds] */
 #include <grotto/grotto_stream.h>
 
@@ -35,6 +36,20 @@ static void sleep_ms(long ms) {
   nanosleep(&t, NULL);
 }
 
+static const char* ordinal_suffix(uint64_t n) {
+  if (n % 100 >= 11 && n % 100 <= 13) return "th";
+  switch (n % 10) {
+    case 1:
+      return "st";
+    case 2:
+      return "nd";
+    case 3:
+      return "rd";
+    default:
+      return "th";
+  }
+}
+
 int main(int argc, char** argv) {
   if (argc < 2) {
     fprintf(stderr, "usage: minimal_stream_c ws://host:port/ws [seconds]\n");
@@ -55,9 +70,28 @@ int main(int argc, char** argv) {
   double spawn[3];
   uint64_t here = 0; /* the room the player is in */
   int spawned = 0;
-  for (int i = 0; i < 500 && !spawned; ++i) { /* the server's answer: up to 10 s */
+  uint64_t told_position = 0, told_wait_s = 0;
+  for (int i = 0; i < 500;) { /* the server's answer: up to 10 s, once admitted */
     spawned = grotto_stream_spawn_point(stream, spawn, &here);
-    if (!spawned) sleep_ms(20);
+    if (spawned) break;
+    /* A server past its capacity holds newcomers in a queue: tell the player where they stand
+     * (a game shows it instead of its loading screen) and wait as long as it takes. */
+    grotto_stream_stats stats;
+    grotto_stream_get_stats(stream, &stats);
+    if (stats.state == GROTTO_STATE_QUEUED) {
+      const uint64_t wait_s = stats.queue_wait_ms < 1000 ? 1 : (stats.queue_wait_ms + 500) / 1000;
+      if (stats.queue_position != told_position || wait_s != told_wait_s) {
+        printf("waiting to enter: %llu%s of %llu, about %llu s\n",
+               (unsigned long long)stats.queue_position, ordinal_suffix(stats.queue_position),
+               (unsigned long long)stats.queue_length, (unsigned long long)wait_s);
+        fflush(stdout);
+        told_position = stats.queue_position;
+        told_wait_s = wait_s;
+      }
+    } else {
+      ++i;
+    }
+    sleep_ms(20);
   }
   if (!spawned) {
     fprintf(stderr, "minimal_stream_c: no spawn point: %s\n", grotto_stream_last_error(stream));

@@ -92,7 +92,13 @@ enum {
   GROTTO_STATE_READY = 1,      /* connected: requesting and receiving rooms */
   GROTTO_STATE_BACKOFF = 2,    /* dropped; reconnecting after a delay (rooms held stay usable) */
   GROTTO_STATE_FAILED = 3,     /* refused for good (version, world, token): see last_error */
-  GROTTO_STATE_STOPPED = 4     /* grotto_stream_stop was called */
+  GROTTO_STATE_STOPPED = 4,    /* grotto_stream_stop was called */
+  /* Connected and waiting in the server's admission queue: the server is past its capacity and
+   * lets newcomers in as players leave or it catches up (proto/PROTOCOL.md "Waiting to enter").
+   * A stream always offers to wait (hello.queue), so a full server tells it its place instead of
+   * refusing it. No spawn point and no rooms come meanwhile; the stats' queue_* fields say where
+   * it stands. Then READY, as after any welcome. */
+  GROTTO_STATE_QUEUED = 5
 };
 
 typedef struct grotto_stream_stats {
@@ -107,6 +113,17 @@ typedef struct grotto_stream_stats {
   uint64_t in_flight;    /* now */
   uint64_t rooms_held;   /* now */
   uint64_t memory_bytes; /* now */
+  /* The admission queue (GROTTO_STATE_QUEUED), as the server last said: it says again when the
+   * place or the estimate changes, at most about once a second. A player waits here instead of
+   * being refused, so show it rather than a bare loading screen, e.g. "waiting to enter: 14th,
+   * about 20 s" (queue_position, and queue_wait_ms in whole seconds). The three are 0 in every
+   * other state. Added after the fields above, which keep their offsets; the struct grew, so a
+   * program built against an older header must be rebuilt. */
+  uint64_t queue_position; /* 1-based place: 1 enters next */
+  uint64_t queue_length;   /* sessions waiting, this one included */
+  uint64_t queue_wait_ms;  /* the server's estimate of the wait, from the rate it lets players in */
+  uint64_t times_queued;   /* connections that waited in the queue before their welcome */
+  double queued_ms;        /* time spent queued since create, the current wait included */
 } grotto_stream_stats;
 
 /* Checks the configuration and starts connecting; never blocks on the network. Returns NULL when
@@ -169,7 +186,8 @@ GROTTO_C_API void grotto_stream_get_stats(grotto_stream* stream, grotto_stream_s
  * of this function on `stream` or its destroy. */
 GROTTO_C_API const char* grotto_stream_last_error(grotto_stream* stream);
 
-/* "connecting", "ready", "backoff", "failed", "stopped"; "unknown" for other values. Static. */
+/* "connecting", "ready", "backoff", "failed", "stopped", "queued"; "unknown" for other values.
+ * Static. */
 GROTTO_C_API const char* grotto_stream_state_name(int state);
 
 /* The library logs one key=value line per event through spdlog's default logger (stdout, level

@@ -125,6 +125,14 @@ enum class StreamState {
   kBackoff,     // the connection dropped; reconnecting after a delay (rooms held stay usable)
   kFailed,      // the server refused this client for good (version, world, token): see last_error
   kStopped,     // stop() was called
+  // Connected and waiting in the server's admission queue: the server is past its capacity and
+  // lets newcomers in as players leave or it catches up (proto/PROTOCOL.md "Waiting to enter").
+  // A Stream always offers to wait (hello.queue), so a full server tells it its place instead of
+  // refusing it (a refusal, when even the queue is full: kBackoff, retrying after the server's
+  // retry_after_ms). No spawn point and no rooms come meanwhile (a wait_area_ready may reach its
+  // timeout); StreamStats::queued says where the stream stands. Then kReady, as after any
+  // welcome. Last, so that the values before it keep theirs.
+  kQueued,
 };
 
 // Counters since start() (reconnects do not reset them) and figures of now.
@@ -143,6 +151,19 @@ struct StreamStats {
   double horizon_s = 0;          // the prefetch horizon in use (now)
   std::optional<uint64_t> seed;  // the world served, once welcomed
   std::string last_error;        // the last error, for people; empty when none
+  // Where the stream stands in the server's admission queue, as the server last said (it says
+  // again when the place or the estimate changes, at most about once a second); set exactly while
+  // state is kQueued. A player waits here instead of being refused, so the game should say so
+  // rather than show a bare loading screen, e.g. "waiting to enter: 14th, about 20 s"
+  // (position, and wait_ms in whole seconds).
+  struct QueuePlace {
+    uint32_t position = 0;  // 1-based: 1 enters next
+    uint32_t length = 0;    // sessions waiting, this one included
+    uint32_t wait_ms = 0;   // the server's estimate of the wait, from the rate it lets players in
+  };
+  std::optional<QueuePlace> queued;
+  uint64_t times_queued = 0;  // connections that waited in the queue before their welcome
+  double queued_ms = 0;       // time spent queued since start(), the current wait included
 };
 
 class GROTTO_STREAM_API Stream {
@@ -221,7 +242,7 @@ class GROTTO_STREAM_API Stream {
 
 // The text form of a room key ("0.0.0.r3"); "" when `key` is no valid room id.
 GROTTO_STREAM_API std::string room_name(RoomKey key);
-// "connecting", "ready", "backoff", "failed", "stopped".
+// "connecting", "ready", "backoff", "failed", "stopped", "queued".
 GROTTO_STREAM_API const char* state_name(StreamState state);
 
 // The library logs one key=value line per event (a drop, a reconnect, a refusal) through spdlog's

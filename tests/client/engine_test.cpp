@@ -11,6 +11,7 @@
 #include <cstring>
 #include <functional>
 #include <grotto/stream.hpp>
+#include <memory>
 #include <set>
 #include <string>
 #include <thread>
@@ -36,14 +37,16 @@ bool wait_for(const std::function<bool()>& done) {
   return done();
 }
 
-// A grotto-server in-process on loopback, the CPU reference.
+// A grotto-server in-process on loopback, the CPU reference. max_players > 0 stands for a server
+// past its capacity from that many players on: the next ones wait in its admission queue.
 struct Server {
   grotto::server::EmbeddedServer embedded;
-  Server() {
+  explicit Server(size_t max_players = 0) {
     auto config = grotto::server::embedded_config();
     config.generator.workers = 2;
     config.generator.builder.device.device = "none";
     config.log_level = "warn";
+    config.admission.max_players = max_players;
     auto started = grotto::server::start_embedded(config);
     EXPECT_TRUE(started.ok()) << (started.ok() ? "" : started.error().message);
     if (started.ok()) embedded = std::move(started).value();
@@ -191,6 +194,48 @@ TEST(PublicStream, the_default_horizon_adapts_and_zero_keeps_it_fixed) {
   }
 }
 
+// Past its capacity a server queues a newcomer (proto/PROTOCOL.md "Waiting to enter"): the
+// Stream offers to wait, says where it stands, and plays once the player ahead leaves.
+TEST(PublicStream, waits_in_the_admission_queue_and_plays_when_its_turn_comes) {
+  Server server(1);
+  ASSERT_FALSE(server.url().empty());
+  grotto::StreamConfig config;
+  config.url = server.url();
+  auto first = grotto::Stream::start(config);
+  ASSERT_NE(first, nullptr);
+  ASSERT_TRUE(wait_for([&] { return first->stats().state == grotto::StreamState::kReady; }))
+      << grotto::state_name(first->stats().state) << ": " << first->stats().last_error;
+  EXPECT_FALSE(first->stats().queued);
+  EXPECT_EQ(first->stats().times_queued, 0u);
+
+  auto second = grotto::Stream::start(config);
+  ASSERT_NE(second, nullptr);
+  ASSERT_TRUE(wait_for([&] { return second->stats().state == grotto::StreamState::kQueued; }))
+      << grotto::state_name(second->stats().state) << ": " << second->stats().last_error;
+  EXPECT_STREQ(grotto::state_name(grotto::StreamState::kQueued), "queued");
+  grotto::StreamStats s = second->stats();
+  ASSERT_TRUE(s.queued);
+  EXPECT_EQ(s.queued->position, 1u);
+  EXPECT_EQ(s.queued->length, 1u);
+  EXPECT_EQ(s.times_queued, 1u);
+  EXPECT_EQ(s.connects, 0u);
+  EXPECT_FALSE(second->spawn_point()) << "no spawn point before the welcome";
+  std::this_thread::sleep_for(300ms);
+  EXPECT_EQ(second->stats().state, grotto::StreamState::kQueued) << "it waits: no retries";
+  EXPECT_GT(second->stats().queued_ms, 0.0) << "the current wait counts";
+
+  first.reset();  // the player ahead leaves: its place goes to the head of the queue at once
+  ASSERT_TRUE(wait_for([&] { return second->stats().state == grotto::StreamState::kReady; }))
+      << grotto::state_name(second->stats().state) << ": " << second->stats().last_error;
+  s = second->stats();
+  EXPECT_FALSE(s.queued);
+  EXPECT_EQ(s.times_queued, 1u);
+  EXPECT_GE(s.queued_ms, 300.0);
+  EXPECT_EQ(s.connects, 1u);
+  ASSERT_TRUE(wait_for([&] { return second->spawn_point().has_value(); }));
+  EXPECT_TRUE(second->wait_area_ready(second->spawn_point()->position, 4.0, 0, kWait));
+}
+
 TEST(CStream, create_refuses_null_and_bad_configurations_into_the_callers_buffer) {
   char error[64];
   EXPECT_EQ(grotto_stream_create(nullptr, error, sizeof error), nullptr);
@@ -225,6 +270,9 @@ TEST(CStream, a_null_stream_is_harmless) {
   EXPECT_EQ(grotto_stream_area_ready(nullptr, p, 1, 0, 0), 0);
   EXPECT_STREQ(grotto_stream_last_error(nullptr), "");
   EXPECT_STREQ(grotto_stream_state_name(GROTTO_STATE_READY), "ready");
+  EXPECT_STREQ(grotto_stream_state_name(GROTTO_STATE_QUEUED), "queued");
+  EXPECT_STREQ(grotto_stream_state_name(GROTTO_STATE_QUEUED + 1), "unknown");
+  EXPECT_STREQ(grotto_stream_state_name(-1), "unknown");
   EXPECT_STREQ(grotto_stream_state_name(99), "unknown");
   EXPECT_EQ(grotto_set_log_level(nullptr), 0);
   EXPECT_EQ(grotto_set_log_level("loud"), 0);
@@ -327,6 +375,59 @@ TEST(CStream, area_ready_fetches_an_area_far_from_the_pose) {
   }
   EXPECT_TRUE(far_room_polled) << grotto::room_name(far_key) << " was not handed out";
   grotto_stream_destroy(stream);
+}
+
+// The C interface over the same queue: two streams on a server full with one player; the second
+// reports GROTTO_STATE_QUEUED and its place, and becomes READY when the first is destroyed.
+TEST(CStream, waits_in_the_admission_queue_and_plays_when_its_turn_comes) {
+  Server server(1);
+  ASSERT_FALSE(server.url().empty());
+  grotto_stream_config config{};
+  config.url = server.url().c_str();
+  char error[128] = "";
+  // Destroyed however the test ends, before the server.
+  using Handle = std::unique_ptr<grotto_stream, decltype(&grotto_stream_destroy)>;
+  Handle first(grotto_stream_create(&config, error, sizeof error), grotto_stream_destroy);
+  ASSERT_NE(first, nullptr) << error;
+  grotto_stream_stats stats;
+  auto state_of = [&](grotto_stream* stream) {
+    grotto_stream_get_stats(stream, &stats);
+    return stats.state;
+  };
+  EXPECT_TRUE(wait_for([&] { return state_of(first.get()) == GROTTO_STATE_READY; }))
+      << grotto_stream_state_name(stats.state) << ": " << grotto_stream_last_error(first.get());
+  EXPECT_EQ(stats.queue_position, 0u);
+  EXPECT_EQ(stats.queue_length, 0u);
+  EXPECT_EQ(stats.times_queued, 0u);
+
+  Handle second(grotto_stream_create(&config, error, sizeof error), grotto_stream_destroy);
+  ASSERT_NE(second, nullptr) << error;
+  EXPECT_TRUE(wait_for([&] { return state_of(second.get()) == GROTTO_STATE_QUEUED; }))
+      << grotto_stream_state_name(stats.state) << ": " << grotto_stream_last_error(second.get());
+  EXPECT_STREQ(grotto_stream_state_name(stats.state), "queued");
+  EXPECT_EQ(stats.queue_position, 1u);
+  EXPECT_EQ(stats.queue_length, 1u);
+  EXPECT_LE(stats.queue_wait_ms, 86'400'000u);
+  EXPECT_EQ(stats.times_queued, 1u);
+  EXPECT_EQ(stats.connects, 0u);
+  double spawn[3];
+  EXPECT_EQ(grotto_stream_spawn_point(second.get(), spawn, nullptr), 0);
+  std::this_thread::sleep_for(300ms);
+  EXPECT_EQ(state_of(second.get()), GROTTO_STATE_QUEUED) << "it waits: no retries";
+  EXPECT_EQ(stats.queue_position, 1u);
+  EXPECT_GT(stats.queued_ms, 0.0) << "the current wait counts";
+
+  first.reset();  // grotto_stream_destroy: the player ahead leaves
+  EXPECT_TRUE(wait_for([&] { return state_of(second.get()) == GROTTO_STATE_READY; }))
+      << grotto_stream_state_name(stats.state) << ": " << grotto_stream_last_error(second.get());
+  EXPECT_EQ(stats.queue_position, 0u);
+  EXPECT_EQ(stats.queue_length, 0u);
+  EXPECT_EQ(stats.queue_wait_ms, 0u);
+  EXPECT_EQ(stats.times_queued, 1u);
+  EXPECT_GE(stats.queued_ms, 300.0);
+  EXPECT_EQ(stats.connects, 1u);
+  EXPECT_TRUE(
+      wait_for([&] { return grotto_stream_spawn_point(second.get(), spawn, nullptr) == 1; }));
 }
 
 }  // namespace

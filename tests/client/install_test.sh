@@ -6,7 +6,9 @@
 # separate projects with find_package(Grotto) against that prefix, and run each for a few seconds
 # against a real grotto-server on 127.0.0.1 (an ephemeral port, the CPU reference): each must
 # print the ground around the spawn ready and rooms as they arrive, and walk into other rooms;
-# the C example's walk must bring rooms that standing at the spawn point never fetches.
+# the C example's walk must bring rooms that standing at the spawn point never fetches. The server
+# takes one player (--max-players 1), and the C example starts while the C++ one plays: it must
+# wait in the admission queue, say where it stands, and play once the C++ one has left.
 #
 # Usage: install_test.sh <build dir> <source dir> <grotto-server binary>
 set -u
@@ -16,8 +18,11 @@ server_bin=${3:?}
 cmake=${CMAKE:-cmake}  # ctest passes the cmake that configured the build
 work=$(mktemp -d "${TMPDIR:-/tmp}/grotto-install.XXXXXX")
 server_pid=""
+first_pid=""
 cleanup() {
   local rc=$?
+  # timeout(1) passes TERM on to the example it runs.
+  [[ -n $first_pid ]] && kill -TERM "$first_pid" 2>/dev/null && wait "$first_pid" 2>/dev/null
   [[ -n $server_pid ]] && kill -KILL "$server_pid" 2>/dev/null && wait "$server_pid" 2>/dev/null
   if [[ $rc -ne 0 ]]; then
     for f in "$work"/*.log; do
@@ -85,10 +90,10 @@ for ex in minimal_stream minimal_stream_c; do
   [[ -z $linked ]] || fail "$ex links more than Grotto::stream: $linked"
 done
 
-step "start grotto-server"
+step "start grotto-server (one player at a time)"
 : >"$work/server.out"
 "$server_bin" --bind 127.0.0.1 --port 0 --opencl-device none --workers 2 --log-level warn \
-  >"$work/server.out" 2>"$work/server.log" &
+  --max-players 1 >"$work/server.out" 2>"$work/server.log" &
 server_pid=$!
 for _ in $(seq 1 300); do
   grep -q "listening on" "$work/server.out" && break
@@ -100,12 +105,31 @@ port=$(sed -n 's|.*listening on http://127\.0\.0\.1:\([0-9]*\).*|\1|p' "$work/se
 url="ws://127.0.0.1:$port/ws"
 
 # Both examples walk from the spawn point at 4 m/s: 6 s (C++) and 8 s (C) leave them time to
-# pass a few portals even on a loaded machine.
+# pass a few portals even on a loaded machine. The C++ one is the server's one player; the C one
+# starts once it is in (its spawn line printed: stdbuf makes the examples' stdout line-buffered)
+# and waits in the queue until it leaves.
+step "run minimal_stream $url 6"
+timeout 60 stdbuf -oL "$work/minimal_stream/minimal_stream" "$url" 6 \
+  >"$work/minimal_stream-run.log" 2>&1 &
+first_pid=$!
+for _ in $(seq 1 300); do
+  grep -q "ground within 8 m" "$work/minimal_stream-run.log" && break
+  kill -0 "$first_pid" 2>/dev/null || break
+  sleep 0.1
+done
+grep -q "ground within 8 m" "$work/minimal_stream-run.log" || fail "minimal_stream never got in"
+step "run minimal_stream_c $url 8 (queued behind minimal_stream)"
+timeout 90 stdbuf -oL "$work/minimal_stream_c/minimal_stream_c" "$url" 8 \
+  >"$work/minimal_stream_c-run.log" 2>&1
+c_rc=$?
+wait "$first_pid"
+first_rc=$?
+first_pid=""
+((first_rc == 0)) || fail "minimal_stream exited $first_rc"
+((c_rc == 0)) || fail "minimal_stream_c exited $c_rc"
+grep -q "^waiting to enter: 1st of 1, about [0-9]* s$" "$work/minimal_stream_c-run.log" ||
+  fail "minimal_stream_c: no 'waiting to enter: 1st of 1' while the server was full"
 for ex in minimal_stream minimal_stream_c; do
-  seconds=6
-  [[ $ex == minimal_stream_c ]] && seconds=8
-  step "run $ex $url $seconds"
-  timeout 60 "$work/$ex/$ex" "$url" "$seconds" >"$work/$ex-run.log" 2>&1 || fail "$ex exited $?"
   grep -q "ground within 8 m: ready" "$work/$ex-run.log" || fail "$ex: the ground never got ready"
   rooms=$(grep -c '^room ' "$work/$ex-run.log")
   ((rooms >= 3)) || fail "$ex printed $rooms rooms (at least 3 expected)"

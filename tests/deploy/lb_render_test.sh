@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # deploy/nginx/render.sh as an operator meets it: a config nginx accepts, with every replica in
-# the players' upstream (fewest connections) and in the room tier's ring (hash of the room path,
-# through the cache; --owners names another ring), a /replica/<i>/ location each, and bad
-# arguments refused with a message that names the option.
+# the players' upstream (fewest connections; a newcomer's upgrade marked so that replicas without
+# room at once decline it, then unmarked to @ws_queue when all do) and in the room tier's ring
+# (hash of the room path, through the cache; --owners names another ring), a /replica/<i>/
+# location each, and bad arguments refused with a message that names the option.
 set -u
 render="$(dirname "$0")/../../deploy/nginx/render.sh"
 dir=$(mktemp -d)
@@ -17,7 +18,9 @@ for want in 'least_conn;' 'hash $uri consistent;' 'proxy_cache_lock on;' 'proxy_
   'max_size=1g' 'server 127.0.0.1:7001 max_fails=1 fail_timeout=5s;' \
   'server [::1]:7003 max_fails=1' 'location ~ ^/replica/2/(metrics|healthz|readyz)$' \
   'location /rooms/' 'proxy_set_header Upgrade $http_upgrade;' 'proxy_buffering off;' \
-  'listen 127.0.0.1:18080;'; do
+  'listen 127.0.0.1:18080;' 'proxy_set_header X-Grotto-Balancer try-others;' \
+  'proxy_next_upstream error timeout http_403;' 'error_page 403 502 504 = @ws_queue;' \
+  'location @ws_queue {' 'proxy_set_header X-Grotto-Balancer "";'; do
   grep -qF -- "$want" "$conf" 2>/dev/null || { echo "FAIL: the config lacks '$want'"; fail=1; }
 done
 # Every replica is in both upstreams by default (players and the ring).

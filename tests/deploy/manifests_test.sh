@@ -9,7 +9,8 @@
 # the Kubernetes config's keys are grotto-server flags, both example config files start a real
 # grotto-server (there is no check-only mode: it starts on 127.0.0.1 with an ephemeral port and is
 # stopped with SIGTERM), the probe paths and the
-# image's HEALTHCHECK command answer 200 from it, the Dockerfile's build stage installs only
+# image's HEALTHCHECK command answer 200 from it, the HPA scales on CPU and on a queue gauge that
+# grotto-server exposes (grotto_sessions_queued), the Dockerfile's build stage installs only
 # deploy/setup.sh's packages and its runtime stage every package grotto-server's shared libraries
 # come from (dpkg -S), the systemd unit passes `systemd-analyze verify`, and docs/OPERATING.md
 # names only flags and metrics that exist.
@@ -183,6 +184,15 @@ check(selects(dep["spec"]["selector"]["matchLabels"]), "Deployment selector miss
 check(selects(svc["spec"]["selector"]), "Service selector misses the pods")
 check(selects(pdb["spec"]["selector"]["matchLabels"]), "PodDisruptionBudget selector misses the pods")
 check(hpa["spec"]["scaleTargetRef"]["name"] == dep["metadata"]["name"], "HPA targets another Deployment")
+# The HPA follows CPU and the admission queue; the Pods metrics it names must be gauges that
+# grotto-server exposes (checked against a real /metrics below).
+hpa_metrics = hpa["spec"].get("metrics", [])
+check(any(m.get("type") == "Resource" and m["resource"]["name"] == "cpu" for m in hpa_metrics),
+      "the HPA no longer scales on CPU")
+pods_metrics = [m["pods"]["metric"]["name"] for m in hpa_metrics if m.get("type") == "Pods"]
+check("grotto_sessions_queued" in pods_metrics,
+      "the HPA does not scale on the admission queue (Pods metric grotto_sessions_queued)")
+open(os.path.join(work, "hpa_metrics.txt"), "w").write("".join(n + "\n" for n in pods_metrics))
 check("replicas" not in dep["spec"], "Deployment sets replicas although the HPA owns them")
 # Players are spread by load, not hashed by world: no upstream-hash-by, and round
 # robin set explicitly (ingress.yaml says why not ewma).
@@ -565,6 +575,15 @@ if [[ -z "$stop_s" ]] || ((stop_s * 1000 <= unit_drain_ms + 2000)); then
 fi
 grep -q "^ExecStart=.*--config /etc/grotto/grotto-server.json" "$unit" ||
   fail "the unit does not read /etc/grotto/grotto-server.json"
+
+# The HPA's Pods metrics are gauges grotto-server exposes (a metrics adapter serves them as
+# they are, averaged over the pods).
+if [[ -s "$work/metrics.txt" && -f "$work/hpa_metrics.txt" ]]; then
+  while read -r name; do
+    grep -q "^# TYPE $name gauge$" "$work/metrics.txt" ||
+      fail "the HPA scales on $name, which grotto-server's /metrics does not expose as a gauge"
+  done <"$work/hpa_metrics.txt"
+fi
 
 # ---- 6. docs/OPERATING.md names only metrics and flags that exist ----
 guide="$src/docs/OPERATING.md"

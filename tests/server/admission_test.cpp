@@ -179,5 +179,114 @@ TEST(Admission, capacity_is_what_was_admitted_when_it_fell_behind) {
   EXPECT_EQ(q.queued(), 1u);
 }
 
+// A balancer's question at the door (redirect_newcomer): a row is the server's state in a few
+// words and the reason the newcomer is sent on. Words: "stopping", "players=N", "handshakes=N",
+// "admission" (on, with "admitted=N", "queued=N", "max_players=N", "behind"); max_connections is
+// 10 and max_handshakes 4 throughout.
+Door door_of(const std::string& words) {
+  Door d;
+  d.max_connections = 10;
+  d.max_handshakes = 4;
+  std::istringstream in(words);
+  std::string w;
+  while (in >> w) {
+    const auto eq = w.find('=');
+    const std::string key = w.substr(0, eq);
+    const size_t n = eq == std::string::npos ? 0 : std::stoul(w.substr(eq + 1));
+    if (key == "stopping") {
+      d.stopping = true;
+    } else if (key == "players") {
+      d.players = n;
+    } else if (key == "handshakes") {
+      d.handshakes = n;
+    } else if (key == "admission") {
+      d.admission = true;
+    } else if (key == "admitted") {
+      d.admitted = n;
+    } else if (key == "queued") {
+      d.queued = n;
+    } else if (key == "max_players") {
+      d.max_players = n;
+    } else if (key == "behind") {
+      d.behind = true;
+    } else {
+      ADD_FAILURE() << "unknown word " << w;
+    }
+  }
+  return d;
+}
+
+TEST(AdmissionRedirect, a_balancers_newcomer_is_sent_on_by_table) {
+  struct RedirectRow {
+    const char* name;
+    const char* door;
+    const char* reason;
+  };
+  const std::vector<RedirectRow> rows = {
+      {"an idle server takes it", "", "none"},
+      {"room for players, admission off: taken", "players=9", "none"},
+      {"room under max_players, nobody waiting, in time: taken",
+       "players=1 admission admitted=1 max_players=2", "none"},
+      {"draining: sent on, whatever else holds", "stopping players=1 admission queued=3",
+       "stopping"},
+      {"max_connections players", "players=10", "max_connections"},
+      {"the last place has an upgrade on its way in", "players=9 handshakes=1", "max_connections"},
+      {"max_handshakes upgrades waiting for their hello", "players=1 handshakes=4",
+       "max_handshakes"},
+      {"somebody waits in the queue: nobody passes it",
+       "players=1 admission admitted=1 queued=1 max_players=5", "queue"},
+      {"at max_players", "players=2 admission admitted=2 max_players=2", "max_players"},
+      {"the last place under max_players has an upgrade on its way in",
+       "players=1 handshakes=1 admission admitted=1 max_players=2", "max_players"},
+      {"behind, nobody queued yet", "players=3 admission admitted=3 behind", "behind"},
+      {"behind, queue and max_players: the queue is named first",
+       "players=2 admission admitted=2 queued=1 max_players=2 behind", "queue"},
+      {"max_players 0 is no bound", "players=7 admission admitted=7", "none"},
+      {"admission off: its state is not looked at", "players=2 queued=1 max_players=1 behind",
+       "none"},
+  };
+  for (const RedirectRow& row : rows)
+    EXPECT_EQ(redirect_name(redirect_newcomer(door_of(row.door))), row.reason) << row.name;
+}
+
+// The answer a balancer gets agrees with what the queue does with the next newcomer: sent on
+// exactly when a hello now would not be admitted at once (no upgrade on its way in).
+TEST(AdmissionRedirect, agrees_with_what_enter_would_do) {
+  AdmissionConfig c = small();
+  c.max_players = 2;
+  c.max_queue = 10;
+  const std::vector<std::vector<std::string>> scripts = {
+      {},
+      {"enter 1"},
+      {"enter 1", "enter 2"},
+      {"enter 1", "enter 2", "enter 3 q", "leave 1"},
+      {"enter 1", "measure 300"},
+      {"enter 1", "measure 300", "enter 2 q"},
+      {"enter 1", "measure 300", "enter 2 q", "later 1000", "measure 0", "later 1000", "measure 0"},
+      {"enter 1", "measure 300", "later 250", "measure 50", "later 1000", "measure 50"},
+  };
+  for (const auto& script : scripts) {
+    AdmissionQueue q(c);
+    run(q, script);
+    Door d;
+    d.max_connections = 100;
+    d.max_handshakes = 100;
+    d.players = q.admitted();
+    d.admission = true;
+    d.admitted = q.admitted();
+    d.queued = q.queued();
+    d.max_players = q.config().max_players;
+    d.behind = q.behind();
+    const Redirect r = redirect_newcomer(d);
+    auto entered = q.enter(99, true, AdmissionTime{} + std::chrono::hours{1});
+    ASSERT_TRUE(entered);
+    const bool admitted = std::holds_alternative<adm::Admit>(*entered);
+    std::string joined;
+    for (const auto& e : script)
+      joined += e + "; ";
+    EXPECT_EQ(r == Redirect::kNone, admitted) << joined << "-> " << redirect_name(r);
+  }
+}
+
 }  // namespace
 }  // namespace grotto::server

@@ -118,6 +118,11 @@ void Client::set_receive_buffer(int bytes) {
   socket.set_option(net::socket_base::receive_buffer_size(bytes));
 }
 
+void Client::set_upgrade_header(const std::string& name, const std::string& value) {
+  ws_.set_option(websocket::stream_base::decorator(
+      [name, value](websocket::request_type& req) { req.set(name, value); }));
+}
+
 std::pair<beast::error_code, Incoming> Client::read(std::chrono::milliseconds timeout) {
   beast::flat_buffer buffer;
   auto ec = run([&](auto h) { ws_.async_read(buffer, h); }, timeout);

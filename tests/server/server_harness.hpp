@@ -78,6 +78,8 @@ class Client {
   beast::error_code connect(const std::string& target = "/ws");
   // Before connect: a small receive buffer, so that the server's writes back up soon.
   void set_receive_buffer(int bytes);
+  // Before connect: a header field the upgrade request carries (a balancer's mark, say).
+  void set_upgrade_header(const std::string& name, const std::string& value);
   // Reads for at most `timeout`: a frame, or the error (websocket::error::closed after a close).
   std::pair<beast::error_code, Incoming> read(std::chrono::milliseconds timeout = kWait);
   // The next text message, skipping room frames (kept in `frames`).

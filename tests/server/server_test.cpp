@@ -689,6 +689,62 @@ TEST(ServerAdmission, past_capacity_a_client_that_can_wait_is_queued_then_welcom
   EXPECT_EQ(http_get(server->port(), "/readyz").status, 200);
 }
 
+// A balancer's mark (PROTOCOL.md, "Balancers"): a marked upgrade that would not get in at once is
+// declined with 403 before the WebSocket, saying why, counted apart from connections and
+// refusals; unmarked, the same newcomer is admitted or queued as before.
+TEST(ServerAdmission, a_marked_newcomer_is_declined_before_the_upgrade_when_it_would_wait) {
+  auto c = test_config();
+  c.admission.max_players = 1;
+  auto server = start(c);
+  ASSERT_TRUE(server);
+  auto marked = [&](Client& cl) { cl.set_upgrade_header("X-Grotto-Balancer", "try-others"); };
+  // Room for one: the marked newcomer is upgraded and welcomed like any other.
+  Client first(server->port());
+  marked(first);
+  ASSERT_FALSE(first.connect());
+  first.hello();
+  // Full: declined before the upgrade, with why and when to come back.
+  Client second(server->port());
+  marked(second);
+  EXPECT_TRUE(second.connect());
+  EXPECT_EQ(second.response().result_int(), 403);
+  EXPECT_EQ(std::string(second.response()[beast::http::field::retry_after]), "1");
+  EXPECT_NE(second.response().body().find("max_players"), std::string::npos)
+      << second.response().body();
+  // Unmarked, nothing changes: it waits in the queue.
+  Client plain(server->port());
+  ASSERT_FALSE(plain.connect());
+  grotto::proto::Hello h;
+  h.ref = 7;
+  h.versions = {2, 1};
+  h.queue = true;
+  ASSERT_FALSE(plain.send(grotto::proto::ClientMessage(h)));
+  auto queued = plain.next_text();
+  ASSERT_TRUE(queued && queued->as<grotto::proto::Queued>()) << (queued ? queued->data : "none");
+  // Somebody waits now: nobody passes the queue, and the reason says so. Any other value of the
+  // header is no mark.
+  Client third(server->port());
+  marked(third);
+  EXPECT_TRUE(third.connect());
+  EXPECT_EQ(third.response().result_int(), 403);
+  EXPECT_NE(third.response().body().find("queue"), std::string::npos) << third.response().body();
+  Client other(server->port());
+  other.set_upgrade_header("X-Grotto-Balancer", "something-else");
+  EXPECT_FALSE(other.connect());
+  // The upgrade's 101 can reach the client before the server counts the session: wait for it.
+  std::string metrics;
+  for (auto deadline = Clock::now() + kWait; Clock::now() < deadline;
+       std::this_thread::sleep_for(5ms)) {
+    metrics = http_get(server->port(), "/metrics").body;
+    if (metric(metrics, "grotto_connections_total") >= 3.0) break;
+  }
+  EXPECT_EQ(metric(metrics, "grotto_admission_redirected_total{reason=\"max_players\"}"), 1.0);
+  EXPECT_EQ(metric(metrics, "grotto_admission_redirected_total{reason=\"queue\"}"), 1.0);
+  EXPECT_EQ(metric(metrics, "grotto_connections_total"), 3.0);  // first, plain, other
+  EXPECT_EQ(metric(metrics, "grotto_connections_rejected_total"), 0.0);
+  EXPECT_EQ(metric(metrics, "grotto_sessions_refused_total"), 0.0);
+}
+
 // ---- shutdown ----
 
 TEST(ServerShutdown, stop_closes_every_session_with_service_restart_in_bounded_time) {
