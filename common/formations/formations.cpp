@@ -325,6 +325,33 @@ std::vector<vec3> drapery_hull(const FormationShape& f, int sides) {
   return out;
 }
 
+// A boulder's hull: its finest mesh's points round the side (kLodSides[0] of them, so each face
+// keeps its plane) at the bottom, where the side meets the chamfer and where the chamfer meets
+// the top, closed by a fan over the top (a plane). Convex as the block is.
+std::vector<vec3> boulder_hull(const FormationShape& f) {
+  const int sides = kLodSides[0];
+  const float start = formation_start(f), end = formation_end(f);
+  // boulder_point's parts: the side to 0.3075 of the span, the chamfer to 0.5, the top.
+  const float shares[3] = {0.0f, 0.3074806f, 0.5f};
+  std::vector<vec3> ring[3];
+  for (int i = 0; i < 3; ++i)
+    for (int k = 0; k < sides; ++k)
+      ring[i].push_back(
+          formation_point(f, mix(start, end, shares[i]),
+                          6.2831853f * static_cast<float>(k) / static_cast<float>(sides)));
+  std::vector<vec3> out;
+  for (int i = 0; i < 2; ++i)
+    for (int k = 0; k < sides; ++k) {
+      const int k1 = (k + 1) % sides;
+      const auto &a = ring[i], &b = ring[i + 1];
+      out.insert(out.end(), {a[k], b[k], b[k1], a[k], b[k1], a[k1]});
+    }
+  const vec3 top = formation_point(f, end, 0.0f);
+  for (int k = 0; k < sides; ++k)
+    out.insert(out.end(), {ring[2][k], ring[2][(k + 1) % sides], top});
+  return out;
+}
+
 }  // namespace
 
 std::vector<vec3> collision_hull(const FormationShape& f, int sides, int rings) {
@@ -332,6 +359,7 @@ std::vector<vec3> collision_hull(const FormationShape& f, int sides, int rings) 
   sides = std::max(sides, 3);
   rings = std::max(rings, 1);
   if (f.kind == kFormationDrapery) return drapery_hull(f, 2 * sides);
+  if (f.kind == kFormationBoulder) return boulder_hull(f);
   // Rings from the root to the far end, each a polygon of the largest radius at its level
   // (irregularity included), so the hull holds what is drawn near the axis.
   const float start = 0.0f, end = formation_end(f) - (f.kind == kFormationColumn ? f.embed : 0.0f);

@@ -94,7 +94,9 @@ void append_mesh(const FormationShape& f, int lod, std::vector<vec3>& positions,
                  std::vector<vec3>& normals, std::vector<uint32_t>& indices);
 
 // A closed convex hull of the instance for collision: `sides` around, `rings` rings along the
-// visible part, as triangles (three vec3 each), in the instance's frame (root included).
+// visible part, as triangles (three vec3 each), in the instance's frame (root included). A
+// boulder's is its finest mesh's corners (kLodSides[0] round, its side, chamfer and top: the
+// faces it is drawn with), whatever `sides` and `rings` say.
 std::vector<vec3> collision_hull(const FormationShape& f, int sides = 6, int rings = 4);
 
 }  // namespace grotto::formations
