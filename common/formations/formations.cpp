@@ -254,6 +254,8 @@ std::vector<FormationShape> place(const Surface& s) {
       }
     }
   }
+  // The blocks fallen from a hall's ceiling, on its floor (breakdown.cpp).
+  detail::place_breakdown(placer, s, out);
   return out;
 }
 

@@ -74,6 +74,33 @@ class Placer {
     return clamp(ivec2(floor((xz - grid_lo_) / kGrid)), ivec2(0), dims_ - ivec2(1));
   }
 
+  // The highest floor (a patch triangle facing up more than kFloor) under room-frame (x, z) and
+  // below height `below`: false where there is none. Half-open on the triangles' edges, as the
+  // speleothems' hits are, so whatever order the triangles come in the same one answers.
+  bool floor_under(vec2 xz, float below, Hit& out) const {
+    if (cells_.empty()) return false;
+    const ivec2 c = cell_of(xz);
+    bool found = false;
+    for (uint32_t t : cells_[static_cast<size_t>(c.y) * static_cast<size_t>(dims_.x) +
+                             static_cast<size_t>(c.x)]) {
+      const vec3 w = barycentric(t, xz);
+      if (!(w.x >= 0.0f && w.y >= 0.0f && w.z > 0.0f)) continue;
+      const std::array<uint32_t, 3> k = corners(t);
+      const vec3 a = position(k[0]), b = position(k[1]), d = position(k[2]);
+      const vec3 face = cross(b - a, d - a);
+      const float len = length(face);
+      if (!(len > 1e-9f) || !(face.y / len > kFloor)) continue;
+      const float y = dot(w, vec3(a.y, b.y, d.y));
+      if (!(y < below) || (found && !(y > out.y))) continue;
+      found = true;
+      out.y = y;
+      out.w = w;
+      out.tri = t;
+      out.facing = face.y / len;
+    }
+    return found;
+  }
+
   // The height of the drawn surface straight above or below room-frame (x, z), on the sheet of
   // rock nearest to height `near`: NaN where no triangle lies over (x, z).
   float height_near(vec2 xz, float near) const {
@@ -241,5 +268,11 @@ class Placer {
 
   const Surface& s_;
 };
+
+// The fallen blocks of a breakdown chamber (breakdown.cpp) on the floor of a hall, appended to
+// `out` (the speleothems placed so far: a block keeps off the columns and buries the stalagmites
+// under it, which are taken out).
+void place_breakdown(const Placer& placer, const Surface& surface,
+                     std::vector<FormationShape>& out);
 
 }  // namespace grotto::formations::detail
