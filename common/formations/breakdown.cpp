@@ -1,13 +1,13 @@
 // Breakdown: the blocks fallen from a hall's ceiling, lying in piles on its floor.
 //
 // Big chambers are mostly breakdown chambers (Carlsbad's Big Room, Škocjan's Martel Chamber):
-// as a ceiling spans wider, slabs part along its bedding planes and fall, and the floor beneath
-// the place where the ceiling broke is heaped with angular blocks, big ones near the middle of
-// the heap and smaller ones round its edge, with the level floor between the heaps (White &
-// White, "Breakdown morphology", in Encyclopedia of Caves). Here: 1-3 heaps a hall, each under a
-// point of its ceiling far from the portals, each of 10-40 blocks 0.3-4 m across whose sizes
-// follow a truncated power law (a few big, many small), kept clear of the portals (passages stay
-// open) and of the middle of the floor (where walkers cross the hall).
+// as a ceiling spans wider, beds part along its bedding planes and fall as slabs and blocks, and
+// the floor beneath the place where the ceiling broke is heaped with angular blocks, big ones
+// near the middle of the heap and smaller ones round its edge, with the level floor between the
+// heaps (E. L. White and W. B. White, "Breakdown", in Encyclopedia of Caves). Here: 1-3 heaps a
+// hall, each under a point of its ceiling far from the portals, each of 10-40 blocks 0.3-4 m across
+// whose sizes follow a truncated power law (a few big, many small), kept clear of the portals
+// (passages stay open) and of the middle of the floor (where walkers cross the hall).
 //
 // Deterministic as the speleothems are: the room's own hashes (from its grid origin), the mesh's
 // floats (candidate ceiling points sorted by position, not by vertex order) and a fixed order.
@@ -191,8 +191,8 @@ void place_breakdown(const Placer& placer, const Surface& s, std::vector<Formati
     const Heap& heap = heaps[h];
     const int salt = 100 * static_cast<int>(h + 1);
     const int count = heap.count;
-    // Their sizes first, the biggest placed first (nearest the middle: they fell from highest
-    // and broke least), each tried at up to eight spots.
+    // Their sizes first, the biggest placed first (nearest the middle: a slab falls straight
+    // down, the pieces that break off it roll further), each tried at up to eight spots.
     struct Wanted {
       float size;
       int k;
