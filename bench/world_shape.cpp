@@ -7,8 +7,13 @@
 //     halls), the share within 15 degrees of horizontal (normals face into the cave);
 //   - streamed bytes per room (Draco, protocol version 2's layout, normals derived by the client):
 //     p50, p99 and the largest, and the largest vertex count;
-//   - CPU time per room (prepare + deform + assemble + encode), one thread.
-// Writes a JSON report and prints a Markdown table (docs/BENCHMARKS.md, "Space in the world").
+//   - CPU time per room (prepare + deform + assemble + encode), one thread;
+//   - what the halls' floors hold: each hall's formations placed as a client places them
+//     (formations::place over the payload decoded, normals derived: protocol 2), its fallen blocks
+//     (breakdown: how many, how many of 0.5, 1 and 2 m or more across, the largest) and the
+//     placement's time.
+// Writes a JSON report and prints two Markdown tables (docs/BENCHMARKS.md, "Space in the world"
+// and "Breakdown in the halls").
 #include <spdlog/spdlog.h>
 
 #include <CLI/CLI.hpp>
@@ -23,6 +28,7 @@
 #include "bench/sector_sample.hpp"
 #include "bench/timing.hpp"
 #include "common/codec/room_codec.hpp"
+#include "common/formations/formations.hpp"
 #include "common/mesh/room_mesh.hpp"
 
 namespace {
@@ -44,6 +50,51 @@ struct RoomShape {
   size_t vertices = 0;
   double ms = 0;
 };
+
+// A hall's formations as a client places them.
+struct HallFloor {
+  std::string id;
+  double radius = 0;
+  int boulders = 0, over_half = 0, over_1 = 0, over_2 = 0, speleothems = 0;
+  double largest = 0;   // metres across
+  double place_ms = 0;  // formations::place, one thread
+};
+
+// Decodes `payload` as a protocol 2 client does (no normals: derived from the surface and the
+// portal discs) and places its formations.
+Result<HallFloor> hall_floor(std::span<const uint8_t> payload, const mesh::RoomMesh& m,
+                             const cave::Room& room) {
+  codec::DecodeLimits limits;
+  limits.normals = false;
+  limits.portal_count = static_cast<int>(room.portals.size());
+  auto decoded = codec::decode_room(payload, limits);
+  if (!decoded) return decoded.error();
+  std::vector<codec::PortalDisc> discs;
+  for (const cave::Portal& p : room.portals)
+    discs.push_back({p.centre, p.normal});
+  if (Status st = codec::derive_normals(decoded.value(), m.origin, discs); !st) return st.error();
+  HallFloor h;
+  h.id = room.id.to_string();
+  h.radius = room.sphere.radius;
+  const auto t0 = std::chrono::steady_clock::now();
+  const std::vector<formations::FormationShape> placed =
+      formations::place(formations::surface_of(decoded.value(), m.origin, room.sphere.radius));
+  h.place_ms =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  for (const formations::FormationShape& f : placed) {
+    if (f.kind != formations::kFormationBoulder) {
+      ++h.speleothems;
+      continue;
+    }
+    const double across = 2.0 * f.radius;
+    ++h.boulders;
+    h.over_half += across >= 0.5;
+    h.over_1 += across >= 1.0;
+    h.over_2 += across >= 2.0;
+    h.largest = std::max(h.largest, across);
+  }
+  return h;
+}
 
 RoomShape measure(const mesh::RoomMesh& m, const cave::Room& room) {
   RoomShape s;
@@ -88,7 +139,8 @@ RoomShape measure(const mesh::RoomMesh& m, const cave::Room& room) {
 int main(int argc, char** argv) {
   CLI::App app{
       "world_shape: kept radius, hall sizes, floor flatness and bytes per room of the patch "
-      "meshes of a block of sectors; writes a JSON report and prints a Markdown table"};
+      "meshes of a block of sectors, and the fallen blocks on the halls' floors; writes a JSON "
+      "report and prints Markdown tables"};
   std::vector<uint64_t> seeds{3, 7, 95};
   std::vector<int> from{0, 0, 0}, to{1, 0, 1};
   double big_radius = 8.0;
@@ -114,6 +166,7 @@ int main(int argc, char** argv) {
   report["to"] = to;
   report["big_radius"] = big_radius;
   report["per_seed"] = nlohmann::json::array();
+  std::vector<std::pair<uint64_t, std::vector<HallFloor>>> all_floors;
   std::printf(
       "| seed | rooms | big rooms | kept, median (min) | largest room: r, kept m, 10%% m, width x "
       "height m | halls | halls' up-facing area flat | bytes p50 / p99 / max | vertices max | ms "
@@ -127,6 +180,7 @@ int main(int argc, char** argv) {
     mesh::MeshContext ctx = mesh::MeshContext::create(*world, mesh::MeshParams{}).value();
     cave::Region region = cave::generate_region(*world, lo, hi);
     std::vector<RoomShape> shapes;
+    std::vector<HallFloor> floors;
     codec::EncodeOptions options;
     options.normals = false;
     for (const cave::Room& room : region.rooms) {
@@ -145,6 +199,14 @@ int main(int argc, char** argv) {
           std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
       RoomShape s = measure(*m, room);
       s.floored = cave::floor_height(world->params(), room.sphere).has_value();
+      if (s.floored) {
+        auto floor = hall_floor(*bytes, *m, room);
+        if (!floor) {
+          spdlog::error("seed {} room {}: {}", seed, room.id.to_string(), floor.error().message);
+          return 1;
+        }
+        floors.push_back(*floor);
+      }
       s.bytes = static_cast<double>(bytes->size());
       s.ms = ms;
       shapes.push_back(s);
@@ -201,6 +263,19 @@ int main(int argc, char** argv) {
                              return ms.empty() ? 0 : sum / static_cast<double>(ms.size());
                            }()},
                           {"big", rooms}};
+    nlohmann::json hall_floors = nlohmann::json::array();
+    for (const HallFloor& h : floors)
+      hall_floors.push_back({{"room", h.id},
+                             {"radius", h.radius},
+                             {"boulders", h.boulders},
+                             {"boulders_over_0_5m", h.over_half},
+                             {"boulders_over_1m", h.over_1},
+                             {"boulders_over_2m", h.over_2},
+                             {"largest_boulder_m", h.largest},
+                             {"speleothems", h.speleothems},
+                             {"place_ms", h.place_ms}});
+    row["hall_floors"] = hall_floors;
+    all_floors.emplace_back(seed, std::move(floors));
     if (largest) {
       row["largest"] = {{"room", largest->id},         {"radius", largest->radius},
                         {"kept_m", largest->kept_m},   {"near10_m", largest->near10_m},
@@ -217,6 +292,14 @@ int main(int argc, char** argv) {
     }
     report["per_seed"].push_back(row);
   }
+  std::printf(
+      "\n| seed | hall | r m | boulders | of 0.5 / 1 / 2 m or more | largest m | speleothems | "
+      "place ms |\n| ---: | --- | ---: | ---: | --- | ---: | ---: | ---: |\n");
+  for (const auto& [seed, floors] : all_floors)
+    for (const HallFloor& h : floors)
+      std::printf("| %llu | %s | %.1f | %d | %d / %d / %d | %.2f | %d | %.1f |\n",
+                  static_cast<unsigned long long>(seed), h.id.c_str(), h.radius, h.boulders,
+                  h.over_half, h.over_1, h.over_2, h.largest, h.speleothems, h.place_ms);
   std::ofstream f(json_path);
   f << report.dump(2) << '\n';
   if (!f) {

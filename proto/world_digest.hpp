@@ -27,9 +27,10 @@ uint64_t fold_digest(uint64_t digest, std::span<const uint8_t> bytes);
 // version moves on, while a change of how it is drawn (relief_at_sampled's filtering) does not.
 inline constexpr std::string_view kReliefVersion = "grotto.relief.v4";
 // The version of the formations (common/formations/formations.hpp: where a room's stalactites,
-// stalagmites, soda straws, columns and draperies stand and what shape each has), folded likewise:
-// what the client draws and collides with, and what engines and the glb export place.
-inline constexpr std::string_view kFormationsVersion = "grotto.formations.v2";
+// stalagmites, soda straws, columns, draperies and a hall's fallen blocks stand and what shape
+// each has), folded likewise: what the client draws and collides with, and what engines and the
+// glb export place.
+inline constexpr std::string_view kFormationsVersion = "grotto.formations.v3";
 
 // The digest a server announces in welcome.params: the layout's, folded with every mesh setting
 // that also shapes the rooms (lods, octaves, rim, big-room and channel settings), doubles as IEEE

@@ -3,7 +3,7 @@
 // instance's shape (shaders/formation.glsl) places each point, so every stalactite, stalagmite,
 // soda straw, column and drapery is smooth and its own. Shaded by room.frag: its outputs are room.tese's,
 // a formation being calcite (t_spike: ochre at the root, cream towards the growing tip) with no
-// rock detail of its own (t_rock 0).
+// rock detail of its own (t_rock 0); a boulder is limestone (t_spike -1: the walls' rock).
 #version 410 core
 
 layout(location = 0) in vec2 a_grid;  // (0-1 along the span from the rock to the tip, angle)
@@ -67,10 +67,15 @@ void main() {
   t_mineral = 0.0;
   t_cavity = 0.6;
   t_spike = formation_age(f, s, theta);
-  // The crease where the root's flare meets the rock holds a little less of the sky.
-  t_occlusion = f.kind == kFormationDrapery
-                    ? mix(0.8, 1.0, smoothstep(-0.02, 0.1, -(p.y - f.root.y)))
-                    : mix(0.8, 1.0, smoothstep(-0.02, 0.5 * (f.radius + 0.05), s));
+  // The crease where the root's flare meets the rock holds a little less of the sky; a
+  // boulder's foot, under its overhanging sides, less still.
+  if (f.kind == kFormationDrapery)
+    t_occlusion = mix(0.8, 1.0, smoothstep(-0.02, 0.1, -(p.y - f.root.y)));
+  else if (f.kind == kFormationBoulder)
+    t_occlusion = mix(0.6, 1.0, smoothstep(-0.02, 0.3 * min(f.length, f.radius) + 0.05,
+                                           p.y - f.root.y));
+  else
+    t_occlusion = mix(0.8, 1.0, smoothstep(-0.02, 0.5 * (f.radius + 0.05), s));
   t_warp = vec3(0.0);
   t_rock = 0.0;
   t_spacing = 0.0;

@@ -66,8 +66,11 @@ void main() {
   // one to the next, which would show the triangles through the fade.
   float footprint = dist / u_pixel_scale / max(dot(n, v), 0.25);
 
-  // Where the surface faces: floors blend into walls into ceilings.
-  float ground = smoothstep(0.35, 0.8, n.y);
+  // Where the surface faces: floors blend into walls into ceilings. A block fallen from the
+  // ceiling (a boulder, formation.vert: t_spike -1) is the walls' limestone all over, its top
+  // only dusted with the floor's sediment.
+  float fallen = t_spike < -0.5 ? 1.0 : 0.0;
+  float ground = smoothstep(0.35, 0.8, n.y) * (1.0 - 0.75 * fallen);
   float ceiling = smoothstep(0.35, 0.8, -n.y);
   float calcite = smoothstep(0.02, 0.2, t_spike);
 

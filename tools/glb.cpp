@@ -11,6 +11,7 @@
 #include <limits>
 #include <nlohmann/json.hpp>
 #include <thread>
+#include <utility>
 
 #include "common/codec/room_codec.hpp"
 #include "common/core/bytes.hpp"
@@ -221,8 +222,9 @@ json add_plain_mesh(Document& doc, const std::string& name, std::span<const glm:
 // One formation's shape as the file's extras give it (formations::FormationShape: root in its
 // room's frame, metres and radians).
 json formation_json(const formations::FormationShape& f) {
-  static constexpr const char* kKinds[] = {"stalactite", "stalagmite", "column", "drapery"};
-  return {{"kind", kKinds[std::clamp(f.kind, 0, 3)]},
+  static constexpr const char* kKinds[] = {"stalactite", "stalagmite", "column", "drapery",
+                                           "boulder"};
+  return {{"kind", kKinds[std::clamp(f.kind, 0, 4)]},
           {"root", {f.root.x, f.root.y, f.root.z}},
           {"length", f.length},
           {"radius", f.radius},
@@ -251,7 +253,7 @@ Result<std::vector<uint8_t>> region_glb(const GlbSource& source, std::span<const
   Document doc;
   json nodes = json::array(), meshes = json::array(), scene_nodes = json::array();
   json light_defs = json::array(), child_nodes = json::array();
-  bool calcite = false;  // a formations mesh uses the second material
+  bool calcite = false;  // a formations mesh's speleothems use the second material
   // The meshes encoded and decoded on every hardware thread (each room's alone), a window of
   // rooms at a time so that only the window's decoded meshes are held, then laid into the buffer
   // in the rooms' order.
@@ -311,24 +313,39 @@ Result<std::vector<uint8_t>> region_glb(const GlbSource& source, std::span<const
     }
     // The room's formations (formations::place over its mesh as decoded, what a client places
     // them over): one child node with them all as one mesh, and each instance's shape in extras.
+    // The speleothems are one primitive in the calcite material, a hall's fallen blocks another
+    // in the rock's (they are the walls' limestone, as room.frag shades them).
     if (r.mesh != nullptr && source.formations) {
       const std::vector<formations::FormationShape> placed = formations::place(
           formations::surface_of(room_coded->decoded, r.mesh->origin, r.room->sphere.radius));
       if (!placed.empty()) {
-        std::vector<glm::vec3> positions, normals;
-        std::vector<uint32_t> indices;
+        struct Part {
+          std::vector<glm::vec3> positions, normals;
+          std::vector<uint32_t> indices;
+        } dripstone, blocks;
         json shapes = json::array();
         for (const formations::FormationShape& f : placed) {
-          formations::append_mesh(f, kGlbFormationLod, positions, normals, indices);
+          Part& part = f.kind == formations::kFormationBoulder ? blocks : dripstone;
+          formations::append_mesh(f, kGlbFormationLod, part.positions, part.normals, part.indices);
           shapes.push_back(formation_json(f));
         }
         children.push_back(rooms.size() + child_nodes.size());
         child_nodes.push_back({{"name", r.room->id.to_string() + ".formations"},
                                {"mesh", meshes.size()},
                                {"extras", {{"formations", std::move(shapes)}}}});
-        meshes.push_back(add_plain_mesh(doc, r.room->id.to_string() + ".formations", positions,
-                                        normals, indices, 1));
-        calcite = true;
+        const std::string name = r.room->id.to_string() + ".formations";
+        json mesh;
+        for (const auto& [part, material] : {std::pair{&dripstone, 1}, std::pair{&blocks, 0}}) {
+          if (part->indices.empty()) continue;
+          json one =
+              add_plain_mesh(doc, name, part->positions, part->normals, part->indices, material);
+          if (mesh.is_null())
+            mesh = std::move(one);
+          else
+            mesh["primitives"].push_back(std::move(one["primitives"][0]));
+          calcite = calcite || material == 1;
+        }
+        meshes.push_back(std::move(mesh));
       }
     }
     if (!children.empty()) node["children"] = std::move(children);

@@ -36,7 +36,8 @@ struct GlbSource {
   // that float32 translations keep the grid's precision.
   Vec3 anchor;
   // Each room's formations (common/formations/formations.hpp) as a child node: one mesh of them all
-  // at kGlbFormationLod, each instance's shape in its extras.
+  // at kGlbFormationLod (the speleothems a primitive in calcite, a hall's boulders one in rock),
+  // each instance's shape in its extras.
   bool formations = true;
   // The world, when the rooms' extras should say what its rock made of them (each portal's
   // section, the room's geology: proto::room_json with a world). Not owned.

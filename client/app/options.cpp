@@ -156,7 +156,8 @@ std::optional<int> parse_options(int argc, char** argv, Options& o) {
   app.add_flag("--no-displacement", o.no_displacement,
                "Tessellate without the rock's relief (no displacement; X toggles)");
   app.add_flag("--no-formations", o.no_formations,
-               "Draw no stalactites, stalagmites or columns (the formations' instances)");
+               "Draw no stalactites, stalagmites, columns, draperies or fallen blocks (the "
+               "formations' instances)");
   app.add_flag("--no-fine-detail", o.no_fine_detail,
                "No fine detail on the rock (the grain, pits and joints below 5 cm that the "
                "shading adds, faded with distance; J toggles)");

@@ -4,7 +4,8 @@
 // pulled onto the cracks water seeps along, heavy-tailed lengths) that lie under the room's
 // ceilings, each hung plumb from the drawn ceiling with its stalagmite beneath it on the floor the
 // drip falls on, columns where the two would meet, and draperies along the slope of inclined
-// ceilings. The shape of one instance is shaders/formation.glsl's,
+// ceilings; and in halls the blocks fallen from the ceiling, lying in heaps on the floor beneath
+// where it broke (breakdown.cpp). The shape of one instance is shaders/formation.glsl's,
 // compiled here as C++ over GLM (as relief.hpp does), so the renderer, collision, the glb export
 // and engines see the same formations.
 //
@@ -59,7 +60,8 @@ inline Surface surface_of(const codec::DecodedRoom& mesh, Vec3 origin, double ro
 }
 
 // The formations of the room, roots in its frame (metres from Surface::origin), in a fixed order
-// (by lattice cell, then height). Empty for an empty mesh.
+// (the speleothems by lattice cell, then height; then a hall's boulders, heap by heap, biggest
+// first). Empty for an empty mesh.
 std::vector<FormationShape> place(const Surface& surface);
 
 // How far the drawn rock can lie from the patch surface along its normal (relief_normal_bound at
@@ -94,7 +96,9 @@ void append_mesh(const FormationShape& f, int lod, std::vector<vec3>& positions,
                  std::vector<vec3>& normals, std::vector<uint32_t>& indices);
 
 // A closed convex hull of the instance for collision: `sides` around, `rings` rings along the
-// visible part, as triangles (three vec3 each), in the instance's frame (root included).
+// visible part, as triangles (three vec3 each), in the instance's frame (root included). A
+// boulder's is its finest mesh's corners (kLodSides[0] round, its side, chamfer and top: the
+// faces it is drawn with), whatever `sides` and `rings` say.
 std::vector<vec3> collision_hull(const FormationShape& f, int sides = 6, int rings = 4);
 
 }  // namespace grotto::formations

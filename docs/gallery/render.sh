@@ -99,6 +99,9 @@ shoot hall-up-7 7 --pose "$(pose 7 0.0.0.r0 floor 60 55)"
 # Light in the dark: the headlamp off, one flare thrown into the hall (it falls, bounces and lies
 # burning), and the world's lights.
 shoot hall-flare-95 95 --pose "$(pose 95 1.0.1.r0 across 0 -5)" --no-headlamp --flares 1
+# Breakdown: the first heap of blocks in seed 95's hall 0.0.0.r0 (room frame 13.0, 3.5: its
+# middle), from 9 m towards the hall's middle, 2.5 m above the floor, looking down 14 degrees.
+shoot breakdown-95 95 --pose 60.27,48.47,45.73,105.1,-14.0
 # Columns: where a level floor and ceiling are 2.5-3.5 m apart a column cell's
 # stalactite and stalagmite join. Halls never hold one (their ceilings are 10-30 m up and slope
 # where they come down); seed 7's passage room 0.0.1.r59 (r = 3.8 m, floor at y 39.8, ceiling

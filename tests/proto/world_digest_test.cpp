@@ -63,7 +63,8 @@ TEST(WorldDigest, the_servers_digest_is_pinned_and_sees_the_mesh_settings) {
   // grotto.formations.v1), then the flowstone's irregular edges (grotto.relief.v4), then
   // draperies (grotto.formations.v2), then the world's geology (grotto.geology.v1), then rims
   // as passage sections, passages that grow between their ends and halls that step along their
-  // beds (grotto.mesh.v5, grotto.geology.v2).
+  // beds (grotto.mesh.v5, grotto.geology.v2), and the halls' fallen blocks
+  // (grotto.formations.v3).
   EXPECT_EQ(d, 0x292422c5dcc495aaull);
   EXPECT_NE(d, layout_params_digest(layout));
   std::vector<mesh::MeshParams> variants(12, mesh);

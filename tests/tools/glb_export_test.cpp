@@ -15,6 +15,7 @@
 #include <fstream>
 #include <map>
 #include <nlohmann/json.hpp>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -555,12 +556,13 @@ TEST_F(GlbExport, the_worlds_lights_are_child_nodes_with_punctual_point_lights) 
 }
 
 // Each room's formations are one child node: their mesh faces out (every triangle's
-// counter-clockwise normal agrees with its vertex normals) in the calcite material, and its
+// counter-clockwise normal agrees with its vertex normals), the speleothems in the calcite
+// material and a hall's boulders in the rock's, and its
 // extras list exactly the instances formations::place gives over the room's mesh as the file
 // holds it (the payload decoded: what a client places them over), root for root.
 TEST_F(GlbExport, each_rooms_formations_are_a_child_node_placed_as_the_client_places_them) {
   const json& nodes = doc()["nodes"];
-  size_t rooms_with = 0, instances = 0, triangles = 0, agree = 0;
+  size_t rooms_with = 0, instances = 0, triangles = 0, agree = 0, boulders = 0;
   for (const json& node : nodes) {
     if (is_child(node) || !node.contains("mesh")) continue;
     const json* child = nullptr;
@@ -610,35 +612,45 @@ TEST_F(GlbExport, each_rooms_formations_are_a_child_node_placed_as_the_client_pl
       EXPECT_EQ(got[k]["root"][1].get<float>(), want[k].root.y);
       EXPECT_EQ(got[k]["length"].get<float>(), want[k].length);
     }
-    const json& fp = doc()["meshes"][(*child)["mesh"].get<size_t>()]["primitives"][0];
-    EXPECT_EQ(doc()["materials"][fp["material"].get<size_t>()]["name"], "calcite");
-    const std::vector<float> fpos = floats(accessor_bytes(*glb_, fp["attributes"]["POSITION"]));
-    const std::vector<float> fnrm = floats(accessor_bytes(*glb_, fp["attributes"]["NORMAL"]));
-    const std::vector<uint32_t> fidx = unsigneds(accessor_bytes(*glb_, fp["indices"]), 4);
-    for (size_t t = 0; t + 2 < fidx.size(); t += 3) {
-      const float* a = &fpos[3 * fidx[t]];
-      const float* b = &fpos[3 * fidx[t + 1]];
-      const float* c = &fpos[3 * fidx[t + 2]];
-      double face[3], n[3] = {0, 0, 0};
-      const double u[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]};
-      const double v[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
-      face[0] = u[1] * v[2] - u[2] * v[1];
-      face[1] = u[2] * v[0] - u[0] * v[2];
-      face[2] = u[0] * v[1] - u[1] * v[0];
-      double area = 0, along = 0;
-      for (int k = 0; k < 3; ++k) {
-        for (int corner = 0; corner < 3; ++corner)
-          n[k] += fnrm[3 * fidx[t + corner] + k];
-        along += face[k] * n[k];
-        area += face[k] * face[k];
+    // The speleothems in calcite, a hall's fallen blocks in the rock's material.
+    std::set<std::string> want_materials, got_materials;
+    for (const auto& f : want)
+      want_materials.insert(f.kind == grotto::formations::kFormationBoulder ? "rock" : "calcite");
+    for (const json& fp : doc()["meshes"][(*child)["mesh"].get<size_t>()]["primitives"]) {
+      got_materials.insert(doc()["materials"][fp["material"].get<size_t>()]["name"]);
+      const std::vector<float> fpos = floats(accessor_bytes(*glb_, fp["attributes"]["POSITION"]));
+      const std::vector<float> fnrm = floats(accessor_bytes(*glb_, fp["attributes"]["NORMAL"]));
+      const std::vector<uint32_t> fidx = unsigneds(accessor_bytes(*glb_, fp["indices"]), 4);
+      for (size_t t = 0; t + 2 < fidx.size(); t += 3) {
+        const float* a = &fpos[3 * fidx[t]];
+        const float* b = &fpos[3 * fidx[t + 1]];
+        const float* c = &fpos[3 * fidx[t + 2]];
+        double face[3], n[3] = {0, 0, 0};
+        const double u[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]};
+        const double v[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
+        face[0] = u[1] * v[2] - u[2] * v[1];
+        face[1] = u[2] * v[0] - u[0] * v[2];
+        face[2] = u[0] * v[1] - u[1] * v[0];
+        double area = 0, along = 0;
+        for (int k = 0; k < 3; ++k) {
+          for (int corner = 0; corner < 3; ++corner)
+            n[k] += fnrm[3 * fidx[t + corner] + k];
+          along += face[k] * n[k];
+          area += face[k] * face[k];
+        }
+        if (area < 1e-16) continue;  // a tip's degenerate sliver
+        ++triangles;
+        agree += along > 0;
       }
-      if (area < 1e-16) continue;  // a tip's degenerate sliver
-      ++triangles;
-      agree += along > 0;
     }
+    EXPECT_EQ(got_materials, want_materials) << node["name"];
+    boulders += static_cast<size_t>(std::count_if(want.begin(), want.end(), [](const auto& f) {
+      return f.kind == grotto::formations::kFormationBoulder;
+    }));
   }
-  std::printf("%zu rooms with formations, %zu instances, %zu triangles (%zu facing out)\n",
-              rooms_with, instances, triangles, agree);
+  std::printf(
+      "%zu rooms with formations, %zu instances (%zu boulders), %zu triangles (%zu facing out)\n",
+      rooms_with, instances, boulders, triangles, agree);
   EXPECT_GT(rooms_with, 3u);
   EXPECT_GT(triangles, 0u);
   EXPECT_GT(agree, triangles * 99 / 100);
@@ -713,6 +725,38 @@ TEST(GlbExportDetail, detail_payloads_decode_to_their_fallback) {
               d->indices)
         << node["name"];
   }
+}
+
+// A hall's fallen blocks (seed 7's sector 0,0,0 holds the hall 0.0.0.r0): its formations' node
+// lists them as kind "boulder", and they are their own primitive in the rock's material, one
+// instance mesh each (kGlbFormationLod's points), apart from the speleothems' calcite.
+TEST(GlbExportHall, a_halls_boulders_are_rock_not_calcite) {
+  fs::path path =
+      fs::temp_directory_path() / ("grotto-glb-hall-" + std::to_string(getpid()) + ".glb");
+  ProcessResult r = run_layout("--seed 7 --from 0,0,0 --sectors 1 --glb '" + path.string() + "'");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  Glb g = parse_glb(read_bytes(path));
+  fs::remove(path);
+  ASSERT_EQ(g.error, "");
+  const json* hall = nullptr;
+  for (const json& node : g.doc["nodes"])
+    if (node["name"] == "0.0.0.r0.formations") hall = &node;
+  ASSERT_NE(hall, nullptr) << "the hall has formations";
+  size_t boulders = 0, others = 0;
+  for (const json& f : (*hall)["extras"]["formations"])
+    (f["kind"] == "boulder" ? boulders : others) += 1;
+  const json& mesh = g.doc["meshes"][(*hall)["mesh"].get<size_t>()];
+  std::map<std::string, size_t> vertices;
+  for (const json& p : mesh["primitives"])
+    vertices[g.doc["materials"][p["material"].get<size_t>()]["name"]] +=
+        g.doc["accessors"][p["attributes"]["POSITION"].get<size_t>()]["count"].get<size_t>();
+  constexpr int kLod = 1;  // tools/glb.hpp's kGlbFormationLod
+  const size_t per_instance = static_cast<size_t>((grotto::formations::kLodSides[kLod] + 1) *
+                                                  (grotto::formations::kLodRings[kLod] + 1));
+  std::printf("hall 0.0.0.r0: %zu boulders, %zu speleothems\n", boulders, others);
+  EXPECT_GE(boulders, 10u);
+  EXPECT_EQ(vertices["rock"], boulders * per_instance);
+  EXPECT_EQ(vertices["calcite"], others * per_instance);
 }
 
 // 676.1.-2.r5 of seed 7 was the room known not to mesh ("no hole at portal", fixed in

@@ -421,8 +421,8 @@ export function parsePose(text) {
 }
 
 // The formation kinds this viewer draws (PROTOCOL "Room extras over HTTP": 0 stalactite,
-// 1 stalagmite, 2 column, 3 drapery; a client ignores a kind it does not know).
-export const FORMATION_KINDS = 4;
+// 1 stalagmite, 2 column, 3 drapery, 4 boulder; a client ignores a kind it does not know).
+export const FORMATION_KINDS = 5;
 export const FORMATION_DRAPERY = 3;
 
 // An extras resource's formations.data (16 numbers an instance) as a Float32Array of the

@@ -305,14 +305,14 @@ test("place links", () => {
 
 test("extras' formations: the known kinds kept, an unknown kind or a malformed instance dropped", () => {
   const one = (kind, x = 1) => [x, 2, 3, 1.5, 0.4, 0.01, 0.3, kind, 0.1, 3, 0.2, 0.8, 0.5, 1.2, 0, 0];
-  const data = [...one(0), ...one(3, 7), ...one(9), ...one(2.5), ...one(1).map((v, i) => (i === 4 ? null : v)), ...one(1, 11)];
-  const kept = knownFormations({ count: 6, data });
+  const data = [...one(0), ...one(3, 7), ...one(9), ...one(2.5), ...one(1).map((v, i) => (i === 4 ? null : v)), ...one(1, 11), ...one(4, 13)];
+  const kept = knownFormations({ count: 7, data });
   assert.ok(kept instanceof Float32Array);
-  assert.equal(kept.length, 3 * 16);
-  assert.deepEqual([kept[0], kept[16], kept[32]], [1, 7, 11]);
-  assert.deepEqual([kept[7], kept[23], kept[39]], [0, 3, 1]);
+  assert.equal(kept.length, 4 * 16);
+  assert.deepEqual([kept[0], kept[16], kept[32], kept[48]], [1, 7, 11, 13]);
+  assert.deepEqual([kept[7], kept[23], kept[39], kept[55]], [0, 3, 1, 4], "a boulder (kind 4) is drawn");
   assert.equal(knownFormations({ count: 2, data: one(0) }), null, "fewer numbers than count says");
-  assert.equal(knownFormations({ count: 1, data: one(4) }), null, "no known kind: nothing to draw");
+  assert.equal(knownFormations({ count: 1, data: one(5) }), null, "no known kind: nothing to draw");
   assert.equal(knownFormations(undefined), null);
 });
 

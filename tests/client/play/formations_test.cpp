@@ -119,7 +119,8 @@ TEST(Formations, each_hangs_or_stands_within_3_degrees_of_plumb) {
   ASSERT_FALSE(all.empty());
   double worst = 0;
   for (const fm::FormationShape& f : all) {
-    if (f.kind == fm::kFormationDrapery) continue;  // a sheet: its s runs across it
+    // A sheet's s runs across it; a fallen block lies, its own tests in breakdown_test.cpp.
+    if (f.kind == fm::kFormationDrapery || f.kind == fm::kFormationBoulder) continue;
     auto centroid = [&](float s) {
       glm::vec3 c(0.0f);
       for (int k = 0; k < 64; ++k)
@@ -233,10 +234,12 @@ TEST(Formations, walkers_collide_with_them) {
     if (f.kind == fm::kFormationStalactite || f.radius < 0.1f) continue;
     const float s = 0.5f * f.length;
     const glm::vec3 mid = f.root + glm::vec3(0.0f, fm::formation_direction(f) * s, 0.0f);
-    // A drapery is met face on, from beside its folds; the rest from beside their body.
+    // A drapery is met face on, from beside its folds; a block from beside its plan; the rest
+    // from beside their body.
     const glm::vec3 beside =
-        f.kind == fm::kFormationDrapery
-            ? fm::drapery_across(f) * (f.taper + 3.0f * f.tip + 0.3f)
+        f.kind == fm::kFormationDrapery ? fm::drapery_across(f) * (f.taper + 3.0f * f.tip + 0.3f)
+        : f.kind == fm::kFormationBoulder
+            ? glm::vec3(1.5f * fm::boulder_plan(f, -f.yaw) + 0.05f, 0.0f, 0.0f)
             : glm::vec3(1.5f * fm::formation_radius(f, s, 0.0f) + 0.05f, 0.0f, 0.0f);
     const Vec3 a = world(room, mid + beside);
     const Vec3 b = world(room, mid);
@@ -339,6 +342,7 @@ TEST(Formations, meshes_wind_counter_clockwise_seen_from_outside) {
         << "kind " << f.kind << ": " << agree << " of " << faces << " faces outwards";
   }
   EXPECT_GT(kinds[fm::kFormationDrapery], 0) << "the hall has a drapery";
+  EXPECT_GT(kinds[fm::kFormationBoulder], 0) << "the hall has fallen blocks";
 }
 
 // What the renderer draws at 1080p (70 degrees of view: 771 pixels a metre at 1 m): a 1 m
