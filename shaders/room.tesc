@@ -104,8 +104,9 @@ bool outside_frustum(vec3 p0, vec3 p1, vec3 p2, float margin) {
 // vertex, so no ridge that faces the camera meets the patch. A degenerate triangle gives NaN, and
 // NaN comparisons never cull.
 // The relief's bumps reach ~80 degrees of slope: a camera just behind the base plane can see the
-// side of one at a grazing angle, so the back-facing test asks for kBackMargins margins.
-const float kBackMargins = 2.0;
+// side of one at a grazing angle, so the back-facing test asks for kBackMargins margins (3: with
+// 2, a hall's bed steps and notches let a pixel of a culled patch show past a ridge).
+const float kBackMargins = 3.0;
 bool facing_away(vec3 p0, vec3 p1, vec3 p2, float margin) {
   vec3 n = normalize(cross(p1 - p0, p2 - p0));
   if (!(dot(u_camera - p0, n) < -margin)) return false;
