@@ -70,7 +70,7 @@ struct CommandLine {
 };
 CommandLine parse_command_line(int argc, const char* const* argv);
 
-// "grotto-server 0.2.0"
+// "grotto-server 0.3.0"
 std::string product_version();
 
 }  // namespace grotto::server

@@ -27,7 +27,7 @@ namespace grotto::tools {
 
 // What the file says about where it comes from.
 struct GlbSource {
-  std::string generator;  // asset.generator, e.g. "grotto-layout 0.2.0"
+  std::string generator;  // asset.generator, e.g. "grotto-layout 0.3.0"
   uint64_t seed = 0;
   double sector_size = 0;
   cave::SectorCoord lo, hi;  // the block of sectors

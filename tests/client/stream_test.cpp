@@ -193,7 +193,7 @@ TEST(Stream, spawns_and_prefetches_every_room_within_the_horizon) {
   EXPECT_EQ(stats.rooms_rejected, 0u);
   EXPECT_TRUE(stats.errors.empty());
   EXPECT_EQ(stats.connects, 1u);
-  EXPECT_EQ(stats.server, "grotto-server 0.2.0");
+  EXPECT_EQ(stats.server, "grotto-server 0.3.0");
   auto fresh = stream->take_new_rooms();
   EXPECT_GE(fresh.size(), expected.size());
   for (const auto& r : fresh)

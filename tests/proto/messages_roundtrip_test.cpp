@@ -72,8 +72,8 @@ TEST(ProtoRoundTrip, every_server_message_round_trips) {
   Limits limits{1 << 16, 1 << 22, 64, 512, 2, 30000, 5000};
   Limits capped{1 << 16, 1 << 22, 64, 512, 2, 30000, 5000, 100, 200, 512};  // max_kbps 512
   const ServerMessage messages[] = {
-      Welcome{1, 1, "grotto-server 0.2.0", 42, 0xfedcba9876543210ull, limits},
-      Welcome{1, 1, "grotto-server 0.2.0", 42, 0xfedcba9876543210ull, capped},
+      Welcome{1, 1, "grotto-server 0.3.0", 42, 0xfedcba9876543210ull, limits},
+      Welcome{1, 1, "grotto-server 0.3.0", 42, 0xfedcba9876543210ull, capped},
       Welcome{std::nullopt, 7, "", 0, 0, Limits{}},
       Located{2, {1.5, 2.5, -3.5}, id("0.0.0.r4")},
       Located{std::nullopt, {0, 0, 0}, std::nullopt},

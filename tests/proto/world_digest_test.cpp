@@ -65,7 +65,7 @@ TEST(WorldDigest, the_servers_digest_is_pinned_and_sees_the_mesh_settings) {
   // as passage sections, passages that grow between their ends and halls that step along their
   // beds (grotto.mesh.v5, grotto.geology.v2), and the halls' fallen blocks
   // (grotto.formations.v3).
-  EXPECT_EQ(d, 0x292422c5dcc495aaull);
+  EXPECT_EQ(d, 0x292423c5dcc4975dull);
   EXPECT_NE(d, layout_params_digest(layout));
   std::vector<mesh::MeshParams> variants(12, mesh);
   variants[0].lods[0].edge_length += 0.125;

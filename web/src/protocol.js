@@ -5,7 +5,7 @@
 
 export const PROTOCOL_VERSION = 2;
 export const VERSIONS_SPOKEN = [2];
-export const CLIENT_NAME = "grotto-viewer 0.2.0";
+export const CLIENT_NAME = "grotto-viewer 0.3.0";
 export const MAX_PORTALS = 16;
 export const HEADER_BYTES = 80;
 export const PORTAL_BYTES = 64;

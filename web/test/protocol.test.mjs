@@ -197,7 +197,7 @@ test("room ids: rejects", () => {
 });
 
 test("client messages", () => {
-  assert.deepEqual(JSON.parse(helloMessage({ ref: 1, seed: "7" })), { type: "hello", ref: 1, versions: [2], seed: "7", name: "grotto-viewer 0.2.0" });
+  assert.deepEqual(JSON.parse(helloMessage({ ref: 1, seed: "7" })), { type: "hello", ref: 1, versions: [2], seed: "7", name: "grotto-viewer 0.3.0" });
   assert.deepEqual(JSON.parse(helloMessage({ token: "s3cret" })).token, "s3cret");
   assert.ok(!("seed" in JSON.parse(helloMessage({}))));
   assert.equal(JSON.parse(helloMessage({ queue: true })).queue, true);
@@ -211,7 +211,7 @@ test("client messages", () => {
   assert.deepEqual(JSON.parse(spawnMessage(9)), { type: "spawn", ref: 9 });
 });
 
-const WELCOME = { type: "welcome", ref: 1, version: 2, server: "grotto-server 0.2.0", seed: "7", params: "5d1c0a2e9b7f3c44",
+const WELCOME = { type: "welcome", ref: 1, version: 2, server: "grotto-server 0.3.0", seed: "7", params: "5d1c0a2e9b7f3c44",
   limits: { max_message_bytes: 65536, max_frame_bytes: 4194304, max_rooms_per_request: 256, max_rooms_in_flight: 1024, max_lod: 0, idle_timeout_ms: 60000, handshake_timeout_ms: 5000, request_rate: 2000, request_burst: 4000 } };
 
 test("server messages: welcome and its limits", () => {

@@ -43,7 +43,7 @@ LoadReport sample_report() {
   r.url = "ws://127.0.0.1:1234/ws";
   r.embedded_server = true;
   r.seed = 18446744073709551615ull;
-  r.server = "grotto-server 0.2.0";
+  r.server = "grotto-server 0.3.0";
   r.compute = "cpu: test";
   r.players = 2;
   r.rng_seed = 5;
