@@ -78,7 +78,7 @@ while (($#)); do
     --no-build) build=0 ;;
     --load-flags) load_flags=${2:-} && shift ;;
     --cpu-quota) cpu_quota=${2:-} quota_flag=1 && shift ;;
-    -h | --help) usage && exit 0 ;;
+    -h | --help) usage; exit 0 ;;  # exit 0 even when a reader closes the pipe early (SIGPIPE)
     *) echo "capacity.sh: unknown flag '$1' (--help lists them)" >&2 && exit 2 ;;
   esac
   shift
