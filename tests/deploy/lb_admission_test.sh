@@ -35,8 +35,8 @@ state() {
 # Every player's run ends at the same time, well after the last one has connected (each connect
 # takes about a second here; the players must all still be there when the fifth arrives).
 end=$((SECONDS + 25))
-start_player() {
-  local k=$1 left=$((end - SECONDS))
+start_player() {  # player [seconds it ends before the others]
+  local k=$1 left=$((end - SECONDS - ${2:-0}))
   ((left >= 8)) || lb_fail "player $k would start with ${left} s left: connecting is too slow here"
   "$GROTTO_LOAD" --server "ws://127.0.0.1:$lb_nginx_port/ws" --players 1 --mode walk --speed 0.5 \
     --horizon 2 --duration "$left" --rng-seed "$k" --json "$lb_dir/player-$k.json" --quiet \
@@ -55,7 +55,9 @@ for k in 1 2 3 4; do
 done
 (($(players 0) == 1 && $(players 1) == 3)) || lb_fail "4 players should fill both replicas: $(state)"
 
-start_player 5
+# The fifth ends 5 s before the others: they leave one after another when their runs end, and
+# the fifth, still queued then, would be let in as the first of them left.
+start_player 5 5
 echo "player 5 connected: $(state)"
 (($(queued 0) + $(queued 1) == 1)) ||
   lb_fail "with both replicas full the fifth player should wait in a queue: $(state)"

@@ -407,8 +407,8 @@ TEST(Breakdown, walkers_step_over_small_blocks_and_go_round_big_ones) {
   auto walk = [&](const Hall& h, const fm::FormationShape& f, bool big) {
     Walk out;
     const std::vector<fm::FormationShape>& all = h.placed;
-    for (int k = 0; k < 8 && !out.found; ++k) {
-      const float a = 0.7853982f * static_cast<float>(k);
+    for (int k = 0; k < 16 && !out.found; ++k) {
+      const float a = 0.3926991f * static_cast<float>(k);
       const glm::vec2 d(std::cos(a), std::sin(a));
       const glm::vec2 c(f.root.x, f.root.z);
       const glm::vec2 from = c - d * (f.radius + 2.0f), to = c + d * (f.radius + 0.5f);
@@ -426,7 +426,6 @@ TEST(Breakdown, walkers_step_over_small_blocks_and_go_round_big_ones) {
           clear = false;
       }
       if (!clear) continue;
-      out.found = true;
       CollisionWorld collide(1.0f, true);
       collide.add(h.room);
       const Vec3 start = world(h.room, glm::vec3(from.x, f.root.y + 2.0f, from.y));
@@ -435,6 +434,11 @@ TEST(Breakdown, walkers_step_over_small_blocks_and_go_round_big_ones) {
       Player p(start);
       for (int i = 0; i < 240 && !p.grounded(); ++i)
         p.step({}, collide);
+      // The walk starts on the floor the block rests on, level with its root: not over a shaft
+      // in the floor, not on a bank above it (the floor follows the rock, not a plane).
+      const double feet = p.spheres()[0].y - p.params().radius - root.y;
+      if (!p.grounded() || std::abs(feet) > 0.3) continue;
+      out.found = true;
       for (int i = 0; i < 5 * 120; ++i) {
         PlayerInput in;
         in.move = Vec3{end.x - p.eye().x, 0, end.z - p.eye().z};
@@ -471,7 +475,8 @@ TEST(Breakdown, walkers_step_over_small_blocks_and_go_round_big_ones) {
         for (int k = 0; k < 32; ++k)
           inside = std::min(inside, plan_at(f, 6.2831853f * static_cast<float>(k) / 32.0f));
         EXPECT_GT(w.closest, inside + 0.3) << "not through it";
-        EXPECT_LT(w.highest, 0.5) << "not onto it";
+        // A leaning side may lift the body a little; never onto the block's top.
+        EXPECT_LT(w.highest, 0.5 * f.length) << "not onto it";
       }
     }
   }
