@@ -596,13 +596,14 @@ elif [[ -s "$work/metrics.txt" ]]; then
       fail "OPERATING.md names metric $name, which /metrics does not expose"
   done
   # grotto-server's flags from its --help; other Grotto programs' flags from their sources
-  # (CLI11 options) and deploy/nginx/render.sh's usage text; the few flags of other tools the
-  # guide uses are listed here.
+  # (CLI11 options), deploy/nginx/render.sh's usage text and the bench scripts' option parsing;
+  # the few flags of other tools the guide uses are listed here.
   others=" --now --from-literal --rm --test-dir --build --target --offline "
   for flag in $(grep -o -- '--[a-z][a-z0-9-]*' "$guide" | sort -u); do
     grep -q -- "${flag}[ ,=]" "$work/help.txt" && continue
     grep -rqF -- "\"$flag\"" "$src/client" "$src/bench" "$src/common" 2>/dev/null && continue
     grep -qE -- "^  $flag( |$)" "$src/deploy/nginx/render.sh" 2>/dev/null && continue
+    grep -qE -- "^ +$flag( \|.*)?\)" "$src"/bench/*.sh 2>/dev/null && continue
     [[ "$others" == *" $flag "* ]] && continue
     fail "OPERATING.md names flag $flag, which neither grotto-server --help nor Grotto's sources define"
   done
