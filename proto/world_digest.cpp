@@ -83,7 +83,7 @@ uint64_t world_params_digest(const cave::LayoutParams& layout, const mesh::MeshP
   // their walls; donors are capped by frequency, the spline's rim point is pulled in near a
   // portal's axis line, every rim is its passage's section from the geology, and a passage grows
   // between its ends. The algorithm itself is part of the world, not only its numbers.
-  c.text("grotto.mesh.v5");
+  c.text("grotto.mesh.v6");
   for (const auto& l : m.lods)
     c.f64(static_cast<double>(l.max_frequency));
   for (double v : {m.axis_fade_edges, m.keep_distance, m.wall_allow, m.wall_softness,

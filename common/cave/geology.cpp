@@ -215,6 +215,9 @@ const char* section_kind_name(SectionKind kind) {
   return "tube";
 }
 
+// 1 - the rim noise's amplitude (mesh params): how far the noise may narrow a section.
+constexpr double kNoiseNarrowing = 0.88;
+
 PassageSection passage_section(const World& world, Vec3 centre, Vec3 normal, double radius) {
   const uint64_t seed = world.seed();
   const Geology g = geology_at(world, centre);
@@ -222,8 +225,7 @@ PassageSection passage_section(const World& world, Vec3 centre, Vec3 normal, dou
   // The narrowest a section's half-extent may be with the rim's noise at its narrowest: a player
   // 1.8 m tall walks through, and a walker 0.5 m in radius (the client's) with room for the
   // relief.
-  constexpr double kNoiseNarrowing = 0.88;  // 1 - the rim noise's amplitude (mesh params)
-  constexpr double kMinHalfHeight = 1.0, kMinHalfWidth = 0.6, kMinSlot = 0.42;
+  constexpr double kMinHalfHeight = kMinClearHeight / 2, kMinHalfWidth = 0.6, kMinSlot = 0.42;
   const double r = radius * kNoiseNarrowing;
   const double min_width = std::min(1.0, kMinHalfWidth / r);
   const double min_height = std::min(1.0, kMinHalfHeight / r);
@@ -255,7 +257,7 @@ PassageSection passage_section(const World& world, Vec3 centre, Vec3 normal, dou
       value2(seed, kFissureField, centre.x, centre.z, kStyleCell).v > 0.75) {
     s.kind = SectionKind::kFissure;
     s.half_width = narrow_to(2.0 + 0.6 * style);
-    s.deepen = 0.7;
+    s.deepen = 1.0;
     return s;
   }
   // A lens along the bedding plane (the section's height tilted halfway to the beds' pole), no
@@ -269,14 +271,13 @@ PassageSection passage_section(const World& world, Vec3 centre, Vec3 normal, dou
     s.kind = SectionKind::kLens;
     s.up = unit_or(up_plumb + up_bed, up_plumb);
     s.half_height = std::min(1.0, std::max(min_height, 0.65 + 0.1 * style));
-    s.widen = 1.0 + 0.3 * style;
-    // ... and lower there where it is high enough to stay walkable.
-    s.deepen = -std::clamp(1 - min_height / s.half_height, 0.0, 0.25);
+    s.widen = 1.4 + 0.3 * style;
+    s.deepen = -0.3;  // ... and lower, where its ends are high enough to stay walkable
     return s;
   };
   if (g.phreatic) {
     // Dissolved full of water: along a soft bed that guided it, round where nothing did.
-    if (lens_field > 0.2) return lens();
+    if (lens_field > 0.15) return lens();
     s.kind = SectionKind::kTube;
     s.half_width = 0.92 + 0.08 * style;
     return s;
@@ -288,20 +289,20 @@ PassageSection passage_section(const World& world, Vec3 centre, Vec3 normal, dou
   const double tube = 0.6 + 0.1 * style;
   const bool keyhole_fits = (tube + 0.95) * r >= 2 * kMinHalfHeight;
   const bool canyon = value2(seed, kCanyonField, centre.x, centre.z, kStyleCell).v > 0.45;
-  if (!canyon && lens_field > 0.3) return lens();
+  if (!canyon && lens_field > 0.5) return lens();
   if (canyon || !keyhole_fits) {
     s.kind = SectionKind::kCanyon;
     s.half_width = narrow_to(1.9 + 0.6 * style);
     s.slot_depth = 0.95;
     s.slot_width = std::min(slot, s.half_width);
-    s.deepen = 0.7;
+    s.deepen = 1.0;
     return s;
   }
   s.kind = SectionKind::kKeyhole;
   s.half_width = s.half_height = tube;
   s.slot_depth = 0.95;
   s.slot_width = slot;
-  s.deepen = 0.7;
+  s.deepen = 1.0;
   return s;
 }
 
@@ -311,6 +312,10 @@ double section_reach(const PassageSection& s) {
     reach = std::max(reach, std::sqrt(s.slot_depth * s.slot_depth + s.slot_width * s.slot_width));
   }
   return reach + 0.3;  // the smooth maximum's bias (deform_core.h's GROTTO_SECTION_SOFTNESS / 2)
+}
+
+double section_clear_height(const PassageSection& s, double radius) {
+  return radius * kNoiseNarrowing * (s.half_height + std::max(s.half_height, s.slot_depth));
 }
 
 double section_narrow(const PassageSection& s) {

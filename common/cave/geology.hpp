@@ -19,7 +19,7 @@
 namespace grotto::cave {
 
 // Bumped whenever the geology or the sections it gives change: part of the world digest.
-inline constexpr const char* kGeologyVersion = "grotto.geology.v2";
+inline constexpr const char* kGeologyVersion = "grotto.geology.v3";
 
 // One set of parallel fractures: steep planes `spacing` metres apart.
 struct JointSet {
@@ -80,13 +80,18 @@ struct PassageSection {
   double half_height = 1;
   double slot_depth = 0;
   double slot_width = 0;
-  // How the passage grows between its two ends, as a fraction of its section there: a lens
-  // widens along its bed and a canyon or fissure grows taller, most halfway along. Its portals
-  // are its narrowest places, as a cave's squeezes lie between its rooms. The room's deformation
-  // blends the two ends' values (and keeps the passage inside its room's sphere).
+  // How a passage that formed here grows between its two ends, as a fraction of its section
+  // there: a lens widens along its bed (and lowers, where its ends are high enough to stay
+  // walkable) and a canyon or fissure grows taller, most halfway along. Its portals are its
+  // narrowest places, as a cave's squeezes lie between its rooms. A passage grows as the section
+  // at its middle says (mesh/room_mesh.cpp's set_growth keeps it inside its room's sphere and
+  // walkable).
   double widen = 0;
   double deepen = 0;
 };
+
+// The clear height every section leaves (metres): a player 1.8 m tall walks through.
+inline constexpr double kMinClearHeight = 2.0;
 
 // The section of a portal at `centre` with unit `normal` (either sign: the section does not
 // depend on it) and disc radius `radius`, from the geology at its centre and the passage's
@@ -105,5 +110,7 @@ double section_reach(const PassageSection& section);
 double section_narrow(const PassageSection& section);
 double section_aspect(const PassageSection& section);
 double section_perimeter(const PassageSection& section);
+// Its clear height in metres for a disc of `radius`, with the rim's noise at its narrowest.
+double section_clear_height(const PassageSection& section, double radius);
 
 }  // namespace grotto::cave

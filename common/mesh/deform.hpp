@@ -41,7 +41,7 @@ typedef float3 gfloat3;
 // The core keeps per-portal values in arrays of GROTTO_MAX_PORTALS.
 static_assert(cave::kMaxPortalsPerRoom <= GROTTO_MAX_PORTALS,
               "the deformation core must hold every portal a room can have");
-static_assert(sizeof(GrottoPortal) == 96 && sizeof(GrottoRoom) == 100 + 8 * GROTTO_MAX_BEDS &&
+static_assert(sizeof(GrottoPortal) == 96 && sizeof(GrottoRoom) == 108 + 8 * GROTTO_MAX_BEDS &&
                   sizeof(GrottoShape) == 128,
               "host and device struct layouts must match");
 

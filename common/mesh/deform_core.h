@@ -42,14 +42,12 @@ typedef struct {
   /* The passage's section (cave::PassageSection, from the geology), in radii: an ellipse of
    * half-width half_w and half-height half_h, its height along up_c * e1 + up_s * e2, and below
    * the centre a slot slot_width wide each side with a flat floor slot_depth down (0: none).
-   * reach and narrow: its farthest and nearest extent. widen and deepen: how much the passage
-   * grows across and along its height halfway to its other end (fractions). */
+   * reach and narrow: its farthest and nearest extent. */
   float up_c, up_s, half_w, half_h, slot_depth, slot_width, reach, narrow;
-  float widen, deepen;
-  float pad;
+  float pad[3];
 } GrottoPortal;
 
-/* One room of a batch. 25 + 2 x GROTTO_MAX_BEDS floats/uints. */
+/* One room of a batch. 27 + 2 x GROTTO_MAX_BEDS floats/uints. */
 typedef struct {
   float ox, oy, oz;    /* sphere centre in the room frame (|o| < one grid step) */
   float radius;        /* sphere radius */
@@ -78,6 +76,9 @@ typedef struct {
   float bed_step;
   float bed_at[GROTTO_MAX_BEDS];
   float bed_notch[GROTTO_MAX_BEDS];
+  /* A passage's growth (two portals; 0 otherwise): how much it widens across and grows along its
+   * height halfway between its ends (fractions; room_mesh.cpp's passage_growth). */
+  float grow_widen, grow_deepen;
 } GrottoRoom;
 
 /* Noise and shape parameters of one level of detail. 32 floats/uints. */
@@ -313,37 +314,14 @@ GROTTO_FN gfloat3 grotto_hermite(gfloat3 p0, gfloat3 t0, gfloat3 p1, gfloat3 t1,
       grotto_scale(t1, h11));
 }
 
-/* How a passage grows between its ends (GrottoPortal::widen, deepen): the spline's offset d from
- * its axis at parameter t, stretched along the sections' height (the ends' up directions blended)
- * and across it, most halfway and not at all at the rims (whose slope it keeps: the growth eases
- * in). The more grown end's values hold (a passage from a canyon to a shaft is still cut deep),
- * held so that the passage stays inside the room's sphere (radius) as far as its widest end's
- * reach allows. */
-GROTTO_FN gfloat3 grotto_grow(GROTTO_CONSTANT const GrottoPortal* pi,
-                              GROTTO_CONSTANT const GrottoPortal* pj, float radius, gfloat3 d,
-                              gfloat t) {
-  float widen = pi->widen > pj->widen ? pi->widen : pj->widen;
-  float deepen = pi->deepen > pj->deepen ? pi->deepen : pj->deepen;
-  float extent_i = pi->radius * pi->reach, extent_j = pj->radius * pj->reach;
-  float extent = extent_i > extent_j ? extent_i : extent_j;
-  float room_for = 0.9f * radius / extent - 1.0f;
-  room_for = room_for > 0.0f ? room_for : 0.0f;
-  widen = widen < room_for ? widen : room_for;
-  deepen = deepen < room_for ? deepen : room_for;
-  /* A bent passage widens less: its widened wall would reach across a portal's plane (where the
-   * plane runs on beyond the disc, into the room). It grows taller all the same where both
-   * portal planes stand upright (the wall moves along them), and not where one of them lies
-   * nearly level (a shaft's). */
-  float facing = -(pi->nx * pj->nx + pi->ny * pj->ny + pi->nz * pj->nz);
-  float straight = (facing + 0.1f) / 0.6f;
-  straight = straight < 0.0f ? 0.0f : (straight > 1.0f ? 1.0f : straight);
-  straight = straight * straight * (3.0f - 2.0f * straight);
-  widen = widen * straight;
-  float steep_i = pi->ny < 0.0f ? -pi->ny : pi->ny, steep_j = pj->ny < 0.0f ? -pj->ny : pj->ny;
-  float steep = steep_i > steep_j ? steep_i : steep_j;
-  float upright = (0.7f - steep) / 0.3f;
-  upright = upright < 0.0f ? 0.0f : (upright > 1.0f ? 1.0f : upright);
-  deepen = deepen * upright * upright * (3.0f - 2.0f * upright);
+/* How a passage grows between its ends (GrottoRoom::grow_widen, grow_deepen): the spline's offset
+ * d from its axis at parameter t, stretched along the sections' height (the ends' up directions
+ * blended) and across it, most halfway and not at all at the rims (whose slope it keeps: the
+ * growth eases in). */
+GROTTO_FN gfloat3 grotto_grow(GROTTO_CONSTANT const GrottoRoom* room,
+                              GROTTO_CONSTANT const GrottoPortal* pi,
+                              GROTTO_CONSTANT const GrottoPortal* pj, gfloat3 d, gfloat t) {
+  float widen = room->grow_widen, deepen = room->grow_deepen;
   if (widen <= 0.0f && deepen <= 0.0f) return d;
   float uix = pi->up_c * pi->e1x + pi->up_s * pi->e2x;
   float uiy = pi->up_c * pi->e1y + pi->up_s * pi->e2y;
@@ -495,7 +473,7 @@ GROTTO_FN gfloat3 grotto_deform_vertex(uint seed, GROTTO_CONSTANT const GrottoSh
                                    grotto_scale(nj, axis_span), t);
         /* A passage (two portals) grows between its ends; a junction's pairs do not (a pair's
          * growth would push its wall across a third portal's plane). */
-        if (n == 2u) h = grotto_add(a, grotto_grow(pi, pj, room->radius, grotto_sub(h, a), t));
+        if (n == 2u) h = grotto_add(a, grotto_grow(room, pi, pj, grotto_sub(h, a), t));
         gfloat3 d = grotto_sub(h, v);
         gfloat wgt = 1.0f / (grotto_dot(d, d) + 1e-4f);
         sum = grotto_add(sum, grotto_scale(h, wgt));

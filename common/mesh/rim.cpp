@@ -56,8 +56,6 @@ core::GrottoPortal portal_record(const MeshContext& ctx, const cave::Room& room,
   g.slot_width = static_cast<float>(section.slot_width);
   g.reach = static_cast<float>(cave::section_reach(section));
   g.narrow = static_cast<float>(cave::section_narrow(section));
-  g.widen = static_cast<float>(section.widen);
-  g.deepen = static_cast<float>(section.deepen);
   return g;
 }
 

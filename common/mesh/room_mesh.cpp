@@ -298,6 +298,49 @@ void set_beds(const MeshContext& ctx, const cave::Room& room, core::GrottoRoom& 
   }
 }
 
+// How a passage (two portals) grows between its ends (deform_core.h's grotto_grow): as the section
+// the geology gives its middle would (a canyon cut deeper, a lens spread along its bed and
+// lowered, as far as its lower end leaves the clear height), and held:
+//   - within 0.9 of the room's sphere, as far as its wider end's reach allows;
+//   - less across where it bends (its widened wall would reach across a portal's plane, which runs
+//     on beyond the disc into the room);
+//   - not along its height where a portal plane lies nearly level (a shaft's: the wall would
+//     cross it).
+void set_growth(const MeshContext& ctx, const cave::Room& room, core::GrottoRoom& record) {
+  const cave::Portal& a = room.portals[0];
+  const cave::Portal& b = room.portals[1];
+  const cave::PassageSection end_a =
+      cave::passage_section(ctx.world(), a.centre, a.normal, a.radius);
+  const cave::PassageSection end_b =
+      cave::passage_section(ctx.world(), b.centre, b.normal, b.radius);
+  const cave::PassageSection middle =
+      cave::passage_section(ctx.world(), (a.centre + b.centre) * 0.5,
+                            normalize(b.centre - a.centre), 0.5 * (a.radius + b.radius));
+  // An end's farthest extent: its ellipse's, or with a slot its reach (the smooth maximum that
+  // joins the slot to the ellipse bulges below).
+  const auto extent_of = [](const cave::Portal& p, const cave::PassageSection& s) {
+    return p.radius *
+           (s.slot_depth > 0 ? cave::section_reach(s) : std::max(s.half_width, s.half_height));
+  };
+  const double extent = std::max(extent_of(a, end_a), extent_of(b, end_b));
+  const double room_for = std::max(0.0, 0.9 * room.sphere.radius / extent - 1);
+  const auto smooth = [](double x) {
+    x = std::clamp(x, 0.0, 1.0);
+    return x * x * (3 - 2 * x);
+  };
+  const double straight = smooth((0.1 - dot(a.normal, b.normal)) / 0.6);
+  const double upright =
+      smooth((0.85 - std::max(std::abs(a.normal.y), std::abs(b.normal.y))) / 0.3);
+  const double lowest = std::min(cave::section_clear_height(end_a, a.radius),
+                                 cave::section_clear_height(end_b, b.radius));
+  const double deepen =
+      middle.deepen >= 0
+          ? middle.deepen
+          : std::max(middle.deepen, -std::max(0.0, 1 - cave::kMinClearHeight / lowest));
+  record.grow_widen = static_cast<float>(std::min(middle.widen, room_for) * straight);
+  record.grow_deepen = static_cast<float>(std::min(deepen, room_for) * upright);
+}
+
 }  // namespace
 
 DeformInput prepare_room(const MeshContext& ctx, const cave::Room& room, Lod lod) {
@@ -331,6 +374,7 @@ DeformInput prepare_room(const MeshContext& ctx, const cave::Room& room, Lod lod
     in.record.ceiling_squash = static_cast<float>(ceiling->squash);
   }
   if (big) set_beds(ctx, room, in.record);
+  if (room.portals.size() == 2) set_growth(ctx, room, in.record);
   in.record.first_portal = 0;
   in.record.portal_count = static_cast<core::uint>(room.portals.size());
   in.record.first_vertex = 0;
