@@ -11,7 +11,10 @@
 //   - what the halls' floors hold: each hall's formations placed as a client places them
 //     (formations::place over the payload decoded, normals derived: protocol 2), its fallen blocks
 //     (breakdown: how many, how many of 0.5, 1 and 2 m or more across, the largest) and the
-//     placement's time.
+//     placement's time;
+//   - how the halls' stalagmites gather: of the 2 m cells of the hall's plan within 0.7 of its
+//     radius of its centre, the share that hold no stalagmite or column root (water drips along
+//     few lines: most of a real floor is bare between clusters).
 // Writes a JSON report and prints two Markdown tables (docs/BENCHMARKS.md, "Space in the world"
 // and "Breakdown in the halls").
 #include <spdlog/spdlog.h>
@@ -23,6 +26,7 @@
 #include <cstdio>
 #include <fstream>
 #include <nlohmann/json.hpp>
+#include <set>
 
 #include "bench/flags.hpp"
 #include "bench/sector_sample.hpp"
@@ -56,6 +60,8 @@ struct HallFloor {
   std::string id;
   double radius = 0;
   int boulders = 0, over_half = 0, over_1 = 0, over_2 = 0, speleothems = 0;
+  int stalagmites = 0;  // stalagmites and columns
+  double bare = 0;      // share of the 2 m cells within 0.7 r holding no stalagmite
   double largest = 0;   // metres across
   double place_ms = 0;  // formations::place, one thread
 };
@@ -81,7 +87,23 @@ Result<HallFloor> hall_floor(std::span<const uint8_t> payload, const mesh::RoomM
       formations::place(formations::surface_of(decoded.value(), m.origin, room.sphere.radius));
   h.place_ms =
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  // The 2 m cells of the plan round the sphere's centre (room frame) within 0.7 r.
+  constexpr double kCell = 2.0;
+  const Vec3 centre = room.sphere.centre - m.origin;
+  const int span = static_cast<int>(std::ceil(0.7 * room.sphere.radius / kCell));
+  std::set<std::pair<int, int>> inside, held;
+  for (int z = -span; z < span; ++z)
+    for (int x = -span; x < span; ++x) {
+      const double cx = (x + 0.5) * kCell, cz = (z + 0.5) * kCell;
+      if (cx * cx + cz * cz <= 0.49 * room.sphere.radius * room.sphere.radius)
+        inside.insert({x, z});
+    }
   for (const formations::FormationShape& f : placed) {
+    if (f.kind == formations::kFormationStalagmite || f.kind == formations::kFormationColumn) {
+      ++h.stalagmites;
+      held.insert({static_cast<int>(std::floor((f.root.x - centre.x) / kCell)),
+                   static_cast<int>(std::floor((f.root.z - centre.z) / kCell))});
+    }
     if (f.kind != formations::kFormationBoulder) {
       ++h.speleothems;
       continue;
@@ -93,6 +115,10 @@ Result<HallFloor> hall_floor(std::span<const uint8_t> payload, const mesh::RoomM
     h.over_2 += across >= 2.0;
     h.largest = std::max(h.largest, across);
   }
+  size_t bare = 0;
+  for (const auto& cell : inside)
+    bare += !held.contains(cell);
+  h.bare = inside.empty() ? 1.0 : static_cast<double>(bare) / static_cast<double>(inside.size());
   return h;
 }
 
@@ -273,6 +299,8 @@ int main(int argc, char** argv) {
                              {"boulders_over_2m", h.over_2},
                              {"largest_boulder_m", h.largest},
                              {"speleothems", h.speleothems},
+                             {"stalagmites", h.stalagmites},
+                             {"bare_cells", h.bare},
                              {"place_ms", h.place_ms}});
     row["hall_floors"] = hall_floors;
     all_floors.emplace_back(seed, std::move(floors));
@@ -294,12 +322,14 @@ int main(int argc, char** argv) {
   }
   std::printf(
       "\n| seed | hall | r m | boulders | of 0.5 / 1 / 2 m or more | largest m | speleothems | "
-      "place ms |\n| ---: | --- | ---: | ---: | --- | ---: | ---: | ---: |\n");
+      "stalagmites | 2 m cells bare | place ms |\n"
+      "| ---: | --- | ---: | ---: | --- | ---: | ---: | ---: | ---: | ---: |\n");
   for (const auto& [seed, floors] : all_floors)
     for (const HallFloor& h : floors)
-      std::printf("| %llu | %s | %.1f | %d | %d / %d / %d | %.2f | %d | %.1f |\n",
+      std::printf("| %llu | %s | %.1f | %d | %d / %d / %d | %.2f | %d | %d | %.0f %% | %.1f |\n",
                   static_cast<unsigned long long>(seed), h.id.c_str(), h.radius, h.boulders,
-                  h.over_half, h.over_1, h.over_2, h.largest, h.speleothems, h.place_ms);
+                  h.over_half, h.over_1, h.over_2, h.largest, h.speleothems, h.stalagmites,
+                  100 * h.bare, h.place_ms);
   std::ofstream f(json_path);
   f << report.dump(2) << '\n';
   if (!f) {

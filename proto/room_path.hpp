@@ -3,7 +3,7 @@
 // keep them for good:
 //
 //   /rooms/v<version>/<seed>/<params>/<lod>/<room id>      e.g.
-//   /rooms/v2/7/7a58c3e46eb34515/0/0.0.0.r0
+//   /rooms/v2/7/7a58bce46eb33930/0/0.0.0.r0
 //
 // Every part has exactly one text form (the one hello, welcome and room ids use), so one room has
 // one URL and a cache keeps it once. Parsing is safe for untrusted input; it checks form only

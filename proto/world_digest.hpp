@@ -30,7 +30,7 @@ inline constexpr std::string_view kReliefVersion = "grotto.relief.v4";
 // stalagmites, soda straws, columns, draperies and a hall's fallen blocks stand and what shape
 // each has), folded likewise: what the client draws and collides with, and what engines and the
 // glb export place.
-inline constexpr std::string_view kFormationsVersion = "grotto.formations.v3";
+inline constexpr std::string_view kFormationsVersion = "grotto.formations.v4";
 
 // The digest a server announces in welcome.params: the layout's, folded with every mesh setting
 // that also shapes the rooms (lods, octaves, rim, big-room and channel settings), doubles as IEEE

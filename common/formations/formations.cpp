@@ -79,6 +79,98 @@ FormationShape stalagmite(const SurfacePoint& ground, vec2 xz, float height, flo
   return g;
 }
 
+// Where water drips: lines of drip points along the cracks in the ceiling (relief.glsl's crack
+// field, the rock's joints), a line in some cells of a kClusterCell lattice, more and longer where
+// the region is wet. Between the lines the rock stays dry: most of a floor is bare, and the
+// formations gather in fringes of stalactites over mounds of stalagmites, as in Carlsbad's and
+// Postojna's halls.
+constexpr double kClusterCell = 4.0;  // metres (relief_turn's frame): at most one line a cell
+constexpr double kWetCell = 24.0;     // metres: the regions that are wet or dry
+constexpr float kLineChance = 0.25f;  // a cell's chance of a line where the region is wettest
+// Of the other cells, this share has a slow line: water that seeps too slowly to build on the
+// floor, a fringe of stalactites and straws over bare floor.
+constexpr float kSlowLineChance = 0.3f;
+constexpr int kMaxLineDrips = 30;
+// Beneath a line's middle the water that ran off its stalagmites built a flowstone mound this
+// much wider than it is tall.
+constexpr float kMoundWidth = 2.0f;
+
+// A drip point, in relief_turn's frame, with the hashes that shape what grows there.
+struct Drip {
+  dvec2 at{0.0};
+  ivec2 key{0};         // cell_hash's cell: this drip's own hashes
+  float size3 = 0;      // its length's share of the longest (size^2: straws to metres)
+  float form = 0;       // 0 a bell-shaped cone .. 1 a candle
+  bool column = false;  // may join its floor and ceiling below kColumnGap
+  bool mound = false;   // the line's flowstone mound, on the floor beneath its middle
+  bool drapes = false;  // on an inclined ceiling: may deposit a drapery (every third drip)
+  bool slow = false;    // a slow line's: nothing grows on the floor beneath it
+  float wet = 0;        // the region's water, 0-1
+};
+
+// How wet the region round turned-frame point u is, 0-1: value noise over kWetCell cells.
+float wetness(dvec2 u) {
+  const dvec2 x = u / kWetCell;
+  const dvec2 cell = floor(x);
+  const ivec2 i = ivec2(cell);
+  const vec2 f = smoothstep(vec2(0.0f), vec2(1.0f), vec2(x - cell));
+  const float h00 = cell_hash(i, 52711), h10 = cell_hash(i + ivec2(1, 0), 52711);
+  const float h01 = cell_hash(i + ivec2(0, 1), 52711), h11 = cell_hash(i + ivec2(1, 1), 52711);
+  return mix(mix(h00, h10, f.x), mix(h01, h11, f.x), f.y);
+}
+
+// The drip line of cluster cell c, if it has one: its drips along the crack nearest a point of
+// the cell, from one end to the other, then its mound (a slow line has none).
+void line_drips(ivec2 c, std::vector<Drip>& out) {
+  const dvec2 base = dvec2(c) * kClusterCell;
+  const float wet = wetness(base + 0.5 * kClusterCell);
+  const bool fast = cell_hash(c, 60013) < kLineChance * (0.3f + 0.7f * smoothstep(0.2f, 0.8f, wet));
+  if (!fast && !(cell_hash(c, 60043) < kSlowLineChance)) return;
+  dvec2 middle = base + dvec2(0.15 + 0.7 * cell_hash(c, 60017), 0.15 + 0.7 * cell_hash(c, 60019)) *
+                            kClusterCell;
+  // One Newton step onto the crack (the field's zero line), as relief_speleothem does.
+  const ivec2 m = ivec2(floor(middle));
+  const vec4 k = relief::relief_crack_noise(m, vec2(middle - dvec2(m)));
+  const vec2 g = vec2(k.y, k.w) * relief::relief_frequency(ivec3(relief::kReliefCrackK)).x;
+  const float g2 = dot(g, g) + 1e-6f;
+  vec2 step = -(k.x / g2) * g;
+  if (length(step) > 1.5f) step *= 1.5f / length(step);
+  middle += dvec2(step);
+  const vec2 along = g2 > 1e-5f ? normalize(vec2(-g.y, g.x)) : vec2(1.0f, 0.0f);
+  const vec2 across(-along.y, along.x);
+  const int n = fast ? std::min(kMaxLineDrips,
+                                10 + static_cast<int>(cell_hash(c, 60029) * (6.0f + 16.0f * wet)))
+                     : 5 + static_cast<int>(cell_hash(c, 60029) * 8.0f);
+  const float spacing = 0.06f + 0.08f * cell_hash(c, 60031);
+  const float bend = 0.6f * (cell_hash(c, 60037) - 0.5f);  // the crack curves a little
+  for (int i = 0; i < n; ++i) {
+    Drip d;
+    d.key = ivec2(c.x * 64 + i, c.y * 64 + 1);
+    const float t = (static_cast<float>(i) + 0.5f) / static_cast<float>(n) - 0.5f;  // -0.5..0.5
+    const float a = t * static_cast<float>(n) * spacing + 0.04f * (cell_hash(d.key, 61001) - 0.5f);
+    const float b = bend * (4.0f * t * t - 1.0f) + 0.08f * (cell_hash(d.key, 61003) - 0.5f);
+    d.at = middle + dvec2(along * a + across * b);
+    // Longest where the line drips most, in its middle; straws to metres along it.
+    const float size =
+        std::min(1.0f, cell_hash(d.key, 15485863) * (1.3f - 0.9f * std::abs(2.0f * t)));
+    d.size3 = std::max(relief::kReliefStraw, size * size);
+    d.form = cell_hash(d.key, 2750159);
+    d.column = fast && i == n / 2 && cell_hash(c, 60041) < 0.3f;
+    d.drapes = i % 3 == 0;
+    d.slow = !fast;
+    d.wet = wet;
+    out.push_back(d);
+  }
+  if (!fast) return;
+  Drip mound;
+  mound.at = middle;
+  mound.key = ivec2(c.x * 64 + 63, c.y * 64 + 1);
+  mound.mound = true;
+  mound.wet = wet;
+  mound.form = 0.0f;
+  out.push_back(mound);
+}
+
 }  // namespace
 
 std::vector<FormationShape> place(const Surface& s) {
@@ -87,67 +179,37 @@ std::vector<FormationShape> place(const Surface& s) {
   if (triangles == 0 || s.normals.size() < s.positions.size()) return out;
   const Placer placer(s);
   const float longest_here = relief::relief_spike_length(static_cast<float>(s.room_radius));
-
-  // Every triangle's hits, by lattice cell: the cell's candidate (relief_speleothem) stands where
-  // the vertical through its centre meets the triangle.
-  std::map<std::pair<int, int>, relief::Speleothem> candidates;
-  std::map<std::pair<int, int>, std::vector<Hit>> hits;
   const double ct = relief::kReliefTurnCos, st = relief::kReliefTurnSin;
-  for (uint32_t t = 0; t < triangles; ++t) {
-    vec3 p[3];
-    double lo[2] = {1e300, 1e300}, hi[2] = {-1e300, -1e300};
-    const std::array<uint32_t, 3> corner = placer.corners(t);
-    for (int k = 0; k < 3; ++k) {
-      p[k] = placer.position(corner[static_cast<size_t>(k)]);
-      const double wx = s.origin.x + p[k].x, wz = s.origin.z + p[k].z;
-      const double tx = ct * wx - st * wz, tz = st * wx + ct * wz;  // relief_turn
-      lo[0] = std::min(lo[0], tx), hi[0] = std::max(hi[0], tx);
-      lo[1] = std::min(lo[1], tz), hi[1] = std::max(hi[1], tz);
-    }
-    const vec3 face = cross(p[1] - p[0], p[2] - p[0]);
-    const float len = length(face);
-    if (!(len > 1e-9f)) continue;
-    const float facing = face.y / len;
-    if (std::abs(facing) < 0.05f) continue;  // vertical: no vertical line meets it once
-    for (int cz = static_cast<int>(std::floor(lo[1])); cz <= static_cast<int>(std::floor(hi[1]));
-         ++cz) {
-      for (int cx = static_cast<int>(std::floor(lo[0])); cx <= static_cast<int>(std::floor(hi[0]));
-           ++cx) {
-        auto [it, fresh] = candidates.try_emplace({cx, cz});
-        if (fresh) it->second = relief::relief_speleothem(ivec2(cx, cz), 1.0f);
-        const relief::Speleothem& sp = it->second;
-        if (!(sp.len > 0.0f)) continue;
-        // The centre from the lattice's frame to the world (the turn's inverse), then the room's.
-        const double ux = cx + static_cast<double>(sp.offset.x);
-        const double uz = cz + static_cast<double>(sp.offset.y);
-        const double wx = ct * ux + st * uz, wz = -st * ux + ct * uz;
-        const vec2 xz(static_cast<float>(wx - s.origin.x), static_cast<float>(wz - s.origin.z));
-        const vec3 w = placer.barycentric(t, xz);
-        // Half-open on the edges, so a centre on a shared edge counts once.
-        if (!(w.x >= 0.0f && w.y >= 0.0f && w.z > 0.0f)) continue;
-        Hit h;
-        h.y = dot(w, vec3(p[0].y, p[1].y, p[2].y));
-        h.w = w;
-        h.tri = t;
-        h.facing = facing;
-        hits[{cx, cz}].push_back(h);
-      }
-    }
-  }
 
-  for (auto& [key, list] : hits) {
-    const ivec2 c(key.first, key.second);
-    const relief::Speleothem& cand = candidates.at(key);
-    std::sort(list.begin(), list.end(), [](const Hit& a, const Hit& b) { return a.y < b.y; });
-    const double ux = c.x + static_cast<double>(cand.offset.x);
-    const double uz = c.y + static_cast<double>(cand.offset.y);
-    const double wx = ct * ux + st * uz, wz = -st * ux + ct * uz;
+  // The drip lines of every cluster cell near the room's plan (relief_turn's frame), the cells
+  // whose lines can reach it: a line's middle lies at most 1.5 m out of its cell, its drips
+  // kMaxLineDrips x 0.14 m / 2 from its middle.
+  dvec2 lo(1e300), hi(-1e300);
+  for (const auto& p : s.positions) {
+    const double wx = s.origin.x + p.x, wz = s.origin.z + p.z;
+    const dvec2 t(ct * wx - st * wz, st * wx + ct * wz);  // relief_turn
+    lo = min(lo, t);
+    hi = max(hi, t);
+  }
+  const double margin = 1.5 + 0.5 * kMaxLineDrips * 0.14;
+  const ivec2 first = ivec2(floor((lo - margin) / kClusterCell));
+  const ivec2 last = ivec2(floor((hi + margin) / kClusterCell));
+  std::vector<Drip> drips;
+  for (int cz = first.y; cz <= last.y; ++cz)
+    for (int cx = first.x; cx <= last.x; ++cx)
+      line_drips(ivec2(cx, cz), drips);
+
+  for (const Drip& drip : drips) {
+    const ivec2 c = drip.key;
+    // From the lattice's frame to the world (the turn's inverse), then the room's.
+    const double wx = ct * drip.at.x + st * drip.at.y, wz = -st * drip.at.x + ct * drip.at.y;
     const vec2 xz(static_cast<float>(wx - s.origin.x), static_cast<float>(wz - s.origin.z));
+    const std::vector<Hit> list = placer.vertical_hits(xz);
+    if (list.empty()) continue;
     const float variety =
         relief::relief_variety(relief::relief_pos_of(Vec3{wx, s.origin.y, wz}, vec3(0.0f)));
     const float longest = longest_here * mix(0.45f, 1.0f, smoothstep(0.3f, 0.75f, variety));
-    // cand.len is max(straw, size^3) for a longest of 1.
-    const float size3 = cand.len;
+    const float size3 = drip.size3;
     for (size_t i = 0; i < list.size(); ++i) {
       const Hit& h = list[i];
       const bool ceiling = h.facing < kCeiling;
@@ -168,19 +230,31 @@ std::vector<FormationShape> place(const Surface& s) {
           gap = top.position.y - below->y;
         }
         if (!(gap > kMinGap)) continue;
+        if (drip.mound) {
+          // The line's mound: broad and low, wetter lines' higher.
+          if (!on_floor || !ground.clear) continue;
+          const float height =
+              std::min((0.2f + 0.4f * drip.wet) * (0.6f + 0.8f * cell_hash(c, 62003)), 0.3f * gap);
+          FormationShape g = stalagmite(ground, xz, height, kMoundWidth * height, 0.0f);
+          g.flare = 0.5f;
+          g.embed = root_embed() + slope_rise(ground.normal, g.radius * (1.0f + g.flare)) + 0.05f;
+          shape_from_hashes(g, c, 900);
+          if (placer.fit_embed(g)) out.push_back(g);
+          continue;
+        }
         float len = std::max(relief::kReliefStraw, longest * size3);
         const bool straw = len < kStrawLength && cell_hash(c, 31337) < kStrawShare;
         float radius =
             straw ? 0.003f + 0.0015f * cell_hash(c, 4241) : std::min(0.015f + 0.09f * len, 0.4f);
-        float len_g = mix(0.5f, 0.65f, cand.form) * len * (0.5f + cell_hash(c, 271));
-        const bool column = on_floor && ground.clear &&
-                            ((cand.level >= 0.0f && gap < kColumnGap) || len + len_g > 0.8f * gap);
+        float len_g = mix(0.5f, 0.65f, drip.form) * len * (0.5f + cell_hash(c, 271));
+        const bool column = !drip.slow && on_floor && ground.clear &&
+                            ((drip.column && gap < kColumnGap) || len + len_g > 0.8f * gap);
         if (column) {
           FormationShape f{};
           f.kind = kFormationColumn;
           f.root = vec3(xz.x, ground.position.y, xz.y);
           f.length = gap;
-          f.radius = std::clamp(0.12f + 0.06f * gap, 0.15f, 0.45f) * (0.8f + 0.4f * cand.form);
+          f.radius = std::clamp(0.12f + 0.06f * gap, 0.15f, 0.45f) * (0.8f + 0.4f * drip.form);
           f.tip = f.radius;
           f.taper = 0.3f + 0.5f * cell_hash(c, 977);
           f.flare = 0.8f;
@@ -190,7 +264,7 @@ std::vector<FormationShape> place(const Surface& s) {
           if (placer.fit_embed(f)) out.push_back(f);
           continue;
         }
-        if (top.normal.y > kDraperyCeiling && cell_hash(c, 4099) < kDraperyShare) {
+        if (drip.drapes && top.normal.y > kDraperyCeiling && cell_hash(c, 4099) < kDraperyShare) {
           // A drapery along the slope (the water's way down it: the normal's horizontal part).
           FormationShape d{};
           d.kind = kFormationDrapery;
@@ -228,12 +302,12 @@ std::vector<FormationShape> place(const Surface& s) {
         // Its stalagmite, where the drip lands on a floor: broader, blunter, neighbours unlike.
         len_g = std::min(len_g, 0.45f * gap);
         // A slow drip (a long stalactite) builds a stalagmite more often than a straw's.
-        const bool drips = cell_hash(c, 1709) < 0.15f + 0.85f * std::min(len / 1.2f, 1.0f);
-        if (on_floor && ground.clear && drips && len_g > 0.03f) {
+        const bool builds = cell_hash(c, 1709) < 0.75f + 0.25f * std::min(len / 1.2f, 1.0f);
+        if (!drip.slow && on_floor && ground.clear && builds && len_g > 0.03f) {
           FormationShape g = stalagmite(ground, xz, len_g,
-                                        mix(2.0f, 1.55f, cand.form) * std::max(radius, 0.02f) *
+                                        mix(2.0f, 1.55f, drip.form) * std::max(radius, 0.02f) *
                                             (0.7f + 0.6f * cell_hash(c, 787)),
-                                        cand.form);
+                                        drip.form);
           shape_from_hashes(g, c, 700);
           if (placer.fit_embed(g)) out.push_back(g);
         }
@@ -241,14 +315,14 @@ std::vector<FormationShape> place(const Surface& s) {
         // A floor whose drip comes from no ceiling of this room (the next surface up is a wall or
         // there is none): sometimes a stalagmite all the same.
         const bool capped = i + 1 < list.size() && list[i + 1].facing < kCeiling;
-        if (capped || cell_hash(c, 9173) >= kLoneStalagmite) continue;
+        if (drip.mound || drip.slow || capped || cell_hash(c, 9173) >= kLoneStalagmite) continue;
         const SurfacePoint ground = placer.surface_at(h, xz);
         if (!ground.clear) continue;
         const float above = i + 1 < list.size() ? list[i + 1].y - ground.position.y : 1e9f;
         const float len_g =
             std::min(0.5f * std::max(relief::kReliefStraw, longest * size3), 0.45f * above);
         if (!(len_g > 0.03f)) continue;
-        FormationShape g = stalagmite(ground, xz, len_g, 0.05f + 0.2f * len_g, cand.form);
+        FormationShape g = stalagmite(ground, xz, len_g, 0.05f + 0.2f * len_g, drip.form);
         shape_from_hashes(g, c, 800);
         if (placer.fit_embed(g)) out.push_back(g);
       }

@@ -1,11 +1,14 @@
 // Speleothems as instanced geometry: where a room's stalactites, stalagmites, soda
 // straws, columns and draperies are and what shape each has, as a pure function of (world, room):
-// the cells of relief.glsl's speleothem lattice (relief_speleothem: one candidate per 1 m cell,
-// pulled onto the cracks water seeps along, heavy-tailed lengths) that lie under the room's
-// ceilings, each hung plumb from the drawn ceiling with its stalagmite beneath it on the floor the
-// drip falls on, columns where the two would meet, and draperies along the slope of inclined
-// ceilings; and in halls the blocks fallen from the ceiling, lying in heaps on the floor beneath
-// where it broke (breakdown.cpp). The shape of one instance is shaders/formation.glsl's,
+// water drips along lines that follow the cracks in the ceiling (relief.glsl's crack field), in
+// some cells of a 4 m lattice, more of them and longer where the region is wet and few where it
+// is dry. Each line is a fringe of drips (soda straws to metres, longest in its middle), each
+// hung plumb from the drawn ceiling with its stalagmite beneath it on the floor the drip falls
+// on, over a flowstone mound beneath the line's middle; columns where the two would meet, and
+// draperies along the slope of inclined ceilings. Slow lines (water that seeps too slowly to
+// build on the floor) are fringes of stalactites alone. Between the lines the floor is bare. In halls
+// the blocks fallen from the ceiling lie in heaps on the floor beneath where it broke
+// (breakdown.cpp). The shape of one instance is shaders/formation.glsl's,
 // compiled here as C++ over GLM (as relief.hpp does), so the renderer, collision, the glb export
 // and engines see the same formations.
 //
@@ -60,7 +63,7 @@ inline Surface surface_of(const codec::DecodedRoom& mesh, Vec3 origin, double ro
 }
 
 // The formations of the room, roots in its frame (metres from Surface::origin), in a fixed order
-// (the speleothems by lattice cell, then height; then a hall's boulders, heap by heap, biggest
+// (the speleothems by drip line and drip, then height; then a hall's boulders, heap by heap, biggest
 // first). Empty for an empty mesh.
 std::vector<FormationShape> place(const Surface& surface);
 

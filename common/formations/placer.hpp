@@ -101,6 +101,35 @@ class Placer {
     return found;
   }
 
+  // Every patch triangle a vertical line through room-frame (x, z) meets, lowest first (none
+  // nearly vertical: a vertical line does not meet one once). Half-open on the triangles' edges,
+  // so whatever order the triangles come in, each sheet of rock answers once.
+  std::vector<Hit> vertical_hits(vec2 xz) const {
+    std::vector<Hit> out;
+    if (cells_.empty()) return out;
+    const ivec2 c = cell_of(xz);
+    for (uint32_t t : cells_[static_cast<size_t>(c.y) * static_cast<size_t>(dims_.x) +
+                             static_cast<size_t>(c.x)]) {
+      const vec3 w = barycentric(t, xz);
+      if (!(w.x >= 0.0f && w.y >= 0.0f && w.z > 0.0f)) continue;
+      const std::array<uint32_t, 3> k = corners(t);
+      const vec3 a = position(k[0]), b = position(k[1]), d = position(k[2]);
+      const vec3 face = cross(b - a, d - a);
+      const float len = length(face);
+      if (!(len > 1e-9f) || std::abs(face.y / len) < 0.05f) continue;
+      Hit h;
+      h.y = dot(w, vec3(a.y, b.y, d.y));
+      h.w = w;
+      h.tri = t;
+      h.facing = face.y / len;
+      out.push_back(h);
+    }
+    std::sort(out.begin(), out.end(), [](const Hit& a, const Hit& b) {
+      return std::tie(a.y, a.facing) < std::tie(b.y, b.facing);
+    });
+    return out;
+  }
+
   // The height of the drawn surface straight above or below room-frame (x, z), on the sheet of
   // rock nearest to height `near`: NaN where no triangle lies over (x, z).
   float height_near(vec2 xz, float near) const {

@@ -14,14 +14,14 @@ RoomPath sample() {
   RoomPath p;
   p.version = 2;
   p.seed = 7;
-  p.params = 0x7a58c3e46eb34515ull;
+  p.params = 0x7a58bce46eb33930ull;
   p.lod = 0;
   p.id = cave::RoomId::parse("0.0.0.r0").value();
   return p;
 }
 
 TEST(RoomPath, prints_the_documented_form_and_parses_it_back) {
-  EXPECT_EQ(room_path(sample()), "/rooms/v2/7/7a58c3e46eb34515/0/0.0.0.r0");
+  EXPECT_EQ(room_path(sample()), "/rooms/v2/7/7a58bce46eb33930/0/0.0.0.r0");
   RoomPath far;
   far.version = 1;
   far.seed = 18446744073709551615ull;
@@ -43,27 +43,27 @@ TEST(RoomPath, every_other_text_is_refused_naming_the_part) {
     const char* mentions;
   };
   for (const Case& c : {
-           Case{"/room/v2/7/7a58c3e46eb34515/0/0.0.0.r0", ErrorCode::kBadMessage, "/rooms/"},
-           Case{"/rooms/v2/7/7a58c3e46eb34515/0", ErrorCode::kBadMessage, "4 parts"},
-           Case{"/rooms/v2/7/7a58c3e46eb34515/0/0.0.0.r0/", ErrorCode::kBadMessage, "more than 5"},
-           Case{"/rooms/v2/7/7a58c3e46eb34515/0/0.0.0.r0/x", ErrorCode::kBadMessage, "more than 5"},
-           Case{"/rooms/2/7/7a58c3e46eb34515/0/0.0.0.r0", ErrorCode::kBadMessage, "version"},
-           Case{"/rooms/v0/7/7a58c3e46eb34515/0/0.0.0.r0", ErrorCode::kBadMessage, "version"},
-           Case{"/rooms/v02/7/7a58c3e46eb34515/0/0.0.0.r0", ErrorCode::kBadMessage, "version"},
-           Case{"/rooms/v65536/7/7a58c3e46eb34515/0/0.0.0.r0", ErrorCode::kBadMessage, "version"},
-           Case{"/rooms/v2/07/7a58c3e46eb34515/0/0.0.0.r0", ErrorCode::kBadMessage, "'seed'"},
-           Case{"/rooms/v2/-7/7a58c3e46eb34515/0/0.0.0.r0", ErrorCode::kBadMessage, "'seed'"},
-           Case{"/rooms/v2/18446744073709551616/7a58c3e46eb34515/0/0.0.0.r0",
+           Case{"/room/v2/7/7a58bce46eb33930/0/0.0.0.r0", ErrorCode::kBadMessage, "/rooms/"},
+           Case{"/rooms/v2/7/7a58bce46eb33930/0", ErrorCode::kBadMessage, "4 parts"},
+           Case{"/rooms/v2/7/7a58bce46eb33930/0/0.0.0.r0/", ErrorCode::kBadMessage, "more than 5"},
+           Case{"/rooms/v2/7/7a58bce46eb33930/0/0.0.0.r0/x", ErrorCode::kBadMessage, "more than 5"},
+           Case{"/rooms/2/7/7a58bce46eb33930/0/0.0.0.r0", ErrorCode::kBadMessage, "version"},
+           Case{"/rooms/v0/7/7a58bce46eb33930/0/0.0.0.r0", ErrorCode::kBadMessage, "version"},
+           Case{"/rooms/v02/7/7a58bce46eb33930/0/0.0.0.r0", ErrorCode::kBadMessage, "version"},
+           Case{"/rooms/v65536/7/7a58bce46eb33930/0/0.0.0.r0", ErrorCode::kBadMessage, "version"},
+           Case{"/rooms/v2/07/7a58bce46eb33930/0/0.0.0.r0", ErrorCode::kBadMessage, "'seed'"},
+           Case{"/rooms/v2/-7/7a58bce46eb33930/0/0.0.0.r0", ErrorCode::kBadMessage, "'seed'"},
+           Case{"/rooms/v2/18446744073709551616/7a58bce46eb33930/0/0.0.0.r0",
                 ErrorCode::kBadMessage, "'seed'"},
            Case{"/rooms/v2/7/29A2B8C03927CB75/0/0.0.0.r0", ErrorCode::kBadMessage, "'params'"},
            Case{"/rooms/v2/7/29a2b8c03927cb7/0/0.0.0.r0", ErrorCode::kBadMessage, "'params'"},
-           Case{"/rooms/v2/7/7a58c3e46eb34515/00/0.0.0.r0", ErrorCode::kBadMessage, "lod"},
-           Case{"/rooms/v2/7/7a58c3e46eb34515/256/0.0.0.r0", ErrorCode::kBadMessage, "lod"},
-           Case{"/rooms/v2/7/7a58c3e46eb34515//0.0.0.r0", ErrorCode::kBadMessage, "lod"},
-           Case{"/rooms/v2/7/7a58c3e46eb34515/0/0.0.0.r9999", ErrorCode::kInvalidRoomId,
+           Case{"/rooms/v2/7/7a58bce46eb33930/00/0.0.0.r0", ErrorCode::kBadMessage, "lod"},
+           Case{"/rooms/v2/7/7a58bce46eb33930/256/0.0.0.r0", ErrorCode::kBadMessage, "lod"},
+           Case{"/rooms/v2/7/7a58bce46eb33930//0.0.0.r0", ErrorCode::kBadMessage, "lod"},
+           Case{"/rooms/v2/7/7a58bce46eb33930/0/0.0.0.r9999", ErrorCode::kInvalidRoomId,
                 "interior index"},
-           Case{"/rooms/v2/7/7a58c3e46eb34515/0/", ErrorCode::kInvalidRoomId, "room id"},
-           Case{"/rooms/v2/7/7a58c3e46eb34515/0/0.-0.0.r1", ErrorCode::kInvalidRoomId, "0.-0"},
+           Case{"/rooms/v2/7/7a58bce46eb33930/0/", ErrorCode::kInvalidRoomId, "room id"},
+           Case{"/rooms/v2/7/7a58bce46eb33930/0/0.-0.0.r1", ErrorCode::kInvalidRoomId, "0.-0"},
        }) {
     SCOPED_TRACE(c.path);
     auto p = parse_room_path(c.path);
@@ -79,7 +79,7 @@ TEST(RoomPath, protocol_md_example_parses) {
   std::ifstream in(GROTTO_PROTOCOL_MD);
   ASSERT_TRUE(in.good());
   std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  const std::string example = "/rooms/v2/7/7a58c3e46eb34515/0/0.0.0.r0";
+  const std::string example = "/rooms/v2/7/7a58bce46eb33930/0/0.0.0.r0";
   EXPECT_NE(text.find("`/rooms/v<version>/<seed>/<params>/<lod>/<room id>`"), std::string::npos);
   EXPECT_NE(text.find(example), std::string::npos);
   EXPECT_EQ(room_path(*parse_room_path(example)), example);

@@ -407,8 +407,9 @@ TEST(Breakdown, walkers_step_over_small_blocks_and_go_round_big_ones) {
   auto walk = [&](const Hall& h, const fm::FormationShape& f, bool big) {
     Walk out;
     const std::vector<fm::FormationShape>& all = h.placed;
-    for (int k = 0; k < 16 && !out.found; ++k) {
-      const float a = 0.3926991f * static_cast<float>(k);
+    // 32 ways across it: stalagmites gather along drip lines, and a heap's blocks lie close.
+    for (int k = 0; k < 32 && !out.found; ++k) {
+      const float a = 0.19634954f * static_cast<float>(k);
       const glm::vec2 d(std::cos(a), std::sin(a));
       const glm::vec2 c(f.root.x, f.root.z);
       const glm::vec2 from = c - d * (f.radius + 2.0f), to = c + d * (f.radius + 0.5f);

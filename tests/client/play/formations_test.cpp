@@ -1,9 +1,9 @@
 // The formations as instanced geometry (common/formations/formations.hpp), placed over real rooms
 // of seed 7 as a client holds them (sector 0,0,0 at the patch level, round-tripped through the
 // room codec; its room r0 is a hall): every root meets the rock it grows from (no gap), each
-// hangs or stands plumb, stalagmites stand under their drip points and differ, lengths run from
-// soda straws to metres, placement is a pure function of the room, walkers collide with them and
-// a stalactite 3 m away gets a fine mesh.
+// hangs or stands plumb, stalagmites stand under their drip points and differ and gather along
+// drip lines with bare floor between, lengths run from soda straws to metres, placement is a pure
+// function of the room, walkers collide with them and a stalactite 3 m away gets a fine mesh.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -158,6 +158,42 @@ TEST(Formations, lengths_run_from_soda_straws_to_metres_in_a_hall) {
   EXPECT_GT(longest, 1.0f);
   EXPECT_GT(straws, 5);
   EXPECT_GT(stalagmites, 10);
+}
+
+// Water drips along lines, not everywhere: the hall's stalagmites gather in few of the 2 m cells
+// of its plan (within 0.7 of its radius of its centre), with most of the floor bare between them,
+// and the cells that hold one hold several (a line's bank, not a spread of single cones). Spread
+// over the relief's 1 m lattice they held one or two each, in a fifth of the cells.
+TEST(Formations, stalagmites_gather_along_drip_lines_with_bare_floor_between) {
+  const stream::ReadyRoom& room = hall();
+  const double r = room.room.sphere.radius;
+  const Vec3 centre = room.room.sphere.centre - room.origin;
+  std::map<std::pair<int, int>, int> held;
+  int stalagmites = 0;
+  for (const fm::FormationShape& f : place(room)) {
+    if (f.kind != fm::kFormationStalagmite && f.kind != fm::kFormationColumn) continue;
+    ++stalagmites;
+    ++held[{static_cast<int>(std::floor((f.root.x - centre.x) / 2.0)),
+            static_cast<int>(std::floor((f.root.z - centre.z) / 2.0))}];
+  }
+  const int span = static_cast<int>(std::ceil(0.7 * r / 2.0));
+  int inside = 0, bare = 0;
+  for (int z = -span; z < span; ++z)
+    for (int x = -span; x < span; ++x) {
+      const double cx = (x + 0.5) * 2.0, cz = (z + 0.5) * 2.0;
+      if (cx * cx + cz * cz > 0.49 * r * r) continue;
+      ++inside;
+      bare += !held.contains({x, z});
+    }
+  int most = 0;
+  for (const auto& [cell, n] : held)
+    most = std::max(most, n);
+  std::printf("hall: %d stalagmites, %d of %d cells bare, at most %d in a cell\n", stalagmites,
+              bare, inside, most);
+  ASSERT_GT(inside, 100);
+  EXPECT_GT(stalagmites, 100);
+  EXPECT_GE(bare, inside * 9 / 10);
+  EXPECT_GE(most, 8) << "a drip line's bank";
 }
 
 // A stalagmite grows where its stalactite drips: same x and z. Neighbours are not copies: their
