@@ -12,6 +12,7 @@
 //     (formations::place over the payload decoded, normals derived: protocol 2), its fallen blocks
 //     (breakdown: how many, how many of 0.5, 1 and 2 m or more across, the largest) and the
 //     placement's time;
+//   - the speleothems' colours: how many are 0.15 or more from white in a channel of sRGB;
 //   - how the halls' stalagmites gather: of the 2 m cells of the hall's plan within 0.7 of its
 //     radius of its centre, the share that hold no stalagmite or column root (water drips along
 //     few lines: most of a real floor is bare between clusters).
@@ -61,9 +62,11 @@ struct HallFloor {
   double radius = 0;
   int boulders = 0, over_half = 0, over_1 = 0, over_2 = 0, speleothems = 0;
   int stalagmites = 0;  // stalagmites and columns
-  double bare = 0;      // share of the 2 m cells within 0.7 r holding no stalagmite
-  double largest = 0;   // metres across
-  double place_ms = 0;  // formations::place, one thread
+  int coloured = 0;     // speleothems whose colour (sRGB) is 0.15 or more from white in a channel
+  int iron = 0, manganese = 0;  // of them, orange or brown (tint 0.3-0.8), grey (0.8 or more)
+  double bare = 0;              // share of the 2 m cells within 0.7 r holding no stalagmite
+  double largest = 0;           // metres across
+  double place_ms = 0;          // formations::place, one thread
 };
 
 // Decodes `payload` as a protocol 2 client does (no normals: derived from the surface and the
@@ -106,6 +109,16 @@ Result<HallFloor> hall_floor(std::span<const uint8_t> payload, const mesh::RoomM
     }
     if (f.kind != formations::kFormationBoulder) {
       ++h.speleothems;
+      const glm::vec3 c = formations::formation_colour(f.tint);
+      bool far = false;
+      for (int i = 0; i < 3; ++i) {
+        const double srgb =
+            c[i] <= 0.0031308f ? 12.92 * c[i] : 1.055 * std::pow(c[i], 1 / 2.4) - 0.055;
+        far = far || 1.0 - srgb >= 0.15;
+      }
+      h.coloured += far;
+      h.iron += f.tint >= 0.3f && f.tint < 0.8f;
+      h.manganese += f.tint >= 0.8f;
       continue;
     }
     const double across = 2.0 * f.radius;
@@ -300,6 +313,9 @@ int main(int argc, char** argv) {
                              {"largest_boulder_m", h.largest},
                              {"speleothems", h.speleothems},
                              {"stalagmites", h.stalagmites},
+                             {"coloured", h.coloured},
+                             {"iron", h.iron},
+                             {"manganese", h.manganese},
                              {"bare_cells", h.bare},
                              {"place_ms", h.place_ms}});
     row["hall_floors"] = hall_floors;
@@ -322,14 +338,15 @@ int main(int argc, char** argv) {
   }
   std::printf(
       "\n| seed | hall | r m | boulders | of 0.5 / 1 / 2 m or more | largest m | speleothems | "
-      "stalagmites | 2 m cells bare | place ms |\n"
-      "| ---: | --- | ---: | ---: | --- | ---: | ---: | ---: | ---: | ---: |\n");
+      "stalagmites | 2 m cells bare | coloured | place ms |\n"
+      "| ---: | --- | ---: | ---: | --- | ---: | ---: | ---: | ---: | ---: | ---: |\n");
   for (const auto& [seed, floors] : all_floors)
     for (const HallFloor& h : floors)
-      std::printf("| %llu | %s | %.1f | %d | %d / %d / %d | %.2f | %d | %d | %.0f %% | %.1f |\n",
-                  static_cast<unsigned long long>(seed), h.id.c_str(), h.radius, h.boulders,
-                  h.over_half, h.over_1, h.over_2, h.largest, h.speleothems, h.stalagmites,
-                  100 * h.bare, h.place_ms);
+      std::printf(
+          "| %llu | %s | %.1f | %d | %d / %d / %d | %.2f | %d | %d | %.0f %% | %.0f %% | %.1f |\n",
+          static_cast<unsigned long long>(seed), h.id.c_str(), h.radius, h.boulders, h.over_half,
+          h.over_1, h.over_2, h.largest, h.speleothems, h.stalagmites, 100 * h.bare,
+          h.speleothems > 0 ? 100.0 * h.coloured / h.speleothems : 0.0, h.place_ms);
   std::ofstream f(json_path);
   f << report.dump(2) << '\n';
   if (!f) {

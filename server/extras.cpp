@@ -90,7 +90,7 @@ Result<std::string> room_extras_json(std::span<const uint8_t> bytes, uint64_t se
     const float v[16] = {f.root.x, f.root.y, f.root.z, f.length,
                          f.radius, f.tip,    f.embed,  static_cast<float>(f.kind),
                          f.taper,  f.flare,  f.rings,  f.bulbs,
-                         f.seed,   f.yaw,    0.0f,     0.0f};
+                         f.seed,   f.yaw,    f.tint,   f.wet};
     for (float x : v) {
       if (!first) out += ',';
       first = false;

@@ -65,10 +65,26 @@ struct FormationShape {
                      // on average (share of the plan lost from the floor to its top's height)
   float seed;        // 0-1: the phase of its rings, bulbs and irregularity (a boulder's faces)
   float yaw;         // radians: its turn about the axis (a drapery's line: (cos, 0, sin))
+  float tint;        // 0-1: its calcite's colour along formation_colour's palette (white, cream,
+                     // orange and brown with iron, grey with manganese); boulders: 0
+  float wet;         // 0-1: how wet it is (active: a water film, a sharp highlight; dry: matte)
 };
 // A boulder reads `root` as the middle of its base on the floor, `length` as its top's height
 // there, `radius` as its plan's largest radius and `tip` as its plan's width across over its
 // length (0.5-1).
+
+// A speleothem's calcite colour (linear albedo) at palette position `tint`: pure calcite white,
+// cream, then orange and brown where iron stained it, and grey where manganese did.
+RELIEF_FN vec3 formation_colour(float tint) {
+  vec3 white = vec3(0.80f, 0.79f, 0.75f), cream = vec3(0.74f, 0.66f, 0.52f);
+  vec3 orange = vec3(0.66f, 0.42f, 0.22f), brown = vec3(0.40f, 0.26f, 0.15f);
+  vec3 grey = vec3(0.33f, 0.32f, 0.31f);
+  float t = clamp(tint, 0.0f, 1.0f);
+  if (t < 0.3f) return mix(white, cream, t / 0.3f);
+  if (t < 0.55f) return mix(cream, orange, (t - 0.3f) / 0.25f);
+  if (t < 0.8f) return mix(orange, brown, (t - 0.55f) / 0.25f);
+  return mix(brown, grey, (t - 0.8f) / 0.2f);
+}
 
 // The axis's direction: down for stalactites and draperies, up for the rest.
 RELIEF_FN float formation_direction(FormationShape f) {

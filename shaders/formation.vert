@@ -10,7 +10,7 @@ layout(location = 0) in vec2 a_grid;  // (0-1 along the span from the rock to th
 layout(location = 1) in vec4 i_root;  // anchor-relative root, length
 layout(location = 2) in vec4 i_size;  // radius, tip radius, embed, kind
 layout(location = 3) in vec4 i_form;  // taper, flare, rings, bulbs
-layout(location = 4) in vec4 i_turn;  // seed, yaw, -, -
+layout(location = 4) in vec4 i_turn;  // seed, yaw, tint, wet
 
 uniform mat4 u_view_proj;  // anchor-relative world to clip space
 
@@ -24,6 +24,7 @@ out vec3 t_warp;
 out float t_rock;
 out float t_spacing;
 out vec3 t_haze;
+out vec4 t_dripstone;  // rgb: formation_colour of its tint (linear albedo); a: how wet it is
 
 uniform vec3 u_camera;  // anchor-relative
 
@@ -45,6 +46,8 @@ void main() {
   f.bulbs = i_form.w;
   f.seed = i_turn.x;
   f.yaw = i_turn.y;
+  f.tint = i_turn.z;
+  f.wet = i_turn.w;
   float start = formation_start(f), end = formation_end(f);
   // Rings closer together at both ends (the root's flare, the tip's curve) than along the body.
   float v = a_grid.x;
@@ -80,5 +83,6 @@ void main() {
   t_rock = 0.0;
   t_spacing = 0.0;
   t_haze = lights_haze(u_camera, p);
+  t_dripstone = vec4(formation_colour(f.tint), f.wet);
   gl_Position = u_view_proj * vec4(p, 1.0);
 }

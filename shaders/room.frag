@@ -24,7 +24,8 @@ in float t_occlusion;
 in vec3 t_warp;
 in float t_rock;
 in float t_spacing;
-in vec3 t_haze;  // lights.glsl's lights_haze at the vertices (room.tese, formation.vert)
+in vec3 t_haze;
+in vec4 t_dripstone;  // a formation's calcite colour and wetness (formation.vert); the rock: none  // lights.glsl's lights_haze at the vertices (room.tese, formation.vert)
 
 layout(location = 0) out vec4 frag_color;
 
@@ -131,9 +132,11 @@ void main() {
     ochre = smoothstep(-0.2, 0.7, zone);
     age = 0.9 - 0.3 * ochre + 0.1 * u;
   }
+  // A formation's own colour (its minerals: white to orange, brown or grey), darker and ochre at
+  // its root; flowstone on the rock is cream.
+  vec3 tip = formation ? t_dripstone.rgb : vec3(0.78, 0.74, 0.66);
   vec3 dripstone =
-      mix(vec3(0.55, 0.47, 0.36), vec3(0.78, 0.74, 0.66), smoothstep(0.2, 1.0, age)) *
-      (0.9 + 0.1 * rings);
+      mix(tip * vec3(0.72, 0.64, 0.55), tip, smoothstep(0.2, 1.0, age)) * (0.9 + 0.1 * rings);
   dripstone = mix(dripstone, vec3(0.66, 0.44, 0.24), 0.6 * ochre);
   dripstone = mix(dripstone, vec3(0.34, 0.16, 0.07), 0.85 * stain);
   albedo = mix(albedo, dripstone, 0.9 * calcite);
@@ -158,6 +161,10 @@ void main() {
   // on calcite: a broad, faint sheen, not a plastic highlight).
   float wet = clamp(0.55 * ground * (1.0 - t_cavity) + 0.25 * smoothstep(0.2, 0.8, m1.x), 0.0, 1.0);
   albedo *= 1.0 - 0.3 * wet * ground;
+  // An active formation's water film darkens its calcite and gives it a sharp highlight; a dry
+  // one is matte.
+  float film = formation ? t_dripstone.a * calcite : 0.0;
+  albedo *= 1.0 - 0.25 * film;
   float occlusion = mix(1.0, t_occlusion, u_ao);
 
   // The headlamp.
@@ -176,9 +183,10 @@ void main() {
                                : vec3(0.0);
   float lambert = max((dot(s, l) + wrap) / (1.0 + wrap), 0.0);
   vec3 h = normalize(l + v);
-  float shininess = mix(mix(12.0, 90.0, wet), 16.0, calcite);
-  float specular = pow(max(dot(s, h), 0.0), shininess) * mix(mix(0.03, 0.6, wet), 0.07, calcite) *
-                   (shininess + 8.0) / 25.0;
+  float shininess = mix(mix(12.0, 90.0, wet), mix(16.0, 140.0, film), calcite);
+  float specular = pow(max(dot(s, h), 0.0), shininess) *
+                   mix(mix(0.03, 0.6, wet), mix(0.07, 0.5, film), calcite) * (shininess + 8.0) /
+                   25.0;
   vec3 lamp = vec3(1.0, 0.9, 0.75) * 2.0 * attenuation * beam * u_headlamp;
   vec3 color = albedo * occlusion * (lambert * lamp + vec3(0.012, 0.014, 0.018)) +
                specular * lambert * lamp * mix(0.5, 1.0, occlusion);

@@ -28,6 +28,7 @@ out vec3 t_warp;        // Relief::warp, Relief::rock and the step the relief wa
 out float t_rock;       // room.frag adds the rock's octaves the mesh could not carry
 out float t_spacing;    // (relief_rock_detail)
 out vec3 t_haze;        // the lit haze between the eye and this vertex (lights.glsl), linear
+out vec4 t_dripstone;   // a formation's colour and wetness (formation.vert); the rock: none
 
 uniform mat4 u_view_proj;      // anchor-relative world to clip space
 uniform ivec3 u_block;         // the anchor in world space: u_block * kReliefBlock (relief.glsl)
@@ -180,5 +181,6 @@ void main() {
   // per pixel, where its loop over the lights cost as much as their shading. (Per control point,
   // a metre apart, a bright halo showed the patches' facets.)
   t_haze = lights_haze(u_camera, displaced);
+  t_dripstone = vec4(0.0);
   gl_Position = u_view_proj * vec4(displaced, 1.0);
 }

@@ -318,7 +318,7 @@ void Renderer::draw_formations(const std::vector<DrawnRoom>& rooms, Vec3 anchor,
       lods[static_cast<size_t>(l)].insert(
           lods[static_cast<size_t>(l)].end(),
           {root.x, root.y, root.z, f.length, f.radius, f.tip, f.embed, static_cast<float>(f.kind),
-           f.taper, f.flare, f.rings, f.bulbs, f.seed, f.yaw, 0.0f, 0.0f});
+           f.taper, f.flare, f.rings, f.bulbs, f.seed, f.yaw, f.tint, f.wet});
     }
     for (int l = 0; l < kFormationLods; ++l) {
       const std::vector<float>& lod = lods[static_cast<size_t>(l)];

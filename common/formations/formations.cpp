@@ -105,18 +105,31 @@ struct Drip {
   bool mound = false;   // the line's flowstone mound, on the floor beneath its middle
   bool drapes = false;  // on an inclined ceiling: may deposit a drapery (every third drip)
   bool slow = false;    // a slow line's: nothing grows on the floor beneath it
+  float tint = 0;       // formation_colour's palette: the minerals in its water
   float wet = 0;        // the region's water, 0-1
 };
 
-// How wet the region round turned-frame point u is, 0-1: value noise over kWetCell cells.
-float wetness(dvec2 u) {
-  const dvec2 x = u / kWetCell;
+// Value noise over cells `size` metres across at turned-frame point u, 0-1 (its hashes salted).
+float region_noise(dvec2 u, double size, int salt) {
+  const dvec2 x = u / size;
   const dvec2 cell = floor(x);
   const ivec2 i = ivec2(cell);
   const vec2 f = smoothstep(vec2(0.0f), vec2(1.0f), vec2(x - cell));
-  const float h00 = cell_hash(i, 52711), h10 = cell_hash(i + ivec2(1, 0), 52711);
-  const float h01 = cell_hash(i + ivec2(0, 1), 52711), h11 = cell_hash(i + ivec2(1, 1), 52711);
+  const float h00 = cell_hash(i, salt), h10 = cell_hash(i + ivec2(1, 0), salt);
+  const float h01 = cell_hash(i + ivec2(0, 1), salt), h11 = cell_hash(i + ivec2(1, 1), salt);
   return mix(mix(h00, h10, f.x), mix(h01, h11, f.x), f.y);
+}
+
+// How wet the region round turned-frame point u is, 0-1.
+float wetness(dvec2 u) {
+  return region_noise(u, kWetCell, 52711);
+}
+
+// The minerals the region's water carries (formation_colour's palette): mostly clean calcite,
+// white to cream, with regions of iron (orange, brown) and a few of manganese (grey).
+float region_tint(dvec2 u) {
+  const float v = region_noise(u, 32.0, 52757);
+  return 0.85f * v * v + 0.15f * v;
 }
 
 // The drip line of cluster cell c, if it has one: its drips along the crack nearest a point of
@@ -138,6 +151,10 @@ void line_drips(ivec2 c, std::vector<Drip>& out) {
   middle += dvec2(step);
   const vec2 along = g2 > 1e-5f ? normalize(vec2(-g.y, g.x)) : vec2(1.0f, 0.0f);
   const vec2 across(-along.y, along.x);
+  // A slow line's formations are dusty: a little greyer.
+  const float tint = std::clamp(region_tint(base + 0.5 * kClusterCell) +
+                                    0.25f * (cell_hash(c, 60047) - 0.5f) + (fast ? 0.0f : 0.1f),
+                                0.0f, 1.0f);
   const int n = fast ? std::min(kMaxLineDrips,
                                 10 + static_cast<int>(cell_hash(c, 60029) * (6.0f + 16.0f * wet)))
                      : 5 + static_cast<int>(cell_hash(c, 60029) * 8.0f);
@@ -158,6 +175,7 @@ void line_drips(ivec2 c, std::vector<Drip>& out) {
     d.column = fast && i == n / 2 && cell_hash(c, 60041) < 0.3f;
     d.drapes = i % 3 == 0;
     d.slow = !fast;
+    d.tint = std::clamp(tint + 0.12f * (cell_hash(d.key, 61007) - 0.5f), 0.0f, 1.0f);
     d.wet = wet;
     out.push_back(d);
   }
@@ -168,6 +186,7 @@ void line_drips(ivec2 c, std::vector<Drip>& out) {
   mound.mound = true;
   mound.wet = wet;
   mound.form = 0.0f;
+  mound.tint = tint;
   out.push_back(mound);
 }
 
@@ -201,6 +220,7 @@ std::vector<FormationShape> place(const Surface& s) {
 
   for (const Drip& drip : drips) {
     const ivec2 c = drip.key;
+    const size_t placed = out.size();
     // From the lattice's frame to the world (the turn's inverse), then the room's.
     const double wx = ct * drip.at.x + st * drip.at.y, wz = -st * drip.at.x + ct * drip.at.y;
     const vec2 xz(static_cast<float>(wx - s.origin.x), static_cast<float>(wz - s.origin.z));
@@ -326,6 +346,11 @@ std::vector<FormationShape> place(const Surface& s) {
         shape_from_hashes(g, c, 800);
         if (placer.fit_embed(g)) out.push_back(g);
       }
+    }
+    // Its minerals' colour, and the water on it: active lines wet, slow ones dry.
+    for (size_t k = placed; k < out.size(); ++k) {
+      out[k].tint = drip.tint;
+      out[k].wet = drip.slow ? 0.0f : 0.3f + 0.7f * drip.wet;
     }
   }
   // The blocks fallen from a hall's ceiling, on its floor (breakdown.cpp).

@@ -23,6 +23,7 @@ out vec3 t_warp;
 out float t_rock;
 out float t_spacing;
 out vec3 t_haze;
+out vec4 t_dripstone;  // a formation's colour and wetness (formation.vert); the rock: none
 
 uniform vec3 u_room_offset;    // room origin - anchor (exact: both on the wire's 1/256 m grid)
 uniform mat4 u_view_proj;      // anchor-relative world to clip space
@@ -53,5 +54,6 @@ void main() {
   t_rock = r.rock;
   t_spacing = spacing;
   t_haze = lights_haze(u_camera, displaced);
+  t_dripstone = vec4(0.0);
   gl_Position = u_view_proj * vec4(displaced, 1.0);
 }

@@ -196,6 +196,46 @@ TEST(Formations, stalagmites_gather_along_drip_lines_with_bare_floor_between) {
   EXPECT_GE(most, 8) << "a drip line's bank";
 }
 
+// Colour and water come from the minerals and the drip: over sector 0's rooms some formations
+// are clean calcite (white to cream), some iron-stained (orange, brown); the slow lines'
+// stalactites are dry and the active lines' formations wet; a stalagmite shares its drip line's
+// colour with the stalactite above it; boulders are rock (no tint, dry).
+TEST(Formations, colours_and_wetness_follow_minerals_and_drips) {
+  int clean = 0, stained = 0, dry = 0, wet = 0, pairs = 0, same = 0;
+  for (const auto& [id, room] : test::sector_zero().rooms) {
+    const std::vector<fm::FormationShape> placed = place(room);
+    for (size_t i = 0; i < placed.size(); ++i) {
+      const fm::FormationShape& f = placed[i];
+      if (f.kind == fm::kFormationBoulder) {
+        EXPECT_EQ(f.tint, 0.0f);
+        EXPECT_EQ(f.wet, 0.0f);
+        continue;
+      }
+      EXPECT_GE(f.tint, 0.0f);
+      EXPECT_LE(f.tint, 1.0f);
+      clean += f.tint < 0.3f;
+      stained += f.tint >= 0.3f;
+      dry += f.wet == 0.0f;
+      wet += f.wet >= 0.3f;
+      // A stalactite's stalagmite follows it in the placement's order, under the same drip.
+      if (f.kind == fm::kFormationStalactite && i + 1 < placed.size() &&
+          placed[i + 1].kind == fm::kFormationStalagmite && placed[i + 1].root.x == f.root.x &&
+          placed[i + 1].root.z == f.root.z) {
+        ++pairs;
+        same += placed[i + 1].tint == f.tint && placed[i + 1].wet == f.wet;
+      }
+    }
+  }
+  std::printf("clean %d, stained %d, dry %d, wet %d; %d of %d stalagmites as their stalactite\n",
+              clean, stained, dry, wet, same, pairs);
+  EXPECT_GT(clean, 100);
+  EXPECT_GT(stained, 100);
+  EXPECT_GT(dry, 100);
+  EXPECT_GT(wet, 100);
+  ASSERT_GT(pairs, 20);
+  EXPECT_EQ(same, pairs);
+}
+
 // A stalagmite grows where its stalactite drips: same x and z. Neighbours are not copies: their
 // heights spread (coefficient of variation over 0.3) and their forms differ.
 TEST(Formations, stalagmites_stand_under_their_drip_points_and_neighbours_differ) {
