@@ -94,6 +94,9 @@ constexpr int kMaxLineDrips = 30;
 // Beneath a line's middle the water that ran off its stalagmites built a flowstone mound this
 // much wider than it is tall.
 constexpr float kMoundWidth = 2.0f;
+// ... and no wider than this (metres at its root, above its flare): a boss under the line's
+// middle, with the line's outer stalagmites standing on the floor beside it.
+constexpr float kMoundRadius = 0.55f;
 
 // A drip point, in relief_turn's frame, with the hashes that shape what grows there.
 struct Drip {
@@ -255,8 +258,9 @@ std::vector<FormationShape> place(const Surface& s) {
           if (!on_floor || !ground.clear) continue;
           const float height =
               std::min((0.2f + 0.4f * drip.wet) * (0.6f + 0.8f * cell_hash(c, 62003)), 0.3f * gap);
-          FormationShape g = stalagmite(ground, xz, height, kMoundWidth * height, 0.0f);
-          g.flare = 0.5f;
+          FormationShape g =
+              stalagmite(ground, xz, height, std::min(kMoundWidth * height, kMoundRadius), 0.0f);
+          g.flare = 0.3f;
           g.embed = root_embed() + slope_rise(ground.normal, g.radius * (1.0f + g.flare)) + 0.05f;
           shape_from_hashes(g, c, 900);
           if (placer.fit_embed(g)) out.push_back(g);

@@ -9,9 +9,11 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <climits>
 #include <cmath>
 #include <cstdio>
 #include <optional>
+#include <tuple>
 #include <vector>
 
 #include "common/formations/formations.hpp"
@@ -46,13 +48,25 @@ Vec3 in_world(glm::vec3 p) {
 
 // Of `all`, the stalagmite `shortest` to `longest` metres tall whose root is nearest the hall's
 // centre (horizontally), or none.
+// The stalagmite of length shortest-longest nearest the hall's centre; with `alone`, only one that
+// stands on the floor itself: not a drip line's flowstone mound (twice as wide as tall) and not
+// on one (the stalagmites of a line stand on its mound, their roots inside it).
 const formations::FormationShape* stalagmite_near_centre(
-    const std::vector<formations::FormationShape>& all, float shortest, float longest) {
+    const std::vector<formations::FormationShape>& all, float shortest, float longest,
+    bool alone = false) {
   const Vec3 centre = hall().room.sphere.centre;
+  const auto mound = [](const formations::FormationShape& g) {
+    return g.kind == formations::kFormationStalagmite && g.radius > 0.5f * g.length;
+  };
   const formations::FormationShape* found = nullptr;
   double nearest = 1e300;
   for (const formations::FormationShape& f : all) {
     if (f.kind != formations::kFormationStalagmite || f.length < shortest || f.length > longest)
+      continue;
+    if (alone && (mound(f) || std::any_of(all.begin(), all.end(), [&](const auto& g) {
+                    return mound(g) && std::hypot(g.root.x - f.root.x, g.root.z - f.root.z) <
+                                           g.radius * (1.0f + g.flare);
+                  })))
       continue;
     const Vec3 at = in_world(f.root);
     const double d = std::hypot(at.x - centre.x, at.z - centre.z);
@@ -230,8 +244,8 @@ TEST(RockShading, fine_detail_shows_up_close_and_fades_out_far_away) {
 TEST(RockShading, ambient_occlusion_darkens_the_crease_at_a_stalagmites_root) {
   REQUIRE_GL();
   const std::vector<formations::FormationShape> all = hall_formations();
-  const formations::FormationShape* found = stalagmite_near_centre(all, 0.3f, 1.5f);
-  ASSERT_NE(found, nullptr) << "no stalagmite of 0.3-1.5 m in the hall";
+  const formations::FormationShape* found = stalagmite_near_centre(all, 0.1f, 1.5f, true);
+  ASSERT_NE(found, nullptr) << "no stalagmite of 0.1-1.5 m on the hall's floor";
   const Vec3 root = in_world(found->root);
   const Vec3 out = towards_centre(root);  // from the hall's centre's side
   const double r = formations::formation_radius(*found, 0.02f, 0.0f);
