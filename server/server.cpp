@@ -161,6 +161,7 @@ Redirect Server::Impl::redirect_newcomer() const {
     door.queued = admission->queued();
     door.max_players = admission->config().max_players;
     door.behind = admission->behind();
+    door.burst_left = admission->burst_left();
   }
   return grotto::server::redirect_newcomer(door);
 }
@@ -231,6 +232,7 @@ void Server::Impl::measure() {
   metrics.oldest_urgent_ms.set(sample.oldest_urgent.count());
   metrics.admission_behind.set(admission->behind() ? 1 : 0);
   metrics.admission_capacity.set(static_cast<int64_t>(admission->capacity()));
+  metrics.admission_burst.set(static_cast<int64_t>(admission->burst()));
 }
 
 Server::Server(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
