@@ -73,11 +73,20 @@ void AdmissionQueue::measure(const AdmissionSample& sample, AdmissionTime now) {
     capacity_ = admitted_.size();
     // Once an episode: the late measurements that follow show the same excess, not a new one.
     burst_ = std::max(floor, burst_ / 2);
+    used_since_.reset();
   } else if (behind_ && young_since_ && now - *young_since_ >= config_.window) {
     behind_ = false;
   } else if (!behind_ && young && entered_ >= burst_) {
-    // The whole budget came in and the service stayed quick: it absorbs more.
-    burst_ *= 2;
+    // The whole budget came in and the service stayed quick, interval after interval for a
+    // window: it absorbs more. One young measurement is not enough: a newcomer's prefetch
+    // comes due a second or so after its first rooms, so a burst's cost shows late.
+    if (!used_since_) used_since_ = measured_at_.value_or(now);  // the interval's start
+    if (now - *used_since_ >= config_.window) {
+      burst_ *= 2;
+      used_since_ = now;
+    }
+  } else {
+    used_since_.reset();
   }
   if (measured_at_) interval_ = std::chrono::duration_cast<milliseconds>(now - *measured_at_);
   measured_at_ = now;

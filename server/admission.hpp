@@ -14,12 +14,12 @@
 // times what a player walking on costs. So newcomers enter only within a burst budget, a number a
 // measurement interval (from the queue or at once, together), that the queue learns from its own
 // measurements the way TCP's congestion window learns a link: it starts small (burst_start),
-// doubles after each young measurement that followed an interval in which the budget was used up
-// (the service absorbed that many newcomers and was still quick), and halves each time the
-// service falls behind (never below admit_per_measurement). A budget not used up is no evidence
-// either way and stays as it is, so a trickle of newcomers under the budget never waits, and a
-// quiet spell does not let the next crowd in at once. Past the budget a newcomer queues as it
-// would behind, and the queue drains the next interval's budget first.
+// doubles after a window (1 s) in which every interval used the budget up and every measurement
+// was young (the service absorbed that many newcomers a quarter second and stayed quick), and
+// halves each time the service falls behind (never below admit_per_measurement). A budget not
+// used up is no evidence either way and stays as it is, so a trickle of newcomers under the
+// budget never waits, and a quiet spell does not let the next crowd in at once. Past the budget
+// a newcomer queues as it would behind, and the queue drains the next interval's budget first.
 //
 // No threads, no clocks, no sockets: tests drive it with tables of events and actions.
 // Not thread-safe: the server calls it under its sessions lock.
@@ -55,10 +55,10 @@ struct AdmissionConfig {
   // links, not the workers, can be what is full.
   uint64_t max_send_backlog_bytes = 0;
   // The burst budget: newcomers let in per measurement interval (at once or from the queue),
-  // starting at burst_start, doubled after a young measurement that followed a used-up budget,
-  // halved when the service falls behind, never below admit_per_measurement (the slowest the
-  // queue drains once caught up). burst_start covers a steady arrival of 64 players a second on
-  // the default 250 ms measurements without anybody queuing.
+  // starting at burst_start, doubled after a window of young measurements whose intervals used
+  // it up, halved when the service falls behind, never below admit_per_measurement (the slowest
+  // the queue drains once caught up). burst_start covers a steady arrival of 64 players a second
+  // on the default 250 ms measurements without anybody queuing.
   size_t admit_per_measurement = 2;
   size_t burst_start = 16;
   // The admission rate behind the estimated wait is measured over this much time; with none
@@ -159,6 +159,9 @@ class AdmissionQueue {
   size_t capacity_ = 0;
   size_t burst_ = 0;    // the budget of newcomers a measurement interval
   size_t entered_ = 0;  // newcomers admitted since the last measurement
+  // Since when every interval used up the budget and every measurement was young (none: the last
+  // did not, or the budget just changed): a window of it doubles the budget.
+  std::optional<AdmissionTime> used_since_;
   // The time between the last two measurements (zero: fewer than two yet), for the estimated
   // wait of a queue that has not been admitted from yet.
   std::optional<AdmissionTime> measured_at_;

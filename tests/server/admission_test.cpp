@@ -246,26 +246,30 @@ struct BurstRow {
 
 TEST(AdmissionBurst, the_budget_follows_the_measurements_by_table) {
   const std::vector<BurstRow> rows = {
-      {"a crowd at once: the first burst enters, the rest queue; young measurements double it",
+      {"a crowd at once: the first burst enters, the rest queue and come in a budget a time",
        {{"measure 0", "burst=16"},
         {"later 250", "burst=16"},
         {"measure 0", "burst=16"},  // an idle interval is no evidence: the budget stays
         {"enter 1-300 q", "admit 1-16; queued 284; burst=16"},
         {"later 250", "burst=16"},
-        {"measure 50", "admit 17-48; burst=32"},
+        {"measure 50", "admit 17-32; burst=16"},
+        {"later 250", "burst=16"},
+        {"measure 50", "admit 33-48; burst=16"},
+        {"later 250", "burst=16"},
+        {"measure 50", "admit 49-64; burst=16"},
+        {"later 250", "burst=16"},
+        // A window of used-up budgets and young measurements: it doubles. Those waiting hear
+        // their new places (a second since they were last told).
+        {"measure 50", "admit 65-96; queued 204; burst=32"},
         {"later 250", "burst=32"},
-        {"measure 50", "admit 49-112; burst=64"},
-        {"later 250", "burst=64"},
         // Between young and late: no evidence for more, none for less.
-        {"measure 150", "admit 113-176; burst=64"},
-        {"later 250", "burst=64"},
-        // Behind: it halves and the queue waits; those waiting hear their new places (a second
-        // since they were last told).
-        {"measure 300", "queued 124; burst=32"},
+        {"measure 150", "admit 97-128; burst=32"},
         {"later 250", "burst=32"},
-        {"measure 400", "burst=32"},  // still behind: the same excess, halved once
-        {"enter 301 q", "queued 1; burst=32"}}},
-      {"caught up after falling behind, the queue drains at the halved budget, doubling again",
+        {"measure 300", "burst=16"},  // behind: it halves, and the queue waits
+        {"later 250", "burst=16"},
+        {"measure 400", "burst=16"},  // still behind: the same excess, halved once
+        {"enter 301 q", "queued 1; burst=16"}}},
+      {"caught up after falling behind, the queue drains at the halved budget",
        {{"measure 0", "burst=16"},
         {"enter 1-40 q", "admit 1-16; queued 24; burst=16"},
         {"later 250", "burst=16"},
@@ -277,7 +281,14 @@ TEST(AdmissionBurst, the_budget_follows_the_measurements_by_table) {
         {"later 500", "burst=8"},
         {"measure 50", "admit 17-24; queued 16; burst=8"},
         {"later 250", "burst=8"},
-        {"measure 50", "admit 25-40; burst=16"}}},
+        {"measure 50", "admit 25-32; burst=8"},
+        {"later 250", "burst=8"},
+        {"measure 50", "admit 33-40; burst=8"},
+        {"later 250", "burst=8"},
+        {"measure 50", "burst=8"},
+        {"later 250", "burst=8"},
+        {"measure 50", "burst=8"},  // the queue is empty: a budget not used does not grow
+        {"enter 41-60 q", "admit 41-48; queued 12; burst=8"}}},
       {"falling behind again and again halves it down to admit_per_measurement, never below",
        {{"enter 1 q", "admit 1; burst=16"},
         {"measure 300", "burst=8"},
@@ -309,14 +320,35 @@ TEST(AdmissionBurst, the_budget_follows_the_measurements_by_table) {
         {"measure 20", "burst=16"},
         {"enter 36-51 q", "admit 36-51; burst=16"},
         {"later 250", "burst=16"},
-        {"measure 20", "burst=32"}}},
+        {"measure 20", "burst=16"}}},
+      {"arrivals that use the budget up, young for a window, double it; one slow sample resets",
+       {{"measure 0", "burst=16"},
+        {"enter 1-16 q", "admit 1-16; burst=16"},
+        {"later 250", "burst=16"},
+        {"measure 20", "burst=16"},
+        {"enter 17-32 q", "admit 17-32; burst=16"},
+        {"later 250", "burst=16"},
+        {"measure 120", "burst=16"},  // not young: the window starts again
+        {"enter 33-48 q", "admit 33-48; burst=16"},
+        {"later 250", "burst=16"},
+        {"measure 20", "burst=16"},
+        {"enter 49-64 q", "admit 49-64; burst=16"},
+        {"later 250", "burst=16"},
+        {"measure 20", "burst=16"},
+        {"enter 65-80 q", "admit 65-80; burst=16"},
+        {"later 250", "burst=16"},
+        {"measure 20", "burst=16"},
+        {"enter 81-96 q", "admit 81-96; burst=16"},
+        {"later 250", "burst=16"},
+        {"measure 20", "burst=32"},
+        {"enter 97-128 q", "admit 97-128; burst=32"}}},
       {"a leaver's place goes to the queue's head at once, past the budget too",
        {{"measure 0", "burst=16"},
         {"enter 1-20 q", "admit 1-16; queued 4; burst=16"},
         {"leave 3", "admit 17; burst=16"},
         {"enter 21", "refuse 1; burst=16"},  // cannot wait: refused, never left silent
         {"later 250", "burst=16"},
-        {"measure 0", "admit 18-20; burst=32"}}},
+        {"measure 0", "admit 18-20; burst=16"}}},
   };
   for (const BurstRow& row : rows) {
     AdmissionQueue q{AdmissionConfig{}};
