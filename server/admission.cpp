@@ -67,16 +67,22 @@ void AdmissionQueue::measure(const AdmissionSample& sample, AdmissionTime now) {
   } else if (!young_since_) {
     young_since_ = now;
   }
-  const size_t floor = std::max<size_t>(config_.admit_per_measurement, 1);
+  // The budget's own lateness: urgent wants late, or any want (a newcomer's prefetch) waiting
+  // as long; its youth: both young.
+  const bool slow = late || sample.oldest_want >= config_.late_after;
+  const bool quick = young && sample.oldest_want < config_.caught_up_below;
   if (late && !behind_) {
     behind_ = true;
     capacity_ = admitted_.size();
-    // Once an episode: the late measurements that follow show the same excess, not a new one.
-    burst_ = std::max(floor, burst_ / 2);
-    used_since_.reset();
   } else if (behind_ && young_since_ && now - *young_since_ >= config_.window) {
     behind_ = false;
-  } else if (!behind_ && young && entered_ >= burst_) {
+  }
+  const size_t floor = std::max<size_t>(config_.admit_per_measurement, 1);
+  if (slow && !slow_) {
+    // Once a run of slow measurements: those that follow show the same excess, not a new one.
+    burst_ = std::max(floor, burst_ / 2);
+    used_since_.reset();
+  } else if (!behind_ && quick && entered_ >= burst_) {
     // The whole budget came in and the service stayed quick, interval after interval for a
     // window: it absorbs more. One young measurement is not enough: a newcomer's prefetch
     // comes due a second or so after its first rooms, so a burst's cost shows late.
@@ -87,6 +93,11 @@ void AdmissionQueue::measure(const AdmissionSample& sample, AdmissionTime now) {
     }
   } else {
     used_since_.reset();
+  }
+  if (slow) {
+    slow_ = true;
+  } else if (quick) {
+    slow_ = false;
   }
   if (measured_at_) interval_ = std::chrono::duration_cast<milliseconds>(now - *measured_at_);
   measured_at_ = now;

@@ -15,11 +15,16 @@
 // measurement interval (from the queue or at once, together), that the queue learns from its own
 // measurements the way TCP's congestion window learns a link: it starts small (burst_start),
 // doubles after a window (1 s) in which every interval used the budget up and every measurement
-// was young (the service absorbed that many newcomers a quarter second and stayed quick), and
-// halves each time the service falls behind (never below admit_per_measurement). A budget not
-// used up is no evidence either way and stays as it is, so a trickle of newcomers under the
-// budget never waits, and a quiet spell does not let the next crowd in at once. Past the budget
-// a newcomer queues as it would behind, and the queue drains the next interval's budget first.
+// was quick (the oldest urgent want and the oldest want of any kind, prefetch included, both
+// under caught_up_below: the service absorbed that many newcomers a quarter second, their
+// prefetch too), and halves when a measurement is slow (either older than late_after; once for
+// a run of slow ones, never below admit_per_measurement). The prefetch counts because a
+// newcomer's far rooms wait behind everyone's urgent ones: a crowd's cost shows there first,
+// and a walker reaches those rooms a second later. A budget not used up is no evidence either
+// way and stays as it is, so a trickle of newcomers under the budget never waits, and a quiet
+// spell does not let the next crowd in at once. Past the budget a newcomer queues as it would
+// behind, and the queue drains the next interval's budget first. Only late urgent wants make
+// the service behind (no newcomer at all); slow prefetch only shrinks the budget.
 //
 // No threads, no clocks, no sockets: tests drive it with tables of events and actions.
 // Not thread-safe: the server calls it under its sessions lock.
@@ -55,9 +60,9 @@ struct AdmissionConfig {
   // links, not the workers, can be what is full.
   uint64_t max_send_backlog_bytes = 0;
   // The burst budget: newcomers let in per measurement interval (at once or from the queue),
-  // starting at burst_start, doubled after a window of young measurements whose intervals used
-  // it up, halved when the service falls behind, never below admit_per_measurement (the slowest
-  // the queue drains once caught up). burst_start covers a steady arrival of 64 players a second
+  // starting at burst_start, doubled after a window of quick measurements whose intervals used
+  // it up, halved after a slow one, never below admit_per_measurement (the slowest the queue
+  // drains once caught up). burst_start covers a steady arrival of 64 players a second
   // on the default 250 ms measurements without anybody queuing.
   size_t admit_per_measurement = 2;
   size_t burst_start = 16;
@@ -75,8 +80,11 @@ struct AdmissionConfig {
 // One periodic measurement of how the admitted players are served.
 struct AdmissionSample {
   std::chrono::milliseconds oldest_urgent{0};  // age of the oldest urgent want still waiting
-  double rooms_per_s = 0;                      // rooms built and sent a second (reported only)
-  uint64_t send_backlog_bytes = 0;             // bytes queued to send, all players
+  // The same over every want, prefetch included (the burst budget's second signal: newcomers'
+  // prefetch waits behind the urgent rooms, so their cost shows here first).
+  std::chrono::milliseconds oldest_want{0};
+  double rooms_per_s = 0;           // rooms built and sent a second (reported only)
+  uint64_t send_backlog_bytes = 0;  // bytes queued to send, all players
 };
 
 namespace adm {
@@ -159,6 +167,7 @@ class AdmissionQueue {
   size_t capacity_ = 0;
   size_t burst_ = 0;    // the budget of newcomers a measurement interval
   size_t entered_ = 0;  // newcomers admitted since the last measurement
+  bool slow_ = false;   // the last measurements were slow for the budget (none quick since)
   // Since when every interval used up the budget and every measurement was young (none: the last
   // did not, or the budget just changed): a window of it doubles the budget.
   std::optional<AdmissionTime> used_since_;

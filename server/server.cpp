@@ -222,6 +222,7 @@ void Server::Impl::start_measuring() {
 void Server::Impl::measure() {
   AdmissionSample sample;
   sample.oldest_urgent = generator->oldest_urgent();  // the generator's lock, not ours
+  sample.oldest_want = generator->oldest_want();
   const uint64_t served = metrics.rooms_served.value();
   sample.rooms_per_s = static_cast<double>(served - rooms_served_before) * 1000.0 /
                        static_cast<double>(kMeasureEvery.count());

@@ -57,6 +57,7 @@ std::vector<std::string> run(AdmissionQueue& q, const std::vector<std::string>& 
       in >> ms >> backlog;
       AdmissionSample s;
       s.oldest_urgent = std::chrono::milliseconds{ms};
+      s.oldest_want = s.oldest_urgent;
       if (backlog.starts_with("backlog=")) s.send_backlog_bytes = std::stoull(backlog.substr(8));
       q.measure(s, now);
     } else if (verb == "later") {
@@ -186,9 +187,10 @@ TEST(Admission, capacity_is_what_was_admitted_when_it_fell_behind) {
 }
 
 // The burst budget with the defaults (burst_start 16, admit_per_measurement 2, 250 ms
-// measurements): each step is one event and what came of it, summed up: "admit 17-48" (the
-// sessions admitted, in order, consecutive ids joined), "queued 284" (how many Queued went out),
-// "refuse 2", then the budget after it: "burst=32".
+// measurements): each step is one event and what came of it, summed up ("measure 50 want=300":
+// the oldest urgent want 50 ms old, the oldest of any kind 300; without want= both the same):
+// "admit 17-48" (the sessions admitted, in order, consecutive ids joined), "queued 284" (how many
+// Queued went out), "refuse 2", then the budget after it: "burst=32".
 std::string summary(AdmissionQueue& q, const std::string& event, AdmissionTime& now) {
   std::istringstream in(event);
   std::string verb;
@@ -199,9 +201,13 @@ std::string summary(AdmissionQueue& q, const std::string& event, AdmissionTime& 
     now += std::chrono::milliseconds{ms};
   } else if (verb == "measure") {
     int64_t ms = 0;
-    in >> ms;
+    std::string want;
+    in >> ms >> want;
     AdmissionSample sample;
     sample.oldest_urgent = std::chrono::milliseconds{ms};
+    sample.oldest_want = sample.oldest_urgent;
+    if (want.starts_with("want="))
+      sample.oldest_want = std::chrono::milliseconds{std::stoll(want.substr(5))};
     q.measure(sample, now);
   } else if (verb == "enter") {
     std::string ids, flag;
@@ -342,6 +348,21 @@ TEST(AdmissionBurst, the_budget_follows_the_measurements_by_table) {
         {"later 250", "burst=16"},
         {"measure 20", "burst=32"},
         {"enter 97-128 q", "admit 97-128; burst=32"}}},
+      {"slow prefetch halves the budget, once a run, without holding the queue; growth needs it "
+       "quick",
+       {{"measure 0", "burst=16"},
+        {"enter 1-40 q", "admit 1-16; queued 24; burst=16"},
+        {"later 250", "burst=16"},
+        {"measure 50 want=300", "admit 17-24; burst=8"},
+        {"later 250", "burst=8"},
+        {"measure 50 want=400", "admit 25-32; burst=8"},
+        {"later 250", "burst=8"},
+        {"measure 50 want=150", "admit 33-40; burst=8"},  // neither slow nor quick: no change
+        {"enter 41-60 q", "queued 20; burst=8"},
+        {"later 250", "burst=8"},
+        {"measure 50 want=50", "admit 41-48; burst=8"},
+        {"later 250", "burst=8"},
+        {"measure 50 want=300", "admit 49-52; burst=4"}}},
       {"a leaver's place goes to the queue's head at once, past the budget too",
        {{"measure 0", "burst=16"},
         {"enter 1-20 q", "admit 1-16; queued 4; burst=16"},
