@@ -10,21 +10,21 @@
 // and newcomers wait where they can see their place instead of all stalling together.
 //
 // A crowd can arrive faster than a measurement can show its cost: 300 players who connect
-// together all say hello before the next measurement, and a newcomer's first rooms cost several
-// times what a player walking on costs. So newcomers enter only within a burst budget, a number a
-// measurement interval (from the queue or at once, together), that the queue learns from its own
-// measurements the way TCP's congestion window learns a link: it starts small (burst_start),
-// doubles after a window (1 s) in which every interval used the budget up and every measurement
-// was quick (the oldest urgent want and the oldest want of any kind, prefetch included, both
-// under caught_up_below: the service absorbed that many newcomers a quarter second, their
-// prefetch too), and halves when a measurement is slow (either older than late_after; once for
-// a run of slow ones, never below admit_per_measurement). The prefetch counts because a
-// newcomer's far rooms wait behind everyone's urgent ones: a crowd's cost shows there first,
-// and a walker reaches those rooms a second later. A budget not used up is no evidence either
-// way and stays as it is, so a trickle of newcomers under the budget never waits, and a quiet
-// spell does not let the next crowd in at once. Past the budget a newcomer queues as it would
-// behind, and the queue drains the next interval's budget first. Only late urgent wants make
-// the service behind (no newcomer at all); slow prefetch only shrinks the budget.
+// together all say hello before the next measurement. So newcomers also enter only within a
+// burst budget, a number per measurement interval (at once or from the queue), learned the way
+// TCP's congestion window is:
+//  - it starts at burst_start (16);
+//  - it doubles after a window (1 s) in which every interval's budget was used up and every
+//    measurement was quick: the oldest urgent want and the oldest want of any kind, prefetch
+//    included, both under caught_up_below (a newcomer's prefetch waits behind everyone's urgent
+//    rooms, so a crowd's cost shows there first, a second before its walkers reach them);
+//  - it halves when a measurement is slow (either of the two at late_after or older), once for
+//    a run of slow ones, never below admit_per_measurement;
+//  - otherwise it stays: a budget not used up is no evidence, so a trickle under it never waits,
+//    and a quiet spell does not let the next crowd in at once.
+// Past the budget a newcomer queues as it would behind; the queue goes first at the next
+// measurement. Only late urgent wants make the service behind (nobody enters); slow prefetch
+// only shrinks the budget.
 //
 // No threads, no clocks, no sockets: tests drive it with tables of events and actions.
 // Not thread-safe: the server calls it under its sessions lock.
@@ -168,8 +168,8 @@ class AdmissionQueue {
   size_t burst_ = 0;    // the budget of newcomers a measurement interval
   size_t entered_ = 0;  // newcomers admitted since the last measurement
   bool slow_ = false;   // the last measurements were slow for the budget (none quick since)
-  // Since when every interval used up the budget and every measurement was young (none: the last
-  // did not, or the budget just changed): a window of it doubles the budget.
+  // Since when every interval used up the budget and every measurement was quick (none: the
+  // last did not, or the budget just changed): a window of it doubles the budget.
   std::optional<AdmissionTime> used_since_;
   // The time between the last two measurements (zero: fewer than two yet), for the estimated
   // wait of a queue that has not been admitted from yet.
