@@ -41,6 +41,8 @@
 # Rows (--rows takes their names, comma-separated; default: all of them, in this order):
 #   embedded-300-once       300 players at once, embedded server, defaults (the target's check)
 #   embedded-300-once-fixed the same with the fixed 4 s horizon (--min-horizon 0)
+#   embedded-200-ramp10     200 players joining over 10 s, embedded server: under capacity, where
+#                           admission must change nothing (nobody queued)
 #   server-300-ramp2        300 players joining over 2 s, separate grotto-server, defaults
 #   server-300-ramp2-fixed  the same with the fixed horizon
 #   server-300-once         300 players at once, separate server
@@ -98,6 +100,7 @@ fi
 all_rows=(
   "embedded-300-once|embedded|300|0|10|"
   "embedded-300-once-fixed|embedded|300|0|10|--min-horizon 0"
+  "embedded-200-ramp10|embedded|200|10|10|"
   "server-300-ramp2|server|300|2|10|"
   "server-300-ramp2-fixed|server|300|2|10|--min-horizon 0"
   "server-300-once|server|300|0|10|"

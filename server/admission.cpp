@@ -7,6 +7,10 @@ namespace grotto::server {
 
 using std::chrono::milliseconds;
 
+AdmissionQueue::AdmissionQueue(AdmissionConfig config)
+    : config_(config),
+      burst_(std::max({config.burst_start, config.admit_per_measurement, size_t{1}})) {}
+
 std::vector<AdmissionAction> AdmissionQueue::take() {
   std::vector<AdmissionAction> out;
   out.swap(actions_);
@@ -21,7 +25,8 @@ std::optional<AdmissionAction> AdmissionQueue::enter(uint64_t session, bool can_
   }
   forget_old_admissions(now);
   // First come, first served: nobody passes the queue, even once caught up (the queue drains
-  // at the next measurement).
+  // at the next measurement). Past the interval's burst budget a newcomer waits like one that
+  // finds the service behind: the budget is what the measurements showed the service absorbs.
   if (room_for_one() && queue_.empty()) {
     admit(session, now);
     return adm::Admit{session};
@@ -62,30 +67,72 @@ void AdmissionQueue::measure(const AdmissionSample& sample, AdmissionTime now) {
   } else if (!young_since_) {
     young_since_ = now;
   }
+  // The budget's own lateness: urgent wants late, or any want (a newcomer's prefetch) waiting
+  // as long; its youth: both young.
+  const bool slow = late || sample.oldest_want >= config_.late_after;
+  const bool quick = young && sample.oldest_want < config_.caught_up_below;
   if (late && !behind_) {
     behind_ = true;
     capacity_ = admitted_.size();
   } else if (behind_ && young_since_ && now - *young_since_ >= config_.window) {
     behind_ = false;
   }
-  for (size_t i = 0; i < config_.admit_per_measurement && !queue_.empty() && room_for_one(); ++i)
+  const size_t floor = std::max<size_t>(config_.admit_per_measurement, 1);
+  if (slow && !slow_) {
+    // Once a run of slow measurements: those that follow show the same excess, not a new one.
+    burst_ = std::max(floor, burst_ / 2);
+    used_since_.reset();
+  } else if (!behind_ && quick && entered_ >= burst_) {
+    // The whole budget came in and the service stayed quick, interval after interval for a
+    // window: it absorbs more. One young measurement is not enough: a newcomer's prefetch
+    // comes due a second or so after its first rooms, so a burst's cost shows late.
+    if (!used_since_) used_since_ = measured_at_.value_or(now);  // the interval's start
+    if (now - *used_since_ >= config_.window) {
+      burst_ *= 2;
+      used_since_ = now;
+    }
+  } else {
+    used_since_.reset();
+  }
+  if (slow) {
+    slow_ = true;
+  } else if (quick) {
+    slow_ = false;
+  }
+  if (measured_at_) interval_ = std::chrono::duration_cast<milliseconds>(now - *measured_at_);
+  measured_at_ = now;
+  entered_ = 0;
+  while (!queue_.empty() && room_for_one())
     admit_head(now);
   tell_all(now, false);
 }
 
 milliseconds AdmissionQueue::estimate(size_t position) const {
-  if (admissions_.empty()) return config_.unmeasured_wait * static_cast<int64_t>(position);
+  if (admissions_.empty()) {
+    // Nobody admitted from the queue yet: while caught up and under max_players (where only
+    // leavers make room) it drains a budget a measurement.
+    if (!behind_ && interval_.count() > 0 &&
+        (config_.max_players == 0 || admitted_.size() < config_.max_players)) {
+      const auto intervals = static_cast<int64_t>((position + burst_ - 1) / burst_);
+      return interval_ * intervals;
+    }
+    return config_.unmeasured_wait * static_cast<int64_t>(position);
+  }
   const double per_ms =
       static_cast<double>(admissions_.size()) / static_cast<double>(config_.rate_window.count());
   return milliseconds{static_cast<int64_t>(std::ceil(static_cast<double>(position) / per_ms))};
 }
 
 bool AdmissionQueue::room_for_one() const {
-  return !behind_ && (config_.max_players == 0 || admitted_.size() < config_.max_players);
+  return !behind_ && entered_ < burst_ &&
+         (config_.max_players == 0 || admitted_.size() < config_.max_players);
 }
 
 void AdmissionQueue::admit(uint64_t session, AdmissionTime) {
   admitted_.insert(session);
+  // Every newcomer counts against the budget, one handed a leaver's place too: its first rooms
+  // cost what any newcomer's do.
+  ++entered_;
   emit(adm::Admit{session});
 }
 
@@ -122,7 +169,7 @@ uint32_t AdmissionQueue::retry_after(size_t position) const {
       std::clamp(estimate(position), config_.min_retry, config_.max_retry).count());
 }
 
-static_assert(static_cast<size_t>(Redirect::kBehind) + 1 == kRedirectCount,
+static_assert(static_cast<size_t>(Redirect::kBurst) + 1 == kRedirectCount,
               "kRedirectCount counts every Redirect");
 
 Redirect redirect_newcomer(const Door& door) {
@@ -134,6 +181,8 @@ Redirect redirect_newcomer(const Door& door) {
   if (door.max_players > 0 && door.admitted + door.handshakes >= door.max_players)
     return Redirect::kMaxPlayers;
   if (door.behind) return Redirect::kBehind;
+  // Upgrades on their way in take the budget's places as they take max_players'.
+  if (door.handshakes >= door.burst_left) return Redirect::kBurst;
   return Redirect::kNone;
 }
 
@@ -153,6 +202,8 @@ std::string_view redirect_name(Redirect reason) {
       return "max_players";
     case Redirect::kBehind:
       return "behind";
+    case Redirect::kBurst:
+      return "burst";
   }
   return "none";
 }

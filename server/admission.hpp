@@ -9,6 +9,23 @@
 // players are never sent away for newcomers: past capacity each player keeps the service it had,
 // and newcomers wait where they can see their place instead of all stalling together.
 //
+// A crowd can arrive faster than a measurement can show its cost: 300 players who connect
+// together all say hello before the next measurement. So newcomers also enter only within a
+// burst budget, a number per measurement interval (at once or from the queue), learned the way
+// TCP's congestion window is:
+//  - it starts at burst_start (16);
+//  - it doubles after a window (1 s) in which every interval's budget was used up and every
+//    measurement was quick: the oldest urgent want and the oldest want of any kind, prefetch
+//    included, both under caught_up_below (a newcomer's prefetch waits behind everyone's urgent
+//    rooms, so a crowd's cost shows there first, a second before its walkers reach them);
+//  - it halves when a measurement is slow (either of the two at late_after or older), once for
+//    a run of slow ones, never below admit_per_measurement;
+//  - otherwise it stays: a budget not used up is no evidence, so a trickle under it never waits,
+//    and a quiet spell does not let the next crowd in at once.
+// Past the budget a newcomer queues as it would behind; the queue goes first at the next
+// measurement. Only late urgent wants make the service behind (nobody enters); slow prefetch
+// only shrinks the budget.
+//
 // No threads, no clocks, no sockets: tests drive it with tables of events and actions.
 // Not thread-safe: the server calls it under its sessions lock.
 #pragma once
@@ -42,9 +59,13 @@ struct AdmissionConfig {
   // Also behind while the bytes queued to send to players exceed this (0: not looked at): the
   // links, not the workers, can be what is full.
   uint64_t max_send_backlog_bytes = 0;
-  // Sessions let in from the queue per measurement once caught up: a slow start, so the crowd
-  // at the door does not all come in before the next measurement shows their cost.
+  // The burst budget: newcomers let in per measurement interval (at once or from the queue),
+  // starting at burst_start, doubled after a window of quick measurements whose intervals used
+  // it up, halved after a slow one, never below admit_per_measurement (the slowest the queue
+  // drains once caught up). burst_start covers a steady arrival of 64 players a second
+  // on the default 250 ms measurements without anybody queuing.
   size_t admit_per_measurement = 2;
+  size_t burst_start = 16;
   // The admission rate behind the estimated wait is measured over this much time; with none
   // measured yet each place ahead counts `unmeasured_wait`.
   std::chrono::milliseconds rate_window{10'000};
@@ -59,8 +80,11 @@ struct AdmissionConfig {
 // One periodic measurement of how the admitted players are served.
 struct AdmissionSample {
   std::chrono::milliseconds oldest_urgent{0};  // age of the oldest urgent want still waiting
-  double rooms_per_s = 0;                      // rooms built and sent a second (reported only)
-  uint64_t send_backlog_bytes = 0;             // bytes queued to send, all players
+  // The same over every want, prefetch included (the burst budget's second signal: newcomers'
+  // prefetch waits behind the urgent rooms, so their cost shows here first).
+  std::chrono::milliseconds oldest_want{0};
+  double rooms_per_s = 0;           // rooms built and sent a second (reported only)
+  uint64_t send_backlog_bytes = 0;  // bytes queued to send, all players
 };
 
 namespace adm {
@@ -86,7 +110,7 @@ using AdmissionAction = std::variant<adm::Admit, adm::Queued, adm::Refuse>;
 
 class AdmissionQueue {
  public:
-  explicit AdmissionQueue(AdmissionConfig config) : config_(config) {}
+  explicit AdmissionQueue(AdmissionConfig config);
 
   // ---- events ----
   // A session said a valid hello. `can_queue`: it understands `queued` (hello.queue); one that
@@ -96,8 +120,9 @@ class AdmissionQueue {
   // A session admitted or queued is gone. An admitted one's place goes to the head of the queue
   // at once: the load stays what it was. Unknown ids are ignored.
   void leave(uint64_t session, AdmissionTime now);
-  // A periodic measurement (every few hundred milliseconds): updates behind/caught up, admits
-  // from the queue once caught up, and sends due place updates.
+  // A periodic measurement (every few hundred milliseconds): updates behind/caught up and the
+  // burst budget, opens the next interval's budget, admits from the queue into it once caught
+  // up, and sends due place updates.
   void measure(const AdmissionSample& sample, AdmissionTime now);
 
   // The actions since the last call, in order.
@@ -109,6 +134,10 @@ class AdmissionQueue {
   size_t queued() const { return queue_.size(); }
   // Players admitted when the service last fell behind: what it held then (0: never behind).
   size_t capacity() const { return capacity_; }
+  // Newcomers this measurement interval may let in (the learned budget), and how many of them
+  // can still enter at once before the next measurement.
+  size_t burst() const { return burst_; }
+  size_t burst_left() const { return entered_ < burst_ ? burst_ - entered_ : 0; }
   // The estimated wait of the n-th place (1-based): n over the rate at which the queue's head
   // was admitted within rate_window (call after expiring it: measure() does).
   std::chrono::milliseconds estimate(size_t position) const;
@@ -122,7 +151,7 @@ class AdmissionQueue {
     uint32_t told_wait_s = 0;  // its estimate, whole seconds (smaller changes are not news)
   };
   void admit(uint64_t session, AdmissionTime now);
-  bool room_for_one() const;  // not behind and under max_players
+  bool room_for_one() const;  // not behind, under max_players, within the burst budget
   void admit_head(AdmissionTime now);
   void tell(Waiter& w, uint32_t position, AdmissionTime now, bool force);
   void tell_all(AdmissionTime now, bool force);
@@ -136,6 +165,16 @@ class AdmissionQueue {
   const AdmissionConfig config_;
   bool behind_ = false;
   size_t capacity_ = 0;
+  size_t burst_ = 0;    // the budget of newcomers a measurement interval
+  size_t entered_ = 0;  // newcomers admitted since the last measurement
+  bool slow_ = false;   // the last measurements were slow for the budget (none quick since)
+  // Since when every interval used up the budget and every measurement was quick (none: the
+  // last did not, or the budget just changed): a window of it doubles the budget.
+  std::optional<AdmissionTime> used_since_;
+  // The time between the last two measurements (zero: fewer than two yet), for the estimated
+  // wait of a queue that has not been admitted from yet.
+  std::optional<AdmissionTime> measured_at_;
+  std::chrono::milliseconds interval_{0};
   std::set<uint64_t> admitted_;
   std::deque<Waiter> queue_;
   // Since when every measurement was young (under caught_up_below); none: the last was not.
@@ -161,8 +200,9 @@ enum class Redirect : uint8_t {
   kQueue,           // newcomers already wait in the admission queue: nobody passes them
   kMaxPlayers,      // players admitted, with the upgrades on their way in, at max_players
   kBehind,          // the players are not served in time (admission-late-ms): newcomers queue
+  kBurst,           // this measurement interval's burst budget of newcomers is taken
 };
-inline constexpr size_t kRedirectCount = 7;
+inline constexpr size_t kRedirectCount = 8;
 
 // What the server holds when a marked upgrade arrives.
 struct Door {
@@ -177,6 +217,7 @@ struct Door {
   size_t queued = 0;
   size_t max_players = 0;  // 0: no fixed bound
   bool behind = false;
+  size_t burst_left = 0;  // newcomers the interval's burst budget still lets in at once
 };
 
 // The first reason, in the enum's order, that a newcomer would not enter at once. Upgrades on

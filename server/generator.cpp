@@ -559,4 +559,9 @@ std::chrono::milliseconds Generator::oldest_urgent() const {
   return state_->schedule.oldest_urgent(Clock::now());
 }
 
+std::chrono::milliseconds Generator::oldest_want() const {
+  std::lock_guard lock(state_->mutex);
+  return state_->schedule.oldest_want(Clock::now());
+}
+
 }  // namespace grotto::server

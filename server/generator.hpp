@@ -126,6 +126,7 @@ class Generator {
   size_t queue_depth() const;  // jobs queued, not yet building
   // Schedule::oldest_urgent now: how late the most overdue urgent room is (admission's measure).
   std::chrono::milliseconds oldest_urgent() const;
+  std::chrono::milliseconds oldest_want() const;  // Schedule::oldest_want now (any class)
   // The shared device's launches and the workers' batches they carried (share_device with a
   // usable device; zeros otherwise).
   struct DeviceLaunches {

@@ -179,10 +179,14 @@ std::string Metrics::render() const {
   gauge(out, "grotto_admission_behind",
         "1 while the players are not served in time and newcomers wait in the queue.",
         admission_behind.value());
+  gauge(out, "grotto_admission_burst",
+        "Newcomers let in per measurement interval, at once or from the queue: learned from the "
+        "measurements (doubles while they stay quick, halves when the service falls behind).",
+        admission_burst.value());
   header(out, "grotto_admission_redirected_total", "counter",
          "Upgrades a balancer marked (X-Grotto-Balancer) sent on to another replica before the "
          "upgrade, by reason (stopping, max_connections, max_handshakes, queue, max_players, "
-         "behind). Not connections, not refusals.");
+         "behind, burst). Not connections, not refusals.");
   for (size_t i = 1; i < kRedirectCount; ++i) {
     out += "grotto_admission_redirected_total{reason=\"";
     out += redirect_name(static_cast<Redirect>(i));

@@ -65,6 +65,7 @@ class Metrics {
   Counter sessions_refused;              // grotto_sessions_refused_total (overloaded at hello)
   Gauge admission_capacity;  // grotto_admission_capacity (players when it last fell behind)
   Gauge admission_behind;    // grotto_admission_behind (1 while newcomers wait)
+  Gauge admission_burst;     // grotto_admission_burst (newcomers let in a measurement interval)
   Gauge oldest_urgent_ms;    // grotto_oldest_urgent_ms (players' oldest urgent wants, p90)
   // Upgrades a balancer marked (X-Grotto-Balancer: try-others) that were sent on to another
   // replica before the upgrade, by reason: grotto_admission_redirected_total{reason="..."}.

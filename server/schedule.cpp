@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cassert>
+#include <limits>
 #include <string>
 #include <utility>
 
@@ -535,9 +536,18 @@ std::vector<sched::Action> Schedule::take() {
 }
 
 std::chrono::milliseconds Schedule::oldest_urgent(ScheduleTime now) const {
+  return oldest_queued(now, true);
+}
+
+std::chrono::milliseconds Schedule::oldest_want(ScheduleTime now) const {
+  return oldest_queued(now, false);
+}
+
+std::chrono::milliseconds Schedule::oldest_queued(ScheduleTime now, bool urgent_only) const {
   if (clients_.empty()) return std::chrono::milliseconds{0};
-  const auto urgent = static_cast<uint64_t>(config_.urgent_within.count());
-  // Each client's oldest urgent want still queued; clients with none waiting count as 0.
+  const auto urgent = urgent_only ? static_cast<uint64_t>(config_.urgent_within.count())
+                                  : std::numeric_limits<uint64_t>::max();
+  // Each client's oldest (urgent) want still queued; clients with none waiting count as 0.
   std::vector<ScheduleTime::duration> ages(clients_.size(), ScheduleTime::duration{0});
   size_t n = 0;
   for (ClientId id : queued_clients_) {

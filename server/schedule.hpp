@@ -146,6 +146,9 @@ class Schedule {
   // count as 0). What admission (server/admission.hpp) reads to tell whether the players are
   // served in time. Looks only at the queues' urgent heads.
   std::chrono::milliseconds oldest_urgent(ScheduleTime now) const;
+  // The same over every want still queued, prefetch included: where a crowd's cost shows first
+  // (its prefetch waits behind everyone's urgent rooms), which admission's burst budget reads.
+  std::chrono::milliseconds oldest_want(ScheduleTime now) const;
   bool stopping() const { return stopping_; }
   size_t queued_jobs() const { return queued_jobs_; }  // jobs queued, not fetching or building
   size_t jobs() const { return jobs_.size(); }         // the ledger: queued, fetching, building
@@ -154,6 +157,7 @@ class Schedule {
   const RoomCache& cache() const { return cache_; }
 
  private:
+  std::chrono::milliseconds oldest_queued(ScheduleTime now, bool urgent_only) const;
   struct Job {
     enum class Stage { kQueued, kFetching, kBuilding };
     uint64_t id = 0;

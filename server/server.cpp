@@ -161,6 +161,7 @@ Redirect Server::Impl::redirect_newcomer() const {
     door.queued = admission->queued();
     door.max_players = admission->config().max_players;
     door.behind = admission->behind();
+    door.burst_left = admission->burst_left();
   }
   return grotto::server::redirect_newcomer(door);
 }
@@ -221,6 +222,7 @@ void Server::Impl::start_measuring() {
 void Server::Impl::measure() {
   AdmissionSample sample;
   sample.oldest_urgent = generator->oldest_urgent();  // the generator's lock, not ours
+  sample.oldest_want = generator->oldest_want();
   const uint64_t served = metrics.rooms_served.value();
   sample.rooms_per_s = static_cast<double>(served - rooms_served_before) * 1000.0 /
                        static_cast<double>(kMeasureEvery.count());
@@ -231,6 +233,7 @@ void Server::Impl::measure() {
   metrics.oldest_urgent_ms.set(sample.oldest_urgent.count());
   metrics.admission_behind.set(admission->behind() ? 1 : 0);
   metrics.admission_capacity.set(static_cast<int64_t>(admission->capacity()));
+  metrics.admission_burst.set(static_cast<int64_t>(admission->burst()));
 }
 
 Server::Server(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}

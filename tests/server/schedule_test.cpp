@@ -621,5 +621,17 @@ TEST(ScheduleTest, oldest_urgent_is_the_90th_percentile_of_clients_oldest_urgent
   EXPECT_EQ(s.schedule.oldest_urgent(s.now).count(), 500) << "alone, its wait is the server's";
 }
 
+// The burst budget's second signal: the same over every want, prefetch included.
+TEST(ScheduleTest, oldest_want_counts_prefetch_too) {
+  Sim s(config());
+  for (int i = 0; i < 10; ++i)
+    join()(s);
+  want(2, {{200, kFar}})(s);
+  want(3, {{300, kFar}})(s);
+  later(400ms)(s);
+  EXPECT_EQ(s.schedule.oldest_urgent(s.now).count(), 0) << "prefetch is not urgent";
+  EXPECT_EQ(s.schedule.oldest_want(s.now).count(), 400) << "two of ten wait on prefetch";
+}
+
 }  // namespace
 }  // namespace grotto::server
