@@ -109,13 +109,8 @@ Result<HallFloor> hall_floor(std::span<const uint8_t> payload, const mesh::RoomM
     }
     if (f.kind != formations::kFormationBoulder) {
       ++h.speleothems;
-      const glm::vec3 c = formations::formation_colour(f.tint);
-      bool far = false;
-      for (int i = 0; i < 3; ++i) {
-        const double srgb =
-            c[i] <= 0.0031308f ? 12.92 * c[i] : 1.055 * std::pow(c[i], 1 / 2.4) - 0.055;
-        far = far || 1.0 - srgb >= 0.15;
-      }
+      const glm::vec3 c = formations::formation_srgb(f.tint);
+      const bool far = c.r <= 0.85f || c.g <= 0.85f || c.b <= 0.85f;
       h.coloured += far;
       h.iron += f.tint >= 0.3f && f.tint < 0.8f;
       h.manganese += f.tint >= 0.8f;

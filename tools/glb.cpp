@@ -219,16 +219,6 @@ json add_plain_mesh(Document& doc, const std::string& name, std::span<const glm:
   return json{{"name", name}, {"primitives", json::array({std::move(primitive)})}};
 }
 
-// A linear colour as sRGB (0-1 a channel), as a glTF tool shows colours.
-json srgb(glm::vec3 linear) {
-  json out = json::array();
-  for (int i = 0; i < 3; ++i) {
-    const float c = std::clamp(linear[i], 0.0f, 1.0f);
-    out.push_back(c <= 0.0031308f ? 12.92f * c : 1.055f * std::pow(c, 1.0f / 2.4f) - 0.055f);
-  }
-  return out;
-}
-
 // One formation's shape as the file's extras give it (formations::FormationShape: root in its
 // room's frame, metres and radians).
 json formation_json(const formations::FormationShape& f) {
@@ -246,7 +236,11 @@ json formation_json(const formations::FormationShape& f) {
           {"bulbs", f.bulbs},
           {"seed", f.seed},
           {"yaw", f.yaw},
-          {"colour", srgb(formations::formation_colour(f.tint))},
+          {"colour",
+           [&] {
+             const glm::vec3 c = formations::formation_srgb(f.tint);
+             return json{c.r, c.g, c.b};
+           }()},
           {"wet", f.wet}};
 }
 

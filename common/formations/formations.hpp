@@ -6,8 +6,8 @@
 // hung plumb from the drawn ceiling with its stalagmite beneath it on the floor the drip falls
 // on, over a flowstone mound beneath the line's middle; columns where the two would meet, and
 // draperies along the slope of inclined ceilings. Slow lines (water that seeps too slowly to
-// build on the floor) are fringes of stalactites alone. Between the lines the floor is bare. In halls
-// the blocks fallen from the ceiling lie in heaps on the floor beneath where it broke
+// build on the floor) are fringes of stalactites alone. Between the lines the floor is bare. In
+// halls the blocks fallen from the ceiling lie in heaps on the floor beneath where it broke
 // (breakdown.cpp). The shape of one instance is shaders/formation.glsl's,
 // compiled here as C++ over GLM (as relief.hpp does), so the renderer, collision, the glb export
 // and engines see the same formations.
@@ -20,6 +20,7 @@
 #pragma once
 
 #include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <span>
 #include <vector>
@@ -62,9 +63,19 @@ inline Surface surface_of(const codec::DecodedRoom& mesh, Vec3 origin, double ro
   return s;
 }
 
+// A formation's calcite colour (formation_colour of its tint) as sRGB, 0-1 a channel: what a glTF
+// tool or a colour picker shows.
+inline vec3 formation_srgb(float tint) {
+  const vec3 c = clamp(formation_colour(tint), vec3(0.0f), vec3(1.0f));
+  vec3 out;
+  for (int i = 0; i < 3; ++i)
+    out[i] = c[i] <= 0.0031308f ? 12.92f * c[i] : 1.055f * std::pow(c[i], 1.0f / 2.4f) - 0.055f;
+  return out;
+}
+
 // The formations of the room, roots in its frame (metres from Surface::origin), in a fixed order
-// (the speleothems by drip line and drip, then height; then a hall's boulders, heap by heap, biggest
-// first). Empty for an empty mesh.
+// (the speleothems by drip line and drip, then height; then a hall's boulders, heap by heap,
+// biggest first). Empty for an empty mesh.
 std::vector<FormationShape> place(const Surface& surface);
 
 // How far the drawn rock can lie from the patch surface along its normal (relief_normal_bound at

@@ -79,24 +79,13 @@ class Placer {
   // speleothems' hits are, so whatever order the triangles come in the same one answers.
   bool floor_under(vec2 xz, float below, Hit& out) const {
     if (cells_.empty()) return false;
-    const ivec2 c = cell_of(xz);
     bool found = false;
-    for (uint32_t t : cells_[static_cast<size_t>(c.y) * static_cast<size_t>(dims_.x) +
-                             static_cast<size_t>(c.x)]) {
-      const vec3 w = barycentric(t, xz);
-      if (!(w.x >= 0.0f && w.y >= 0.0f && w.z > 0.0f)) continue;
-      const std::array<uint32_t, 3> k = corners(t);
-      const vec3 a = position(k[0]), b = position(k[1]), d = position(k[2]);
-      const vec3 face = cross(b - a, d - a);
-      const float len = length(face);
-      if (!(len > 1e-9f) || !(face.y / len > kFloor)) continue;
-      const float y = dot(w, vec3(a.y, b.y, d.y));
-      if (!(y < below) || (found && !(y > out.y))) continue;
+    Hit h;
+    for (uint32_t t : cell_triangles(xz)) {
+      if (!hit(t, xz, h) || !(h.facing > kFloor)) continue;
+      if (!(h.y < below) || (found && !(h.y > out.y))) continue;
       found = true;
-      out.y = y;
-      out.w = w;
-      out.tri = t;
-      out.facing = face.y / len;
+      out = h;
     }
     return found;
   }
@@ -107,22 +96,9 @@ class Placer {
   std::vector<Hit> vertical_hits(vec2 xz) const {
     std::vector<Hit> out;
     if (cells_.empty()) return out;
-    const ivec2 c = cell_of(xz);
-    for (uint32_t t : cells_[static_cast<size_t>(c.y) * static_cast<size_t>(dims_.x) +
-                             static_cast<size_t>(c.x)]) {
-      const vec3 w = barycentric(t, xz);
-      if (!(w.x >= 0.0f && w.y >= 0.0f && w.z > 0.0f)) continue;
-      const std::array<uint32_t, 3> k = corners(t);
-      const vec3 a = position(k[0]), b = position(k[1]), d = position(k[2]);
-      const vec3 face = cross(b - a, d - a);
-      const float len = length(face);
-      if (!(len > 1e-9f) || std::abs(face.y / len) < 0.05f) continue;
-      Hit h;
-      h.y = dot(w, vec3(a.y, b.y, d.y));
-      h.w = w;
-      h.tri = t;
-      h.facing = face.y / len;
-      out.push_back(h);
+    Hit h;
+    for (uint32_t t : cell_triangles(xz)) {
+      if (hit(t, xz, h) && std::abs(h.facing) >= 0.05f) out.push_back(h);
     }
     std::sort(out.begin(), out.end(), [](const Hit& a, const Hit& b) {
       return std::tie(a.y, a.facing) < std::tie(b.y, b.facing);
@@ -130,18 +106,41 @@ class Placer {
     return out;
   }
 
+  // The triangles whose boxes meet the grid cell of room-frame (x, z).
+  const std::vector<uint32_t>& cell_triangles(vec2 xz) const {
+    const ivec2 c = cell_of(xz);
+    return cells_[static_cast<size_t>(c.y) * static_cast<size_t>(dims_.x) +
+                  static_cast<size_t>(c.x)];
+  }
+
+  // Where the vertical line through room-frame (x, z) meets triangle t, half-open on its edges
+  // (so that a line on a shared edge meets one of the two): false where it misses, or where the
+  // triangle has no area.
+  bool hit(uint32_t t, vec2 xz, Hit& out) const {
+    const vec3 w = barycentric(t, xz);
+    if (!(w.x >= 0.0f && w.y >= 0.0f && w.z > 0.0f)) return false;
+    const std::array<uint32_t, 3> k = corners(t);
+    const vec3 a = position(k[0]), b = position(k[1]), d = position(k[2]);
+    const vec3 face = cross(b - a, d - a);
+    const float len = length(face);
+    if (!(len > 1e-9f)) return false;
+    out.y = dot(w, vec3(a.y, b.y, d.y));
+    out.w = w;
+    out.tri = t;
+    out.facing = face.y / len;
+    return true;
+  }
+
   // The height of the drawn surface straight above or below room-frame (x, z), on the sheet of
   // rock nearest to height `near`: NaN where no triangle lies over (x, z).
   float height_near(vec2 xz, float near) const {
     if (cells_.empty()) return std::nanf("");
-    const ivec2 c = cell_of(xz);
     // The nearest sheet by the flat triangles; the drawn surface (a relief_at) of that one only.
     bool found = false;
     uint32_t best = 0;
     vec3 best_w(0.0f);
     float gap = 1e30f;
-    for (uint32_t t : cells_[static_cast<size_t>(c.y) * static_cast<size_t>(dims_.x) +
-                             static_cast<size_t>(c.x)]) {
+    for (uint32_t t : cell_triangles(xz)) {
       const vec3 w = barycentric(t, xz);
       if (!(w.x >= -1e-4f && w.y >= -1e-4f && w.z >= -1e-4f)) continue;
       const std::array<uint32_t, 3> k = corners(t);
